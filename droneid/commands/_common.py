@@ -1,0 +1,61 @@
+"""Helpers shared by CLI commands (printing is allowed here: this is the CLI layer)."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+
+class ProgressBar:
+    """A text progress bar on stderr; call it as ``bar(done, total, message="")``.
+
+    Library code takes an optional ``progress`` callable with this signature and never prints.
+    Silent when ``quiet`` or when stderr is not a terminal and ``force`` is false (then it prints
+    one line per ~10 % instead of redrawing).
+    """
+
+    def __init__(self, label: str, quiet: bool = False, stream=None):
+        self.label = label
+        self.quiet = quiet
+        self.stream = stream or sys.stderr
+        self.t0 = time.perf_counter()
+        self._last_decile = -1
+        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
+
+    def __call__(self, done: int, total: int, message: str = "") -> None:
+        if self.quiet or total <= 0:
+            return
+        frac = min(max(done / total, 0.0), 1.0)
+        elapsed = time.perf_counter() - self.t0
+        eta = elapsed / frac - elapsed if frac > 0 else float("nan")
+        text = f"{self.label}: {done}/{total} ({100 * frac:5.1f} %) {elapsed:6.1f} s"
+        if frac < 1 and eta == eta:
+            text += f", ~{eta:.0f} s left"
+        if message:
+            text += f"  {message}"
+        if self._tty:
+            width = 24
+            bar = "#" * int(round(width * frac)) + "-" * (width - int(round(width * frac)))
+            self.stream.write(f"\r[{bar}] {text}\033[K")
+            if done >= total:
+                self.stream.write("\n")
+        else:
+            decile = int(frac * 10)
+            if decile != self._last_decile or done >= total:
+                self._last_decile = decile
+                self.stream.write(text + "\n")
+        self.stream.flush()
+
+
+def print_json(obj) -> None:
+    """Print one JSON object on one line to stdout."""
+    print(json.dumps(obj, default=_json_default, allow_nan=False))
+
+
+def _json_default(o):
+    import numpy as np
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"cannot serialise {type(o).__name__}")

@@ -1,0 +1,72 @@
+"""The one exception family of droneid.
+
+Every error droneid raises on purpose derives from :class:`DroneIdError` and also from the
+builtin that fits (``ValueError``, ``KeyError``, ``OSError``), so callers can catch either.
+The CLI maps the whole family to exit code 2 and one line on stderr.
+"""
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+
+class DroneIdError(Exception):
+    """Base class of every error droneid raises on purpose."""
+
+
+class LogFormatError(DroneIdError, ValueError):
+    """A log file cannot be read: unknown format, empty, corrupt beyond use."""
+
+    def __init__(self, path, problem: str):
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class MissingSignalError(DroneIdError, KeyError):
+    """A signal a stage needs is not in the flight or table."""
+
+    def __init__(self, name: str, available: Iterable[str] = (), where: str = ""):
+        self.name = name
+        self.available = sorted(available)
+        msg = f"signal '{name}' is not available"
+        if where:
+            msg += f" in {where}"
+        msg += did_you_mean(name, self.available)
+        if self.available and not did_you_mean(name, self.available):
+            shown = ", ".join(self.available[:12]) + (", ..." if len(self.available) > 12 else "")
+            msg += f" (available: {shown})"
+        self.message = msg
+        super().__init__(msg)
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return self.message
+
+
+class ConfigError(DroneIdError, ValueError):
+    """A parameter, option, prior, constraint or config file is invalid."""
+
+
+class NotFittedError(DroneIdError, AttributeError):
+    """An estimator was used before ``fit``."""
+
+
+class DataError(DroneIdError, ValueError):
+    """The data are unusable for the requested stage (too few samples, non-finite values, ...)."""
+
+
+def did_you_mean(name: str, choices: Iterable[str]) -> str:
+    """Return ``" (did you mean 'x'?)"`` for the closest valid name, or ``""``."""
+    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def check_choice(param: str, value, choices: Iterable, owner: str = "") -> None:
+    """Raise ConfigError in the scikit-learn style when ``value`` is not one of ``choices``."""
+    choices = list(choices)
+    if value not in choices:
+        where = f" of {owner}" if owner else ""
+        hint = did_you_mean(str(value), [str(c) for c in choices])
+        raise ConfigError(
+            f"The '{param}' parameter{where} must be one of {choices}. Got {value!r} instead.{hint}"
+        )

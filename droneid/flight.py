@@ -1,0 +1,339 @@
+"""The ``Flight``: the one container every reader returns and every later stage consumes.
+
+A flight is a set of named signals, each with its own time stamps (logs mix rates), in the ONE
+internal convention of :mod:`droneid.frames`: float64 seconds from the log start, SI units,
+ENU world frame, FLU body frame, Z-Y-X Euler angles. :data:`CANONICAL_SIGNALS` names the signals
+users type on the command line.
+"""
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+
+import numpy as np
+
+from .errors import DataError, MissingSignalError
+
+__all__ = [
+    "CANONICAL_SIGNALS", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "canonical_unit", "is_canonical",
+]
+
+#: Canonical signal names -> (unit, meaning). Motor outputs are ``motor1`` .. ``motor16``.
+CANONICAL_SIGNALS: Mapping[str, tuple[str, str]] = MappingProxyType({
+    "x": ("m", "position east of the local origin (world ENU)"),
+    "y": ("m", "position north of the local origin (world ENU)"),
+    "z": ("m", "height above the local origin (world ENU, up)"),
+    "vx": ("m/s", "velocity east (world ENU)"),
+    "vy": ("m/s", "velocity north (world ENU)"),
+    "vz": ("m/s", "velocity up (world ENU)"),
+    "roll": ("rad", "Z-Y-X Euler roll of the FLU body in ENU (positive: right side down)"),
+    "pitch": ("rad", "Z-Y-X Euler pitch of the FLU body in ENU (positive: nose down)"),
+    "yaw": ("rad", "Z-Y-X Euler yaw, counter-clockwise from east, wrapped to [-pi, pi)"),
+    "qw": ("1", "attitude quaternion, scalar part (Hamilton, FLU body to ENU world)"),
+    "qx": ("1", "attitude quaternion, x part"),
+    "qy": ("1", "attitude quaternion, y part"),
+    "qz": ("1", "attitude quaternion, z part"),
+    "wx": ("rad/s", "body angular rate about body x (forward), FLU"),
+    "wy": ("rad/s", "body angular rate about body y (left), FLU"),
+    "wz": ("rad/s", "body angular rate about body z (up), FLU"),
+    "ax": ("m/s^2", "specific force along body x (accelerometer, FLU)"),
+    "ay": ("m/s^2", "specific force along body y (accelerometer, FLU)"),
+    "az": ("m/s^2", "specific force along body z (accelerometer, FLU; +9.81 at rest)"),
+    "throttle": ("1", "collective throttle command, 0..1"),
+    "thrust": ("N", "collective thrust along body z"),
+    "battery_voltage": ("V", "battery voltage"),
+    "battery_current": ("A", "battery current"),
+    "lat": ("deg", "GNSS latitude (WGS84 degrees; the one non-SI canonical unit)"),
+    "lon": ("deg", "GNSS longitude (WGS84 degrees)"),
+    "alt": ("m", "altitude above mean sea level"),
+    "baro_alt": ("m", "barometric altitude relative to the log's baro reference"),
+})
+
+_MOTOR_RE = re.compile(r"^motor([1-9]|1[0-6])$")
+
+
+def is_canonical(name: str) -> bool:
+    """True for a canonical signal name (including ``motor1`` .. ``motor16``)."""
+    return name in CANONICAL_SIGNALS or bool(_MOTOR_RE.match(name))
+
+
+def canonical_unit(name: str) -> str:
+    """The unit of a canonical signal (``"1"`` for dimensionless)."""
+    if _MOTOR_RE.match(name):
+        return "1"
+    try:
+        return CANONICAL_SIGNALS[name][0]
+    except KeyError:
+        raise MissingSignalError(name, list(CANONICAL_SIGNALS) + ["motor1"],
+                                 where="the canonical signal list") from None
+
+
+@dataclass(frozen=True)
+class Signal:
+    """One time series: ``values[i]`` was valid at ``t[i]`` seconds from the log start.
+
+    ``t`` is strictly increasing float64 seconds; ``values`` is float64 of the same length;
+    ``unit`` is an SI unit string; ``source`` names the message/topic and field it came from.
+    """
+    name: str
+    t: np.ndarray
+    values: np.ndarray
+    unit: str
+    source: str = ""
+
+    def __post_init__(self):
+        t = np.asarray(self.t, dtype=np.float64)
+        v = np.asarray(self.values, dtype=np.float64)
+        if t.ndim != 1 or v.shape != t.shape:
+            raise DataError(
+                f"signal '{self.name}': t and values must be 1-D of equal length, "
+                f"got {t.shape} and {v.shape}")
+        if t.size > 1 and not np.all(np.diff(t) > 0):
+            raise DataError(f"signal '{self.name}': time stamps must be strictly increasing")
+        t.setflags(write=False)
+        v.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "values", v)
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sample rate (Hz); nan with fewer than two samples."""
+        if self.t.size < 2:
+            return math.nan
+        return float(1.0 / np.median(np.diff(self.t)))
+
+    @property
+    def start_s(self) -> float:
+        return float(self.t[0]) if self.t.size else math.nan
+
+    @property
+    def end_s(self) -> float:
+        return float(self.t[-1]) if self.t.size else math.nan
+
+    def between(self, t0: float, t1: float) -> "Signal":
+        """The samples with ``t0 <= t <= t1`` (seconds)."""
+        m = (self.t >= t0) & (self.t <= t1)
+        return replace(self, t=self.t[m], values=self.values[m])
+
+    def shifted(self, dt_s: float) -> "Signal":
+        """The same signal with every time stamp moved by ``dt_s`` seconds."""
+        return replace(self, t=self.t + dt_s)
+
+    @classmethod
+    def clean(cls, name: str, t, values, unit: str, source: str = "") -> tuple["Signal", dict]:
+        """Build a signal from raw samples, dropping non-finite values and non-increasing stamps.
+
+        Returns the signal and a dict ``{reason: count}`` of what was dropped (empty if nothing).
+        Duplicate stamps keep the first sample; a stamp earlier than the last kept one is dropped.
+        """
+        t = np.asarray(t, dtype=np.float64).ravel()
+        v = np.asarray(values, dtype=np.float64).ravel()
+        dropped: dict[str, int] = {}
+        finite = np.isfinite(t) & np.isfinite(v)
+        if not finite.all():
+            dropped["non-finite values"] = int((~finite).sum())
+            t, v = t[finite], v[finite]
+        if t.size > 1:
+            keep = np.empty(t.size, dtype=bool)
+            keep[0] = True
+            running = np.maximum.accumulate(t)
+            keep[1:] = t[1:] > running[:-1]
+            n_bad = int((~keep).sum())
+            if n_bad:
+                dup = int((t[1:] == running[:-1]).sum())
+                if dup:
+                    dropped["duplicate time stamps"] = dup
+                if n_bad - dup:
+                    dropped["backwards time stamps"] = n_bad - dup
+                t, v = t[keep], v[keep]
+        return cls(name, t, v, unit, source), dropped
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a flight came from: files, format, vehicle and firmware when known, and notes
+    on how signals were obtained (e.g. "vx, vy, vz derived from x, y, z by central differences")."""
+    files: tuple[str, ...] = ()
+    format: str = "unknown"
+    vehicle: str | None = None
+    firmware: str | None = None
+    notes: tuple[str, ...] = ()
+
+    def with_note(self, note: str) -> "Provenance":
+        return replace(self, notes=self.notes + (note,))
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """What went wrong while reading, kept as data: ``skipped`` maps a reason to a count of
+    records or samples skipped; ``warnings`` are human-readable lines (gaps, clock problems)."""
+    skipped: Mapping[str, int] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "skipped", MappingProxyType(dict(self.skipped)))
+
+    @property
+    def total_skipped(self) -> int:
+        return int(sum(self.skipped.values()))
+
+    def add(self, skipped: Mapping[str, int] | None = None, warnings: Iterable[str] = ()) -> "Diagnostics":
+        """A new Diagnostics with counts added and warnings appended."""
+        counts = dict(self.skipped)
+        for k, n in (skipped or {}).items():
+            if n:
+                counts[k] = counts.get(k, 0) + int(n)
+        return Diagnostics(counts, self.warnings + tuple(warnings))
+
+    def to_dict(self) -> dict:
+        return {"skipped": dict(self.skipped), "total_skipped": self.total_skipped,
+                "warnings": list(self.warnings)}
+
+
+@dataclass(frozen=True)
+class Event:
+    """A discrete event at ``t_s`` seconds: ``kind`` is e.g. "mode", "armed", "disarmed",
+    "takeoff", "land", "crash"; ``text`` says more (mode name, message)."""
+    t_s: float
+    kind: str
+    text: str = ""
+
+
+@dataclass(frozen=True)
+class Flight:
+    """A flight log in droneid's internal convention.
+
+    Attributes
+    ----------
+    signals : mapping name -> :class:`Signal` (canonical names where the quantity is canonical;
+        other names are kept for inspection but later stages only ask for canonical ones)
+    provenance : :class:`Provenance`
+    diagnostics : :class:`Diagnostics`
+    segments : mapping of a label ("armed", "in_flight") to tuple of ``(start_s, end_s)``
+    events : tuple of :class:`Event`
+    """
+    signals: Mapping[str, Signal]
+    provenance: Provenance = field(default_factory=Provenance)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
+    segments: Mapping[str, tuple[tuple[float, float], ...]] = field(default_factory=dict)
+    events: tuple[Event, ...] = ()
+
+    def __post_init__(self):
+        sig = dict(self.signals)
+        for k, s in sig.items():
+            if k != s.name:
+                raise DataError(f"signal stored under '{k}' is named '{s.name}'")
+        object.__setattr__(self, "signals", MappingProxyType(sig))
+        seg = {k: tuple((float(a), float(b)) for a, b in v) for k, v in dict(self.segments).items()}
+        object.__setattr__(self, "segments", MappingProxyType(seg))
+        object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.t_s)))
+
+    # -- access ---------------------------------------------------------------------------
+    def __getitem__(self, name: str) -> Signal:
+        try:
+            return self.signals[name]
+        except KeyError:
+            where = self.provenance.files[0] if self.provenance.files else "this flight"
+            raise MissingSignalError(name, self.signals, where=where) from None
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.signals
+
+    def has(self, *names: str) -> bool:
+        """True when every name is a signal of this flight with at least one sample."""
+        return all(n in self.signals and len(self.signals[n]) > 0 for n in names)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.signals)
+
+    @property
+    def start_s(self) -> float:
+        starts = [s.start_s for s in self.signals.values() if len(s)]
+        return float(min(starts)) if starts else math.nan
+
+    @property
+    def end_s(self) -> float:
+        ends = [s.end_s for s in self.signals.values() if len(s)]
+        return float(max(ends)) if ends else math.nan
+
+    @property
+    def duration_s(self) -> float:
+        """Seconds from the first to the last sample of any signal (0 for an empty flight)."""
+        if not self.signals:
+            return 0.0
+        return self.end_s - self.start_s
+
+    @property
+    def name(self) -> str:
+        """A short label: the first file's stem, or the format."""
+        if self.provenance.files:
+            import os
+            return os.path.splitext(os.path.basename(self.provenance.files[0]))[0]
+        return self.provenance.format
+
+    # -- derivation -----------------------------------------------------------------------
+    def with_signals(self, *signals: Signal, note: str | None = None) -> "Flight":
+        """A new flight with these signals added or replaced (and a provenance note)."""
+        sig = dict(self.signals)
+        for s in signals:
+            sig[s.name] = s
+        prov = self.provenance.with_note(note) if note else self.provenance
+        return replace(self, signals=sig, provenance=prov)
+
+    def without(self, *names: str) -> "Flight":
+        return replace(self, signals={k: v for k, v in self.signals.items() if k not in names})
+
+    def between(self, t0: float, t1: float) -> "Flight":
+        """Only the samples with ``t0 <= t <= t1`` seconds (time stamps unchanged)."""
+        return replace(self, signals={k: s.between(t0, t1) for k, s in self.signals.items()},
+                       events=tuple(e for e in self.events if t0 <= e.t_s <= t1))
+
+    def shifted(self, dt_s: float) -> "Flight":
+        """Every time stamp, segment and event moved by ``dt_s`` seconds."""
+        return replace(
+            self,
+            signals={k: s.shifted(dt_s) for k, s in self.signals.items()},
+            segments={k: tuple((a + dt_s, b + dt_s) for a, b in v) for k, v in self.segments.items()},
+            events=tuple(replace(e, t_s=e.t_s + dt_s) for e in self.events),
+        )
+
+    def summary(self) -> dict:
+        """A JSON-ready summary (what ``droneid inspect --json`` prints)."""
+        return {
+            "files": list(self.provenance.files),
+            "format": self.provenance.format,
+            "vehicle": self.provenance.vehicle,
+            "firmware": self.provenance.firmware,
+            "duration_s": _r(self.duration_s),
+            "signals": [
+                {"name": s.name, "unit": s.unit, "rate_hz": _r(s.rate_hz), "count": len(s),
+                 "start_s": _r(s.start_s), "end_s": _r(s.end_s), "source": s.source}
+                for s in sorted(self.signals.values(), key=_signal_order)
+            ],
+            "segments": {k: [[_r(a), _r(b)] for a, b in v] for k, v in self.segments.items()},
+            "events": [{"t_s": _r(e.t_s), "kind": e.kind, "text": e.text} for e in self.events],
+            "notes": list(self.provenance.notes),
+            "diagnostics": self.diagnostics.to_dict(),
+        }
+
+
+def _r(x: float, nd: int = 4):
+    return None if x is None or not math.isfinite(x) else round(float(x), nd)
+
+
+_ORDER = {n: i for i, n in enumerate(CANONICAL_SIGNALS)}
+
+
+def _signal_order(s: Signal):
+    m = _MOTOR_RE.match(s.name)
+    if m:
+        return (len(_ORDER), int(m.group(1)), s.name)
+    return (_ORDER.get(s.name, len(_ORDER) + 1), 0, s.name)

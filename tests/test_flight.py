@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+
+from droneid.errors import DataError, DroneIdError, MissingSignalError
+from droneid.flight import Diagnostics, Flight, Provenance, Signal, canonical_unit, is_canonical
+
+
+def _flight():
+    t = np.linspace(0, 10, 101)
+    return Flight(
+        {"vx": Signal("vx", t, np.sin(t), "m/s", "TEST.vx"),
+         "roll": Signal("roll", t[::2], 0.1 * t[::2], "rad", "TEST.roll")},
+        Provenance(files=("a.bin",), format="test"),
+        segments={"armed": [(1.0, 9.0)]},
+    )
+
+
+def test_signal_rejects_non_increasing_time():
+    with pytest.raises(DataError):
+        Signal("x", [0, 1, 1], [1, 2, 3], "m")
+
+
+def test_signal_clean_counts_what_it_drops():
+    s, dropped = Signal.clean("x", [0, 1, 1, 0.5, 2, 3], [0, 1, 2, 3, np.nan, 5], "m")
+    np.testing.assert_array_equal(s.t, [0, 1, 3])
+    assert dropped == {"non-finite values": 1, "duplicate time stamps": 1, "backwards time stamps": 1}
+
+
+def test_flight_access_and_missing_signal_suggestion():
+    f = _flight()
+    assert f["vx"].unit == "m/s"
+    assert f.has("vx", "roll") and not f.has("vy")
+    with pytest.raises(MissingSignalError, match="did you mean 'vx'") as ei:
+        f["vxx"]
+    assert isinstance(ei.value, KeyError) and isinstance(ei.value, DroneIdError)
+    assert "a.bin" in str(ei.value)
+
+
+def test_flight_is_immutable_and_derivations_copy():
+    f = _flight()
+    with pytest.raises(ValueError):
+        f["vx"].values[0] = 3.0
+    g = f.with_signals(Signal("vy", [0, 1], [0, 0], "m/s"), note="vy added")
+    assert "vy" in g and "vy" not in f and g.provenance.notes == ("vy added",)
+    h = f.shifted(2.0)
+    assert h["vx"].t[0] == 2.0 and h.segments["armed"] == ((3.0, 11.0),)
+    assert f.between(2, 4)["vx"].t.min() >= 2
+
+
+def test_summary_has_the_inspect_schema():
+    s = _flight().summary()
+    assert s["format"] == "test" and s["duration_s"] == 10.0
+    names = [x["name"] for x in s["signals"]]
+    assert names == ["vx", "roll"]  # canonical order
+    vx = s["signals"][0]
+    assert set(vx) >= {"name", "unit", "rate_hz", "count", "start_s", "end_s", "source"}
+    assert vx["rate_hz"] == pytest.approx(10.0) and vx["count"] == 101
+
+
+def test_diagnostics_add():
+    d = Diagnostics().add({"bad crc": 2}).add({"bad crc": 1, "x": 0}, ["gap of 2 s"])
+    assert d.skipped == {"bad crc": 3} and d.total_skipped == 3 and d.warnings == ("gap of 2 s",)
+
+
+def test_canonical_names():
+    assert is_canonical("motor4") and is_canonical("battery_voltage") and not is_canonical("motor0")
+    assert canonical_unit("vz") == "m/s" and canonical_unit("motor2") == "1"
+    with pytest.raises(MissingSignalError):
+        canonical_unit("speed")
