@@ -27,7 +27,7 @@ Steps, per flight:
    target by two differentiations, said in the notes). ``forward`` and ``central`` work on the
    grid (the paper: ``v̇[k] = (v[k+1] − v[k]) / Ts``, the last sample of each interval dropped);
    the smoothing ones (``savgol``, ``spline``) work at the signal's native rate (uniformly
-   resampled) and the derivative is then sampled on the grid.
+   resampled, at most 10 samples per grid step) and the derivative is then sampled on the grid.
 """
 from __future__ import annotations
 
@@ -522,9 +522,10 @@ class DatasetBuilder:
     def _differentiate(sig: Signal, grid, diff, a, b, order: int):
         angle = _is_angle(sig)
         if diff.smoothing:
-            # at the native rate (uniform), then sampled on the grid
-            h = min(float(np.median(np.diff(sig.t))) if len(sig) > 1 else grid[1] - grid[0],
-                    float(grid[1] - grid[0]))
+            # at the native rate (uniform; at most 10 steps per grid step), then on the grid
+            ts = float(grid[1] - grid[0])
+            native = float(np.median(np.diff(sig.t))) if len(sig) > 1 else ts
+            h = min(max(native, ts / 10), ts)
             fine = a + h * np.arange(int(math.floor((b - a) / h + 1e-9)) + 1)
             v = _unwrapped(sig, fine) if angle else resample_signal(sig, fine)
             for _ in range(order):
