@@ -16,6 +16,8 @@ HIGHRES_IMU               xacc = ax, yacc = -ay, zacc = -az (specific force, FRD
 SERVO_OUTPUT_RAW          servoN_raw = 1000 + 1000 * motorN (µs PWM)
 VFR_HUD                   throttle (integer %), groundspeed, heading, alt = z, climb = vz
 SYS_STATUS                voltage_battery (mV), current_battery (cA, -1 when unknown)
+EXTENDED_SYS_STATE        landed_state IN_AIR inside the "in_flight" segments, else ON_GROUND
+                          (on the position/attitude time base; only when the flight has segments)
 ========================  =========================================================================
 
 Precision: float32 fields (~1e-7 relative), PWM 1e-3, throttle 1 %, voltage 1 mV, heading 1 deg.
@@ -41,6 +43,7 @@ _FLAG_CUSTOM_MODE = 1
 _FLAG_STABILIZE = 16
 _FLAG_ARMED = 128
 _MAV_STATE_STANDBY, _MAV_STATE_ACTIVE = 3, 4
+_MAV_LANDED_STATE_ON_GROUND, _MAV_LANDED_STATE_IN_AIR = 1, 2
 
 
 def _f(x):
@@ -126,6 +129,15 @@ def write_tlog(flight, path) -> str:
         ca = np.where(np.isfinite(v["battery_current"]), np.round(v["battery_current"] * 100), -1).astype(int)
         for i in range(t.size):
             add(t[i], 7, mav.sys_status_encode(0, 0, 0, 0, int(mv[i]), int(ca[i]), -1, 0, 0, 0, 0, 0, 0))
+
+    if "in_flight" in flight.segments:
+        base = next((n for n in ("x", "roll", "vx", "qw") if flight.has(n)), None)
+        times = flight[base].t if base else np.array([t_start + k for k in range(int(t_end - t_start) + 1)])
+        flying = flight.segments["in_flight"]
+        for ts in times:
+            air = any(a <= ts <= b for a, b in flying)
+            add(ts, 8, mav.extended_sys_state_encode(
+                0, _MAV_LANDED_STATE_IN_AIR if air else _MAV_LANDED_STATE_ON_GROUND))
 
     records.sort(key=lambda r: (r[0], r[1]))
     out = bytearray()
