@@ -67,6 +67,16 @@ EFFECTS = MappingProxyType({
     "anisotropic_drag": {"kx": 0.15, "ky": 0.45, "kz": 0.28},
 })
 
+# (effect, param) -> (lower bound, inclusive)
+_EFFECT_MIN = {
+    ("quadratic_drag", "c"): (0.0, True), ("gust", "sigma"): (0.0, True), ("gust", "tau_s"): (0.0, False),
+    ("ground_effect", "rotor_radius_m"): (0.0, False), ("ground_effect", "altitude_m"): (0.0, False),
+    ("battery_sag", "v_start"): (0.0, False), ("battery_sag", "v_end"): (0.0, False),
+    ("attitude_delay", "tau_s"): (0.0, True), ("thrust_variation", "period_s"): (0.0, False),
+    ("anisotropic_drag", "kx"): (0.0, True), ("anisotropic_drag", "ky"): (0.0, True),
+    ("anisotropic_drag", "kz"): (0.0, True),
+}
+
 #: keyword parameters of :func:`simulate` (besides path, duration_s, rate_hz, effects, seed, noise)
 DEFAULT_PARAMS = MappingProxyType({
     "mass_kg": 0.5,            # Parrot Bebop 2 class
@@ -158,6 +168,10 @@ def parse_effects(effects) -> dict:
         for k, v in spec.items():
             if not math.isfinite(v):
                 raise ConfigError(f"effect '{eid}' parameter '{k}' must be finite, got {v}")
+            lo = _EFFECT_MIN.get((eid, k))
+            if lo is not None and not (v > lo[0] or (lo[1] and v == lo[0])):
+                raise ConfigError(f"effect '{eid}' parameter '{k}' must be {'>=' if lo[1] else '>'} "
+                                  f"{lo[0]}, got {v}")
         out[eid] = spec
     return out
 

@@ -3,7 +3,10 @@
 Each record is an 8-byte big-endian UNIX time stamp in µs followed by one packed MAVLink 2 frame
 (system 1, component 1, sequence counting up). Time stamps are ``EPOCH (2024-01-01 UTC) + t``,
 never the wall clock, so the same flight always gives the same bytes; ``time_boot_ms`` /
-``time_usec`` are the flight's seconds.
+``time_usec`` are the flight's seconds. The first HEARTBEAT is at t = 0, so readers that count
+from the first frame recover the flight's own times. Each message is written on the time base of
+its first field (e.g. ATTITUDE on roll's); other fields on other time bases are interpolated.
+Euler angles or quaternion missing from the flight are derived from the other.
 
 Messages (ENU/FLU -> NED/FRD through the involutions of :mod:`droneid.frames`):
 
@@ -33,7 +36,7 @@ import numpy as np
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 from droneid.io_util import atomic_write_bytes
 
-from ._writer_util import EPOCH_US, group, require_some
+from ._writer_util import EPOCH_US, complete_attitude, group, require_some
 
 __all__ = ["write_tlog"]
 
@@ -56,13 +59,16 @@ def write_tlog(flight, path) -> str:
 
     path = os.fspath(path)
     require_some(flight, path, "tlog")
+    flight = complete_attitude(flight)
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     records: list[tuple[int, int, object]] = []   # (t_us, order, message)
 
     def add(t_s, order, msg):
         records.append((int(round(t_s * 1e6)), order, msg))
 
-    t_start, t_end = flight.start_s, flight.end_s
+    # heartbeats from t = 0 (or the first sample, if earlier): readers count time from the first
+    # frame, so a flight's own time origin survives the round trip
+    t_start, t_end = min(0.0, flight.start_s), flight.end_s
     armed = flight.segments.get("armed", ())
     for k in range(int(math.floor(t_end - t_start)) + 1):
         ts = t_start + k

@@ -269,3 +269,25 @@ def test_read_flight_round_trip(flight, tmp_path):
     tl = parsers.read_flight(files["tlog"])
     assert tl.segments["armed"] == flight.segments["armed"]
     assert tl.segments["in_flight"] == flight.segments["in_flight"]
+
+
+def test_writers_fill_attitude_and_keep_time_origin(tmp_path):
+    """A flight with Euler angles only, starting at t = 0.5 s: the tlog still carries the quaternion
+    and its times; the MCAP pose gets the quaternion from the angles (not an identity)."""
+    t = np.arange(10) * 0.1 + 0.5
+    roll, pitch, yaw = 0.1 * np.sin(t), 0.05 * np.cos(t), wrap_angle(3.0 + 0.2 * t)
+    sig = {"x": t, "y": -t, "z": 1 + 0 * t, "roll": roll, "pitch": pitch, "yaw": yaw}
+    f = Flight({k: Signal(k, t, np.asarray(v), "1") for k, v in sig.items()})
+    msgs = _read_tlog_minimal(write_tlog(f, tmp_path / "e.tlog"))
+    assert msgs["HEARTBEAT"][0][0] == 0.0
+    tq = np.array([tt for tt, _ in msgs["ATTITUDE_QUATERNION"]])
+    np.testing.assert_allclose(tq, t, atol=1e-6)
+    q = quat_flu_enu_from_frd_ned(np.array([[m.q1, m.q2, m.q3, m.q4] for _, m in msgs["ATTITUDE_QUATERNION"]]))
+    qref = euler_to_quat(roll, pitch, yaw)
+    np.testing.assert_allclose(q, np.where(qref[:, :1] < 0, -qref, qref), atol=1e-6)
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with open(write_mcap(f, tmp_path / "e.mcap"), "rb") as fh:
+        oris = [m.pose.orientation for _, _, _, m in
+                make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/drone/pose"])]
+    assert abs(oris[0].w) < 0.2 and abs(oris[0].z) > 0.98      # yaw ~ 3.1 rad, not identity
