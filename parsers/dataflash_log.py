@@ -45,6 +45,8 @@ MESSAGE_TYPES = ("ATT", "EKF1", "NKF1", "XKF1", "IMU", "RCOU", "CTUN", "CURR", "
 
 _EV_ARMED, _EV_DISARMED, _EV_LAND_COMPLETE, _EV_NOT_LANDED = 10, 11, 18, 28
 _ERR_CRASH = 12
+_EV_NAMES = {15: "auto armed", 17: "land complete maybe", 19: "lost GPS", 21: "flip start",
+             22: "flip end", 25: "home set"}
 _DEG = math.pi / 180.0
 
 # fields wanted per type (those a given log lacks are ignored)
@@ -325,7 +327,7 @@ def _events(b: FlightBuilder, data, types):
                 air_t.append(ti), air_v.append(False)
                 b.event(ti, "land")
             else:
-                b.event(ti, "event", f"EV {i}")
+                b.event(ti, "event", _EV_NAMES.get(i, f"EV {i}"))
     if "ARM" in data and not arm_t:
         t, c = data["ARM"]
         for ti, s in zip(t, c["ArmState"]):
@@ -355,8 +357,15 @@ def _state_intervals(t, v, end):
 
 def _tilt_crash(b: FlightBuilder, crash_t):
     """A 'crash' event where the vehicle, armed, tilts beyond 90 deg (flipped over)."""
-    if crash_t is not None or not ("roll" in b.signals and "pitch" in b.signals):
-        return
+    if crash_t is None and "roll" in b.signals and "pitch" in b.signals:
+        crash_t = _flip_time(b)
+    if crash_t is not None and "in_flight" in b.segments:
+        # the flight ends at the crash: what follows is tumbling or lying on the ground
+        b.segment("in_flight", tuple((a, min(c, crash_t)) for a, c in b.segments["in_flight"]
+                                     if a < crash_t))
+
+
+def _flip_time(b: FlightBuilder):
     r, p = b.signals["roll"], b.signals["pitch"]
     n = min(len(r), len(p))
     tilt_cos = np.cos(r.values[:n]) * np.cos(p.values[:n])
@@ -368,6 +377,8 @@ def _tilt_crash(b: FlightBuilder, crash_t):
         for a, c in armed:
             in_arm |= (t >= a) & (t <= c)
         mask &= in_arm
-    if mask.any():
-        i = int(np.flatnonzero(mask)[0])
-        b.event(t[i], "crash", "attitude beyond 90 deg tilt while armed (flipped over)")
+    if not mask.any():
+        return None
+    i = int(np.flatnonzero(mask)[0])
+    b.event(t[i], "crash", "attitude beyond 90 deg tilt while armed (flipped over)")
+    return float(t[i])

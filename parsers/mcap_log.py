@@ -114,7 +114,8 @@ def read_mcap(path, topics=None):
             summary = reader.get_summary()
         except (McapError, Exception) as exc:  # noqa: BLE001 - mcap raises several types
             summary = None
-            b.warn(f"no usable MCAP summary ({type(exc).__name__}: {exc}); scanning the whole file")
+            b.warn(f"no MCAP summary ({type(exc).__name__}); the file is probably cut: "
+                   f"scanning it record by record")
         channels, schemas, counts = _channels(path, f, summary, factories)
         if not channels:
             raise LogFormatError(path, "the MCAP file holds no channels")
@@ -151,32 +152,49 @@ def _channels(path, f, summary, factories):
 
 
 def _iter_decoded(path, f, factories, topic_list, b):
-    """(channel, log_time_ns, decoded message) for the chosen topics, surviving a cut file."""
-    from mcap.reader import make_reader
+    """(channel, log_time_ns, decoded message) for the chosen topics, in file order.
+
+    Streams the records (no index needed), so a file cut anywhere yields everything before
+    the cut; the cut and undecodable messages are counted.
+    """
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+    wanted = set(topic_list)
+    schemas, channels = {}, {}
     f.seek(0)
     try:
-        reader = make_reader(f, decoder_factories=factories)
-        it = reader.iter_messages(topics=topic_list)
-        for schema, channel, message in it:
-            try:
-                if channel.message_encoding == "json":
-                    obj = json.loads(message.data)
-                else:
-                    obj = _decode(reader, factories, schema, channel, message)
-            except Exception:  # noqa: BLE001 - one bad message: skip and count
-                b.skip(f"{channel.topic}: undecodable messages", 1)
-                continue
-            yield channel, message.log_time, obj
+        for rec in StreamReader(f, skip_magic=False).records:
+            if isinstance(rec, Message):
+                ch = channels.get(rec.channel_id)
+                if ch is None or ch.topic not in wanted:
+                    continue
+                try:
+                    if ch.message_encoding == "json":
+                        obj = json.loads(rec.data)
+                    else:
+                        obj = _decode(path, factories, schemas.get(ch.schema_id), ch, rec)
+                except LogFormatError:
+                    raise
+                except Exception:  # noqa: BLE001 - one bad message: skip and count
+                    b.skip(f"{ch.topic}: undecodable messages", 1)
+                    continue
+                yield ch, rec.log_time, obj
+            elif isinstance(rec, Schema):
+                schemas[rec.id] = rec
+            elif isinstance(rec, Channel):
+                channels[rec.id] = rec
+    except LogFormatError:
+        raise
     except Exception as exc:  # noqa: BLE001 - cut or corrupt file: keep what was read
         b.skip("MCAP read stopped at a corrupt or cut record", 1)
-        b.warn(f"MCAP reading stopped early ({type(exc).__name__}: {exc})")
+        b.warn(f"MCAP reading stopped early ({type(exc).__name__}: {str(exc)[:120]})")
 
 
 _DECODERS: dict = {}
 
 
-def _decode(reader, factories, schema, channel, message):
-    key = (id(factories[0]) if factories else 0, schema.id if schema else None, channel.message_encoding)
+def _decode(path, factories, schema, channel, message):
+    key = (schema.id if schema else None, channel.message_encoding)
     dec = _DECODERS.get(key)
     if dec is None:
         for fac in factories:
@@ -184,7 +202,8 @@ def _decode(reader, factories, schema, channel, message):
             if dec is not None:
                 break
         if dec is None:
-            raise LogFormatError(reader, f"no decoder for encoding {channel.message_encoding!r}")
+            raise LogFormatError(path, f"no decoder for message encoding {channel.message_encoding!r} "
+                                       f"(topic {channel.topic})")
         _DECODERS[key] = dec
     return dec(message.data)
 
