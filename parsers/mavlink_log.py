@@ -33,6 +33,7 @@ import re
 import numpy as np
 
 from droneid.errors import LogFormatError
+from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
@@ -101,7 +102,7 @@ def iter_frames(data: bytes, counts: dict):
         counts["garbage bytes between frames"] = counts.get("garbage bytes between frames", 0) + garbage
 
 
-def read_tlog(path, sysid: int | None = None):
+def read_tlog(path, sysid: int | None = None) -> Flight:
     """Read a MAVLink ``.tlog`` into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     mav = _dialect()

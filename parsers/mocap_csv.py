@@ -42,6 +42,7 @@ import re
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
+from droneid.flight import Flight
 from droneid.frames import quat_to_euler, wrap_angle
 
 from ._build import FlightBuilder, intervals_from_bool
@@ -77,7 +78,7 @@ def _read_text(path) -> str:
         return raw.decode("latin-1")
 
 
-def read_motive_csv(path, body: str | None = None, axes=("x", "-z", "y")):
+def read_motive_csv(path, body: str | None = None, axes=("x", "-z", "y")) -> Flight:
     """Read an OptiTrack Motive CSV export (see the module doc)."""
     path = os.fspath(path)
     A = axes_matrix(axes)
@@ -241,7 +242,7 @@ def _to_bool(col) -> np.ndarray:
     return np.isin(np.char.lower(s.astype(str)), ("true", "1", "yes", "1.0"))
 
 
-def read_flat_csv(path, column_map=None):
+def read_flat_csv(path, column_map=None) -> Flight:
     """Read a flat CSV with one header row of recognisable column names (see the module doc)."""
     path = os.fspath(path)
     import pandas as pd

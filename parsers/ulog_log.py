@@ -24,6 +24,7 @@ import os
 import numpy as np
 
 from droneid.errors import LogFormatError
+from droneid.flight import Flight
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
@@ -43,7 +44,7 @@ _NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUT
                20: "AUTO_PRECLAND", 21: "ORBIT", 22: "AUTO_VTOL_TAKEOFF"}
 
 
-def read_ulog(path):
+def read_ulog(path) -> Flight:
     """Read a PX4 ULog into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     from pyulog import ULog
