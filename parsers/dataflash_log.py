@@ -259,9 +259,11 @@ def read_dataflash(path) -> Flight:
         volt, curr = c["Volt"], c.get("Curr")
         finite = volt[np.isfinite(volt)]
         scale = 100.0 if finite.size and np.median(finite) > 100.0 else 1.0
-        b.add("battery_voltage", t, volt / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
-        if curr is not None:
-            b.add("battery_current", t, curr / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
+        ok = volt > 0          # 0 V: no battery monitor configured
+        b.skip(f"{bat}.Volt is 0 (no battery monitor)", int((~ok).sum()))
+        b.add("battery_voltage", t[ok], volt[ok] / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
+        if curr is not None and ok.any():
+            b.add("battery_current", t[ok], curr[ok] / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
 
     if "GPS" in data:
         t, c = _instance0(*data["GPS"], "I")
