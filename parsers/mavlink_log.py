@@ -185,8 +185,6 @@ def _convert(b: FlightBuilder, t, get):
             fm = re.match(r"Frame:\s*(\S+)", text)
             if fm:
                 b.vehicle = fm.group(1).lower()
-    if "HEARTBEAT" in get:
-        _heartbeat(b, t["HEARTBEAT"], get["HEARTBEAT"])
     if "ATTITUDE" in get:
         ms, tt = get["ATTITUDE"], t["ATTITUDE"]
         r, p, y = euler_frd_ned_to_flu_enu(_col(ms, "roll"), _col(ms, "pitch"), _col(ms, "yaw"))
@@ -237,6 +235,8 @@ def _convert(b: FlightBuilder, t, get):
         landed = _col(ms, "landed_state")
         if np.any(landed > 0):  # 0 = undefined
             b.segment("in_flight", intervals_from_bool(tt, landed == 2))
+    if "HEARTBEAT" in get:      # last: the armed interval may run to the last sample of any signal
+        _heartbeat(b, t["HEARTBEAT"], get["HEARTBEAT"])
     b.in_flight_from_height()
 
 

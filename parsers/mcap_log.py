@@ -304,8 +304,8 @@ def _convert(b: FlightBuilder, rows, chosen):
         t = (np.asarray(r["t"], dtype=np.int64) - t0) * 1e-9
         topic = chosen[role]
         ned = any(fr.lower().endswith(("ned", "frd")) for fr in r["frame"])
-        if r["frame"]:
-            b.notes.append(f"{topic}: frame_id {', '.join(sorted(r['frame']))}"
+        if r["frame"] - {""} and role != "battery":
+            b.notes.append(f"{topic}: frame_id {', '.join(sorted(r['frame'] - {''}))}"
                            + (" (NED/FRD, converted to ENU/FLU)" if ned else " (taken as ENU/FLU, REP-103)"))
         if role == "rc":
             n = min(v.size for v in r["vec"])
@@ -352,8 +352,15 @@ def _convert(b: FlightBuilder, rows, chosen):
             b.add_many(t, {"ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2]},
                        dict.fromkeys(("ax", "ay", "az"), "m/s^2"), f"{topic} linear_acceleration")
         elif role == "battery":
-            b.add("battery_voltage", t, V[:, 0], "V", f"{topic} voltage")
-            b.add("battery_current", t, -V[:, 1], "A", f"{topic} -current (ROS: negative discharging)")
+            # ROS: NaN means "not measured" (not damage); current is negative while discharging
+            for k, name, unit, sign, src in ((0, "battery_voltage", "V", 1.0, "voltage"),
+                                             (1, "battery_current", "A", -1.0, "-current (ROS: negative discharging)")):
+                ok = np.isfinite(V[:, k])
+                if ok.any():
+                    b.skip(f"{topic} {name}: NaN (not measured)", int((~ok).sum()))
+                    b.add(name, t[ok], sign * V[ok, k], unit, f"{topic} {src}")
+                else:
+                    b.notes.append(f"{topic}: {name.split('_')[1]} not measured (NaN)")
     b.in_flight_from_height()
 
 
