@@ -31,6 +31,7 @@ from operator import attrgetter
 import numpy as np
 
 from droneid.errors import LogFormatError
+from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
@@ -95,8 +96,11 @@ class _TypeRows:
         else:
             self.time_field = None
         self.fields = tuple(f for f in _WANT[mtype] if f in columns)
-        self.get = attrgetter(*self.fields) if len(self.fields) > 1 else (
-            (lambda m, g=attrgetter(self.fields[0]): (g(m),)) if self.fields else (lambda m: ()))
+        if len(self.fields) > 1:
+            self.get = attrgetter(*self.fields)           # returns a tuple
+        else:
+            one = attrgetter(*self.fields) if self.fields else (lambda m: None)
+            self.get = lambda m: (one(m),)
         self.rows: list = []
         self.times: list = []
 
@@ -183,7 +187,7 @@ def _instance0(t, cols, key):
     return t, cols
 
 
-def read_dataflash(path) -> object:
+def read_dataflash(path) -> Flight:
     """Read an ArduPilot DataFlash ``.bin`` log into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     b = FlightBuilder(path, "dataflash")
@@ -236,7 +240,7 @@ def read_dataflash(path) -> object:
     if "RCOU" in data:
         t, c = data["RCOU"]
         for f, v in c.items():
-            n = int(f.lstrip("Ch").lstrip("C"))
+            n = int(re.sub(r"^Ch?", "", f))
             if np.any(v > 0):
                 b.add(f"motor{n}", t, pwm_to_unit(v), "1", f"RCOU.{f}")
 
@@ -255,9 +259,11 @@ def read_dataflash(path) -> object:
         volt, curr = c["Volt"], c.get("Curr")
         finite = volt[np.isfinite(volt)]
         scale = 100.0 if finite.size and np.median(finite) > 100.0 else 1.0
-        b.add("battery_voltage", t, volt / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
-        if curr is not None:
-            b.add("battery_current", t, curr / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
+        ok = volt > 0          # 0 V: no battery monitor configured
+        b.skip(f"{bat}.Volt is 0 (no battery monitor)", int((~ok).sum()))
+        b.add("battery_voltage", t[ok], volt[ok] / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
+        if curr is not None and ok.any():
+            b.add("battery_current", t[ok], curr[ok] / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
 
     if "GPS" in data:
         t, c = _instance0(*data["GPS"], "I")

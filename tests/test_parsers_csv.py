@@ -176,3 +176,24 @@ def test_motive_units_and_custom_axes(tmp_path):
     assert np.allclose(f["vz"].values[2:-2], 1.0)
     with pytest.raises(ConfigError, match="determinant"):
         get_reader("motive_csv")(p, axes=("x", "y", "-z"))
+
+
+def test_motive_euler_export_single_axis(tmp_path):
+    """A rotation about Motive's up axis (+Y) only: yaw, whatever the Euler order convention."""
+    t = np.arange(0, 1, 0.01)
+    n = t.size
+    rot = np.tile([0.0, 30.0, 0.0], (n, 1))              # X, Y, Z degrees
+    p = tmp_path / "euler.csv"
+    _motive(p, {"quad": (np.zeros((n, 3)), rot)}, t, rotation="XYZ")
+    f = read_flight(p)
+    assert np.allclose(f["yaw"].values, np.deg2rad(30), atol=1e-9)
+    assert np.allclose(f["roll"].values, 0, atol=1e-9) and np.allclose(f["pitch"].values, 0, atol=1e-9)
+    assert any("intrinsic" in note for note in f.provenance.notes)
+
+
+def test_all_nan_csv_is_one_line_error(tmp_path):
+    p = tmp_path / "nan.csv"
+    p.write_text("t,x,y\n0,,\n0.1,,\n")
+    with pytest.raises(LogFormatError) as ei:
+        read_flight(p)
+    assert "no usable csv signals" in str(ei.value) and "\n" not in str(ei.value)

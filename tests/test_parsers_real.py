@@ -116,6 +116,8 @@ def test_ulog_at_rest_gravity_and_segments(rel):
 
 def test_vtol_rates():
     f = read_flight(real_log("px4/vtol_short_hop.ulg"))
+    assert f.provenance.firmware == "PX4 v1.11.2 (8583f1da)"
+    assert f.provenance.vehicle == "vtol on CUBEPILOT_CUBEORANGE"
     assert 190 < f["roll"].rate_hz < 210
     assert 95 < f["z"].rate_hz < 105
     # horizontal position is flagged invalid throughout: skipped and counted, not zeros

@@ -102,3 +102,26 @@ def test_corrupt_frames_and_garbage_are_counted(tmp_path):
     assert sk.get("frame cut by the end of the file") == 1
     assert sum(v for k, v in sk.items() if "garbage" in k or "CRC" in k or "undecodable" in k) >= 1
     assert f.has("roll", "vx")
+
+
+def test_attitude_quaternion_and_highres_imu(tmp_path):
+    """An FRD->NED quaternion for roll 0.1, pitch 0.2 (nose up), heading north comes out as the
+    FLU->ENU quaternion of roll 0.1, pitch -0.2, yaw +90 deg; HIGHRES_IMU is SI already."""
+    from droneid.frames import euler_to_quat, quat_to_euler
+    q_ned = euler_to_quat(0.1, 0.2, 0.0)        # the same Z-Y-X formula, applied in NED/FRD
+    msgs = []
+    for i in range(5):
+        msgs.append(("attitude_quaternion", 0.1 * i, dict(time_boot_ms=i, q1=q_ned[0], q2=q_ned[1], q3=q_ned[2],
+                                                         q4=q_ned[3], rollspeed=0, pitchspeed=0, yawspeed=0)))
+        msgs.append(("highres_imu", 0.1 * i + 0.01, dict(time_usec=i, xacc=0.5, yacc=0.25, zacc=-9.8, xgyro=0.1,
+                                                          ygyro=0.2, zgyro=0.3, xmag=0, ymag=0, zmag=0,
+                                                          abs_pressure=0, diff_pressure=0, pressure_alt=0,
+                                                          temperature=0, fields_updated=0)))
+    p = tmp_path / "q.tlog"
+    p.write_bytes(tlog_bytes(msgs))
+    f = read_flight(p)
+    q = np.column_stack([f[n].values for n in ("qw", "qx", "qy", "qz")])
+    r, pch, y = quat_to_euler(q)
+    assert np.allclose(r, 0.1) and np.allclose(pch, -0.2) and np.allclose(y, math.pi / 2)
+    assert np.allclose(f["az"].values, 9.8) and np.allclose(f["ay"].values, -0.25)
+    assert np.allclose(f["wx"].values, 0.1) and np.allclose(f["wz"].values, -0.3)
