@@ -13,6 +13,10 @@ odom       nav_msgs/msg/Odometry                                      pose as ab
 imu        sensor_msgs/msg/Imu                                        wx wy wz, ax ay az (body)
 battery    sensor_msgs/msg/BatteryState                               battery_voltage, battery_current
 rc         std_msgs/msg/UInt16MultiArray on a topic named *joy*/*rc*   rc1..rcN (PWM µs, not canonical)
+(scalar)   std_msgs/msg/Float32 or Float64 on a topic whose last name  that canonical signal
+           is a canonical signal (``/drone/throttle``, ``/x/battery_voltage``)
+motors     std_msgs/msg/Float32MultiArray / Float64MultiArray on a     motor1..motorN (0..1)
+           topic whose last name is ``motors``
 =========  =========================================================  =========================
 
 Frames: ROS data follow REP-103 (world ENU, body FLU), the internal convention, so nothing is
@@ -36,7 +40,7 @@ import struct
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
-from droneid.flight import Flight
+from droneid.flight import Flight, canonical_unit, is_canonical
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler, quat_to_matrix
 
 from ._build import FlightBuilder
@@ -54,6 +58,8 @@ ROLES = {
     "rc": ("std_msgs/msg/UInt16MultiArray",),
 }
 _RC_TOPIC = re.compile(r"joy|(^|[/_])rc|pwm|servo", re.I)
+_SCALAR_SCHEMAS = ("std_msgs/msg/Float32", "std_msgs/msg/Float64")
+_ARRAY_SCHEMAS = ("std_msgs/msg/Float32MultiArray", "std_msgs/msg/Float64MultiArray")
 
 
 def _norm_schema(name: str) -> str:
@@ -82,6 +88,13 @@ def _pick_topics(path, channels, schemas, counts, overrides, b):
             raise ConfigError(f"topic {topic!r} for role {role!r} is not in {path}; topics: "
                               f"{', '.join(sorted(by_topic))}" + did_you_mean(topic, by_topic))
         chosen[role] = topic
+    for cid, ch in channels.items():  # plain std_msgs numbers named after a canonical signal
+        sname = _norm_schema(schemas[ch.schema_id].name) if ch.schema_id in schemas else ""
+        base = ch.topic.rstrip("/").rsplit("/", 1)[-1]
+        if sname in _SCALAR_SCHEMAS and is_canonical(base) and f"scalar:{base}" not in chosen:
+            chosen[f"scalar:{base}"] = ch.topic
+        elif sname in _ARRAY_SCHEMAS and base == "motors" and "motors" not in chosen:
+            chosen["motors"] = ch.topic
     for role, names in ROLES.items():
         if role in chosen:
             continue
@@ -257,8 +270,10 @@ def _generic(obj, schema_name):
         st = _get(hdr, "stamp")
         stamp = int(_get(st, "sec")) * 1_000_000_000 + int(_get(st, "nanosec"))
         frame = str(_get(hdr, "frame_id"))
-    if schema_name == "std_msgs/msg/UInt16MultiArray":
+    if schema_name == "std_msgs/msg/UInt16MultiArray" or schema_name in _ARRAY_SCHEMAS:
         return stamp, frame, np.asarray(list(_get(obj, "data")), float)
+    if schema_name in _SCALAR_SCHEMAS:
+        return stamp, frame, np.array([float(_get(obj, "data"))])
     return stamp, frame, np.array([float(_get(obj, *p)) for p in _FIELDS[schema_name]])
 
 
@@ -307,11 +322,18 @@ def _convert(b: FlightBuilder, rows, chosen):
         if r["frame"] - {""} and role != "battery":
             b.notes.append(f"{topic}: frame_id {', '.join(sorted(r['frame'] - {''}))}"
                            + (" (NED/FRD, converted to ENU/FLU)" if ned else " (taken as ENU/FLU, REP-103)"))
-        if role == "rc":
+        if role in ("rc", "motors"):
             n = min(v.size for v in r["vec"])
             arr = np.array([v[:n] for v in r["vec"]], float)
             for i in range(n):
-                b.add(f"rc{i + 1}", t, arr[:, i], "us", f"{topic} data[{i}]")
+                if role == "rc":
+                    b.add(f"rc{i + 1}", t, arr[:, i], "us", f"{topic} data[{i}]")
+                else:
+                    b.add(f"motor{i + 1}", t, arr[:, i], "1", f"{topic} data[{i}]")
+            continue
+        if role.startswith("scalar:"):
+            name = role.split(":", 1)[1]
+            b.add(name, t, np.concatenate(r["vec"]), canonical_unit(name), f"{topic} data")
             continue
         V = np.vstack(r["vec"])
         if role in ("pose", "odom"):

@@ -247,11 +247,12 @@ def test_read_flight_round_trip(flight, tmp_path):
            "vy": 1e-6, "vz": 1e-6, "qw": 1e-6, "qx": 1e-6, "qy": 1e-6, "qz": 1e-6, "wx": 1e-6,
            "wy": 1e-6, "wz": 1e-6, "ax": 1e-5, "ay": 1e-5, "az": 1e-5, "throttle": 5e-3 + 1e-9,
            "motor1": 5e-4 + 1e-9, "motor2": 5e-4 + 1e-9, "motor3": 5e-4 + 1e-9, "motor4": 5e-4 + 1e-9,
-           "battery_voltage": 5e-4 + 1e-9}
+           "battery_voltage": 5e-4 + 1e-9, "thrust": 1e-5}
     pose = ("x", "y", "z", "roll", "pitch", "yaw", "qw", "qx", "qy", "qz")
     carried = {
-        "tlog": tuple(tol),                       # all but thrust (no MAVLink field)
-        "mcap": pose + ("vx", "vy", "vz", "wx", "wy", "wz", "ax", "ay", "az", "battery_voltage"),
+        "tlog": tuple(n for n in tol if n != "thrust"),  # no MAVLink field for thrust (N)
+        "mcap": pose + ("vx", "vy", "vz", "wx", "wy", "wz", "ax", "ay", "az", "battery_voltage",
+                        "throttle", "thrust", "motor1", "motor2", "motor3", "motor4"),
         "motive_csv": pose,                       # pose only; 6 decimals
     }
     for fmt, path in files.items():
