@@ -1,0 +1,643 @@
+"""Diagnosis: find what a prior model lacks, in physical terms, with out-of-sample evidence.
+
+Pipeline (:func:`diagnose` from flights, :func:`diagnose_datasets` from Datasets):
+
+1. Fit the prior as given (every feature weight 1) and refit it by least squares WITHOUT an
+   intercept (a free intercept would absorb wind and attitude biases), jointly for all targets;
+   the residual is what the refit prior leaves.
+2. Score every testable effect of the catalogue (:mod:`priors.effects`) by BLOCKED
+   cross-validation: each training flight is cut into ``n_blocks`` contiguous time blocks; the
+   model with and without the effect is fitted on all blocks but one and predicts the held-out
+   one. Effects are fitted jointly over the targets: a parameter shared by v̇x and v̇y (quadratic
+   drag c, attitude biases, delay τ) is one coefficient.
+3. Add the best effect if its held-out improvement is significant (:func:`significance`):
+   relative CV-RMSE improvement ≥ ``min_rel_improvement``, AND a one-sided paired t-test on the
+   per-block relative improvements with p < ``alpha`` / (number of candidates scored), AND, when a
+   test flight is given, a lower test RMSE. Refit and repeat; otherwise stop: "no further effect is
+   detectable from these signals".
+4. An open-ended SNGP search on the remaining residual over all available signals catches what
+   the catalogue lacks; its term is reported only if it passes the same held-out rule
+   (interleaved-block 2-fold CV and the test flight).
+
+Effects whose signals are missing are reported UNTESTABLE, never absent.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from .data import Dataset
+from .errors import ConfigError, DataError, check_choice, did_you_mean
+from .expressions import compile_expression, symbol
+
+log = logging.getLogger(__name__)
+
+__all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "significance",
+           "block_ids", "NO_FURTHER"]
+
+NO_FURTHER = "no further effect is detectable from these signals"
+_ANGLES = ("roll", "pitch")
+# signals never offered to the open-ended search (absolute position on the globe, redundant
+# attitude parametrisation, derived duplicates)
+_OPEN_EXCLUDE = {"lat", "lon", "alt", "qw", "qx", "qy", "qz", "v_axis", "t"}
+
+
+@dataclass(frozen=True)
+class DiagnoseConfig:
+    """Settings of a diagnosis (all documented in notes/README_diagnose.md).
+
+    ts_s, method: dataset grid step and differentiator (central differences by default: forward
+        differences shift the target by Ts/2, which would look like an attitude delay).
+    n_blocks: contiguous time blocks per training flight for cross-validation.
+    alpha: one-sided significance level of the paired block test (Bonferroni-divided by the
+        number of candidates scored in a step).
+    min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
+    require_test_improvement: when a test flight is given, the effect must also lower its RMSE.
+    max_steps: most effects added.
+    effects: restrict the catalogue to these ids (None: all); user_effects: extra Effect objects.
+    sngp_generations: budget of the open-ended search per run (0 disables it).
+    """
+    ts_s: float = 0.05
+    method: str = "central"
+    n_blocks: int = 8
+    alpha: float = 0.01
+    min_rel_improvement: float = 0.01
+    require_test_improvement: bool = True
+    max_steps: int = 5
+    g: float = 9.81
+    ground_h0_m: float = 0.5
+    effects: tuple[str, ...] | None = None
+    sngp_generations: int = 3000
+    sngp_population: int = 300
+    sngp_features: int = 3
+    sngp_max_depth: int = 5
+    sngp_seed: int = 0
+    sngp_max_samples: int = 1500
+
+    def validate(self) -> "DiagnoseConfig":
+        if not (self.ts_s > 0):
+            raise ConfigError(f"The 'ts_s' parameter of DiagnoseConfig must be > 0. Got {self.ts_s!r} instead.")
+        if not (isinstance(self.n_blocks, int) and 3 <= self.n_blocks <= 50):
+            raise ConfigError("The 'n_blocks' parameter of DiagnoseConfig must be an int in [3, 50]. "
+                              f"Got {self.n_blocks!r} instead.")
+        if not (0 < self.alpha < 0.5):
+            raise ConfigError(f"The 'alpha' parameter of DiagnoseConfig must be in (0, 0.5). Got {self.alpha!r} instead.")
+        if not (0 <= self.min_rel_improvement < 1):
+            raise ConfigError("The 'min_rel_improvement' parameter of DiagnoseConfig must be in [0, 1). "
+                              f"Got {self.min_rel_improvement!r} instead.")
+        if self.max_steps < 0 or self.sngp_generations < 0:
+            raise ConfigError("max_steps and sngp_generations must be >= 0")
+        return self
+
+
+@dataclass
+class DiagnosisResult:
+    """The outcome of a diagnosis, as data (``to_dict()`` is the diagnosis.json content).
+
+    targets: {target: {"rmse_prior": {train, test}, "rmse_before": {train, test, cv},
+        "rmse_after": {...}, "base_coefficients": {...}, "steps": [...], "open_ended": {...}}}
+    steps: the joint steps in order: {"effect", "coefficients", "physical", "rmse": {target:
+        {train, test, cv}}, "evidence"}
+    effects_added: ids in the order they were added; untestable: {id: "needs ..."};
+    not_detected: ids tested but not added; conclusion: one sentence.
+    series: per-target arrays for the plots (not in diagnosis.json).
+    """
+    targets: dict
+    steps: list
+    effects_added: list
+    untestable: dict
+    not_detected: list
+    conclusion: str
+    open_ended: dict
+    config: dict
+    prior: str
+    sources: dict
+    candidates: list = field(default_factory=list)
+    series: dict = field(default_factory=dict)
+
+    def to_dict(self, include_series: bool = False) -> dict:
+        from .io_util import to_jsonable
+        d = {"targets": self.targets, "effects_added": self.effects_added,
+             "untestable": sorted(self.untestable), "untestable_reasons": self.untestable,
+             "not_detected": self.not_detected, "conclusion": self.conclusion,
+             "steps": self.steps, "open_ended": self.open_ended, "candidates": self.candidates,
+             "prior": self.prior, "config": self.config, "sources": self.sources}
+        if include_series:
+            d["series"] = self.series
+        return to_jsonable(d)
+
+
+# -- statistics -----------------------------------------------------------------------------------
+def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
+    """Contiguous time blocks 0..n_blocks-1 inside each flight (equal time spans)."""
+    t = np.asarray(t, float)
+    flight = np.asarray(flight, int)
+    out = np.zeros(t.size, dtype=int)
+    for f in np.unique(flight):
+        m = flight == f
+        t0, t1 = t[m].min(), t[m].max()
+        span = max(t1 - t0, 1e-12)
+        out[m] = np.minimum((n_blocks * (t[m] - t0) / span).astype(int), n_blocks - 1)
+    return out
+
+
+def significance(mse_before: np.ndarray, mse_after: np.ndarray, n_before: np.ndarray,
+                 *, alpha: float, n_candidates: int = 1, min_rel_improvement: float = 0.01,
+                 test_before: float | None = None, test_after: float | None = None,
+                 require_test: bool = True) -> dict:
+    """The held-out decision rule; returns the evidence dict with ``passed`` and ``reasons``.
+
+    ``mse_before/after[k]``: held-out mean squared error of block k without/with the effect;
+    ``n_before[k]``: samples in block k. Passes when (1) the pooled CV RMSE improves by at least
+    ``min_rel_improvement``, (2) a one-sided paired t-test on the per-block relative improvements
+    ``1 − mse_after/mse_before`` gives p < alpha / n_candidates, (3) the test RMSE (if any) is lower.
+    """
+    from scipy import stats
+    ok = n_before > 0
+    mb, ma, nb = mse_before[ok], mse_after[ok], n_before[ok]
+    cv_b = math.sqrt(float(np.sum(mb * nb) / np.sum(nb)))
+    cv_a = math.sqrt(float(np.sum(ma * nb) / np.sum(nb)))
+    rel = 1.0 - cv_a / cv_b if cv_b > 0 else 0.0
+    d = 1.0 - ma / np.where(mb > 0, mb, 1.0)
+    if d.size >= 2 and np.std(d, ddof=1) > 0:
+        p = float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)
+    else:
+        p = 0.0 if d.size and np.all(d > 0) else 1.0
+    thr = alpha / max(n_candidates, 1)
+    reasons = []
+    if rel < min_rel_improvement:
+        reasons.append(f"CV RMSE improvement {100 * rel:.2f} % < {100 * min_rel_improvement:.2f} %")
+    if not p < thr:
+        reasons.append(f"paired block test p = {p:.2g} ≥ {thr:.2g}")
+    test_rel = None
+    if test_before is not None and test_after is not None:
+        test_rel = 1.0 - test_after / test_before if test_before > 0 else 0.0
+        if require_test and not test_after < test_before:
+            reasons.append(f"test RMSE does not improve ({test_before:.4g} -> {test_after:.4g})")
+    return {"cv_rmse_before": cv_b, "cv_rmse_after": cv_a, "rel_improvement": rel,
+            "p_value": p, "p_threshold": thr, "blocks_improved": f"{int(np.sum(d > 0))}/{d.size}",
+            "block_rel_improvements": d.tolist(), "test_rmse_before": test_before,
+            "test_rmse_after": test_after, "test_rel_improvement": test_rel,
+            "passed": not reasons, "reasons": reasons}
+
+
+# -- the prior ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _PriorTerms:
+    names: tuple[str, ...]
+    exprs: tuple[sp.Expr, ...]
+    tilt: sp.Expr | None
+    velocity: str | None
+
+
+def _resolve_prior(prior):
+    if isinstance(prior, str):
+        from priors.models import get_prior
+        return get_prior(prior)
+    if not hasattr(prior, "features"):
+        raise ConfigError(f"prior must be a name or a PriorModel, got {type(prior).__name__}")
+    return prior
+
+
+def _prior_terms(prior, target: str) -> _PriorTerms:
+    feats = None
+    for n in (3, 1):
+        try:
+            feats = tuple(prior.features(target, n_features=n))
+            break
+        except (ConfigError, ValueError, TypeError):
+            continue
+    if not feats:
+        raise ConfigError(f"the prior has no features for target '{target}'")
+    names, exprs = [], []
+    for f in feats:
+        e = f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr)
+        names.append(str(f.name))
+        exprs.append(e)
+    angle_syms = {symbol(a) for a in _ANGLES}
+    tilt_terms = [a for e in exprs for a in sp.Add.make_args(sp.expand(e))
+                  if a.free_symbols & angle_syms]
+    tilt = sp.Add(*tilt_terms) if tilt_terms else None
+    axis = target[1] if target in ("vx_dot", "vy_dot", "vz_dot") else None
+    vel = f"v{axis}" if axis and any(symbol(f"v{axis}") in e.free_symbols for e in exprs) else None
+    return _PriorTerms(tuple(names), tuple(exprs), tilt, vel)
+
+
+# -- the stacked least-squares problem ------------------------------------------------------------
+@dataclass
+class _Part:
+    """One target's samples of one role (train or test)."""
+    target: str
+    ctx: object
+    y: np.ndarray
+    t: np.ndarray
+    flight: np.ndarray
+    block: np.ndarray
+    base: dict           # param -> column (prior features)
+    prior_sum: np.ndarray
+
+
+def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig):
+    from priors.effects import EffectContext
+    cols = ds.columns()
+    ctx = EffectContext.build(target, cols, ds.t, ds.flight, terms.tilt, cfg.g,
+                              {"ground_h0_m": cfg.ground_h0_m})
+    base = {}
+    for name, e in zip(terms.names, terms.exprs):
+        missing = [s.name for s in e.free_symbols if s.name not in cols]
+        if missing:
+            from .errors import MissingSignalError
+            raise MissingSignalError(missing[0], list(cols), where=f"the {target} dataset (prior feature {name})")
+        f = compile_expression(e, sorted(s.name for s in e.free_symbols))
+        v = np.broadcast_to(f({s.name: cols[s.name] for s in e.free_symbols} or {"_": ds.y}), ds.y.shape)
+        base[f"{target}:{name}"] = np.asarray(v, float)
+    good = np.isfinite(ds.y)
+    for v in base.values():
+        good &= np.isfinite(v)
+    if not good.all():
+        log.warning("%s: dropping %d samples with non-finite target or prior features", target, (~good).sum())
+        return _make_part(ds.subset(good), target, terms, cfg)
+    prior_sum = np.sum(list(base.values()), axis=0)
+    blocks = block_ids(ds.t, ds.flight, cfg.n_blocks)
+    return _Part(target, ctx, ds.y, ds.t, ds.flight, blocks, base, prior_sum)
+
+
+class _Stack:
+    """Rows of several targets stacked; terms are {param: {target: column}}."""
+
+    def __init__(self, parts: Sequence[_Part]):
+        self.parts = list(parts)
+        self.y = np.concatenate([p.y for p in parts])
+        self.block = np.concatenate([p.block for p in parts])
+        self.tidx = np.concatenate([np.full(p.y.size, i) for i, p in enumerate(parts)])
+        self.offsets = np.cumsum([0] + [p.y.size for p in parts])
+
+    def design(self, terms: dict) -> np.ndarray:
+        X = np.zeros((self.y.size, len(terms)))
+        for j, cols in enumerate(terms.values()):
+            for i, p in enumerate(self.parts):
+                if p.target in cols:
+                    X[self.offsets[i]:self.offsets[i + 1], j] = cols[p.target]
+        return X
+
+    def rmse_by_target(self, pred: np.ndarray) -> dict:
+        out = {}
+        for i, p in enumerate(self.parts):
+            r = self.y[self.tidx == i] - pred[self.tidx == i]
+            out[p.target] = float(np.sqrt(np.mean(r ** 2)))
+        return out
+
+
+def _lstsq(X, y):
+    if X.shape[1] == 0:
+        return np.zeros(0)
+    scale = np.sqrt(np.mean(X ** 2, axis=0))
+    scale[scale == 0] = 1.0
+    beta, *_ = np.linalg.lstsq(X / scale, y, rcond=1e-10)
+    return beta / scale
+
+
+def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
+    """Held-out predictions by leave-one-block-out; per-block MSE and sample counts."""
+    pred = np.zeros_like(stack.y)
+    for k in range(n_blocks):
+        test = stack.block == k
+        if not test.any():
+            continue
+        beta = _lstsq(X[~test], stack.y[~test])
+        pred[test] = X[test] @ beta
+    mse = np.array([np.mean((stack.y[stack.block == k] - pred[stack.block == k]) ** 2)
+                    if np.any(stack.block == k) else 0.0 for k in range(n_blocks)])
+    n = np.array([np.sum(stack.block == k) for k in range(n_blocks)])
+    return pred, mse, n
+
+
+def _terms_for(effect, parts: Sequence[_Part]) -> dict:
+    terms: dict = {}
+    for p in parts:
+        if not effect.applies_to(p.target):
+            continue
+        for name, col in effect.features(p.ctx).items():
+            terms.setdefault(name, {})[p.target] = col
+    return terms
+
+
+def _k_drag(terms: _PriorTerms, target, part: _Part, coef: Mapping[str, float]) -> float | None:
+    """Effective linear drag −∂model/∂v of the base refit (None without a drag term)."""
+    if terms.velocity is None:
+        return None
+    v = symbol(terms.velocity)
+    k = 0.0
+    for name, e in zip(terms.names, terms.exprs):
+        if v in e.free_symbols and not (e.free_symbols & {symbol(a) for a in _ANGLES}):
+            de = sp.diff(e, v)
+            val = part.ctx.evaluate(de) if de.free_symbols else np.full(part.y.size, float(de))
+            k -= coef.get(f"{target}:{name}", 0.0) * float(np.mean(val))
+    return k
+
+
+# -- the pipeline ---------------------------------------------------------------------------------
+def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=("vx_dot", "vy_dot"), *,
+             config: DiagnoseConfig | None = None, user_effects=None, progress=None) -> DiagnosisResult:
+    """Diagnose ``prior`` on flights: build the datasets, then :func:`diagnose_datasets`."""
+    cfg = (config or DiagnoseConfig()).validate()
+    pr = _resolve_prior(prior)
+    train = build_datasets(train_flights, targets, pr, cfg)
+    test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
+    return diagnose_datasets(train, test, prior=prior, config=cfg, user_effects=user_effects,
+                             progress=progress)
+
+
+def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:
+    """One Dataset per target on the configured grid (all other signals in ``extra``)."""
+    from .dataset import DatasetBuilder
+    flights = list(flights)
+    builder = DatasetBuilder(ts=cfg.ts_s, method=cfg.method)
+    out = {}
+    for tgt in targets:
+        inputs = tuple(prior.inputs(tgt)) if hasattr(prior, "inputs") else None
+        out[tgt] = builder.build(flights, target=tgt, inputs=inputs)
+    return out
+
+
+def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] | None = None, *,
+                      prior="tilt-drag", config: DiagnoseConfig | None = None, user_effects=None,
+                      progress: Callable | None = None) -> DiagnosisResult:
+    """Diagnose ``prior`` on per-target Datasets (see the module docstring)."""
+    from priors.effects import CATALOGUE
+    cfg = (config or DiagnoseConfig()).validate()
+    if not train:
+        raise DataError("no training datasets")
+    pr = _resolve_prior(prior)
+    targets = list(train)
+    if test is not None and set(test) != set(targets):
+        raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
+    effects = dict(CATALOGUE)
+    for e in (user_effects.values() if isinstance(user_effects, Mapping) else user_effects or ()):
+        effects[e.id] = e
+    if cfg.effects is not None:
+        for eid in cfg.effects:
+            if eid not in effects:
+                raise ConfigError(f"unknown effect '{eid}'{did_you_mean(eid, effects)}; known: {', '.join(effects)}")
+        effects = {k: v for k, v in effects.items() if k in cfg.effects}
+
+    terms = {t: _prior_terms(pr, t) for t in targets}
+    tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
+    te_parts = [_make_part(test[t], t, terms[t], cfg) for t in targets] if test is not None else None
+    for p in tr_parts:
+        if p.y.size < 5 * cfg.n_blocks:
+            raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
+                            f"{5 * cfg.n_blocks} for {cfg.n_blocks}-block cross-validation")
+    tr, te = _Stack(tr_parts), (_Stack(te_parts) if te_parts else None)
+
+    # testability: an effect is testable when every target it applies to has its signals
+    untestable, testable = {}, []
+    for eid, e in effects.items():
+        applicable = [p for p in tr_parts if e.applies_to(p.target)]
+        if not applicable:
+            untestable[eid] = f"does not apply to targets {', '.join(targets)}"
+            continue
+        miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())}
+                      | ({m for p in te_parts for m in e.missing(p.ctx.available())} if te_parts else set()))
+        if miss:
+            untestable[eid] = "needs " + ", ".join(miss)
+        else:
+            testable.append(e)
+
+    base_terms = {}
+    for p in tr_parts:
+        for name, col in p.base.items():
+            base_terms[name] = {p.target: col}
+    if te_parts:
+        te_base = {name: {p.target: p.base[name]} for p in te_parts for name in p.base}
+
+    def effect_test_terms(e):
+        return _terms_for(e, te_parts) if te_parts else {}
+
+    def fit_eval(cur_terms, cur_test_terms):
+        X = tr.design(cur_terms)
+        beta = _lstsq(X, tr.y)
+        pred = X @ beta
+        out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred,
+               "train": tr.rmse_by_target(pred)}
+        cvp, mse, n = _cv(tr, X, cfg.n_blocks)
+        out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
+        out["cv_all"] = math.sqrt(float(np.mean((tr.y - cvp) ** 2)))
+        if te is not None:
+            names = list(cur_terms)
+            Xt = te.design({k: cur_test_terms[k] for k in names})
+            tp = Xt @ beta
+            out["test_pred"] = tp
+            out["test"] = te.rmse_by_target(tp)
+            out["test_all"] = math.sqrt(float(np.mean((te.y - tp) ** 2)))
+        else:
+            out["test"] = {t: None for t in targets}
+            out["test_all"] = None
+        return out
+
+    def base_info(fit):
+        return {"k_D": {p.target: _k_drag(terms[p.target], p.target, p, fit["beta"]) for p in tr_parts}}
+
+    cur_terms = dict(base_terms)
+    cur_test = dict(te_base) if te_parts else {}
+    cur = fit_eval(cur_terms, cur_test)
+    base_fit = cur
+    prior_rmse = {p.target: {"train": float(np.sqrt(np.mean((p.y - p.prior_sum) ** 2))),
+                             "test": None} for p in tr_parts}
+    if te_parts:
+        for p in te_parts:
+            prior_rmse[p.target]["test"] = float(np.sqrt(np.mean((p.y - p.prior_sum) ** 2)))
+
+    steps, added, candidates_log = [], [], []
+    conclusion = NO_FURTHER
+    total = cfg.max_steps + 1
+    for step in range(cfg.max_steps):
+        if progress:
+            progress(step, total, "scoring effects")
+        scores = []
+        for e in testable:
+            if e.id in added:
+                continue
+            et = _terms_for(e, tr_parts)
+            if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
+                continue
+            # rename on clash with an existing parameter
+            et = {(k if k not in cur_terms else f"{e.id}:{k}"): v for k, v in et.items()}
+            ett = {}
+            if te_parts:
+                raw = effect_test_terms(e)
+                ett = {(k if k not in cur_terms else f"{e.id}:{k}"): v for k, v in raw.items()}
+                if set(ett) != set(et):
+                    continue
+            new = fit_eval({**cur_terms, **et}, {**cur_test, **ett})
+            scores.append((e, et, ett, new))
+        if not scores:
+            break
+        m = len(scores)
+        evid = []
+        for e, et, ett, new in scores:
+            ev = significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=m,
+                              min_rel_improvement=cfg.min_rel_improvement,
+                              test_before=cur["test_all"], test_after=new["test_all"],
+                              require_test=cfg.require_test_improvement)
+            evid.append(ev)
+        order = sorted(range(m), key=lambda i: evid[i]["cv_rmse_after"])
+        candidates_log.append({"step": step + 1, "scores": [
+            {"effect": scores[i][0].id, **{k: evid[i][k] for k in (
+                "cv_rmse_after", "rel_improvement", "p_value", "blocks_improved",
+                "test_rmse_after", "passed")}} for i in order]})
+        bi = order[0]
+        e, et, ett, new = scores[bi]
+        ev = evid[bi]
+        if not ev["passed"]:
+            log.info("step %d: best candidate %s rejected: %s", step + 1, e.id, "; ".join(ev["reasons"]))
+            break
+        # candidates nearly as good (and significant) that the data cannot tell apart
+        alts = [scores[i][0].id for i in order[1:] if evid[i]["passed"]
+                and evid[i]["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
+        ev["indistinguishable_from"] = alts
+        coef = {k: new["beta"][k] for k in et}
+        interp = e.interpret(coef, base_info(new))
+        steps.append({"effect": e.id, "description": e.description, "coefficients": coef,
+                      "physical": interp.text, "physical_values": interp.values,
+                      "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
+                               for t in targets},
+                      "evidence": ev,
+                      "_contrib": {p.target: sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])
+                                   for p in tr_parts},
+                      "_resid_before": {p.target: p.y - cur["pred"][tr.tidx == i] for i, p in enumerate(tr_parts)}})
+        added.append(e.id)
+        cur_terms.update(et)
+        cur_test.update(ett)
+        cur = new
+    if progress:
+        progress(cfg.max_steps, total, "open-ended search")
+
+    open_ended = _open_ended_all(tr, te, cur, tr_parts, te_parts, cfg, progress)
+
+    # -- assemble the result -------------------------------------------------------------------
+    base_coef = {t: {k.split(":", 1)[1]: v for k, v in base_fit["beta"].items() if k.startswith(t + ":")}
+                 for t in targets}
+    out_targets = {}
+    for i, p in enumerate(tr_parts):
+        t = p.target
+        tsteps = []
+        for s in steps:
+            tsteps.append({"effect": s["effect"],
+                           "coefficients": {k: v for k, v in s["coefficients"].items()},
+                           "physical": s["physical"], "rmse": s["rmse"][t], "evidence": s["evidence"]})
+        k_final = _k_drag(terms[t], t, p, cur["beta"])
+        out_targets[t] = {
+            "rmse_prior": prior_rmse[t],
+            "rmse_before": {"train": base_fit["train"][t], "test": base_fit["test"][t], "cv": base_fit["cv"][t]},
+            "rmse_after": {"train": cur["train"][t], "test": cur["test"][t], "cv": cur["cv"][t]},
+            "base_coefficients": base_coef[t],
+            "linear_drag_k_D": _k_drag(terms[t], t, p, base_fit["beta"]),
+            "linear_drag_k_D_after": k_final,
+            "final_coefficients": {k: v for k, v in cur["beta"].items() if t in cur_terms[k]},
+            "steps": tsteps, "open_ended": open_ended.get(t),
+            "n_train": int(p.y.size), "n_test": int(te_parts[i].y.size) if te_parts else 0,
+        }
+    series = {}
+    for i, p in enumerate(tr_parts):
+        t = p.target
+        series[t] = {"t": p.t, "flight": p.flight, "y": p.y,
+                     "residual_prior": p.y - p.prior_sum,
+                     "residual_before": p.y - base_fit["pred"][tr.tidx == i],
+                     "residual_after": p.y - cur["pred"][tr.tidx == i],
+                     "signals": {k: v for k, v in p.ctx.columns.items() if k in ("yaw", "speed", "vz_dot", "z", "G")},
+                     "steps": [{"effect": s["effect"], "contrib": s["_contrib"][t], "residual": s["_resid_before"][t]}
+                               for s in steps]}
+    for s in steps:
+        s.pop("_contrib")
+        s.pop("_resid_before")
+    tested = [e.id for e in testable]
+    not_detected = [eid for eid in tested if eid not in added]
+    if added:
+        conclusion = (f"added {', '.join(added)}; " + NO_FURTHER) if len(added) < cfg.max_steps or not testable \
+            else f"added {', '.join(added)} (step limit {cfg.max_steps} reached)"
+    if any(o and o.get("passed") for o in open_ended.values()):
+        conclusion += "; the open-ended search found an unnamed term (see open_ended)"
+    sources = {"train": sorted({s for d in train.values() for s in d.sources}),
+               "test": sorted({s for d in test.values() for s in d.sources}) if test else []}
+    return DiagnosisResult(
+        targets=out_targets, steps=steps, effects_added=added, untestable=untestable,
+        not_detected=not_detected, conclusion=conclusion, open_ended=open_ended,
+        config=asdict(cfg), prior=prior if isinstance(prior, str) else type(pr).__name__,
+        sources=sources, candidates=candidates_log, series=series)
+
+
+# -- open-ended search ----------------------------------------------------------------------------
+def _open_ended_all(tr, te, cur, tr_parts, te_parts, cfg, progress) -> dict:
+    out = {}
+    if cfg.sngp_generations <= 0:
+        return {p.target: {"ran": False, "reason": "disabled (sngp_generations = 0)"} for p in tr_parts}
+    try:
+        from .sngp import SNGPRegressor  # noqa: F401
+    except ImportError as exc:
+        return {p.target: {"ran": False, "reason": f"SNGP engine unavailable ({exc})"} for p in tr_parts}
+    for i, p in enumerate(tr_parts):
+        resid = p.y - cur["pred"][tr.tidx == i]
+        test = None
+        if te_parts:
+            q = te_parts[i]
+            test = (q, q.y - cur["test_pred"][te.tidx == i])
+        out[p.target] = _open_ended(p, resid, test, cfg)
+    return out
+
+
+def _signal_matrix(part, names):
+    return np.column_stack([part.ctx.columns[n] for n in names])
+
+
+def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> dict:
+    from .sngp import SNGPRegressor
+    names = sorted(n for n, v in part.ctx.columns.items()
+                   if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier())
+    if test is not None:
+        names = [n for n in names if n in test[0].ctx.columns]
+    if not names:
+        return {"ran": False, "reason": "no signals"}
+    X = _signal_matrix(part, names)
+
+    def run(rows, seed):
+        idx = np.flatnonzero(rows)
+        if idx.size > cfg.sngp_max_samples:
+            idx = idx[np.linspace(0, idx.size - 1, cfg.sngp_max_samples).astype(int)]
+        m = SNGPRegressor(population_size=cfg.sngp_population, generations=cfg.sngp_generations,
+                          n_features=cfg.sngp_features, max_depth=cfg.sngp_max_depth,
+                          n_threads=1, seed=seed)
+        m.fit(X[idx], resid[idx], feature_names=names)
+        return m
+
+    # interleaved-block 2-fold CV: fit on even blocks, predict odd, and vice versa
+    even = part.block % 2 == 0
+    pred = np.zeros_like(resid)
+    for k, rows in enumerate((even, ~even)):
+        m = run(rows, cfg.sngp_seed + k)
+        pred[~rows] = np.asarray(m.predict(X[~rows]), float)
+    pred[~np.isfinite(pred)] = 0.0
+    nb = cfg.n_blocks
+    mse_b = np.array([np.mean(resid[part.block == k] ** 2) if np.any(part.block == k) else 0 for k in range(nb)])
+    mse_a = np.array([np.mean((resid - pred)[part.block == k] ** 2) if np.any(part.block == k) else 0
+                      for k in range(nb)])
+    n = np.array([np.sum(part.block == k) for k in range(nb)])
+    final = run(np.ones(resid.size, bool), cfg.sngp_seed + 7)
+    tb = ta = None
+    if test is not None:
+        q, tres = test
+        tp = np.asarray(final.predict(_signal_matrix(q, names)), float)
+        tp[~np.isfinite(tp)] = 0.0
+        tb = float(np.sqrt(np.mean(tres ** 2)))
+        ta = float(np.sqrt(np.mean((tres - tp) ** 2)))
+    ev = significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,
+                      min_rel_improvement=cfg.min_rel_improvement, test_before=tb, test_after=ta,
+                      require_test=cfg.require_test_improvement)
+    return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
+            "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),
+            "generations": cfg.sngp_generations, "passed": ev["passed"], "evidence": ev}
