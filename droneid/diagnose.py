@@ -568,7 +568,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     return DiagnosisResult(
         targets=out_targets, steps=steps, effects_added=added, untestable=untestable,
         not_detected=not_detected, conclusion=conclusion, open_ended=open_ended,
-        config=asdict(cfg), prior=prior if isinstance(prior, str) else type(pr).__name__,
+        config=asdict(cfg), prior=prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__),
         sources=sources, candidates=candidates_log, series=series)
 
 

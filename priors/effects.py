@@ -376,7 +376,7 @@ CATALOGUE: dict[str, Effect] = {e.id: e for e in (
            (("vx",), ("vy",)), _quadratic_drag, _quadratic_drag_text, "|v| v_axis"),
     Effect("wind", "constant world-frame wind w: linear drag acts on v − w, a constant k_D·w "
            "per axis (the base refit has no intercept, so the offset is not absorbed)",
-           (("vx", "vy"),), _wind, _wind_text, "t"),
+           (("vx", "vy"),), _wind, _wind_text, "yaw"),
     Effect("attitude_bias", "constant roll/pitch offsets of the logged attitude (rotate with "
            "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",)), _attitude_bias,
            _attitude_bias_text, "yaw"),
