@@ -73,11 +73,15 @@ DERIVED = {
 }
 
 
-def time_derivative(x: np.ndarray, t: np.ndarray, flight: np.ndarray) -> np.ndarray:
-    """d/dt of ``x`` by central differences inside each flight's contiguous runs of samples.
+def time_derivative(x: np.ndarray, t: np.ndarray, flight: np.ndarray,
+                    half_window_s: float = 0.0) -> np.ndarray:
+    """d/dt of ``x`` inside each flight's contiguous runs of samples.
 
-    A run breaks where the time step exceeds 1.5× the median step (trimmed gaps); one-sided
-    differences at run ends; a run of one sample gets 0.
+    A run breaks where the time step exceeds 1.5× the median step (trimmed gaps). With
+    ``half_window_s`` = 0: central differences (one-sided at run ends). Otherwise the slope of a
+    least-squares line over ±k samples, k = round(half_window_s / step) (a Savitzky-Golay
+    derivative: same phase as central differences, much less noise gain), central differences
+    within k samples of a run end.
     """
     x = np.asarray(x, float)
     t = np.asarray(t, float)
@@ -87,9 +91,17 @@ def time_derivative(x: np.ndarray, t: np.ndarray, flight: np.ndarray) -> np.ndar
     dt = np.diff(t)
     med = np.median(dt[dt > 0]) if np.any(dt > 0) else 1.0
     brk = np.flatnonzero((np.diff(flight) != 0) | (dt > 1.5 * med) | (dt <= 0)) + 1
+    k = int(round(half_window_s / med)) if half_window_s > 0 else 0
     for seg in np.split(np.arange(x.size), brk):
-        if seg.size >= 2:
-            out[seg] = np.gradient(x[seg], t[seg])
+        if seg.size < 2:
+            continue
+        xs = x[seg]
+        d = np.gradient(xs, t[seg])
+        if k >= 1 and seg.size > 2 * k + 1:
+            j = np.arange(-k, k + 1)
+            c = j / (med * np.sum(j * j))
+            d[k:-k] = np.convolve(xs, c[::-1], mode="valid")
+        out[seg] = d
     return out
 
 
@@ -155,7 +167,9 @@ class EffectContext:
         return self.evaluate(sp.diff(self.tilt, symbol(signal)))
 
     def d_dt(self, x: np.ndarray) -> np.ndarray:
-        return time_derivative(x, self.t, self.flight)
+        """Smoothed d/dt (half window ``options['derivative_half_window_s']``, default 0.1 s)."""
+        return time_derivative(x, self.t, self.flight,
+                               float(self.options.get("derivative_half_window_s", 0.1)))
 
 
 @dataclass(frozen=True)

@@ -88,3 +88,25 @@ def make(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, noise=0.
                            np.zeros(t.size, int), (f"synth{seed}",),
                            {k: v for k, v in cols.items() if k not in ins})
     return out
+
+
+def flight_datasets(flight, ts=0.05, targets=("vx_dot", "vy_dot")):
+    """{target: Dataset} from a simulated Flight whose signals share one time base: resample to
+    ``ts`` by picking samples, central-difference the velocity. A stand-in for DatasetBuilder in
+    tests that must not depend on it."""
+    t_all = flight["vx"].t
+    step = max(1, int(round(ts / np.median(np.diff(t_all)))))
+    idx = np.arange(0, t_all.size, step)
+    t = t_all[idx]
+    cols = {n: flight[n].values[idx] for n in flight.signals}
+    stub = TiltDragStub()
+    out = {}
+    for tgt in targets:
+        v = cols["v" + tgt[1]]
+        y = np.gradient(v, t)
+        keep = slice(1, -1)
+        ins = stub.inputs(tgt)
+        out[tgt] = Dataset(np.column_stack([cols[n][keep] for n in ins]), y[keep], t[keep], ins, tgt,
+                           np.zeros(t[keep].size, int), ("sim",),
+                           {k: c[keep] for k, c in cols.items() if k not in ins})
+    return out
