@@ -53,7 +53,9 @@ class DiagnoseConfig:
 
     ts_s, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
-    n_blocks: contiguous time blocks per training flight for cross-validation.
+    n_blocks: contiguous time blocks per training flight for cross-validation; None (default):
+        ``clip(n_train // 150, 8, 20)`` with n_train the training samples per target, so blocks
+        hold ~150 samples (7.5 s at 20 Hz) and long flights give the block test more blocks.
     alpha: one-sided significance level of the paired block test (Bonferroni-divided by the
         number of candidates scored in a step).
     min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
@@ -64,7 +66,7 @@ class DiagnoseConfig:
     """
     ts_s: float = 0.05
     method: str = "central"
-    n_blocks: int = 8
+    n_blocks: int | None = None
     alpha: float = 0.01
     min_rel_improvement: float = 0.01
     require_test_improvement: bool = True
@@ -82,7 +84,7 @@ class DiagnoseConfig:
     def validate(self) -> "DiagnoseConfig":
         if not (self.ts_s > 0):
             raise ConfigError(f"The 'ts_s' parameter of DiagnoseConfig must be > 0. Got {self.ts_s!r} instead.")
-        if not (isinstance(self.n_blocks, int) and 3 <= self.n_blocks <= 50):
+        if self.n_blocks is not None and not (isinstance(self.n_blocks, int) and 3 <= self.n_blocks <= 50):
             raise ConfigError("The 'n_blocks' parameter of DiagnoseConfig must be an int in [3, 50]. "
                               f"Got {self.n_blocks!r} instead.")
         if not (0 < self.alpha < 0.5):
@@ -134,28 +136,53 @@ class DiagnosisResult:
 
 # -- statistics -----------------------------------------------------------------------------------
 def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
-    """Contiguous time blocks 0..n_blocks-1 inside each flight (equal time spans)."""
+    """Contiguous time blocks 0..n_blocks-1 inside each flight, with equal sample counts
+    (so trimmed ground time or gaps leave no block empty)."""
     t = np.asarray(t, float)
     flight = np.asarray(flight, int)
     out = np.zeros(t.size, dtype=int)
     for f in np.unique(flight):
-        m = flight == f
-        t0, t1 = t[m].min(), t[m].max()
-        span = max(t1 - t0, 1e-12)
-        out[m] = np.minimum((n_blocks * (t[m] - t0) / span).astype(int), n_blocks - 1)
+        idx = np.flatnonzero(flight == f)
+        order = idx[np.argsort(t[idx], kind="stable")]
+        out[order] = np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1), n_blocks - 1)
     return out
+
+
+def _block_p(mse_before, mse_after) -> tuple[float, np.ndarray]:
+    """One-sided paired t-test that the per-block relative improvements are > 0."""
+    from scipy import stats
+    d = 1.0 - mse_after / np.where(mse_before > 0, mse_before, 1.0)
+    if d.size >= 2 and np.std(d, ddof=1) > 0:
+        return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue), d
+    return (0.0 if d.size and np.all(d > 0) else 1.0), d
+
+
+def _block_mse(y, pred, block, n_blocks):
+    r2 = (y - pred) ** 2
+    n = np.bincount(block, minlength=n_blocks)[:n_blocks]
+    s = np.bincount(block, weights=r2, minlength=n_blocks)[:n_blocks]
+    return np.where(n > 0, s / np.maximum(n, 1), 0.0), n
 
 
 def significance(mse_before: np.ndarray, mse_after: np.ndarray, n_before: np.ndarray,
                  *, alpha: float, n_candidates: int = 1, min_rel_improvement: float = 0.01,
                  test_before: float | None = None, test_after: float | None = None,
-                 require_test: bool = True) -> dict:
+                 test_mse_before: np.ndarray | None = None, test_mse_after: np.ndarray | None = None,
+                 test_n: np.ndarray | None = None, require_test: bool = True) -> dict:
     """The held-out decision rule; returns the evidence dict with ``passed`` and ``reasons``.
 
-    ``mse_before/after[k]``: held-out mean squared error of block k without/with the effect;
-    ``n_before[k]``: samples in block k. Passes when (1) the pooled CV RMSE improves by at least
-    ``min_rel_improvement``, (2) a one-sided paired t-test on the per-block relative improvements
-    ``1 − mse_after/mse_before`` gives p < alpha / n_candidates, (3) the test RMSE (if any) is lower.
+    ``mse_before/after[k]``: held-out (cross-validated) mean squared error of training block k
+    without/with the effect; ``n_before[k]``: samples in block k. ``test_*``: the test flight's
+    RMSE and per-block MSE (model fitted on all training data), when there is a test flight.
+
+    Passes when ALL hold:
+
+    1. the pooled CV RMSE improves by at least ``min_rel_improvement`` (relative);
+    2. the per-block relative improvements ``1 − mse_after/mse_before`` are consistently > 0:
+       one-sided paired t-test p_cv; with a test flight, the same test on its blocks gives p_test
+       and the two independent p-values are combined by Fisher's method; the (combined) p must be
+       below ``alpha / n_candidates`` (Bonferroni over the candidates scored in the step);
+    3. with a test flight (and ``require_test``), its RMSE is lower.
     """
     from scipy import stats
     ok = n_before > 0
@@ -163,27 +190,34 @@ def significance(mse_before: np.ndarray, mse_after: np.ndarray, n_before: np.nda
     cv_b = math.sqrt(float(np.sum(mb * nb) / np.sum(nb)))
     cv_a = math.sqrt(float(np.sum(ma * nb) / np.sum(nb)))
     rel = 1.0 - cv_a / cv_b if cv_b > 0 else 0.0
-    d = 1.0 - ma / np.where(mb > 0, mb, 1.0)
-    if d.size >= 2 and np.std(d, ddof=1) > 0:
-        p = float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)
-    else:
-        p = 0.0 if d.size and np.all(d > 0) else 1.0
+    p_cv, d = _block_p(mb, ma)
+    p_test = None
+    d_test = None
+    p = p_cv
+    if test_mse_before is not None and test_mse_after is not None:
+        tk = (test_n > 0) if test_n is not None else np.ones(len(test_mse_before), bool)
+        p_test, d_test = _block_p(np.asarray(test_mse_before)[tk], np.asarray(test_mse_after)[tk])
+        chi = -2.0 * (math.log(max(p_cv, 1e-300)) + math.log(max(p_test, 1e-300)))
+        p = float(stats.chi2.sf(chi, 4))
     thr = alpha / max(n_candidates, 1)
     reasons = []
     if rel < min_rel_improvement:
         reasons.append(f"CV RMSE improvement {100 * rel:.2f} % < {100 * min_rel_improvement:.2f} %")
     if not p < thr:
-        reasons.append(f"paired block test p = {p:.2g} ≥ {thr:.2g}")
+        reasons.append(f"block test p = {p:.2g} ≥ {thr:.2g}")
     test_rel = None
     if test_before is not None and test_after is not None:
         test_rel = 1.0 - test_after / test_before if test_before > 0 else 0.0
         if require_test and not test_after < test_before:
             reasons.append(f"test RMSE does not improve ({test_before:.4g} -> {test_after:.4g})")
     return {"cv_rmse_before": cv_b, "cv_rmse_after": cv_a, "rel_improvement": rel,
-            "p_value": p, "p_threshold": thr, "blocks_improved": f"{int(np.sum(d > 0))}/{d.size}",
-            "block_rel_improvements": d.tolist(), "test_rmse_before": test_before,
-            "test_rmse_after": test_after, "test_rel_improvement": test_rel,
-            "passed": not reasons, "reasons": reasons}
+            "p_value": p, "p_cv": p_cv, "p_test": p_test, "p_threshold": thr,
+            "blocks_improved": f"{int(np.sum(d > 0))}/{d.size}",
+            "test_blocks_improved": None if d_test is None else f"{int(np.sum(d_test > 0))}/{d_test.size}",
+            "block_rel_improvements": d.tolist(),
+            "test_block_rel_improvements": None if d_test is None else d_test.tolist(),
+            "test_rmse_before": test_before, "test_rmse_after": test_after,
+            "test_rel_improvement": test_rel, "passed": not reasons, "reasons": reasons}
 
 
 # -- the prior ------------------------------------------------------------------------------------
@@ -386,6 +420,10 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                 raise ConfigError(f"unknown effect '{eid}'{did_you_mean(eid, effects)}; known: {', '.join(effects)}")
         effects = {k: v for k, v in effects.items() if k in cfg.effects}
 
+    if cfg.n_blocks is None:
+        from dataclasses import replace
+        n_min = min(len(d) for d in train.values())
+        cfg = replace(cfg, n_blocks=int(np.clip(n_min // 150, 8, 20)))
     terms = {t: _prior_terms(pr, t) for t in targets}
     tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
     te_parts = [_make_part(test[t], t, terms[t], cfg) for t in targets] if test is not None else None
@@ -435,6 +473,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             out["test_pred"] = tp
             out["test"] = te.rmse_by_target(tp)
             out["test_all"] = math.sqrt(float(np.mean((te.y - tp) ** 2)))
+            out["test_mse"], out["test_n"] = _block_mse(te.y, tp, te.block, cfg.n_blocks)
         else:
             out["test"] = {t: None for t in targets}
             out["test_all"] = None
@@ -484,6 +523,8 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             ev = significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=m,
                               min_rel_improvement=cfg.min_rel_improvement,
                               test_before=cur["test_all"], test_after=new["test_all"],
+                              test_mse_before=cur.get("test_mse"), test_mse_after=new.get("test_mse"),
+                              test_n=cur.get("test_n"),
                               require_test=cfg.require_test_improvement)
             evid.append(ev)
         order = sorted(range(m), key=lambda i: evid[i]["cv_rmse_after"])
@@ -628,15 +669,18 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
                       for k in range(nb)])
     n = np.array([np.sum(part.block == k) for k in range(nb)])
     final = run(np.ones(resid.size, bool), cfg.sngp_seed + 7)
-    tb = ta = None
+    tb = ta = tmb = tma = tn = None
     if test is not None:
         q, tres = test
         tp = np.asarray(final.predict(_signal_matrix(q, names)), float)
         tp[~np.isfinite(tp)] = 0.0
         tb = float(np.sqrt(np.mean(tres ** 2)))
         ta = float(np.sqrt(np.mean((tres - tp) ** 2)))
+        tmb, tn = _block_mse(tres, np.zeros_like(tres), q.block, nb)
+        tma, _ = _block_mse(tres, tp, q.block, nb)
     ev = significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,
                       min_rel_improvement=cfg.min_rel_improvement, test_before=tb, test_after=ta,
+                      test_mse_before=tmb, test_mse_after=tma, test_n=tn,
                       require_test=cfg.require_test_improvement)
     return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
             "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),

@@ -25,8 +25,11 @@ def _pair(d, key="train"):
 def _evidence_text(ev) -> str:
     parts = [f"CV RMSE {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
              f"({-100 * ev['rel_improvement']:+.1f} %)",
-             f"paired block test p = {fmt(ev['p_value'], 2)} (threshold {fmt(ev['p_threshold'], 2)})",
-             f"{ev['blocks_improved']} blocks better"]
+             f"block test p = {fmt(ev['p_value'], 2)} (threshold {fmt(ev['p_threshold'], 2)}"
+             + (f"; CV {fmt(ev['p_cv'], 2)} ⊕ test {fmt(ev['p_test'], 2)}, Fisher)"
+                if ev.get("p_test") is not None else ")"),
+             f"{ev['blocks_improved']} CV blocks better"
+             + (f", {ev['test_blocks_improved']} test blocks" if ev.get("test_blocks_improved") else "")]
     if ev.get("test_rel_improvement") is not None:
         parts.append(f"test {-100 * ev['test_rel_improvement']:+.1f} %")
     return ", ".join(parts)

@@ -24,7 +24,8 @@ def register(sub) -> None:
     p.add_argument("--only", metavar="IDS", help="comma-separated effect ids to test (default: all)")
     p.add_argument("--ts", type=float, default=0.05, help="dataset grid step in s (default 0.05)")
     p.add_argument("--method", default="central", help="differentiator (default central)")
-    p.add_argument("--blocks", type=int, default=8, help="cross-validation time blocks per flight (default 8)")
+    p.add_argument("--blocks", type=int, default=None,
+                   help="cross-validation time blocks per flight (default: ~150 samples per block, 8..20)")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the paired block test, Bonferroni-corrected (default 0.01)")
     p.add_argument("--min-improvement", type=float, default=0.01,
