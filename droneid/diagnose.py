@@ -107,6 +107,9 @@ class DiagnosisResult:
         {train, test, cv}}, "evidence"}
     effects_added: ids in the order they were added; untestable: {id: "needs ..."};
     not_detected: ids tested but not added; conclusion: one sentence.
+    final_effects: every added effect in physical terms with the FINAL joint coefficients (a step
+        reports the values when it was added; later effects can refine them, e.g. wind after
+        quadratic drag).
     series: per-target arrays for the plots (not in diagnosis.json).
     """
     targets: dict
@@ -120,6 +123,7 @@ class DiagnosisResult:
     prior: str
     sources: dict
     candidates: list = field(default_factory=list)
+    final_effects: list = field(default_factory=list)
     series: dict = field(default_factory=dict)
 
     def to_dict(self, include_series: bool = False) -> dict:
@@ -127,7 +131,8 @@ class DiagnosisResult:
         d = {"targets": self.targets, "effects_added": self.effects_added,
              "untestable": sorted(self.untestable), "untestable_reasons": self.untestable,
              "not_detected": self.not_detected, "conclusion": self.conclusion,
-             "steps": self.steps, "open_ended": self.open_ended, "candidates": self.candidates,
+             "steps": self.steps, "final_effects": self.final_effects,
+             "open_ended": self.open_ended, "candidates": self.candidates,
              "prior": self.prior, "config": self.config, "sources": self.sources}
         if include_series:
             d["series"] = self.series
@@ -274,9 +279,15 @@ class _Part:
     block: np.ndarray
     base: dict           # param -> column (prior features)
     prior_sum: np.ndarray
+    role: str = "train"
+    sources: tuple = ()
+
+    def flight_label(self, f: int) -> str:
+        src = self.sources[f] if f < len(self.sources) else str(f)
+        return f"{self.role}:{src}"
 
 
-def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig):
+def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig, role: str = "train"):
     from priors.effects import EffectContext
     cols = ds.columns()
     ctx = EffectContext.build(target, cols, ds.t, ds.flight, terms.tilt, cfg.g,
@@ -295,10 +306,10 @@ def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig
         good &= np.isfinite(v)
     if not good.all():
         log.warning("%s: dropping %d samples with non-finite target or prior features", target, (~good).sum())
-        return _make_part(ds.subset(good), target, terms, cfg)
+        return _make_part(ds.subset(good), target, terms, cfg, role)
     prior_sum = np.sum(list(base.values()), axis=0)
     blocks = block_ids(ds.t, ds.flight, cfg.n_blocks)
-    return _Part(target, ctx, ds.y, ds.t, ds.flight, blocks, base, prior_sum)
+    return _Part(target, ctx, ds.y, ds.t, ds.flight, blocks, base, prior_sum, role, tuple(ds.sources))
 
 
 class _Stack:
@@ -352,13 +363,49 @@ def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
 
 
 def _terms_for(effect, parts: Sequence[_Part]) -> dict:
+    """{param: {target: column}} of an effect over parts; a flight-specific effect
+    (``effect.per_flight``) gets one parameter per flight, named ``param@role:source``."""
     terms: dict = {}
     for p in parts:
         if not effect.applies_to(p.target):
             continue
         for name, col in effect.features(p.ctx).items():
-            terms.setdefault(name, {})[p.target] = col
+            if getattr(effect, "per_flight", False):
+                for f in np.unique(p.flight):
+                    terms.setdefault(f"{effect.id}.{name}@{p.flight_label(int(f))}", {})[p.target] = \
+                        np.where(p.flight == f, col, 0.0)
+            else:
+                terms.setdefault(f"{effect.id}.{name}", {})[p.target] = col
     return terms
+
+
+def _air_update(tr_parts, te_parts, fit, k_d) -> None:
+    """Set ``vx_air``, ``vy_air``, ``speed_air`` in every part's context from the per-flight wind
+    estimate (offset / k_D); drag-type effects then act on the air velocity."""
+    for parts, betas in ((tr_parts, fit["beta"]), (te_parts or [], fit.get("test_local_beta", {}))):
+        for p in parts:
+            c = p.ctx.columns
+            if "vx" not in c or "vy" not in c:
+                continue
+            w = {"x": np.zeros(p.y.size), "y": np.zeros(p.y.size)}
+            for f in np.unique(p.flight):
+                lab = p.flight_label(int(f))
+                for ax in ("x", "y"):
+                    off, k = betas.get(f"wind.offset_{ax}@{lab}"), k_d.get(f"v{ax}_dot")
+                    if off is not None and k is not None and k > 1e-6:
+                        w[ax][p.flight == f] = off / k
+            c["vx_air"] = c["vx"] - w["x"]
+            c["vy_air"] = c["vy"] - w["y"]
+            c["speed_air"] = np.hypot(c["vx_air"], c["vy_air"])
+
+
+def _split_flight_params(coef: Mapping[str, float]) -> dict[str | None, dict]:
+    """{flight label or None: {param: value}} from (possibly flight-specific) coefficients."""
+    out: dict = {}
+    for k, v in coef.items():
+        name, _, label = k.partition("@")
+        out.setdefault(label or None, {})[name.split(".", 1)[-1]] = v
+    return out
 
 
 def _k_drag(terms: _PriorTerms, target, part: _Part, coef: Mapping[str, float]) -> float | None:
@@ -426,7 +473,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         cfg = replace(cfg, n_blocks=int(np.clip(n_min // 150, 8, 20)))
     terms = {t: _prior_terms(pr, t) for t in targets}
     tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
-    te_parts = [_make_part(test[t], t, terms[t], cfg) for t in targets] if test is not None else None
+    te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
     for p in tr_parts:
         if p.y.size < 5 * cfg.n_blocks:
             raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
@@ -467,9 +514,22 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
         out["cv_all"] = math.sqrt(float(np.mean((tr.y - cvp) ** 2)))
         if te is not None:
-            names = list(cur_terms)
-            Xt = te.design({k: cur_test_terms[k] for k in names})
-            tp = Xt @ beta
+            # shared parameters come from training; flight-specific ones of the test flights are
+            # estimated on the test flight by blocked CV (so the test error stays out of sample)
+            shared = [k for k in cur_terms if k in cur_test_terms]
+            local = [k for k in cur_test_terms if k not in cur_terms]
+            bsh = np.array([out["beta"][k] for k in shared])
+            tp = te.design({k: cur_test_terms[k] for k in shared}) @ bsh if shared else np.zeros_like(te.y)
+            if local:
+                Xl = te.design({k: cur_test_terms[k] for k in local})
+                r = te.y - tp
+                lp = np.zeros_like(r)
+                for k in range(cfg.n_blocks):
+                    hold = te.block == k
+                    if hold.any():
+                        lp[hold] = Xl[hold] @ _lstsq(Xl[~hold], r[~hold])
+                out["test_local_beta"] = dict(zip(local, _lstsq(Xl, r).tolist()))
+                tp = tp + lp
             out["test_pred"] = tp
             out["test"] = te.rmse_by_target(tp)
             out["test_all"] = math.sqrt(float(np.mean((te.y - tp) ** 2)))
@@ -505,13 +565,10 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             et = _terms_for(e, tr_parts)
             if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
                 continue
-            # rename on clash with an existing parameter
-            et = {(k if k not in cur_terms else f"{e.id}:{k}"): v for k, v in et.items()}
             ett = {}
             if te_parts:
-                raw = effect_test_terms(e)
-                ett = {(k if k not in cur_terms else f"{e.id}:{k}"): v for k, v in raw.items()}
-                if set(ett) != set(et):
+                ett = effect_test_terms(e)
+                if not getattr(e, "per_flight", False) and set(ett) != set(et):
                     continue
             new = fit_eval({**cur_terms, **et}, {**cur_test, **ett})
             scores.append((e, et, ett, new))
@@ -542,10 +599,21 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         alts = [scores[i][0].id for i in order[1:] if evid[i]["passed"]
                 and evid[i]["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
         ev["indistinguishable_from"] = alts
-        coef = {k: new["beta"][k] for k in et}
-        interp = e.interpret(coef, base_info(new))
+        coef = {k.split(".", 1)[1]: new["beta"][k] for k in et}
+        info = base_info(new)
+        per = _split_flight_params(coef)
+        per.update(_split_flight_params({k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}))
+        interps = {label: e.interpret(c, info) for label, c in per.items()}
+        first = next(iter(interps.values()))
+        if len(interps) == 1:
+            text = first.text
+        else:
+            text = "; ".join(f"{it.text} [{label}]" for label, it in interps.items())
         steps.append({"effect": e.id, "description": e.description, "coefficients": coef,
-                      "physical": interp.text, "physical_values": interp.values,
+                      "physical": text, "physical_values": first.values,
+                      "physical_per_flight": {label: it.values for label, it in interps.items()
+                                              if label is not None},
+                      "per_flight": bool(getattr(e, "per_flight", False)),
                       "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
                                for t in targets},
                       "evidence": ev,
@@ -556,6 +624,16 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         cur_terms.update(et)
         cur_test.update(ett)
         cur = new
+        if "wind" in added:
+            # drag acts on the air velocity v − w: refresh it from the wind estimate and refit
+            for _ in range(2):
+                _air_update(tr_parts, te_parts, cur, base_info(cur)["k_D"])
+                cur_terms, cur_test = dict(base_terms), dict(te_base) if te_parts else {}
+                for eid in added:
+                    cur_terms.update(_terms_for(effects[eid], tr_parts))
+                    if te_parts:
+                        cur_test.update(_terms_for(effects[eid], te_parts))
+                cur = fit_eval(cur_terms, cur_test)
     if progress:
         progress(cfg.max_steps, total, "open-ended search")
 
@@ -597,6 +675,20 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     for s in steps:
         s.pop("_contrib")
         s.pop("_resid_before")
+    final_effects = []
+    info = base_info(cur)
+    for eid in added:
+        coef = {k: v for k, v in cur["beta"].items() if k.startswith(eid + ".")}
+        coef.update({k: v for k, v in cur.get("test_local_beta", {}).items() if k.startswith(eid + ".")})
+        per = _split_flight_params(coef)
+        its = {label: effects[eid].interpret(c, info) for label, c in per.items()}
+        final_effects.append({
+            "effect": eid,
+            "physical": "; ".join(it.text + (f" [{label}]" if label and len(its) > 1 else "")
+                                  for label, it in its.items()),
+            "physical_values": next(iter(its.values())).values,
+            "physical_per_flight": {label: it.values for label, it in its.items() if label},
+            "coefficients": {k.split(".", 1)[1]: v for k, v in coef.items()}})
     tested = [e.id for e in testable]
     not_detected = [eid for eid in tested if eid not in added]
     if added:
@@ -610,7 +702,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         targets=out_targets, steps=steps, effects_added=added, untestable=untestable,
         not_detected=not_detected, conclusion=conclusion, open_ended=open_ended,
         config=asdict(cfg), prior=prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__),
-        sources=sources, candidates=candidates_log, series=series)
+        sources=sources, candidates=candidates_log, series=series, final_effects=final_effects)
 
 
 # -- open-ended search ----------------------------------------------------------------------------

@@ -58,6 +58,10 @@ def summary_text(result) -> str:
             alts = s["evidence"].get("indistinguishable_from") or []
             if alts:
                 lines.append(f"       note: these data cannot tell it apart from {', '.join(alts)}")
+        if len(r.steps) > 1:
+            lines.append("final estimates (all effects refitted jointly):")
+            for fe in r.final_effects:
+                lines.append(f"  {fe['effect']}: {fe['physical']}")
         lines.append("residual after, RMSE m/s²:")
         for t, v in r.targets.items():
             lines.append(f"  {t:7s} train {_pair(v['rmse_after'])}  test {_pair(v['rmse_after'], 'test')}"
@@ -116,6 +120,9 @@ def build_document(result) -> Document:
         doc.table(["#", "effect", "physical terms", "evidence"],
                   [[i, s["effect"], s["physical"], _evidence_text(s["evidence"])]
                    for i, s in enumerate(r.steps, 1)])
+        if len(r.steps) > 1:
+            doc.paragraph("Final estimates, all effects refitted jointly: "
+                          + "; ".join(f"{fe['effect']}: {fe['physical']}" for fe in r.final_effects))
     if r.untestable:
         doc.heading("Untestable effects")
         doc.paragraph("These effects could not be tested with the logged signals; this is not evidence "

@@ -15,7 +15,10 @@ Every effect states
   (the Dataset's columns on the grid plus the prior's tilt terms). A parameter name used for both
   horizontal targets is ONE coefficient shared by both (e.g. the quadratic-drag ``c`` or the
   attitude biases); axis-specific names (``offset_x``) are separate coefficients;
-* ``interpret(coef, base) -> Interpretation``: the fitted coefficients in physical terms.
+* ``interpret(coef, base) -> Interpretation``: the fitted coefficients in physical terms;
+* ``per_flight``: a condition of the flight rather than of the vehicle (wind, attitude bias): its
+  parameters are estimated separately for every flight; on a test flight they are estimated by
+  blocked cross-validation on that flight, with everything else fixed from training.
 
 Conventions (droneid frames: world ENU, Z-Y-X Euler, positive pitch = nose down). ``G`` below is
 the sum of the prior's terms that contain roll or pitch (for tilt-drag:
@@ -25,7 +28,8 @@ the sum of the prior's terms that contain roll or pitch (for tilt-drag:
 ==================  ==========================================================================
 id                  feature(s) for v̇x (v̇y analogous), coefficient -> physical meaning
 ==================  ==========================================================================
-quadratic_drag      −|v_h| vx (shared c) -> "quadratic drag c_D/m = c 1/m"
+quadratic_drag      −|v_h| vx (shared c) -> "quadratic drag c_D/m = c 1/m"; once wind is in
+                    the model, v is the air velocity v − ŵ (also for anisotropic_drag)
 wind                1 (offset_x) -> wind w_x = offset_x / k_D (drag acts on v − w)
 attitude_bias       ∂G/∂roll, ∂G/∂pitch (shared) -> bias = −coef (logged − true angle)
 attitude_delay      dG/dt from the logged attitude (shared τ) -> "attitude lags by τ"
@@ -189,6 +193,7 @@ class Effect:
     interpret_fn: Callable[[dict, dict], Interpretation]
     explain_signal: str = ""
     user: bool = False
+    per_flight: bool = False
 
     def missing(self, available: Iterable[str]) -> list[str]:
         """Unmet needs, each as 'a|b' alternatives; empty when testable."""
@@ -227,10 +232,15 @@ def _k_mean(base) -> float:
     return float(np.mean(ks)) if ks else float("nan")
 
 
+def _air(ctx, name):
+    """The air-relative velocity column when a wind estimate exists, else the ground one."""
+    return ctx.columns.get(f"{name}_air", ctx.columns[name])
+
+
 def _quadratic_drag(ctx):
     if not ctx.axis:
         return {}
-    return {"c": -ctx.columns["speed"] * ctx.columns["v_axis"]}
+    return {"c": -_air(ctx, "speed") * _air(ctx, f"v{ctx.axis}")}
 
 
 def _quadratic_drag_text(coef, base):
@@ -290,9 +300,10 @@ def _anisotropic_drag(ctx):
         return {}
     c = ctx.columns
     c2, s2 = np.cos(2 * c["yaw"]), np.sin(2 * c["yaw"])
+    vx, vy = _air(ctx, "vx"), _air(ctx, "vy")
     if ctx.axis == "x":
-        return {"dk": -0.5 * (c2 * c["vx"] + s2 * c["vy"])}
-    return {"dk": -0.5 * (s2 * c["vx"] - c2 * c["vy"])}
+        return {"dk": -0.5 * (c2 * vx + s2 * vy)}
+    return {"dk": -0.5 * (s2 * vx - c2 * vy)}
 
 
 def _anisotropic_drag_text(coef, base):
@@ -390,10 +401,10 @@ CATALOGUE: dict[str, Effect] = {e.id: e for e in (
            (("vx",), ("vy",)), _quadratic_drag, _quadratic_drag_text, "|v| v_axis"),
     Effect("wind", "constant world-frame wind w: linear drag acts on v − w, a constant k_D·w "
            "per axis (the base refit has no intercept, so the offset is not absorbed)",
-           (("vx", "vy"),), _wind, _wind_text, "yaw"),
+           (("vx", "vy"),), _wind, _wind_text, "yaw", per_flight=True),
     Effect("attitude_bias", "constant roll/pitch offsets of the logged attitude (rotate with "
            "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",)), _attitude_bias,
-           _attitude_bias_text, "yaw"),
+           _attitude_bias_text, "yaw", per_flight=True),
     Effect("attitude_delay", "logged attitude lags the acceleration it causes by τ: "
            "G(att(t + τ)) ≈ G + τ dG/dt", ((TILT,),), _attitude_delay, _attitude_delay_text,
            "dG/dt"),
@@ -437,6 +448,7 @@ def load_effects(path) -> dict[str, Effect]:
         id = "rotor_drag"
         description = "blade flapping drag"
         meaning = "rotor drag k = {k:.3g} 1/s"      # str.format over the parameter names
+        per_flight = false                          # true: one value per flight (like wind)
         [effect.features.vx_dot]
         k = "-vx * cos(yaw)**2"                     # parameter name = expression
         [effect.features.vy_dot]
@@ -470,7 +482,7 @@ def load_effects(path) -> dict[str, Effect]:
 def _user_effect(tab, where) -> Effect:
     if not isinstance(tab, dict):
         raise ConfigError(f"{where}: must be a table")
-    allowed = {"id", "description", "meaning", "features", "needs"}
+    allowed = {"id", "description", "meaning", "features", "needs", "per_flight"}
     bad = set(tab) - allowed
     if bad:
         k = sorted(bad)[0]
@@ -542,4 +554,8 @@ def _user_effect(tab, where) -> Effect:
             text = f"{eid}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items())
         return Interpretation(text, vals)
 
-    return Effect(eid, str(desc), tuple(needs), feature_fn, interpret_fn, "", user=True)
+    per_flight = tab.get("per_flight", False)
+    if not isinstance(per_flight, bool):
+        raise ConfigError(f"{where}: 'per_flight' must be true or false, got {per_flight!r}")
+    return Effect(eid, str(desc), tuple(needs), feature_fn, interpret_fn, "", user=True,
+                  per_flight=per_flight)

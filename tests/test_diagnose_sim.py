@@ -1,7 +1,8 @@
 """Diagnosis on simulated flights (droneid.simulate) with exactly ONE undeclared effect each.
 
 Training flights are 40 s, test flights 20 s of another path, both with the same planted effect;
-the open-ended search is off here (tested separately). Tolerances are stated per effect.
+the open-ended search is off here (tested separately). The full pipeline runs: DatasetBuilder
+(central differences on a 0.05 s grid) and priors.models.get_prior("tilt-drag"). Tolerances are stated per effect.
 """
 from __future__ import annotations
 
@@ -9,8 +10,7 @@ import math
 
 import pytest
 
-import diag_synth as S
-from droneid.diagnose import NO_FURTHER, DiagnoseConfig, diagnose_datasets
+from droneid.diagnose import NO_FURTHER, DiagnoseConfig, diagnose
 from droneid.simulate import simulate
 
 CFG = DiagnoseConfig(sngp_generations=0)
@@ -21,7 +21,7 @@ def _diagnose(effects, train_path="square", test_path="random", seed=1, drop=(),
     te = simulate(path=test_path, duration_s=20.0, seed=seed + 10, effects=effects).flight
     if drop:
         tr, te = tr.without(*drop), te.without(*drop)
-    return diagnose_datasets(S.flight_datasets(tr), S.flight_datasets(te), prior=S.TiltDragStub(), config=CFG)
+    return diagnose([tr], [te], prior="tilt-drag", config=CFG)
 
 
 def _rel(a, b):
@@ -78,3 +78,22 @@ def test_effect_invisible_in_horizontal_dynamics_is_not_detected():
     # an altitude-holding controller balances the battery's thrust loss: nothing to see in v̇x, v̇y
     r = _diagnose({"battery_sag": None}, train_path="eight")
     assert r.effects_added == [] and "battery_sag" in r.not_detected
+
+
+def test_wind_is_per_flight_and_quadratic_drag_acts_on_air_velocity():
+    # training flight with wind AND quadratic drag; the test flight has a different wind
+    eff = {"wind": {"wx": 1.5, "wy": -1.0}, "quadratic_drag": {"c": 0.15}}
+    tr = simulate(path="random", duration_s=40.0, seed=1, effects=eff).flight
+    te = simulate(path="square", duration_s=20.0, seed=11,
+                  effects={"wind": {"wx": -0.5, "wy": 1.0}, "quadratic_drag": {"c": 0.15}}).flight
+    r = diagnose([tr], [te], config=CFG)
+    assert r.effects_added == ["wind", "quadratic_drag"]
+    fin = {f["effect"]: f for f in r.final_effects}
+    assert _rel(fin["quadratic_drag"]["physical_values"]["c_D_over_m_per_m"], 0.15) < 0.2
+    per = fin["wind"]["physical_per_flight"]
+    (trw,) = [v for k, v in per.items() if k.startswith("train:")]
+    (tew,) = [v for k, v in per.items() if k.startswith("test:")]
+    assert math.hypot(trw["w_x_m_s"] - 1.5, trw["w_y_m_s"] + 1.0) < 0.2 * 1.8
+    assert math.hypot(tew["w_x_m_s"] + 0.5, tew["w_y_m_s"] - 1.0) < 0.2 * 1.8 + 0.1
+    for v in r.targets.values():
+        assert v["rmse_after"]["test"] < 0.5 * v["rmse_before"]["test"]
