@@ -42,9 +42,9 @@ __all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets",
 
 NO_FURTHER = "no further effect is detectable from these signals"
 _ANGLES = ("roll", "pitch")
-# signals never offered to the open-ended search (absolute position on the globe, redundant
-# attitude parametrisation, derived duplicates)
-_OPEN_EXCLUDE = {"lat", "lon", "alt", "qw", "qx", "qy", "qz", "v_axis", "t"}
+# signals never offered to the open-ended search (absolute horizontal position, which would let
+# it fit a map of the training flight; redundant attitude parametrisation; derived duplicates)
+_OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis", "t"}
 
 
 @dataclass(frozen=True)
@@ -74,8 +74,8 @@ class DiagnoseConfig:
     g: float = 9.81
     ground_h0_m: float = 0.5
     effects: tuple[str, ...] | None = None
-    sngp_generations: int = 3000
-    sngp_population: int = 300
+    sngp_generations: int = 5000
+    sngp_population: int = 500
     sngp_features: int = 3
     sngp_max_depth: int = 5
     sngp_seed: int = 0
@@ -724,6 +724,20 @@ def _open_ended_all(tr, te, cur, tr_parts, te_parts, cfg, progress) -> dict:
     return out
 
 
+def _clock_like(v: np.ndarray, t: np.ndarray, flight: np.ndarray, limit: float = 0.9) -> bool:
+    """True for a signal that drifts monotonically with time in some flight (|Spearman ρ| with
+    t above ``limit``, e.g. a sagging battery voltage): it acts as a clock, and a search given a
+    clock can fit any slow drift of the residual and carry it across interleaved blocks."""
+    from scipy.stats import spearmanr
+    for f in np.unique(flight):
+        m = flight == f
+        if m.sum() > 10 and np.ptp(v[m]) > 0:
+            rho = spearmanr(v[m], t[m]).statistic
+            if np.isfinite(rho) and abs(rho) > limit:
+                return True
+    return False
+
+
 def _signal_matrix(part, names):
     return np.column_stack([part.ctx.columns[n] for n in names])
 
@@ -731,7 +745,8 @@ def _signal_matrix(part, names):
 def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> dict:
     from .sngp import SNGPRegressor
     names = sorted(n for n, v in part.ctx.columns.items()
-                   if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier())
+                   if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier()
+                   and not _clock_like(v, part.t, part.flight))
     if test is not None:
         names = [n for n in names if n in test[0].ctx.columns]
     if not names:

@@ -31,8 +31,9 @@ def register(sub) -> None:
     p.add_argument("--min-improvement", type=float, default=0.01,
                    help="minimum relative CV-RMSE improvement to add an effect (default 0.01)")
     p.add_argument("--max-steps", type=int, default=5, help="most effects added (default 5)")
-    p.add_argument("--sngp-generations", type=int, default=3000,
-                   help="open-ended SNGP search budget per run; 0 disables it (default 3000)")
+    p.add_argument("--sngp-generations", type=int, default=5000,
+                   help="open-ended SNGP search budget per run (3 runs per target); 0 disables it "
+                        "(default 5000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the open-ended search")
     p.add_argument("--format", dest="log_format", default=None, help="force the log format")
     p.set_defaults(func=run)
