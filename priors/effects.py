@@ -263,7 +263,11 @@ def _wind_text(coef, base):
         w[f"w_{ax}_m_s"] = off / k if k and k > 1e-6 else float("nan")
         w[f"offset_{ax}_m_s2"] = off
         parts.append(w[f"w_{ax}_m_s"])
-    txt = "wind ≈ (" + ", ".join(f"{p:.2g}" for p in parts) + ") m/s"
+    if len(parts) == 1:
+        ax = "x" if "offset_x" in coef else "y"
+        txt = f"wind along {ax} ({'east' if ax == 'x' else 'north'}) ≈ {parts[0]:.2g} m/s"
+    else:
+        txt = "wind ≈ (" + ", ".join(f"{p:.2g}" for p in parts) + ") m/s"
     if any(not math.isfinite(p) for p in parts):
         txt += " (linear drag k_D not positive: wind undetermined; constant offset " + ", ".join(
             f"{v:.3g}" for k, v in w.items() if k.startswith("offset")) + " m/s²)"
