@@ -52,7 +52,7 @@ def run(args) -> int:
     if read is None:
         print("(log readers not installed yet: flights re-simulated from droneid/samples.py)")
     print()
-    head = f"{'log':38s} {'format':7s} {'duration':>8s} {'samples':>7s} {'signals':>7s} {'RMSE v̇x':>8s} {'RMSE v̇y':>8s}  planted effects"
+    head = f"{'log':38s} {'format':10s} {'duration':>8s} {'samples':>7s} {'signals':>7s} {'RMSE v̇x':>8s} {'RMSE v̇y':>8s}  planted effects"
     print(head)
     print("-" * len(head))
     n_logs = 0
@@ -87,7 +87,8 @@ def run(args) -> int:
     print()
     print("Flights without planted effects fit to the mocap noise level (~0.17 m/s² at 20 Hz);")
     print("the wind + quadratic-drag flight does not: the model lacks those terms.")
-    print("Motive CSVs carry pose only (no velocity): '-' unless the reader derives vx, vy.")
+    print("Motive CSVs carry pose only: their velocity is differentiated from 1 mm-noise positions")
+    print("at 20 Hz by the reader, so their residual is larger; '-' where no velocity is available.")
     return 0
 
 
@@ -100,4 +101,4 @@ def _row(label, fmt_name, flight, effects):
     else:
         fit = f"{'-':>8s} {'-':>8s}"
     n = max(len(flight[s]) for s in names) if names else 0
-    print(f"{label:38s} {fmt_name:7s} {flight.duration_s:7.1f}s {n:7d} {len(names):7d} {fit}  {effects}")
+    print(f"{label:38s} {fmt_name:10s} {flight.duration_s:7.1f}s {n:7d} {len(names):7d} {fit}  {effects}")
