@@ -28,8 +28,8 @@ def test_cli_finds_wind_then_quadratic_drag_in_the_sample_log(tmp_path, capsys):
 
 
 def test_cli_summary_and_control_pair(capsys):
-    rc = main(["-q", "diagnose", str(SAMPLE_LOGS / "paper_train_eight.tlog"), "--test",
-               str(SAMPLE_LOGS / "paper_test_square.tlog"), "--sngp-generations", "0"])
+    rc = main(["-q", "diagnose", str(SAMPLE_LOGS / "paper_train_eight.mcap"), "--test",
+               str(SAMPLE_LOGS / "paper_test_square.mcap"), "--sngp-generations", "0"])
     out = capsys.readouterr().out
     assert rc == 0
     assert "effects added: none" in out and "no further effect is detectable" in out
