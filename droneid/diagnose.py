@@ -92,6 +92,8 @@ class DiagnoseConfig:
         if not (0 <= self.min_rel_improvement < 1):
             raise ConfigError("The 'min_rel_improvement' parameter of DiagnoseConfig must be in [0, 1). "
                               f"Got {self.min_rel_improvement!r} instead.")
+        from .differentiation import DIFFERENTIATORS
+        check_choice("method", self.method, DIFFERENTIATORS, owner="DiagnoseConfig")
         if self.max_steps < 0 or self.sngp_generations < 0:
             raise ConfigError("max_steps and sngp_generations must be >= 0")
         return self
@@ -446,11 +448,119 @@ def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Da
     return out
 
 
+def _select_effects(user_effects, only) -> dict:
+    """The catalogue plus user effects, restricted to ``only`` (ids) when given."""
+    from priors.effects import CATALOGUE
+    effects = dict(CATALOGUE)
+    for e in (user_effects.values() if isinstance(user_effects, Mapping) else user_effects or ()):
+        effects[e.id] = e
+    if only is not None:
+        for eid in only:
+            if eid not in effects:
+                raise ConfigError(f"unknown effect '{eid}'{did_you_mean(eid, effects)}; known: {', '.join(effects)}")
+        effects = {k: v for k, v in effects.items() if k in only}
+    return effects
+
+
+def _testability(effects, tr_parts, te_parts, targets) -> tuple[list, dict]:
+    """(testable effects, {id: why untestable}): every part an effect applies to (train and
+    test) must have its signals."""
+    untestable, testable = {}, []
+    for eid, e in effects.items():
+        applicable = [p for p in [*tr_parts, *(te_parts or [])] if e.applies_to(p.target)]
+        if not applicable:
+            untestable[eid] = f"does not apply to targets {', '.join(targets)}"
+            continue
+        miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())})
+        if miss:
+            untestable[eid] = "needs " + ", ".join(miss)
+        else:
+            testable.append(e)
+    return testable, untestable
+
+
+class _Model:
+    """The stacked least-squares problem: base (prior) terms plus added effects, train and test."""
+
+    def __init__(self, tr_parts, te_parts, terms, cfg, targets):
+        self.tr_parts, self.te_parts, self.terms, self.cfg = tr_parts, te_parts, terms, cfg
+        self.targets = targets
+        self.tr = _Stack(tr_parts)
+        self.te = _Stack(te_parts) if te_parts else None
+        self.base = {name: {p.target: col} for p in tr_parts for name, col in p.base.items()}
+        self.te_base = {name: {p.target: col} for p in te_parts or [] for name, col in p.base.items()}
+
+    def terms_of(self, effect_ids, effects) -> tuple[dict, dict]:
+        """Train and test terms of the base model plus these effects (recomputed from the data)."""
+        cur, cur_test = dict(self.base), dict(self.te_base)
+        for eid in effect_ids:
+            cur.update(_terms_for(effects[eid], self.tr_parts))
+            if self.te_parts:
+                cur_test.update(_terms_for(effects[eid], self.te_parts))
+        return cur, cur_test
+
+    def fit(self, cur_terms, cur_test_terms) -> dict:
+        """Fit on all training rows; blocked-CV predictions; test predictions (flight-specific
+        parameters of the test flights by blocked CV on that flight)."""
+        tr, te, nb = self.tr, self.te, self.cfg.n_blocks
+        X = tr.design(cur_terms)
+        beta = _lstsq(X, tr.y)
+        pred = X @ beta
+        out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred, "train": tr.rmse_by_target(pred)}
+        cvp, mse, n = _cv(tr, X, nb)
+        out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
+        if te is None:
+            out.update(test={t: None for t in self.targets}, test_all=None)
+            return out
+        shared = [k for k in cur_terms if k in cur_test_terms]
+        local = [k for k in cur_test_terms if k not in cur_terms]
+        bsh = np.array([out["beta"][k] for k in shared])
+        tp = te.design({k: cur_test_terms[k] for k in shared}) @ bsh if shared else np.zeros_like(te.y)
+        if local:
+            Xl = te.design({k: cur_test_terms[k] for k in local})
+            r = te.y - tp
+            lp = np.zeros_like(r)
+            for k in range(nb):
+                hold = te.block == k
+                if hold.any():
+                    lp[hold] = Xl[hold] @ _lstsq(Xl[~hold], r[~hold])
+            out["test_local_beta"] = dict(zip(local, _lstsq(Xl, r).tolist()))
+            tp = tp + lp
+        out.update(test_pred=tp, test=te.rmse_by_target(tp),
+                   test_all=math.sqrt(float(np.mean((te.y - tp) ** 2))))
+        out["test_mse"], out["test_n"] = _block_mse(te.y, tp, te.block, nb)
+        return out
+
+    def base_info(self, fit) -> dict:
+        return {"k_D": {p.target: _k_drag(self.terms[p.target], p.target, p, fit["beta"])
+                        for p in self.tr_parts}}
+
+    def evidence(self, cur, new, n_candidates) -> dict:
+        cfg = self.cfg
+        return significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=n_candidates,
+                            min_rel_improvement=cfg.min_rel_improvement,
+                            test_before=cur["test_all"], test_after=new["test_all"],
+                            test_mse_before=cur.get("test_mse"), test_mse_after=new.get("test_mse"),
+                            test_n=cur.get("test_n"), require_test=cfg.require_test_improvement)
+
+
+def _physical(effect, coef: Mapping[str, float], info) -> dict:
+    """The effect's interpretation per flight (flight-specific effects) or once."""
+    per = _split_flight_params(coef)
+    its = {label: effect.interpret(c, info) for label, c in per.items()}
+    text = "; ".join(it.text + (f" [{label}]" if label and len(its) > 1 else "") for label, it in its.items())
+    return {"physical": text, "physical_values": next(iter(its.values())).values,
+            "physical_per_flight": {label: it.values for label, it in its.items() if label}}
+
+
+def _strip(coef: Mapping[str, float]) -> dict:
+    return {k.split(".", 1)[1]: v for k, v in coef.items()}
+
+
 def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] | None = None, *,
                       prior="tilt-drag", config: DiagnoseConfig | None = None, user_effects=None,
                       progress: Callable | None = None) -> DiagnosisResult:
     """Diagnose ``prior`` on per-target Datasets (see the module docstring)."""
-    from priors.effects import CATALOGUE
     cfg = (config or DiagnoseConfig()).validate()
     if not train:
         raise DataError("no training datasets")
@@ -458,19 +568,10 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     targets = list(train)
     if test is not None and set(test) != set(targets):
         raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
-    effects = dict(CATALOGUE)
-    for e in (user_effects.values() if isinstance(user_effects, Mapping) else user_effects or ()):
-        effects[e.id] = e
-    if cfg.effects is not None:
-        for eid in cfg.effects:
-            if eid not in effects:
-                raise ConfigError(f"unknown effect '{eid}'{did_you_mean(eid, effects)}; known: {', '.join(effects)}")
-        effects = {k: v for k, v in effects.items() if k in cfg.effects}
-
+    effects = _select_effects(user_effects, cfg.effects)
     if cfg.n_blocks is None:
         from dataclasses import replace
-        n_min = min(len(d) for d in train.values())
-        cfg = replace(cfg, n_blocks=int(np.clip(n_min // 150, 8, 20)))
+        cfg = replace(cfg, n_blocks=int(np.clip(min(len(d) for d in train.values()) // 150, 8, 20)))
     terms = {t: _prior_terms(pr, t) for t in targets}
     tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
     te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
@@ -478,82 +579,13 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         if p.y.size < 5 * cfg.n_blocks:
             raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
                             f"{5 * cfg.n_blocks} for {cfg.n_blocks}-block cross-validation")
-    tr, te = _Stack(tr_parts), (_Stack(te_parts) if te_parts else None)
+    testable, untestable = _testability(effects, tr_parts, te_parts, targets)
+    model = _Model(tr_parts, te_parts, terms, cfg, targets)
+    tr = model.tr
 
-    # testability: an effect is testable when every target it applies to has its signals
-    untestable, testable = {}, []
-    for eid, e in effects.items():
-        applicable = [p for p in tr_parts if e.applies_to(p.target)]
-        if not applicable:
-            untestable[eid] = f"does not apply to targets {', '.join(targets)}"
-            continue
-        miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())}
-                      | ({m for p in te_parts for m in e.missing(p.ctx.available())} if te_parts else set()))
-        if miss:
-            untestable[eid] = "needs " + ", ".join(miss)
-        else:
-            testable.append(e)
-
-    base_terms = {}
-    for p in tr_parts:
-        for name, col in p.base.items():
-            base_terms[name] = {p.target: col}
-    if te_parts:
-        te_base = {name: {p.target: p.base[name]} for p in te_parts for name in p.base}
-
-    def effect_test_terms(e):
-        return _terms_for(e, te_parts) if te_parts else {}
-
-    def fit_eval(cur_terms, cur_test_terms):
-        X = tr.design(cur_terms)
-        beta = _lstsq(X, tr.y)
-        pred = X @ beta
-        out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred,
-               "train": tr.rmse_by_target(pred)}
-        cvp, mse, n = _cv(tr, X, cfg.n_blocks)
-        out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
-        out["cv_all"] = math.sqrt(float(np.mean((tr.y - cvp) ** 2)))
-        if te is not None:
-            # shared parameters come from training; flight-specific ones of the test flights are
-            # estimated on the test flight by blocked CV (so the test error stays out of sample)
-            shared = [k for k in cur_terms if k in cur_test_terms]
-            local = [k for k in cur_test_terms if k not in cur_terms]
-            bsh = np.array([out["beta"][k] for k in shared])
-            tp = te.design({k: cur_test_terms[k] for k in shared}) @ bsh if shared else np.zeros_like(te.y)
-            if local:
-                Xl = te.design({k: cur_test_terms[k] for k in local})
-                r = te.y - tp
-                lp = np.zeros_like(r)
-                for k in range(cfg.n_blocks):
-                    hold = te.block == k
-                    if hold.any():
-                        lp[hold] = Xl[hold] @ _lstsq(Xl[~hold], r[~hold])
-                out["test_local_beta"] = dict(zip(local, _lstsq(Xl, r).tolist()))
-                tp = tp + lp
-            out["test_pred"] = tp
-            out["test"] = te.rmse_by_target(tp)
-            out["test_all"] = math.sqrt(float(np.mean((te.y - tp) ** 2)))
-            out["test_mse"], out["test_n"] = _block_mse(te.y, tp, te.block, cfg.n_blocks)
-        else:
-            out["test"] = {t: None for t in targets}
-            out["test_all"] = None
-        return out
-
-    def base_info(fit):
-        return {"k_D": {p.target: _k_drag(terms[p.target], p.target, p, fit["beta"]) for p in tr_parts}}
-
-    cur_terms = dict(base_terms)
-    cur_test = dict(te_base) if te_parts else {}
-    cur = fit_eval(cur_terms, cur_test)
-    base_fit = cur
-    prior_rmse = {p.target: {"train": float(np.sqrt(np.mean((p.y - p.prior_sum) ** 2))),
-                             "test": None} for p in tr_parts}
-    if te_parts:
-        for p in te_parts:
-            prior_rmse[p.target]["test"] = float(np.sqrt(np.mean((p.y - p.prior_sum) ** 2)))
-
-    steps, added, candidates_log = [], [], []
-    conclusion = NO_FURTHER
+    cur_terms, cur_test = model.terms_of((), effects)
+    cur = base_fit = model.fit(cur_terms, cur_test)
+    steps, added, candidates_log, plot_steps = [], [], [], []
     total = cfg.max_steps + 1
     for step in range(cfg.max_steps):
         if progress:
@@ -565,162 +597,126 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             et = _terms_for(e, tr_parts)
             if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
                 continue
-            ett = {}
-            if te_parts:
-                ett = effect_test_terms(e)
-                if not getattr(e, "per_flight", False) and set(ett) != set(et):
-                    continue
-            new = fit_eval({**cur_terms, **et}, {**cur_test, **ett})
-            scores.append((e, et, ett, new))
+            ett = _terms_for(e, te_parts) if te_parts else {}
+            if te_parts and not e.per_flight and set(ett) != set(et):
+                continue
+            scores.append((e, et, ett, model.fit({**cur_terms, **et}, {**cur_test, **ett})))
         if not scores:
             break
-        m = len(scores)
-        evid = []
-        for e, et, ett, new in scores:
-            ev = significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=m,
-                              min_rel_improvement=cfg.min_rel_improvement,
-                              test_before=cur["test_all"], test_after=new["test_all"],
-                              test_mse_before=cur.get("test_mse"), test_mse_after=new.get("test_mse"),
-                              test_n=cur.get("test_n"),
-                              require_test=cfg.require_test_improvement)
-            evid.append(ev)
-        order = sorted(range(m), key=lambda i: evid[i]["cv_rmse_after"])
+        evid = [model.evidence(cur, new, len(scores)) for *_, new in scores]
+        order = sorted(range(len(scores)), key=lambda i: evid[i]["cv_rmse_after"])
         candidates_log.append({"step": step + 1, "scores": [
             {"effect": scores[i][0].id, **{k: evid[i][k] for k in (
                 "cv_rmse_after", "rel_improvement", "p_value", "blocks_improved",
                 "test_rmse_after", "passed")}} for i in order]})
-        bi = order[0]
-        e, et, ett, new = scores[bi]
-        ev = evid[bi]
+        e, et, ett, new = scores[order[0]]
+        ev = evid[order[0]]
         if not ev["passed"]:
             log.info("step %d: best candidate %s rejected: %s", step + 1, e.id, "; ".join(ev["reasons"]))
             break
         # candidates nearly as good (and significant) that the data cannot tell apart
-        alts = [scores[i][0].id for i in order[1:] if evid[i]["passed"]
-                and evid[i]["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
-        ev["indistinguishable_from"] = alts
-        coef = {k.split(".", 1)[1]: new["beta"][k] for k in et}
-        info = base_info(new)
-        per = _split_flight_params(coef)
-        per.update(_split_flight_params({k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}))
-        interps = {label: e.interpret(c, info) for label, c in per.items()}
-        first = next(iter(interps.values()))
-        if len(interps) == 1:
-            text = first.text
-        else:
-            text = "; ".join(f"{it.text} [{label}]" for label, it in interps.items())
-        steps.append({"effect": e.id, "description": e.description, "coefficients": coef,
-                      "physical": text, "physical_values": first.values,
-                      "physical_per_flight": {label: it.values for label, it in interps.items()
-                                              if label is not None},
-                      "per_flight": bool(getattr(e, "per_flight", False)),
+        ev["indistinguishable_from"] = [scores[i][0].id for i in order[1:] if evid[i]["passed"]
+                                        and evid[i]["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
+        coef = {k: new["beta"][k] for k in et}
+        local = {k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}
+        steps.append({"effect": e.id, "description": e.description, "coefficients": _strip(coef),
+                      **_physical(e, {**coef, **local}, model.base_info(new)), "per_flight": e.per_flight,
                       "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
                                for t in targets},
-                      "evidence": ev,
-                      "_contrib": {p.target: sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])
-                                   for p in tr_parts},
-                      "_resid_before": {p.target: p.y - cur["pred"][tr.tidx == i] for i, p in enumerate(tr_parts)}})
+                      "evidence": ev})
+        plot_steps.append({p.target: {"effect": e.id, "residual": p.y - cur["pred"][tr.tidx == i],
+                                      "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
+                           for i, p in enumerate(tr_parts)})
         added.append(e.id)
-        cur_terms.update(et)
-        cur_test.update(ett)
-        cur = new
+        cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
         if "wind" in added:
             # drag acts on the air velocity v − w: refresh it from the wind estimate and refit
             for _ in range(2):
-                _air_update(tr_parts, te_parts, cur, base_info(cur)["k_D"])
-                cur_terms, cur_test = dict(base_terms), dict(te_base) if te_parts else {}
-                for eid in added:
-                    cur_terms.update(_terms_for(effects[eid], tr_parts))
-                    if te_parts:
-                        cur_test.update(_terms_for(effects[eid], te_parts))
-                cur = fit_eval(cur_terms, cur_test)
+                _air_update(tr_parts, te_parts, cur, model.base_info(cur)["k_D"])
+                cur_terms, cur_test = model.terms_of(added, effects)
+                cur = model.fit(cur_terms, cur_test)
     if progress:
         progress(cfg.max_steps, total, "open-ended search")
+    open_ended = _open_ended_all(model, cur, cfg)
 
-    open_ended = _open_ended_all(tr, te, cur, tr_parts, te_parts, cfg, progress)
-
-    # -- assemble the result -------------------------------------------------------------------
-    base_coef = {t: {k.split(":", 1)[1]: v for k, v in base_fit["beta"].items() if k.startswith(t + ":")}
-                 for t in targets}
-    out_targets = {}
-    for i, p in enumerate(tr_parts):
-        t = p.target
-        tsteps = []
-        for s in steps:
-            tsteps.append({"effect": s["effect"],
-                           "coefficients": {k: v for k, v in s["coefficients"].items()},
-                           "physical": s["physical"], "rmse": s["rmse"][t], "evidence": s["evidence"]})
-        k_final = _k_drag(terms[t], t, p, cur["beta"])
-        out_targets[t] = {
-            "rmse_prior": prior_rmse[t],
-            "rmse_before": {"train": base_fit["train"][t], "test": base_fit["test"][t], "cv": base_fit["cv"][t]},
-            "rmse_after": {"train": cur["train"][t], "test": cur["test"][t], "cv": cur["cv"][t]},
-            "base_coefficients": base_coef[t],
-            "linear_drag_k_D": _k_drag(terms[t], t, p, base_fit["beta"]),
-            "linear_drag_k_D_after": k_final,
-            "final_coefficients": {k: v for k, v in cur["beta"].items() if t in cur_terms[k]},
-            "steps": tsteps, "open_ended": open_ended.get(t),
-            "n_train": int(p.y.size), "n_test": int(te_parts[i].y.size) if te_parts else 0,
-        }
-    series = {}
-    for i, p in enumerate(tr_parts):
-        t = p.target
-        series[t] = {"t": p.t, "flight": p.flight, "y": p.y,
-                     "residual_prior": p.y - p.prior_sum,
-                     "residual_before": p.y - base_fit["pred"][tr.tidx == i],
-                     "residual_after": p.y - cur["pred"][tr.tidx == i],
-                     "signals": {k: v for k, v in p.ctx.columns.items() if k in ("yaw", "speed", "vz_dot", "z", "G")},
-                     "steps": [{"effect": s["effect"], "contrib": s["_contrib"][t], "residual": s["_resid_before"][t]}
-                               for s in steps]}
-    for s in steps:
-        s.pop("_contrib")
-        s.pop("_resid_before")
+    info = model.base_info(cur)
     final_effects = []
-    info = base_info(cur)
     for eid in added:
-        coef = {k: v for k, v in cur["beta"].items() if k.startswith(eid + ".")}
-        coef.update({k: v for k, v in cur.get("test_local_beta", {}).items() if k.startswith(eid + ".")})
-        per = _split_flight_params(coef)
-        its = {label: effects[eid].interpret(c, info) for label, c in per.items()}
-        final_effects.append({
-            "effect": eid,
-            "physical": "; ".join(it.text + (f" [{label}]" if label and len(its) > 1 else "")
-                                  for label, it in its.items()),
-            "physical_values": next(iter(its.values())).values,
-            "physical_per_flight": {label: it.values for label, it in its.items() if label},
-            "coefficients": {k.split(".", 1)[1]: v for k, v in coef.items()}})
-    tested = [e.id for e in testable]
-    not_detected = [eid for eid in tested if eid not in added]
+        coef = {k: v for k, v in {**cur["beta"], **cur.get("test_local_beta", {})}.items()
+                if k.startswith(eid + ".")}
+        final_effects.append({"effect": eid, **_physical(effects[eid], coef, info),
+                              "coefficients": _strip(coef)})
+    not_detected = [e.id for e in testable if e.id not in added]
+    conclusion = NO_FURTHER
     if added:
-        conclusion = (f"added {', '.join(added)}; " + NO_FURTHER) if len(added) < cfg.max_steps or not testable \
-            else f"added {', '.join(added)} (step limit {cfg.max_steps} reached)"
+        conclusion = (f"added {', '.join(added)}; {NO_FURTHER}" if len(added) < cfg.max_steps
+                      else f"added {', '.join(added)} (step limit {cfg.max_steps} reached)")
     if any(o and o.get("passed") for o in open_ended.values()):
         conclusion += "; the open-ended search found an unnamed term (see open_ended)"
     sources = {"train": sorted({s for d in train.values() for s in d.sources}),
                "test": sorted({s for d in test.values() for s in d.sources}) if test else []}
     return DiagnosisResult(
-        targets=out_targets, steps=steps, effects_added=added, untestable=untestable,
-        not_detected=not_detected, conclusion=conclusion, open_ended=open_ended,
-        config=asdict(cfg), prior=prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__),
-        sources=sources, candidates=candidates_log, series=series, final_effects=final_effects)
+        targets=_target_summaries(model, base_fit, cur, cur_terms, steps, open_ended),
+        steps=steps, effects_added=added, untestable=untestable, not_detected=not_detected,
+        conclusion=conclusion, open_ended=open_ended, config=asdict(cfg),
+        prior=prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__),
+        sources=sources, candidates=candidates_log, final_effects=final_effects,
+        series=_series(model, base_fit, cur, plot_steps))
+
+
+def _rmse(y, pred) -> float:
+    return float(np.sqrt(np.mean((y - pred) ** 2)))
+
+
+def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dict:
+    out = {}
+    for i, p in enumerate(model.tr_parts):
+        t, tp = p.target, model.terms[p.target]
+        q = model.te_parts[i] if model.te_parts else None
+        out[t] = {
+            "rmse_prior": {"train": _rmse(p.y, p.prior_sum), "test": _rmse(q.y, q.prior_sum) if q else None},
+            "rmse_before": {k: base_fit[k][t] for k in ("train", "test", "cv")},
+            "rmse_after": {k: cur[k][t] for k in ("train", "test", "cv")},
+            "base_coefficients": {k.split(":", 1)[1]: v for k, v in base_fit["beta"].items()
+                                  if k.startswith(t + ":")},
+            "linear_drag_k_D": _k_drag(tp, t, p, base_fit["beta"]),
+            "linear_drag_k_D_after": _k_drag(tp, t, p, cur["beta"]),
+            "final_coefficients": {k: v for k, v in cur["beta"].items() if t in cur_terms[k]},
+            "steps": [{"effect": s["effect"], "coefficients": s["coefficients"], "physical": s["physical"],
+                       "rmse": s["rmse"][t], "evidence": s["evidence"]} for s in steps],
+            "open_ended": open_ended.get(t),
+            "n_train": int(p.y.size), "n_test": int(q.y.size) if q else 0,
+        }
+    return out
+
+
+def _series(model, base_fit, cur, plot_steps) -> dict:
+    tidx = model.tr.tidx
+    return {p.target: {"t": p.t, "flight": p.flight, "y": p.y,
+                       "residual_prior": p.y - p.prior_sum,
+                       "residual_before": p.y - base_fit["pred"][tidx == i],
+                       "residual_after": p.y - cur["pred"][tidx == i],
+                       "signals": {k: v for k, v in p.ctx.columns.items() if k in ("yaw", "speed", "vz_dot", "z", "G")},
+                       "steps": [s[p.target] for s in plot_steps]}
+            for i, p in enumerate(model.tr_parts)}
 
 
 # -- open-ended search ----------------------------------------------------------------------------
-def _open_ended_all(tr, te, cur, tr_parts, te_parts, cfg, progress) -> dict:
-    out = {}
+def _open_ended_all(model, cur, cfg) -> dict:
+    parts = model.tr_parts
     if cfg.sngp_generations <= 0:
-        return {p.target: {"ran": False, "reason": "disabled (sngp_generations = 0)"} for p in tr_parts}
+        return {p.target: {"ran": False, "reason": "disabled (sngp_generations = 0)"} for p in parts}
     try:
         from .sngp import SNGPRegressor  # noqa: F401
     except ImportError as exc:
-        return {p.target: {"ran": False, "reason": f"SNGP engine unavailable ({exc})"} for p in tr_parts}
-    for i, p in enumerate(tr_parts):
-        resid = p.y - cur["pred"][tr.tidx == i]
+        return {p.target: {"ran": False, "reason": f"SNGP engine unavailable ({exc})"} for p in parts}
+    out = {}
+    for i, p in enumerate(parts):
         test = None
-        if te_parts:
-            q = te_parts[i]
-            test = (q, q.y - cur["test_pred"][te.tidx == i])
-        out[p.target] = _open_ended(p, resid, test, cfg)
+        if model.te_parts:
+            q = model.te_parts[i]
+            test = (q, q.y - cur["test_pred"][model.te.tidx == i])
+        out[p.target] = _open_ended(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg)
     return out
 
 

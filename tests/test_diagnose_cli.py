@@ -55,3 +55,17 @@ def test_cli_on_crazyflie_square_to_melon(tmp_path, capsys):
     for t, v in d["targets"].items():
         if d["effects_added"]:
             assert v["rmse_after"]["test"] < v["rmse_before"]["test"], t
+
+
+@pytest.mark.slow
+@pytest.mark.real_logs
+def test_cli_on_the_arducopter_log(tmp_path, capsys):
+    log = real_log("ardupilot/copter33_quad_log171.bin")
+    rc = main(["-q", "diagnose", str(log), "--sngp-generations", "0", "--json",
+               "--report", str(tmp_path)])
+    assert rc == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["targets"]) == {"vx_dot", "vy_dot"} and (tmp_path / "diagnosis.html").is_file()
+    for v in d["targets"].values():
+        assert v["rmse_after"]["train"] <= v["rmse_before"]["train"]
+        assert v["n_train"] > 1000          # the crash at the end is trimmed, the flight is kept

@@ -110,6 +110,8 @@ def test_significance_rule():
 def test_config_validation_and_unknown_effect():
     with pytest.raises(ConfigError, match="n_blocks"):
         DiagnoseConfig(n_blocks=1).validate()
+    with pytest.raises(ConfigError, match="did you mean 'central'"):
+        DiagnoseConfig(method="centrl").validate()
     with pytest.raises(ConfigError, match="did you mean 'wind'"):
         diagnose_datasets(S.make(None), None, prior=S.TiltDragStub(),
                           config=DiagnoseConfig(sngp_generations=0, effects=("windd",)))
