@@ -356,6 +356,19 @@ def _raise_bounds(m, s, a, b, lay, depth, ltr, stack):
 
 
 @njit(cache=True, inline="always")
+def _changed(r0, r1, valid_now, valid_before):
+    """Whether a re-evaluated node's output differs from its previous one (its two rows)."""
+    if valid_now != valid_before:
+        return True
+    if valid_now == 0:
+        return False
+    for t in range(r0.shape[0]):
+        if r0[t] != r1[t]:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def _terminal(lay):
     """A terminal: constant/head node or variable (incl. prior terminals), 50/50."""
     if lay[L_HEAD] > 0 and np.random.random() < 0.5:
@@ -741,8 +754,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
             mutated[m] = gen_id
             if m < lowest:
                 lowest = m
-        # re-evaluate the mutated nodes and everything above them, ascending
+        # re-evaluate the mutated nodes and every node above a changed one, ascending; a node
+        # whose output comes out identical (e.g. invalid before and after) does not dirty its users
         nd = 0
+        id_changed = False
         for n in range(lowest, P):
             if n >= lay[L_HEAD] and n < t0:
                 continue
@@ -757,30 +772,37 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                         hit = True
             if not hit:
                 continue
-            stamp[n] = gen_id
             dirty[nd] = n
             d_valid[nd] = valid[n]
             d_const[nd] = isconst[n]
             d_fit[nd] = fit[n]
             nd += 1
             _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+            if _changed(V[0, n], V[1, n], valid[n], d_valid[nd - 1]):
+                stamp[n] = gen_id
+                if n >= id0:
+                    id_changed = True
         stats[S_EVALS] += nd
-        ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols, nobj)
         accept = False
-        if ok:
-            sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
-            if mode == 1:
-                _archive_insert(nobj[O_ED], nobj[O_EC], a, b, arch_obj, arch_a, arch_b, arch_n)
-            if sc <= obj[O_SCORE]:
-                accept = True
-                obj[O_ED] = nobj[O_ED]
-                obj[O_EC] = nobj[O_EC]
-                obj[O_SCORE] = sc
-                for i in range(K):
-                    beta[i] = nbeta[i]
-                    cols[i] = ncols[i]
+        if not id_changed:
+            accept = True          # the model is the same: a neutral move
         else:
-            stats[S_FAILED] += 1
+            ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols,
+                              nobj)
+            if ok:
+                sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
+                if mode == 1:
+                    _archive_insert(nobj[O_ED], nobj[O_EC], a, b, arch_obj, arch_a, arch_b, arch_n)
+                if sc <= obj[O_SCORE]:
+                    accept = True
+                    obj[O_ED] = nobj[O_ED]
+                    obj[O_EC] = nobj[O_EC]
+                    obj[O_SCORE] = sc
+                    for i in range(K):
+                        beta[i] = nbeta[i]
+                        cols[i] = ncols[i]
+            else:
+                stats[S_FAILED] += 1
         if accept:
             stats[S_ACCEPT] += 1
         else:
