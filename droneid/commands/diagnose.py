@@ -1,0 +1,72 @@
+"""``droneid diagnose``: find what a prior model lacks, add it, report the error before and after."""
+from __future__ import annotations
+
+import argparse
+
+from ._common import ProgressBar, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "diagnose", help="trace a prior model's residual to the physical effects it lacks",
+        description="Fit the prior, score a catalogue of candidate effects (wind, quadratic drag, "
+                    "attitude bias/delay, ...) against the residual with blocked cross-validation and "
+                    "the test flight, add the significant ones in order, and search the rest of the "
+                    "residual with SNGP. Effects whose signals are missing are reported as untestable.")
+    p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training flight log(s)")
+    p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None, help="test flight log(s)")
+    p.add_argument("--prior", default="tilt-drag", help="prior model name (default: tilt-drag)")
+    p.add_argument("--target", default="vx_dot,vy_dot",
+                   help="comma-separated targets (default: vx_dot,vy_dot)")
+    p.add_argument("--report", metavar="DIR", help="write diagnosis.json/.md/.html and plots here")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.add_argument("--effects", metavar="TOML", help="extra user-defined effects (TOML)")
+    p.add_argument("--only", metavar="IDS", help="comma-separated effect ids to test (default: all)")
+    p.add_argument("--ts", type=float, default=0.05, help="dataset grid step in s (default 0.05)")
+    p.add_argument("--method", default="central", help="differentiator (default central)")
+    p.add_argument("--blocks", type=int, default=None,
+                   help="cross-validation time blocks per flight (default: ~150 samples per block, 8..20)")
+    p.add_argument("--alpha", type=float, default=0.01,
+                   help="significance level of the paired block test, Bonferroni-corrected (default 0.01)")
+    p.add_argument("--min-improvement", type=float, default=0.01,
+                   help="minimum relative CV-RMSE improvement to add an effect (default 0.01)")
+    p.add_argument("--max-steps", type=int, default=5, help="most effects added (default 5)")
+    p.add_argument("--sngp-generations", type=int, default=5000,
+                   help="open-ended SNGP search budget per run (3 runs per target); 0 disables it "
+                        "(default 5000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the open-ended search")
+    p.add_argument("--format", dest="log_format", default=None, help="force the log format")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import parsers
+    from droneid.diagnose import DiagnoseConfig, diagnose
+    from droneid.diagnose_report import summary_text, write_report
+    from droneid.errors import ConfigError
+
+    targets = tuple(t.strip() for t in args.target.split(",") if t.strip())
+    if not targets:
+        raise ConfigError("--target: no targets given")
+    user = None
+    if args.effects:
+        from priors.effects import load_effects
+        user = load_effects(args.effects)
+    only = tuple(s.strip() for s in args.only.split(",")) if args.only else None
+    cfg = DiagnoseConfig(ts_s=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
+                         min_rel_improvement=args.min_improvement, max_steps=args.max_steps,
+                         sngp_generations=args.sngp_generations, sngp_seed=args.seed, effects=only)
+    train = [parsers.read_flight(p, format=args.log_format) for p in args.train]
+    test = [parsers.read_flight(p, format=args.log_format) for p in args.test] if args.test else None
+    bar = ProgressBar("diagnose", quiet=args.quiet or args.json)
+    result = diagnose(train, test, prior=args.prior, targets=targets, config=cfg, user_effects=user,
+                      progress=bar)
+    if args.report:
+        write_report(result, args.report)
+    if args.json:
+        print_json(result.to_dict())
+    else:
+        print(summary_text(result))
+        if args.report:
+            print(f"report: {args.report}/diagnosis.html")
+    return 0

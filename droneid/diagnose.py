@@ -1,0 +1,790 @@
+"""Diagnosis: find what a prior model lacks, in physical terms, with out-of-sample evidence.
+
+Pipeline (:func:`diagnose` from flights, :func:`diagnose_datasets` from Datasets):
+
+1. Fit the prior as given (every feature weight 1) and refit it by least squares WITHOUT an
+   intercept (a free intercept would absorb wind and attitude biases), jointly for all targets;
+   the residual is what the refit prior leaves.
+2. Score every testable effect of the catalogue (:mod:`priors.effects`) by BLOCKED
+   cross-validation: each training flight is cut into ``n_blocks`` contiguous time blocks; the
+   model with and without the effect is fitted on all blocks but one and predicts the held-out
+   one. Effects are fitted jointly over the targets: a parameter shared by v̇x and v̇y (quadratic
+   drag c, attitude biases, delay τ) is one coefficient.
+3. Add the best effect if its held-out improvement is significant (:func:`significance`):
+   relative CV-RMSE improvement ≥ ``min_rel_improvement``, AND a one-sided paired t-test on the
+   per-block relative improvements with p < ``alpha`` / (number of candidates scored), AND, when a
+   test flight is given, a lower test RMSE. Refit and repeat; otherwise stop: "no further effect is
+   detectable from these signals".
+4. An open-ended SNGP search on the remaining residual over all available signals catches what
+   the catalogue lacks; its term is reported only if it passes the same held-out rule
+   (interleaved-block 2-fold CV and the test flight).
+
+Effects whose signals are missing are reported UNTESTABLE, never absent.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from .data import Dataset
+from .errors import ConfigError, DataError, check_choice, did_you_mean
+from .expressions import compile_expression, symbol
+
+log = logging.getLogger(__name__)
+
+__all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "significance",
+           "block_ids", "NO_FURTHER"]
+
+NO_FURTHER = "no further effect is detectable from these signals"
+_ANGLES = ("roll", "pitch")
+# signals never offered to the open-ended search (absolute horizontal position, which would let
+# it fit a map of the training flight; redundant attitude parametrisation; derived duplicates)
+_OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis", "t"}
+
+
+@dataclass(frozen=True)
+class DiagnoseConfig:
+    """Settings of a diagnosis (all documented in notes/README_diagnose.md).
+
+    ts_s, method: dataset grid step and differentiator (central differences by default: forward
+        differences shift the target by Ts/2, which would look like an attitude delay).
+    n_blocks: contiguous time blocks per training flight for cross-validation; None (default):
+        ``clip(n_train // 150, 8, 20)`` with n_train the training samples per target, so blocks
+        hold ~150 samples (7.5 s at 20 Hz) and long flights give the block test more blocks.
+    alpha: one-sided significance level of the paired block test (Bonferroni-divided by the
+        number of candidates scored in a step).
+    min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
+    require_test_improvement: when a test flight is given, the effect must also lower its RMSE.
+    max_steps: most effects added.
+    effects: restrict the catalogue to these ids (None: all); user_effects: extra Effect objects.
+    sngp_generations: budget of the open-ended search per run (0 disables it).
+    """
+    ts_s: float = 0.05
+    method: str = "central"
+    n_blocks: int | None = None
+    alpha: float = 0.01
+    min_rel_improvement: float = 0.01
+    require_test_improvement: bool = True
+    max_steps: int = 5
+    g: float = 9.81
+    ground_h0_m: float = 0.5
+    effects: tuple[str, ...] | None = None
+    sngp_generations: int = 5000
+    sngp_population: int = 500
+    sngp_features: int = 3
+    sngp_max_depth: int = 5
+    sngp_seed: int = 0
+    sngp_max_samples: int = 1500
+
+    def validate(self) -> "DiagnoseConfig":
+        if not (self.ts_s > 0):
+            raise ConfigError(f"The 'ts_s' parameter of DiagnoseConfig must be > 0. Got {self.ts_s!r} instead.")
+        if self.n_blocks is not None and not (isinstance(self.n_blocks, int) and 3 <= self.n_blocks <= 50):
+            raise ConfigError("The 'n_blocks' parameter of DiagnoseConfig must be an int in [3, 50]. "
+                              f"Got {self.n_blocks!r} instead.")
+        if not (0 < self.alpha < 0.5):
+            raise ConfigError(f"The 'alpha' parameter of DiagnoseConfig must be in (0, 0.5). Got {self.alpha!r} instead.")
+        if not (0 <= self.min_rel_improvement < 1):
+            raise ConfigError("The 'min_rel_improvement' parameter of DiagnoseConfig must be in [0, 1). "
+                              f"Got {self.min_rel_improvement!r} instead.")
+        from .differentiation import DIFFERENTIATORS
+        check_choice("method", self.method, DIFFERENTIATORS, owner="DiagnoseConfig")
+        if self.max_steps < 0 or self.sngp_generations < 0:
+            raise ConfigError("max_steps and sngp_generations must be >= 0")
+        return self
+
+
+@dataclass
+class DiagnosisResult:
+    """The outcome of a diagnosis, as data (``to_dict()`` is the diagnosis.json content).
+
+    targets: {target: {"rmse_prior": {train, test}, "rmse_before": {train, test, cv},
+        "rmse_after": {...}, "base_coefficients": {...}, "steps": [...], "open_ended": {...}}}
+    steps: the joint steps in order: {"effect", "coefficients", "physical", "rmse": {target:
+        {train, test, cv}}, "evidence"}
+    effects_added: ids in the order they were added; untestable: {id: "needs ..."};
+    not_detected: ids tested but not added; conclusion: one sentence.
+    final_effects: every added effect in physical terms with the FINAL joint coefficients (a step
+        reports the values when it was added; later effects can refine them, e.g. wind after
+        quadratic drag).
+    series: per-target arrays for the plots (not in diagnosis.json).
+    """
+    targets: dict
+    steps: list
+    effects_added: list
+    untestable: dict
+    not_detected: list
+    conclusion: str
+    open_ended: dict
+    config: dict
+    prior: str
+    sources: dict
+    candidates: list = field(default_factory=list)
+    final_effects: list = field(default_factory=list)
+    series: dict = field(default_factory=dict)
+
+    def to_dict(self, include_series: bool = False) -> dict:
+        from .io_util import to_jsonable
+        d = {"targets": self.targets, "effects_added": self.effects_added,
+             "untestable": sorted(self.untestable), "untestable_reasons": self.untestable,
+             "not_detected": self.not_detected, "conclusion": self.conclusion,
+             "steps": self.steps, "final_effects": self.final_effects,
+             "open_ended": self.open_ended, "candidates": self.candidates,
+             "prior": self.prior, "config": self.config, "sources": self.sources}
+        if include_series:
+            d["series"] = self.series
+        return to_jsonable(d)
+
+
+# -- statistics -----------------------------------------------------------------------------------
+def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
+    """Contiguous time blocks 0..n_blocks-1 inside each flight, with equal sample counts
+    (so trimmed ground time or gaps leave no block empty)."""
+    t = np.asarray(t, float)
+    flight = np.asarray(flight, int)
+    out = np.zeros(t.size, dtype=int)
+    for f in np.unique(flight):
+        idx = np.flatnonzero(flight == f)
+        order = idx[np.argsort(t[idx], kind="stable")]
+        out[order] = np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1), n_blocks - 1)
+    return out
+
+
+def _block_p(mse_before, mse_after) -> tuple[float, np.ndarray]:
+    """One-sided paired t-test that the per-block relative improvements are > 0."""
+    from scipy import stats
+    d = 1.0 - mse_after / np.where(mse_before > 0, mse_before, 1.0)
+    if d.size >= 2 and np.std(d, ddof=1) > 0:
+        return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue), d
+    return (0.0 if d.size and np.all(d > 0) else 1.0), d
+
+
+def _block_mse(y, pred, block, n_blocks):
+    r2 = (y - pred) ** 2
+    n = np.bincount(block, minlength=n_blocks)[:n_blocks]
+    s = np.bincount(block, weights=r2, minlength=n_blocks)[:n_blocks]
+    return np.where(n > 0, s / np.maximum(n, 1), 0.0), n
+
+
+def significance(mse_before: np.ndarray, mse_after: np.ndarray, n_before: np.ndarray,
+                 *, alpha: float, n_candidates: int = 1, min_rel_improvement: float = 0.01,
+                 test_before: float | None = None, test_after: float | None = None,
+                 test_mse_before: np.ndarray | None = None, test_mse_after: np.ndarray | None = None,
+                 test_n: np.ndarray | None = None, require_test: bool = True) -> dict:
+    """The held-out decision rule; returns the evidence dict with ``passed`` and ``reasons``.
+
+    ``mse_before/after[k]``: held-out (cross-validated) mean squared error of training block k
+    without/with the effect; ``n_before[k]``: samples in block k. ``test_*``: the test flight's
+    RMSE and per-block MSE (model fitted on all training data), when there is a test flight.
+
+    Passes when ALL hold:
+
+    1. the pooled CV RMSE improves by at least ``min_rel_improvement`` (relative);
+    2. the per-block relative improvements ``1 − mse_after/mse_before`` are consistently > 0:
+       one-sided paired t-test p_cv; with a test flight, the same test on its blocks gives p_test
+       and the two independent p-values are combined by Fisher's method; the (combined) p must be
+       below ``alpha / n_candidates`` (Bonferroni over the candidates scored in the step);
+    3. with a test flight (and ``require_test``), its RMSE is lower.
+    """
+    from scipy import stats
+    ok = n_before > 0
+    mb, ma, nb = mse_before[ok], mse_after[ok], n_before[ok]
+    cv_b = math.sqrt(float(np.sum(mb * nb) / np.sum(nb)))
+    cv_a = math.sqrt(float(np.sum(ma * nb) / np.sum(nb)))
+    rel = 1.0 - cv_a / cv_b if cv_b > 0 else 0.0
+    p_cv, d = _block_p(mb, ma)
+    p_test = None
+    d_test = None
+    p = p_cv
+    if test_mse_before is not None and test_mse_after is not None:
+        tk = (test_n > 0) if test_n is not None else np.ones(len(test_mse_before), bool)
+        p_test, d_test = _block_p(np.asarray(test_mse_before)[tk], np.asarray(test_mse_after)[tk])
+        chi = -2.0 * (math.log(max(p_cv, 1e-300)) + math.log(max(p_test, 1e-300)))
+        p = float(stats.chi2.sf(chi, 4))
+    thr = alpha / max(n_candidates, 1)
+    reasons = []
+    if rel < min_rel_improvement:
+        reasons.append(f"CV RMSE improvement {100 * rel:.2f} % < {100 * min_rel_improvement:.2f} %")
+    if not p < thr:
+        reasons.append(f"block test p = {p:.2g} ≥ {thr:.2g}")
+    test_rel = None
+    if test_before is not None and test_after is not None:
+        test_rel = 1.0 - test_after / test_before if test_before > 0 else 0.0
+        if require_test and not test_after < test_before:
+            reasons.append(f"test RMSE does not improve ({test_before:.4g} -> {test_after:.4g})")
+    return {"cv_rmse_before": cv_b, "cv_rmse_after": cv_a, "rel_improvement": rel,
+            "p_value": p, "p_cv": p_cv, "p_test": p_test, "p_threshold": thr,
+            "blocks_improved": f"{int(np.sum(d > 0))}/{d.size}",
+            "test_blocks_improved": None if d_test is None else f"{int(np.sum(d_test > 0))}/{d_test.size}",
+            "block_rel_improvements": d.tolist(),
+            "test_block_rel_improvements": None if d_test is None else d_test.tolist(),
+            "test_rmse_before": test_before, "test_rmse_after": test_after,
+            "test_rel_improvement": test_rel, "passed": not reasons, "reasons": reasons}
+
+
+# -- the prior ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _PriorTerms:
+    names: tuple[str, ...]
+    exprs: tuple[sp.Expr, ...]
+    tilt: sp.Expr | None
+    velocity: str | None
+
+
+def _resolve_prior(prior):
+    if isinstance(prior, str):
+        from priors.models import get_prior
+        return get_prior(prior)
+    if not hasattr(prior, "features"):
+        raise ConfigError(f"prior must be a name or a PriorModel, got {type(prior).__name__}")
+    return prior
+
+
+def _prior_terms(prior, target: str) -> _PriorTerms:
+    feats = None
+    for n in (3, 1):
+        try:
+            feats = tuple(prior.features(target, n_features=n))
+            break
+        except (ConfigError, ValueError, TypeError):
+            continue
+    if not feats:
+        raise ConfigError(f"the prior has no features for target '{target}'")
+    names, exprs = [], []
+    for f in feats:
+        e = f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr)
+        names.append(str(f.name))
+        exprs.append(e)
+    angle_syms = {symbol(a) for a in _ANGLES}
+    tilt_terms = [a for e in exprs for a in sp.Add.make_args(sp.expand(e))
+                  if a.free_symbols & angle_syms]
+    tilt = sp.Add(*tilt_terms) if tilt_terms else None
+    axis = target[1] if target in ("vx_dot", "vy_dot", "vz_dot") else None
+    vel = f"v{axis}" if axis and any(symbol(f"v{axis}") in e.free_symbols for e in exprs) else None
+    return _PriorTerms(tuple(names), tuple(exprs), tilt, vel)
+
+
+# -- the stacked least-squares problem ------------------------------------------------------------
+@dataclass
+class _Part:
+    """One target's samples of one role (train or test)."""
+    target: str
+    ctx: object
+    y: np.ndarray
+    t: np.ndarray
+    flight: np.ndarray
+    block: np.ndarray
+    base: dict           # param -> column (prior features)
+    prior_sum: np.ndarray
+    role: str = "train"
+    sources: tuple = ()
+
+    def flight_label(self, f: int) -> str:
+        src = self.sources[f] if f < len(self.sources) else str(f)
+        return f"{self.role}:{src}"
+
+
+def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig, role: str = "train"):
+    from priors.effects import EffectContext
+    cols = ds.columns()
+    ctx = EffectContext.build(target, cols, ds.t, ds.flight, terms.tilt, cfg.g,
+                              {"ground_h0_m": cfg.ground_h0_m})
+    base = {}
+    for name, e in zip(terms.names, terms.exprs):
+        missing = [s.name for s in e.free_symbols if s.name not in cols]
+        if missing:
+            from .errors import MissingSignalError
+            raise MissingSignalError(missing[0], list(cols), where=f"the {target} dataset (prior feature {name})")
+        f = compile_expression(e, sorted(s.name for s in e.free_symbols))
+        v = np.broadcast_to(f({s.name: cols[s.name] for s in e.free_symbols} or {"_": ds.y}), ds.y.shape)
+        base[f"{target}:{name}"] = np.asarray(v, float)
+    good = np.isfinite(ds.y)
+    for v in base.values():
+        good &= np.isfinite(v)
+    if not good.all():
+        log.warning("%s: dropping %d samples with non-finite target or prior features", target, (~good).sum())
+        return _make_part(ds.subset(good), target, terms, cfg, role)
+    prior_sum = np.sum(list(base.values()), axis=0)
+    blocks = block_ids(ds.t, ds.flight, cfg.n_blocks)
+    return _Part(target, ctx, ds.y, ds.t, ds.flight, blocks, base, prior_sum, role, tuple(ds.sources))
+
+
+class _Stack:
+    """Rows of several targets stacked; terms are {param: {target: column}}."""
+
+    def __init__(self, parts: Sequence[_Part]):
+        self.parts = list(parts)
+        self.y = np.concatenate([p.y for p in parts])
+        self.block = np.concatenate([p.block for p in parts])
+        self.tidx = np.concatenate([np.full(p.y.size, i) for i, p in enumerate(parts)])
+        self.offsets = np.cumsum([0] + [p.y.size for p in parts])
+
+    def design(self, terms: dict) -> np.ndarray:
+        X = np.zeros((self.y.size, len(terms)))
+        for j, cols in enumerate(terms.values()):
+            for i, p in enumerate(self.parts):
+                if p.target in cols:
+                    X[self.offsets[i]:self.offsets[i + 1], j] = cols[p.target]
+        return X
+
+    def rmse_by_target(self, pred: np.ndarray) -> dict:
+        out = {}
+        for i, p in enumerate(self.parts):
+            r = self.y[self.tidx == i] - pred[self.tidx == i]
+            out[p.target] = float(np.sqrt(np.mean(r ** 2)))
+        return out
+
+
+def _lstsq(X, y):
+    if X.shape[1] == 0:
+        return np.zeros(0)
+    scale = np.sqrt(np.mean(X ** 2, axis=0))
+    scale[scale == 0] = 1.0
+    beta, *_ = np.linalg.lstsq(X / scale, y, rcond=1e-10)
+    return beta / scale
+
+
+def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
+    """Held-out predictions by leave-one-block-out; per-block MSE and sample counts."""
+    pred = np.zeros_like(stack.y)
+    for k in range(n_blocks):
+        test = stack.block == k
+        if not test.any():
+            continue
+        beta = _lstsq(X[~test], stack.y[~test])
+        pred[test] = X[test] @ beta
+    mse = np.array([np.mean((stack.y[stack.block == k] - pred[stack.block == k]) ** 2)
+                    if np.any(stack.block == k) else 0.0 for k in range(n_blocks)])
+    n = np.array([np.sum(stack.block == k) for k in range(n_blocks)])
+    return pred, mse, n
+
+
+def _terms_for(effect, parts: Sequence[_Part]) -> dict:
+    """{param: {target: column}} of an effect over parts; a flight-specific effect
+    (``effect.per_flight``) gets one parameter per flight, named ``param@role:source``."""
+    terms: dict = {}
+    for p in parts:
+        if not effect.applies_to(p.target):
+            continue
+        for name, col in effect.features(p.ctx).items():
+            if getattr(effect, "per_flight", False):
+                for f in np.unique(p.flight):
+                    terms.setdefault(f"{effect.id}.{name}@{p.flight_label(int(f))}", {})[p.target] = \
+                        np.where(p.flight == f, col, 0.0)
+            else:
+                terms.setdefault(f"{effect.id}.{name}", {})[p.target] = col
+    return terms
+
+
+def _air_update(tr_parts, te_parts, fit, k_d) -> None:
+    """Set ``vx_air``, ``vy_air``, ``speed_air`` in every part's context from the per-flight wind
+    estimate (offset / k_D); drag-type effects then act on the air velocity."""
+    for parts, betas in ((tr_parts, fit["beta"]), (te_parts or [], fit.get("test_local_beta", {}))):
+        for p in parts:
+            c = p.ctx.columns
+            if "vx" not in c or "vy" not in c:
+                continue
+            w = {"x": np.zeros(p.y.size), "y": np.zeros(p.y.size)}
+            for f in np.unique(p.flight):
+                lab = p.flight_label(int(f))
+                for ax in ("x", "y"):
+                    off, k = betas.get(f"wind.offset_{ax}@{lab}"), k_d.get(f"v{ax}_dot")
+                    if off is not None and k is not None and k > 1e-6:
+                        w[ax][p.flight == f] = off / k
+            c["vx_air"] = c["vx"] - w["x"]
+            c["vy_air"] = c["vy"] - w["y"]
+            c["speed_air"] = np.hypot(c["vx_air"], c["vy_air"])
+
+
+def _split_flight_params(coef: Mapping[str, float]) -> dict[str | None, dict]:
+    """{flight label or None: {param: value}} from (possibly flight-specific) coefficients."""
+    out: dict = {}
+    for k, v in coef.items():
+        name, _, label = k.partition("@")
+        out.setdefault(label or None, {})[name.split(".", 1)[-1]] = v
+    return out
+
+
+def _k_drag(terms: _PriorTerms, target, part: _Part, coef: Mapping[str, float]) -> float | None:
+    """Effective linear drag −∂model/∂v of the base refit (None without a drag term)."""
+    if terms.velocity is None:
+        return None
+    v = symbol(terms.velocity)
+    k = 0.0
+    for name, e in zip(terms.names, terms.exprs):
+        if v in e.free_symbols and not (e.free_symbols & {symbol(a) for a in _ANGLES}):
+            de = sp.diff(e, v)
+            val = part.ctx.evaluate(de) if de.free_symbols else np.full(part.y.size, float(de))
+            k -= coef.get(f"{target}:{name}", 0.0) * float(np.mean(val))
+    return k
+
+
+# -- the pipeline ---------------------------------------------------------------------------------
+def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=("vx_dot", "vy_dot"), *,
+             config: DiagnoseConfig | None = None, user_effects=None, progress=None) -> DiagnosisResult:
+    """Diagnose ``prior`` on flights: build the datasets, then :func:`diagnose_datasets`."""
+    cfg = (config or DiagnoseConfig()).validate()
+    pr = _resolve_prior(prior)
+    train = build_datasets(train_flights, targets, pr, cfg)
+    test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
+    return diagnose_datasets(train, test, prior=prior, config=cfg, user_effects=user_effects,
+                             progress=progress)
+
+
+def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:
+    """One Dataset per target on the configured grid (all other signals in ``extra``)."""
+    from .dataset import DatasetBuilder
+    flights = list(flights)
+    builder = DatasetBuilder(ts=cfg.ts_s, method=cfg.method)
+    out = {}
+    for tgt in targets:
+        inputs = tuple(prior.inputs(tgt)) if hasattr(prior, "inputs") else None
+        out[tgt] = builder.build(flights, target=tgt, inputs=inputs)
+    return out
+
+
+def _select_effects(user_effects, only) -> dict:
+    """The catalogue plus user effects, restricted to ``only`` (ids) when given."""
+    from priors.effects import CATALOGUE
+    effects = dict(CATALOGUE)
+    for e in (user_effects.values() if isinstance(user_effects, Mapping) else user_effects or ()):
+        effects[e.id] = e
+    if only is not None:
+        for eid in only:
+            if eid not in effects:
+                raise ConfigError(f"unknown effect '{eid}'{did_you_mean(eid, effects)}; known: {', '.join(effects)}")
+        effects = {k: v for k, v in effects.items() if k in only}
+    return effects
+
+
+def _testability(effects, tr_parts, te_parts, targets) -> tuple[list, dict]:
+    """(testable effects, {id: why untestable}): every part an effect applies to (train and
+    test) must have its signals."""
+    untestable, testable = {}, []
+    for eid, e in effects.items():
+        applicable = [p for p in [*tr_parts, *(te_parts or [])] if e.applies_to(p.target)]
+        if not applicable:
+            untestable[eid] = f"does not apply to targets {', '.join(targets)}"
+            continue
+        miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())})
+        if miss:
+            untestable[eid] = "needs " + ", ".join(miss)
+        else:
+            testable.append(e)
+    return testable, untestable
+
+
+class _Model:
+    """The stacked least-squares problem: base (prior) terms plus added effects, train and test."""
+
+    def __init__(self, tr_parts, te_parts, terms, cfg, targets):
+        self.tr_parts, self.te_parts, self.terms, self.cfg = tr_parts, te_parts, terms, cfg
+        self.targets = targets
+        self.tr = _Stack(tr_parts)
+        self.te = _Stack(te_parts) if te_parts else None
+        self.base = {name: {p.target: col} for p in tr_parts for name, col in p.base.items()}
+        self.te_base = {name: {p.target: col} for p in te_parts or [] for name, col in p.base.items()}
+
+    def terms_of(self, effect_ids, effects) -> tuple[dict, dict]:
+        """Train and test terms of the base model plus these effects (recomputed from the data)."""
+        cur, cur_test = dict(self.base), dict(self.te_base)
+        for eid in effect_ids:
+            cur.update(_terms_for(effects[eid], self.tr_parts))
+            if self.te_parts:
+                cur_test.update(_terms_for(effects[eid], self.te_parts))
+        return cur, cur_test
+
+    def fit(self, cur_terms, cur_test_terms) -> dict:
+        """Fit on all training rows; blocked-CV predictions; test predictions (flight-specific
+        parameters of the test flights by blocked CV on that flight)."""
+        tr, te, nb = self.tr, self.te, self.cfg.n_blocks
+        X = tr.design(cur_terms)
+        beta = _lstsq(X, tr.y)
+        pred = X @ beta
+        out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred, "train": tr.rmse_by_target(pred)}
+        cvp, mse, n = _cv(tr, X, nb)
+        out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
+        if te is None:
+            out.update(test={t: None for t in self.targets}, test_all=None)
+            return out
+        shared = [k for k in cur_terms if k in cur_test_terms]
+        local = [k for k in cur_test_terms if k not in cur_terms]
+        bsh = np.array([out["beta"][k] for k in shared])
+        tp = te.design({k: cur_test_terms[k] for k in shared}) @ bsh if shared else np.zeros_like(te.y)
+        if local:
+            Xl = te.design({k: cur_test_terms[k] for k in local})
+            r = te.y - tp
+            lp = np.zeros_like(r)
+            for k in range(nb):
+                hold = te.block == k
+                if hold.any():
+                    lp[hold] = Xl[hold] @ _lstsq(Xl[~hold], r[~hold])
+            out["test_local_beta"] = dict(zip(local, _lstsq(Xl, r).tolist()))
+            tp = tp + lp
+        out.update(test_pred=tp, test=te.rmse_by_target(tp),
+                   test_all=math.sqrt(float(np.mean((te.y - tp) ** 2))))
+        out["test_mse"], out["test_n"] = _block_mse(te.y, tp, te.block, nb)
+        return out
+
+    def base_info(self, fit) -> dict:
+        return {"k_D": {p.target: _k_drag(self.terms[p.target], p.target, p, fit["beta"])
+                        for p in self.tr_parts}}
+
+    def evidence(self, cur, new, n_candidates) -> dict:
+        cfg = self.cfg
+        return significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=n_candidates,
+                            min_rel_improvement=cfg.min_rel_improvement,
+                            test_before=cur["test_all"], test_after=new["test_all"],
+                            test_mse_before=cur.get("test_mse"), test_mse_after=new.get("test_mse"),
+                            test_n=cur.get("test_n"), require_test=cfg.require_test_improvement)
+
+
+def _physical(effect, coef: Mapping[str, float], info) -> dict:
+    """The effect's interpretation per flight (flight-specific effects) or once."""
+    per = _split_flight_params(coef)
+    its = {label: effect.interpret(c, info) for label, c in per.items()}
+    text = "; ".join(it.text + (f" [{label}]" if label and len(its) > 1 else "") for label, it in its.items())
+    return {"physical": text, "physical_values": next(iter(its.values())).values,
+            "physical_per_flight": {label: it.values for label, it in its.items() if label}}
+
+
+def _strip(coef: Mapping[str, float]) -> dict:
+    return {k.split(".", 1)[1]: v for k, v in coef.items()}
+
+
+def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] | None = None, *,
+                      prior="tilt-drag", config: DiagnoseConfig | None = None, user_effects=None,
+                      progress: Callable | None = None) -> DiagnosisResult:
+    """Diagnose ``prior`` on per-target Datasets (see the module docstring)."""
+    cfg = (config or DiagnoseConfig()).validate()
+    if not train:
+        raise DataError("no training datasets")
+    pr = _resolve_prior(prior)
+    targets = list(train)
+    if test is not None and set(test) != set(targets):
+        raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
+    effects = _select_effects(user_effects, cfg.effects)
+    if cfg.n_blocks is None:
+        from dataclasses import replace
+        cfg = replace(cfg, n_blocks=int(np.clip(min(len(d) for d in train.values()) // 150, 8, 20)))
+    terms = {t: _prior_terms(pr, t) for t in targets}
+    tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
+    te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
+    for p in tr_parts:
+        if p.y.size < 5 * cfg.n_blocks:
+            raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
+                            f"{5 * cfg.n_blocks} for {cfg.n_blocks}-block cross-validation")
+    testable, untestable = _testability(effects, tr_parts, te_parts, targets)
+    model = _Model(tr_parts, te_parts, terms, cfg, targets)
+    tr = model.tr
+
+    cur_terms, cur_test = model.terms_of((), effects)
+    cur = base_fit = model.fit(cur_terms, cur_test)
+    steps, added, candidates_log, plot_steps = [], [], [], []
+    total = cfg.max_steps + 1
+    for step in range(cfg.max_steps):
+        if progress:
+            progress(step, total, "scoring effects")
+        scores = []
+        for e in testable:
+            if e.id in added:
+                continue
+            et = _terms_for(e, tr_parts)
+            if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
+                continue
+            ett = _terms_for(e, te_parts) if te_parts else {}
+            if te_parts and not e.per_flight and set(ett) != set(et):
+                continue
+            scores.append((e, et, ett, model.fit({**cur_terms, **et}, {**cur_test, **ett})))
+        if not scores:
+            break
+        evid = [model.evidence(cur, new, len(scores)) for *_, new in scores]
+        order = sorted(range(len(scores)), key=lambda i: evid[i]["cv_rmse_after"])
+        candidates_log.append({"step": step + 1, "scores": [
+            {"effect": scores[i][0].id, **{k: evid[i][k] for k in (
+                "cv_rmse_after", "rel_improvement", "p_value", "blocks_improved",
+                "test_rmse_after", "passed")}} for i in order]})
+        e, et, ett, new = scores[order[0]]
+        ev = evid[order[0]]
+        if not ev["passed"]:
+            log.info("step %d: best candidate %s rejected: %s", step + 1, e.id, "; ".join(ev["reasons"]))
+            break
+        # candidates nearly as good (and significant) that the data cannot tell apart
+        ev["indistinguishable_from"] = [scores[i][0].id for i in order[1:] if evid[i]["passed"]
+                                        and evid[i]["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
+        coef = {k: new["beta"][k] for k in et}
+        local = {k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}
+        steps.append({"effect": e.id, "description": e.description, "coefficients": _strip(coef),
+                      **_physical(e, {**coef, **local}, model.base_info(new)), "per_flight": e.per_flight,
+                      "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
+                               for t in targets},
+                      "evidence": ev})
+        plot_steps.append({p.target: {"effect": e.id, "residual": p.y - cur["pred"][tr.tidx == i],
+                                      "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
+                           for i, p in enumerate(tr_parts)})
+        added.append(e.id)
+        cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
+        if "wind" in added:
+            # drag acts on the air velocity v − w: refresh it from the wind estimate and refit
+            for _ in range(2):
+                _air_update(tr_parts, te_parts, cur, model.base_info(cur)["k_D"])
+                cur_terms, cur_test = model.terms_of(added, effects)
+                cur = model.fit(cur_terms, cur_test)
+    if progress:
+        progress(cfg.max_steps, total, "open-ended search")
+    open_ended = _open_ended_all(model, cur, cfg)
+
+    info = model.base_info(cur)
+    final_effects = []
+    for eid in added:
+        coef = {k: v for k, v in {**cur["beta"], **cur.get("test_local_beta", {})}.items()
+                if k.startswith(eid + ".")}
+        final_effects.append({"effect": eid, **_physical(effects[eid], coef, info),
+                              "coefficients": _strip(coef)})
+    not_detected = [e.id for e in testable if e.id not in added]
+    conclusion = NO_FURTHER
+    if added:
+        conclusion = (f"added {', '.join(added)}; {NO_FURTHER}" if len(added) < cfg.max_steps
+                      else f"added {', '.join(added)} (step limit {cfg.max_steps} reached)")
+    if any(o and o.get("passed") for o in open_ended.values()):
+        conclusion += "; the open-ended search found an unnamed term (see open_ended)"
+    sources = {"train": sorted({s for d in train.values() for s in d.sources}),
+               "test": sorted({s for d in test.values() for s in d.sources}) if test else []}
+    return DiagnosisResult(
+        targets=_target_summaries(model, base_fit, cur, cur_terms, steps, open_ended),
+        steps=steps, effects_added=added, untestable=untestable, not_detected=not_detected,
+        conclusion=conclusion, open_ended=open_ended, config=asdict(cfg),
+        prior=prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__),
+        sources=sources, candidates=candidates_log, final_effects=final_effects,
+        series=_series(model, base_fit, cur, plot_steps))
+
+
+def _rmse(y, pred) -> float:
+    return float(np.sqrt(np.mean((y - pred) ** 2)))
+
+
+def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dict:
+    out = {}
+    for i, p in enumerate(model.tr_parts):
+        t, tp = p.target, model.terms[p.target]
+        q = model.te_parts[i] if model.te_parts else None
+        out[t] = {
+            "rmse_prior": {"train": _rmse(p.y, p.prior_sum), "test": _rmse(q.y, q.prior_sum) if q else None},
+            "rmse_before": {k: base_fit[k][t] for k in ("train", "test", "cv")},
+            "rmse_after": {k: cur[k][t] for k in ("train", "test", "cv")},
+            "base_coefficients": {k.split(":", 1)[1]: v for k, v in base_fit["beta"].items()
+                                  if k.startswith(t + ":")},
+            "linear_drag_k_D": _k_drag(tp, t, p, base_fit["beta"]),
+            "linear_drag_k_D_after": _k_drag(tp, t, p, cur["beta"]),
+            "final_coefficients": {k: v for k, v in cur["beta"].items() if t in cur_terms[k]},
+            "steps": [{"effect": s["effect"], "coefficients": s["coefficients"], "physical": s["physical"],
+                       "rmse": s["rmse"][t], "evidence": s["evidence"]} for s in steps],
+            "open_ended": open_ended.get(t),
+            "n_train": int(p.y.size), "n_test": int(q.y.size) if q else 0,
+        }
+    return out
+
+
+def _series(model, base_fit, cur, plot_steps) -> dict:
+    tidx = model.tr.tidx
+    return {p.target: {"t": p.t, "flight": p.flight, "y": p.y,
+                       "residual_prior": p.y - p.prior_sum,
+                       "residual_before": p.y - base_fit["pred"][tidx == i],
+                       "residual_after": p.y - cur["pred"][tidx == i],
+                       "signals": {k: v for k, v in p.ctx.columns.items() if k in ("yaw", "speed", "vz_dot", "z", "G")},
+                       "steps": [s[p.target] for s in plot_steps]}
+            for i, p in enumerate(model.tr_parts)}
+
+
+# -- open-ended search ----------------------------------------------------------------------------
+def _open_ended_all(model, cur, cfg) -> dict:
+    parts = model.tr_parts
+    if cfg.sngp_generations <= 0:
+        return {p.target: {"ran": False, "reason": "disabled (sngp_generations = 0)"} for p in parts}
+    try:
+        from .sngp import SNGPRegressor  # noqa: F401
+    except ImportError as exc:
+        return {p.target: {"ran": False, "reason": f"SNGP engine unavailable ({exc})"} for p in parts}
+    out = {}
+    for i, p in enumerate(parts):
+        test = None
+        if model.te_parts:
+            q = model.te_parts[i]
+            test = (q, q.y - cur["test_pred"][model.te.tidx == i])
+        out[p.target] = _open_ended(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg)
+    return out
+
+
+def _clock_like(v: np.ndarray, t: np.ndarray, flight: np.ndarray, limit: float = 0.9) -> bool:
+    """True for a signal that drifts monotonically with time in some flight (|Spearman ρ| with
+    t above ``limit``, e.g. a sagging battery voltage): it acts as a clock, and a search given a
+    clock can fit any slow drift of the residual and carry it across interleaved blocks."""
+    from scipy.stats import spearmanr
+    for f in np.unique(flight):
+        m = flight == f
+        if m.sum() > 10 and np.ptp(v[m]) > 0:
+            rho = spearmanr(v[m], t[m]).statistic
+            if np.isfinite(rho) and abs(rho) > limit:
+                return True
+    return False
+
+
+def _signal_matrix(part, names):
+    return np.column_stack([part.ctx.columns[n] for n in names])
+
+
+def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> dict:
+    from .sngp import SNGPRegressor
+    names = sorted(n for n, v in part.ctx.columns.items()
+                   if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier()
+                   and not _clock_like(v, part.t, part.flight))
+    if test is not None:
+        names = [n for n in names if n in test[0].ctx.columns]
+    if not names:
+        return {"ran": False, "reason": "no signals"}
+    X = _signal_matrix(part, names)
+
+    def run(rows, seed):
+        idx = np.flatnonzero(rows)
+        if idx.size > cfg.sngp_max_samples:
+            idx = idx[np.linspace(0, idx.size - 1, cfg.sngp_max_samples).astype(int)]
+        m = SNGPRegressor(population_size=cfg.sngp_population, generations=cfg.sngp_generations,
+                          n_features=cfg.sngp_features, max_depth=cfg.sngp_max_depth,
+                          n_threads=1, seed=seed)
+        m.fit(X[idx], resid[idx], feature_names=names)
+        return m
+
+    # interleaved-block 2-fold CV: fit on even blocks, predict odd, and vice versa
+    even = part.block % 2 == 0
+    pred = np.zeros_like(resid)
+    for k, rows in enumerate((even, ~even)):
+        m = run(rows, cfg.sngp_seed + k)
+        pred[~rows] = np.asarray(m.predict(X[~rows]), float)
+    pred[~np.isfinite(pred)] = 0.0
+    nb = cfg.n_blocks
+    mse_b = np.array([np.mean(resid[part.block == k] ** 2) if np.any(part.block == k) else 0 for k in range(nb)])
+    mse_a = np.array([np.mean((resid - pred)[part.block == k] ** 2) if np.any(part.block == k) else 0
+                      for k in range(nb)])
+    n = np.array([np.sum(part.block == k) for k in range(nb)])
+    final = run(np.ones(resid.size, bool), cfg.sngp_seed + 7)
+    tb = ta = tmb = tma = tn = None
+    if test is not None:
+        q, tres = test
+        tp = np.asarray(final.predict(_signal_matrix(q, names)), float)
+        tp[~np.isfinite(tp)] = 0.0
+        tb = float(np.sqrt(np.mean(tres ** 2)))
+        ta = float(np.sqrt(np.mean((tres - tp) ** 2)))
+        tmb, tn = _block_mse(tres, np.zeros_like(tres), q.block, nb)
+        tma, _ = _block_mse(tres, tp, q.block, nb)
+    ev = significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,
+                      min_rel_improvement=cfg.min_rel_improvement, test_before=tb, test_after=ta,
+                      test_mse_before=tmb, test_mse_after=tma, test_n=tn,
+                      require_test=cfg.require_test_improvement)
+    return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
+            "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),
+            "generations": cfg.sngp_generations, "passed": ev["passed"], "evidence": ev}

@@ -1,0 +1,230 @@
+"""Rendering of a :class:`droneid.diagnose.DiagnosisResult`: terminal summary, JSON, Markdown/HTML.
+
+Pure functions over the result (no printing); :func:`write_report` writes ``diagnosis.json``,
+``diagnosis.md``, ``diagnosis.html`` and the figures' PNGs atomically into a folder.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .io_util import atomic_write_json
+from .reporting import Document, fmt, new_figure
+
+__all__ = ["summary_text", "build_document", "write_report"]
+
+_MAX_POINTS = 3000
+
+
+def _pair(d, key="train"):
+    v = d.get(key)
+    return fmt(v, 4) if v is not None else "—"
+
+
+def _evidence_text(ev) -> str:
+    parts = [f"CV RMSE {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
+             f"({-100 * ev['rel_improvement']:+.1f} %)",
+             f"block test p = {fmt(ev['p_value'], 2)} (threshold {fmt(ev['p_threshold'], 2)}"
+             + (f"; CV {fmt(ev['p_cv'], 2)} ⊕ test {fmt(ev['p_test'], 2)}, Fisher)"
+                if ev.get("p_test") is not None else ")"),
+             f"{ev['blocks_improved']} CV blocks better"
+             + (f", {ev['test_blocks_improved']} test blocks" if ev.get("test_blocks_improved") else "")]
+    if ev.get("test_rel_improvement") is not None:
+        parts.append(f"test {-100 * ev['test_rel_improvement']:+.1f} %")
+    return ", ".join(parts)
+
+
+def summary_text(result) -> str:
+    """The terminal summary of a diagnosis."""
+    r = result
+    lines = [f"diagnosis of prior '{r.prior}' on train {', '.join(r.sources['train']) or '—'}"
+             + (f" / test {', '.join(r.sources['test'])}" if r.sources.get("test") else " (no test flight)")]
+    lines.append("residual before (prior refit by least squares, no intercept), RMSE m/s²:")
+    for t, v in r.targets.items():
+        lines.append(f"  {t:7s} train {_pair(v['rmse_before'])}  test {_pair(v['rmse_before'], 'test')}"
+                     f"  cv {_pair(v['rmse_before'], 'cv')}   (prior as given: train "
+                     f"{_pair(v['rmse_prior'])}, test {_pair(v['rmse_prior'], 'test')})")
+    if r.steps:
+        lines.append("effects added, in order:")
+        prev = {t: v["rmse_before"] for t, v in r.targets.items()}
+        for i, s in enumerate(r.steps, 1):
+            lines.append(f"  {i}. {s['effect']}: {s['physical']}")
+            for t, e in s["rmse"].items():
+                lines.append(f"       {t:7s} train {_pair(prev[t])} -> {_pair(e)}, "
+                             f"test {_pair(prev[t], 'test')} -> {_pair(e, 'test')}")
+                prev[t] = e
+            lines.append(f"       evidence: {_evidence_text(s['evidence'])}")
+            alts = s["evidence"].get("indistinguishable_from") or []
+            if alts:
+                lines.append(f"       note: these data cannot tell it apart from {', '.join(alts)}")
+        if len(r.steps) > 1:
+            lines.append("final estimates (all effects refitted jointly):")
+            for fe in r.final_effects:
+                lines.append(f"  {fe['effect']}: {fe['physical']}")
+        lines.append("residual after, RMSE m/s²:")
+        for t, v in r.targets.items():
+            lines.append(f"  {t:7s} train {_pair(v['rmse_after'])}  test {_pair(v['rmse_after'], 'test')}"
+                         f"  cv {_pair(v['rmse_after'], 'cv')}")
+    else:
+        lines.append("effects added: none")
+    if r.candidates:
+        last = r.candidates[-1]
+        if len(r.candidates) > len(r.steps) and last["scores"]:
+            b = last["scores"][0]
+            lines.append(f"best remaining candidate: {b['effect']} (CV {-100 * b['rel_improvement']:+.2f} %, "
+                         f"p = {fmt(b['p_value'], 2)}, {b['blocks_improved']} blocks): not significant")
+    lines.append(r.conclusion)
+    if r.not_detected:
+        lines.append(f"tested, not detected: {', '.join(r.not_detected)}")
+    if r.untestable:
+        lines.append("untestable from these signals (NOT evidence of absence):")
+        for eid, why in r.untestable.items():
+            lines.append(f"  {eid}: {why}")
+    for t, o in (r.open_ended or {}).items():
+        if not o:
+            continue
+        if not o.get("ran"):
+            lines.append(f"open-ended search {t}: not run ({o.get('reason')})")
+        else:
+            verdict = "PASSED the held-out test: unnamed term" if o["passed"] else "not significant"
+            lines.append(f"open-ended search {t}: {verdict}: {o['equation']}")
+            lines.append(f"       evidence: {_evidence_text(o['evidence'])}")
+    return "\n".join(lines)
+
+
+def _thin(n):
+    return np.arange(n) if n <= _MAX_POINTS else np.linspace(0, n - 1, _MAX_POINTS).astype(int)
+
+
+def build_document(result) -> Document:
+    """The Markdown/HTML report with plots (residual over time, residual vs explaining signals,
+    RMSE bars per step)."""
+    r = result
+    doc = Document("Diagnosis: what the model lacks")
+    doc.paragraph(f"Prior: {r.prior}. Training flights: {', '.join(r.sources['train'])}. Test flights: "
+                  f"{', '.join(r.sources.get('test') or []) or 'none (cross-validation only)'}.")
+    doc.paragraph(r.conclusion)
+    doc.heading("Errors before and after (RMSE, m/s²)")
+    rows = []
+    for t, v in r.targets.items():
+        rows.append([t, "prior as given", fmt(v["rmse_prior"]["train"]), fmt(v["rmse_prior"]["test"]), "—"])
+        rows.append([t, "prior refit", fmt(v["rmse_before"]["train"]), fmt(v["rmse_before"]["test"]),
+                     fmt(v["rmse_before"]["cv"])])
+        for i, s in enumerate(r.steps, 1):
+            e = s["rmse"][t]
+            rows.append([t, f"+ {s['effect']}", fmt(e["train"]), fmt(e["test"]), fmt(e["cv"])])
+    doc.table(["target", "model", "train", "test", "blocked CV"], rows)
+    if r.steps:
+        doc.heading("Effects added, in order")
+        doc.table(["#", "effect", "physical terms", "evidence"],
+                  [[i, s["effect"], s["physical"], _evidence_text(s["evidence"])]
+                   for i, s in enumerate(r.steps, 1)])
+        if len(r.steps) > 1:
+            doc.paragraph("Final estimates, all effects refitted jointly: "
+                          + "; ".join(f"{fe['effect']}: {fe['physical']}" for fe in r.final_effects))
+    if r.untestable:
+        doc.heading("Untestable effects")
+        doc.paragraph("These effects could not be tested with the logged signals; this is not evidence "
+                      "that they are absent.")
+        doc.table(["effect", "why"], [[k, v] for k, v in r.untestable.items()])
+    if r.candidates:
+        doc.heading("Candidate scores per step")
+        for c in r.candidates:
+            doc.table([f"step {c['step']}", "CV RMSE", "CV change", "p", "blocks better", "test RMSE", "passed"],
+                      [[s["effect"], fmt(s["cv_rmse_after"]), f"{-100 * s['rel_improvement']:+.2f} %",
+                        fmt(s["p_value"], 2), s["blocks_improved"], fmt(s["test_rmse_after"]),
+                        "yes" if s["passed"] else "no"] for s in c["scores"]])
+    if r.open_ended:
+        doc.heading("Open-ended search on the residual")
+        for t, o in r.open_ended.items():
+            if o and o.get("ran"):
+                doc.paragraph(f"{t}: {'passed' if o['passed'] else 'not significant'}; "
+                              f"{_evidence_text(o['evidence'])}")
+                doc.code(o["equation"])
+            elif o:
+                doc.paragraph(f"{t}: not run ({o.get('reason')})")
+    _figures(doc, r)
+    return doc
+
+
+def _figures(doc, r):
+    if not r.series:
+        return
+    doc.heading("Residual over time")
+    fig = new_figure(7.5, 2.2 * len(r.series) + 0.6)
+    for i, (t, s) in enumerate(r.series.items()):
+        ax = fig.add_subplot(len(r.series), 1, i + 1)
+        tt = np.asarray(s["t"], float)
+        fl = np.asarray(s["flight"])
+        for f in np.unique(fl):
+            m = fl == f
+            ax.plot(tt[m], s["residual_before"][m], lw=0.6, color="C3",
+                    label="before (prior refit)" if f == fl[0] else None)
+            if r.steps:
+                ax.plot(tt[m], s["residual_after"][m], lw=0.6, color="C0",
+                        label="after" if f == fl[0] else None)
+        ax.set_ylabel(f"{t} residual (m/s²)")
+        ax.legend(loc="upper right", fontsize=7)
+    ax.set_xlabel("time (s)")
+    doc.figure(fig, "residual_time", "Training residual of the refit prior before and after the added effects")
+    from priors.effects import CATALOGUE
+    for k, step in enumerate(r.steps, 1):
+        eid = step["effect"]
+        explain = getattr(CATALOGUE.get(eid), "explain_signal", "")
+        fig = new_figure(7.5, 2.6 * len(r.series) + 0.6)
+        for i, (t, s) in enumerate(r.series.items()):
+            st = s["steps"][k - 1]
+            res = np.asarray(st["residual"], float)
+            contrib = np.asarray(st["contrib"], float) * np.ones_like(res)
+            idx = _thin(res.size)
+            ax = fig.add_subplot(len(r.series), 2, 2 * i + 1)
+            lo, hi = float(np.min(contrib)), float(np.max(contrib))
+            if hi - lo > 1e-12:
+                ax.plot(contrib[idx], res[idx], ".", ms=2, alpha=0.5)
+                ax.plot([lo, hi], [lo, hi], "k-", lw=1)
+                ax.set_xlabel(f"fitted {eid} term (m/s²)")
+                ax.set_ylabel(f"{t} residual before")
+            else:  # a constant term: the residual's distribution and the fitted constant
+                ax.hist(res, bins=40, color="C0", alpha=0.7)
+                ax.axvline(lo, color="k", lw=1.5, label=f"fitted {eid} term")
+                ax.axvline(0.0, color="C3", lw=1, ls="--", label="zero")
+                ax.set_xlabel(f"{t} residual before (m/s²)")
+                ax.legend(fontsize=7)
+            ax2 = fig.add_subplot(len(r.series), 2, 2 * i + 2)
+            xs = s["signals"].get(explain) if explain != "t" else s["t"]
+            xname = explain
+            if xs is None:
+                xs, xname = s["t"], "t"
+            xs = np.asarray(xs, float)
+            ax2.plot(xs[idx], res[idx], ".", ms=2, alpha=0.4, label="residual before")
+            ax2.plot(xs[idx], contrib[idx], ".", ms=2, alpha=0.6, label=f"{eid} term")
+            ax2.set_xlabel(xname)
+            ax2.legend(fontsize=7)
+        doc.figure(fig, f"step{k}_{eid}", f"Step {k}: residual before the step against the fitted {eid} "
+                                          f"term (left; points on the line = explained) and against {explain or 't'}")
+    # before/after bars
+    fig = new_figure(7.5, 3.0)
+    labels = ["prior refit", *[f"+{s['effect']}" for s in r.steps]]
+    width = 0.8 / (2 * len(r.targets))
+    ax = fig.add_subplot()
+    x = np.arange(len(labels))
+    j = 0
+    for t, v in r.targets.items():
+        for role in ("train", "test" if v["rmse_before"].get("test") is not None else "cv"):
+            vals = [v["rmse_before"][role]] + [s["rmse"][t][role] for s in r.steps]
+            vals = [np.nan if a is None else a for a in vals]
+            ax.bar(x + (j - len(r.targets) + 0.5) * width, vals, width, label=f"{t} {role}")
+            j += 1
+    ax.set_xticks(x, labels, fontsize=8)
+    ax.set_ylabel("RMSE (m/s²)")
+    ax.legend(fontsize=7)
+    doc.figure(fig, "rmse_steps", "RMSE before and after each step")
+
+
+def write_report(result, directory) -> dict[str, Path]:
+    """Write diagnosis.json, diagnosis.md, diagnosis.html and PNGs into ``directory`` (atomic)."""
+    d = Path(directory)
+    paths = {"json": atomic_write_json(d / "diagnosis.json", result.to_dict())}
+    paths.update(build_document(result).write(d, "diagnosis"))
+    return paths
