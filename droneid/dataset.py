@@ -105,6 +105,13 @@ def _is_angle(sig: Signal) -> bool:
     return sig.name in _EULER or sig.unit == "rad"
 
 
+def _uniform_grid(a: float, b: float, step: float) -> np.ndarray:
+    """``a, a + step, ...`` up to ``b``; a last point within round-off above ``b`` is put at ``b``
+    (so a span of 12.7999999999 s at 0.05 s keeps its 12.8 s sample inside the signal)."""
+    grid = a + step * np.arange(int(math.floor((b - a) / step + 1e-9)) + 1)
+    return np.minimum(grid, b)
+
+
 def resample_signal(sig: Signal, t: np.ndarray) -> np.ndarray:
     """``sig`` linearly interpolated at times ``t``; nan outside its time span.
 
@@ -473,7 +480,7 @@ class DatasetBuilder:
         cols_parts, y_parts, t_parts = [], [], []
         n_dropped = n_short = 0
         for a, b in ivs:
-            grid = a + ts * np.arange(int(math.floor((b - a) / ts + 1e-9)) + 1)
+            grid = _uniform_grid(a, b, ts)
             if grid.size < max(3, diff.min_samples):
                 n_short += 1
                 continue
@@ -526,7 +533,7 @@ class DatasetBuilder:
             ts = float(grid[1] - grid[0])
             native = float(np.median(np.diff(sig.t))) if len(sig) > 1 else ts
             h = min(max(native, ts / 10), ts)
-            fine = a + h * np.arange(int(math.floor((b - a) / h + 1e-9)) + 1)
+            fine = _uniform_grid(a, b, h)
             v = _unwrapped(sig, fine) if angle else resample_signal(sig, fine)
             for _ in range(order):
                 v = diff(v, fine)

@@ -215,3 +215,18 @@ def test_other_derivative_targets(flight):
     ds = DatasetBuilder(method="central").build(flight, "yaw_dot", inputs=["vx"])
     truth = 0.4 + 0.54 * np.cos(0.9 * ds.t) + 0.111 * np.cos(0.37 * ds.t)
     np.testing.assert_allclose(ds.y, truth, atol=1e-3)  # unwrapped before differencing
+
+
+def test_span_ending_a_hair_below_a_grid_point_keeps_its_last_sample():
+    """A log whose time stamps end at 12.7999999999 s (float round-off of 12.8) must still build
+    with the central differentiator (the grid must not step past the signal's end)."""
+    from droneid.dataset import DatasetBuilder
+    from droneid.flight import Flight, Signal
+    t = np.arange(257) * 0.05
+    t[-1] = 12.799999999999999
+    sig = {n: Signal(n, t, v, u) for n, v, u in [
+        ("vx", np.sin(t), "m/s"), ("vy", np.cos(t), "m/s"), ("roll", 0 * t, "rad"),
+        ("pitch", 0.1 * np.sin(t), "rad"), ("yaw", 0 * t, "rad")]}
+    f = Flight(sig, segments={"in_flight": [(0.0, t[-1])], "armed": [(0.0, t[-1])]})
+    ds = DatasetBuilder(method="central", in_flight="all").build([f], target="vx_dot")
+    assert np.all(np.isfinite(ds.y)) and ds.t[-1] <= t[-1]
