@@ -57,3 +57,20 @@ def to_jsonable(obj):
 
 def atomic_write_json(path, obj, indent: int = 2) -> Path:
     return atomic_write_text(path, json.dumps(to_jsonable(obj), indent=indent, allow_nan=False) + "\n")
+
+
+def load_toml(path, what: str = "file") -> dict:
+    """Parse the TOML file at ``path``; a syntax error or an unreadable file raises
+    :class:`droneid.errors.ConfigError` naming the file (``what`` says what it should hold)."""
+    import tomllib
+
+    from .errors import ConfigError
+    p = Path(path)
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not valid TOML: not UTF-8 text") from None
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read {what}: {exc.strerror or exc}") from None

@@ -40,7 +40,6 @@ two-element lists ``[lo, hi]``.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +48,7 @@ from types import MappingProxyType
 import numpy as np
 
 from droneid.constraints import ConstraintSamples
+from droneid.io_util import load_toml
 from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression
 
@@ -261,11 +261,7 @@ def load_constraints(path, target: str | None = None) -> ConstraintSet:
     """A user constraint set from TOML (format in the module docstring). ``target`` selects
     the constraints of one target when the file has several; it is required then."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = load_toml(path, "constraints file")
     return constraints_from_dict(data, target=target, where=str(path))
 
 

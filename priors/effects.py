@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import math
 import string
-import tomllib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,6 +54,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from droneid.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
 from droneid.expressions import compile_expression, parse_expression, symbol
 from droneid.flight import CANONICAL_SIGNALS
@@ -462,12 +462,7 @@ def load_effects(path) -> dict[str, Effect]:
     canonical signals, ``g`` and the derived names ``G``, ``vz_dot``, ``speed``, ``v_axis``.
     """
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML: {exc}") from None
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read effects file: {exc.strerror or exc}") from None
+    data = load_toml(p, "effects file")
     unknown = set(data) - {"effect"}
     if unknown:
         raise ConfigError(f"{p}: unknown top-level key(s) {sorted(unknown)}; expected [[effect]] tables")

@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from pathlib import Path
 
+from droneid.io_util import load_toml
 from droneid.errors import ConfigError
 from droneid.expressions import ALLOWED_FUNCTIONS, parse_expression
 from droneid.flight import CANONICAL_SIGNALS
@@ -47,11 +47,7 @@ _SIGNALS = (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)))
 def load_priors(path) -> dict[str, PriorModel]:
     """Every prior defined in the TOML file at ``path``, by name."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = load_toml(path, "priors file")
     return priors_from_dict(data, where=str(path))
 
 
