@@ -59,34 +59,47 @@ FM = False
 #: Our sin/cos are exact to ~1 ulp only after Cody-Waite reduction for |x| <= this; beyond it
 #: the kernel falls back to libm.
 TRIG_REDUCE_MAX = 1e5
-_TWO_OVER_PI = 0.63661977236758134308
 _PIO2_1 = 1.57079632673412561417e+00
 _PIO2_2 = 6.07710050630396597660e-11
 _PIO2_3 = 2.02226624871116645580e-21
-_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
-_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
-_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
-_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+# Taylor coefficients of sin r (r^3 ... r^21): on |r| <= pi/2 the next term is below 2e-18
+_T3, _T5, _T7 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0
+_T9, _T11, _T13 = 1.0 / 362880.0, -1.0 / 39916800.0, 1.0 / 6227020800.0
+_T15, _T17 = -1.0 / 1307674368000.0, 1.0 / 355687428096000.0
+_T19, _T21 = -1.0 / 121645100408832000.0, 1.0 / 51090942171709440000.0
+_INV_PI = 0.31830988618379067154
 
 
 @njit(cache=True, fastmath=FM, inline="always")
 def _sin_or_cos(x, shift):
     """sin(x) (shift 0) or cos(x) (shift 1) without libm calls, so that loops vectorise.
 
-    fdlibm's kernels on [-pi/4, pi/4] after a three-part Cody-Waite reduction; valid for
-    |x| <= TRIG_REDUCE_MAX (callers check).
+    x = m*pi/2 + r with m even (sin) or odd (cos), |r| <= pi/2, by a three-part Cody-Waite
+    reduction (exact products for |x| <= TRIG_REDUCE_MAX, callers check); then one odd
+    polynomial: sin x = (-1)^k sin r, cos x = -(-1)^k sin r.
     """
-    k = math.floor(x * _TWO_OVER_PI + 0.5)
-    r = ((x - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3
+    if shift == 0.0:
+        k = math.floor(x * _INV_PI + 0.5)
+        m = 2.0 * k
+        sign = 1.0
+    else:
+        k = math.floor(x * _INV_PI)
+        m = 2.0 * k + 1.0
+        sign = -1.0
+    r = ((x - m * _PIO2_1) - m * _PIO2_2) - m * _PIO2_3
     z = r * r
-    sn = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    cs = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    q = k + shift
-    half = math.floor(q * 0.5)
-    odd = q - 2.0 * half                     # 1 for quadrants 1 and 3
-    neg = half - 2.0 * math.floor(half * 0.5)  # 1 for quadrants 2 and 3
-    v = cs if odd > 0.5 else sn
-    return -v if neg > 0.5 else v
+    p = _T19 + z * _T21
+    p = _T17 + z * p
+    p = _T15 + z * p
+    p = _T13 + z * p
+    p = _T11 + z * p
+    p = _T9 + z * p
+    p = _T7 + z * p
+    p = _T5 + z * p
+    p = _T3 + z * p
+    v = r + r * z * p
+    odd = k - 2.0 * math.floor(k * 0.5)
+    return sign * v if odd < 0.5 else -sign * v
 
 
 @njit(cache=True, fastmath=FM, inline="always")
