@@ -43,7 +43,7 @@ _PARAMS = {
     "seed": None,
     "progress": None,
     "identity_steps": 100,
-    "simplify_s": 2.0,
+    "simplify_s": 0.5,
 }
 _CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
@@ -63,7 +63,7 @@ class SNGPRegressor:
 
     def __init__(self, *, functions=DEFAULT_FUNCTIONS, population_size=500, generations=60000,
                  n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
-                 progress=None, identity_steps=100, simplify_s=2.0, **unknown):
+                 progress=None, identity_steps=100, simplify_s=0.5, **unknown):
         if unknown:
             name = next(iter(unknown))
             raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
@@ -230,6 +230,7 @@ class SNGPRegressor:
         self.seed_ = seed
         self.search_stats_ = {
             "search_s": result.wall_s,
+            "search_cpu_s": result.cpu_s,
             "generations": int(result.generations),
             "node_evaluations": int(result.evaluations),
             "accepted": int(result.accepted),
