@@ -312,3 +312,18 @@ def test_constrained_reports_when_no_model_qualifies(caplog):
     assert m.constraint_rmse_train_ == min(r["constraint_rmse_train"] for r in m.archive_) or \
         m.constraint_rmse_train_ > 1e-3
     assert "no model met" in caplog.text
+
+
+def test_simplification_has_a_time_limit():
+    import time as _time
+
+    import sympy as sp
+
+    from droneid.sngp.estimator import _guarded_simplify
+    x, y = sp.symbols("x y", real=True)
+    expr = sp.sin(x + y) ** 3 * sp.cos(x - y) ** 2 + sp.cos(2 * x) * sp.sin(3 * y) ** 2 \
+        - sp.sin(x) ** 4 * sp.cos(y) ** 3 + (x + y) ** 5 / (x - y + 2)
+    t = _time.perf_counter()
+    out = _guarded_simplify(expr, 0.05)
+    assert _time.perf_counter() - t < 1.0
+    assert sp.count_ops(out) <= sp.count_ops(expr)

@@ -492,17 +492,30 @@ def _guarded_simplify(expr: sp.Expr, seconds: float, max_ops: int = 60) -> sp.Ex
         except Exception:   # noqa: BLE001 - simplification is optional
             return expr
     else:
+        active = [True]
+
         def _alarm(signum, frame):
-            raise _Timeout()
+            if not active[0]:
+                return
+            # Raise only inside sympy: a signal can also land in foreign code run meanwhile
+            # (a gc callback, a __del__) that would swallow the exception. Re-arm either way,
+            # so the next tick ends the simplification if this one does not.
+            signal.setitimer(signal.ITIMER_REAL, 0.02)
+            where = frame.f_code.co_filename if frame is not None else ""
+            if "sympy" in where or "mpmath" in where or where == __file__:
+                raise _Timeout()
         old = signal.signal(signal.SIGALRM, _alarm)
-        signal.setitimer(signal.ITIMER_REAL, min(seconds, 1.0))
         try:
-            out = sp.simplify(expr)
+            try:
+                signal.setitimer(signal.ITIMER_REAL, min(seconds, 1.0))
+                out = sp.simplify(expr)
+            finally:
+                active[0] = False
+                signal.setitimer(signal.ITIMER_REAL, 0)
         except _Timeout:
             return expr
-        except Exception:   # noqa: BLE001
+        except Exception:   # noqa: BLE001 - simplification is optional
             return expr
         finally:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, old)
+            signal.signal(signal.SIGALRM, old if old is not None else signal.SIG_DFL)
     return out if sp.count_ops(out) <= sp.count_ops(expr) else expr

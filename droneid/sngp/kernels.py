@@ -738,6 +738,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                 m = np.random.randint(id0, P)
             elif has_head and np.random.random() < P_HEAD:
                 m = np.random.randint(head0, lay[L_HEAD])
+                for _t in range(TOURNAMENT - 1):
+                    c = np.random.randint(head0, lay[L_HEAD])
+                    if bp[c] < bp[m]:
+                        m = c
             else:
                 m = np.random.randint(t0, P)
                 for _t in range(TOURNAMENT - 1):
