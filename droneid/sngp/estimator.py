@@ -314,9 +314,7 @@ class SNGPRegressor:
         pop.a[:] = a
         pop.b[:] = b
         popmod.evaluate_all(pop, self._problem)
-        p = self._problem
-        ok = K._solve_model(pop.op, pop.V, pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, p.y,
-                            p.ckind, p.cbound, pop.beta, pop.cols, pop.obj)
+        ok = popmod.solve(pop, self._problem)
         if not ok:
             pop.obj[:2] = np.inf
         return pop
