@@ -33,6 +33,7 @@ class SearchResult:
     accepted: int = 0
     failed_fits: int = 0
     wall_s: float = 0.0
+    cpu_s: float = 0.0
 
 
 def key(pop: Population, constrained: bool, gamma: float):
@@ -57,6 +58,7 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
                n_threads: int, identity_steps: int, gamma: float, rng: np.random.Generator,
                progress=None) -> SearchResult:
     t_start = time.perf_counter()
+    c_start = time.process_time()
     constrained = bool(template.lay[K.L_MODE])
     P = int(template.lay[K.L_P])
     arch = (np.zeros((ARCHIVE_SIZE, 2)), np.zeros((ARCHIVE_SIZE, P), dtype=np.int64),
@@ -111,4 +113,5 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
     return SearchResult(best=best, archive=archive, generations=total,
                         evaluations=int(stats[K.S_EVALS]), accepted=int(stats[K.S_ACCEPT]),
                         failed_fits=int(stats[K.S_FAILED]),
-                        wall_s=time.perf_counter() - t_start)
+                        wall_s=time.perf_counter() - t_start,
+                        cpu_s=time.process_time() - c_start)
