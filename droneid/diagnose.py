@@ -706,10 +706,6 @@ def _open_ended_all(model, cur, cfg) -> dict:
     parts = model.tr_parts
     if cfg.sngp_generations <= 0:
         return {p.target: {"ran": False, "reason": "disabled (sngp_generations = 0)"} for p in parts}
-    try:
-        from .sngp import SNGPRegressor  # noqa: F401
-    except ImportError as exc:
-        return {p.target: {"ran": False, "reason": f"SNGP engine unavailable ({exc})"} for p in parts}
     out = {}
     for i, p in enumerate(parts):
         test = None

@@ -1,7 +1,6 @@
 """``droneid fit``: SNGP symbolic regression on a plain CSV table."""
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -43,7 +42,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def read_table(path) -> "pandas.DataFrame":  # noqa: F821
+def read_table(path):
     import pandas as pd
     path = Path(path)
     if not path.is_file():

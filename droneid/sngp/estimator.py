@@ -24,7 +24,7 @@ from . import kernels as K
 from . import population as popmod
 from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
-from .population import CONSTANTS, Population, Problem
+from .population import Population, Problem
 from .search import run_search
 
 log = logging.getLogger(__name__)
