@@ -269,7 +269,8 @@ def _empirical_baselines(p: TargetProblem) -> None:
         e_cs = _eval_features(p.prior1, _cs_columns(p.cs_test), names)[:, 0]
         ec = constraint_rmse(e_cs, p.cs_test)
     p.empirical = {"rmse_train": _rmse(e_tr, p.train.y), "rmse_test": _rmse(e_te, p.test.y),
-                   "constraint_rmse_test": ec, "equation": f"{p.target} = {p.prior1[0].expr}"}
+                   "constraint_rmse_test": ec, "equation": f"{p.target} = {p.prior1[0].expr}",
+                   "expr": str(p.prior1[0].expr)}
     # refit: least squares on the 3 terms + intercept
     A_tr = np.column_stack([_eval_features(p.priors3, tr_cols, names), np.ones(len(p.train))])
     A_te = np.column_stack([_eval_features(p.priors3, te_cols, names), np.ones(len(p.test))])

@@ -14,7 +14,7 @@ import numpy as np
 from .io_util import atomic_write_json
 from .reporting import Document, fmt, new_figure
 
-__all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front",
+__all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front", "compact",
            "ERROR_HEADER"]
 
 ERROR_HEADER = ("model", "e_d train", "e_d test", "e_c test")
@@ -252,3 +252,14 @@ def write_result(result: dict, directory) -> dict[str, Path]:
     paths = {"json": atomic_write_json(d / "result.json", result)}
     paths.update(build_document(result).write(d, "report"))
     return paths
+
+
+def compact(result: dict) -> dict:
+    """The result without bulky parts (series, archives, the model): for ``--json`` output."""
+    out = {k: v for k, v in result.items() if k != "targets"}
+    out["targets"] = {}
+    for name, tr in result["targets"].items():
+        t = {k: v for k, v in tr.items() if k not in ("test_series", "model", "runs")}
+        t["runs"] = [{k: v for k, v in r.items() if k != "archive"} for r in tr.get("runs") or []]
+        out["targets"][name] = t
+    return out
