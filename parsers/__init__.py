@@ -1,2 +1,146 @@
 """Flight-log readers and writers. Every reader returns one :class:`droneid.flight.Flight`
-in droneid's internal convention (see :mod:`droneid.frames`)."""
+in droneid's internal convention (see :mod:`droneid.frames`).
+
+``read_flight(path)`` recognises the format by the file's CONTENT (magic bytes, header rows);
+the extension only breaks ties. Readers are registered by format name in :data:`READERS`.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
+
+from droneid.errors import ConfigError, LogFormatError, did_you_mean
+from droneid.flight import Flight
+
+__all__ = ["read_flight", "detect_format", "get_reader", "READERS", "FORMATS"]
+
+#: format name -> "module:function" of its reader (imported on first use).
+READERS: Mapping[str, str] = MappingProxyType({
+    "dataflash": "parsers.dataflash_log:read_dataflash",
+    "tlog": "parsers.mavlink_log:read_tlog",
+    "ulog": "parsers.ulog_log:read_ulog",
+    "mcap": "parsers.mcap_log:read_mcap",
+    "motive_csv": "parsers.mocap_csv:read_motive_csv",
+    "csv": "parsers.mocap_csv:read_flat_csv",
+})
+FORMATS = tuple(READERS)
+
+_EXT = {".bin": "dataflash", ".tlog": "tlog", ".ulg": "ulog", ".mcap": "mcap", ".csv": "csv"}
+
+
+def get_reader(name: str) -> Callable[..., Flight]:
+    """The reader function registered under a format name (ConfigError for unknown names)."""
+    if name not in READERS:
+        raise ConfigError(f"unknown log format {name!r}; known formats: {', '.join(FORMATS)}"
+                          + did_you_mean(str(name), FORMATS))
+    mod, func = READERS[name].split(":")
+    return getattr(importlib.import_module(mod), func)
+
+
+def _looks_like_tlog(head: bytes) -> bool:
+    """At least two MAVLink frames, each after an 8-byte big-endian µs timestamp."""
+    pos, frames = 0, 0
+    while pos + 10 <= len(head) and frames < 3:
+        magic = head[pos + 8]
+        if magic == 0xFE:
+            ln = head[pos + 9] + 8
+        elif magic == 0xFD:
+            ln = head[pos + 9] + 12 + (13 if pos + 10 < len(head) and head[pos + 10] & 1 else 0)
+        else:
+            return False
+        ts = int.from_bytes(head[pos:pos + 8], "big")
+        if not (946684800_000000 < ts < 4102444800_000000):  # 2000 .. 2100 in µs
+            return False
+        frames += 1
+        pos += 8 + ln
+    return frames >= 2 or (frames == 1 and pos >= len(head))
+
+
+def _csv_kind(head: bytes) -> str | None:
+    try:
+        text = head.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = head.decode("latin-1")
+    if "\x00" in text:
+        return None
+    first = text.splitlines()[0] if text.splitlines() else ""
+    cells = [c.strip().strip('"') for c in first.split(",")]
+    if cells and cells[0] == "Format Version":
+        return "motive_csv"
+    if len(cells) >= 2 and sum(1 for c in cells if c and not _is_number(c)) >= 2:
+        return "csv"
+    return None
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def detect_format(path) -> str:
+    """The format name of a log file, from its content (extension only as a tie-breaker).
+
+    Raises LogFormatError for an empty file or unrecognised content.
+    """
+    path = os.fspath(path)
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    if not head:
+        raise LogFormatError(path, "the file is empty")
+    if head.startswith(b"ULog\x01\x12\x35"):
+        return "ulog"
+    if head.startswith(b"\x89MCAP0\r\n"):
+        return "mcap"
+    if head[:2] == b"\xa3\x95" and len(head) >= 3:
+        return "dataflash"
+    if len(head) >= 10 and _looks_like_tlog(head):
+        return "tlog"
+    kind = _csv_kind(head)
+    if kind:
+        return kind
+    ext = os.path.splitext(path)[1].lower()
+    hint = f" (the extension says {_EXT[ext]!r} but the content does not match)" if ext in _EXT else ""
+    raise LogFormatError(path, "unrecognised log format: not DataFlash, tlog, ULog, MCAP or CSV"
+                         + hint)
+
+
+def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | None = None,
+                body: str | None = None, column_map: Mapping[str, str] | None = None,
+                sysid: int | None = None) -> Flight:
+    """Read one flight log into a :class:`Flight` (internal convention: ENU/FLU, SI, seconds).
+
+    Parameters
+    ----------
+    path : the log file.
+    format : a name from :data:`FORMATS` to skip detection.
+    topics : MCAP role -> topic overrides, e.g. ``{"pose": "/cub1/pose"}``.
+    body : the rigid body to read from a Motive CSV with several bodies.
+    column_map : CSV canonical name -> column name overrides, e.g. ``{"x": "pos_x"}``.
+    sysid : MAVLink system id of the vehicle in a tlog (default: the vehicle's heartbeat).
+    """
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(2, "No such file or directory", path)
+    if os.path.isdir(path):
+        raise LogFormatError(path, "is a directory, not a log file")
+    fmt = format or detect_format(path)
+    reader = get_reader(fmt)
+    opts = {}
+    if fmt == "mcap":
+        opts["topics"] = topics
+    elif fmt == "motive_csv":
+        opts["body"] = body
+    elif fmt == "csv":
+        opts["column_map"] = column_map
+    elif fmt == "tlog":
+        opts["sysid"] = sysid
+    unused = {"topics": topics, "body": body, "column_map": column_map, "sysid": sysid}
+    bad = [k for k, v in unused.items() if v is not None and k not in opts]
+    if bad:
+        raise ConfigError(f"option(s) {', '.join(bad)} do not apply to {fmt} logs ({path})")
+    return reader(path, **opts)

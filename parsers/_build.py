@@ -1,0 +1,173 @@
+"""Shared pieces of every reader: collect numpy columns into a :class:`Flight`.
+
+Readers gather raw columns (lists or arrays) per source message, convert them to the internal
+convention, and hand them to :class:`FlightBuilder`, which cleans each signal (non-finite values,
+duplicate or backwards stamps: skipped and counted), derives velocity from position when needed,
+and turns boolean "armed" samples into segments.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from droneid.errors import LogFormatError
+from droneid.flight import Diagnostics, Event, Flight, Provenance, Signal
+
+log = logging.getLogger(__name__)
+
+__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit"]
+
+
+def pwm_to_unit(pwm) -> np.ndarray:
+    """Servo PWM in µs (1000..2000) to 0..1 (clipped); 0 µs (output off) becomes 0."""
+    return np.clip((np.asarray(pwm, float) - 1000.0) / 1000.0, 0.0, 1.0)
+
+
+def central_difference(t: np.ndarray, x: np.ndarray, max_gap_factor: float = 2.5) -> np.ndarray:
+    """dx/dt by central differences on an uneven grid (one-sided at the ends of each run).
+
+    The series is split where a time step exceeds ``max_gap_factor`` times the median step
+    (occlusions, dropouts): no derivative spans a gap; isolated samples get nan.
+    """
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    out = np.full_like(x, np.nan)
+    if t.size < 2:
+        return out
+    dt = np.diff(t)
+    cuts = np.flatnonzero(dt > max_gap_factor * np.median(dt)) + 1
+    for a, c in zip(np.concatenate([[0], cuts]), np.concatenate([cuts, [t.size]])):
+        if c - a >= 2:
+            out[a:c] = np.gradient(x[a:c], t[a:c])
+    return out
+
+
+def intervals_from_bool(t: np.ndarray, flag: np.ndarray, min_len_s: float = 0.0,
+                        end_s: float | None = None) -> tuple[tuple[float, float], ...]:
+    """Intervals where ``flag`` is true, from state samples ``(t, flag)``.
+
+    A true run starts at its first true sample and ends at the first false sample after it
+    (or at ``end_s`` / the last sample when the log ends while true).
+    """
+    t = np.asarray(t, float)
+    f = np.asarray(flag, bool)
+    out = []
+    if t.size == 0:
+        return ()
+    d = np.diff(np.concatenate([[False], f, [False]]).astype(np.int8))
+    starts = np.flatnonzero(d == 1)
+    stops = np.flatnonzero(d == -1)
+    last = t[-1] if end_s is None else max(end_s, t[-1])
+    for a, b in zip(starts, stops):
+        t0 = t[a]
+        t1 = t[b] if b < t.size else last
+        if t1 - t0 >= min_len_s:
+            out.append((float(t0), float(t1)))
+    return tuple(out)
+
+
+class FlightBuilder:
+    """Accumulates signals, events, segments and diagnostics for one file."""
+
+    def __init__(self, path, fmt: str):
+        self.path = str(path)
+        self.format = fmt
+        self.signals: dict[str, Signal] = {}
+        self.events: list[Event] = []
+        self.segments: dict[str, tuple[tuple[float, float], ...]] = {}
+        self.skipped: dict[str, int] = {}
+        self.warnings: list[str] = []
+        self.notes: list[str] = []
+        self.vehicle: str | None = None
+        self.firmware: str | None = None
+
+    # -- diagnostics ---------------------------------------------------------------------
+    def skip(self, reason: str, n: int = 1) -> None:
+        if n:
+            self.skipped[reason] = self.skipped.get(reason, 0) + int(n)
+
+    def warn(self, text: str) -> None:
+        log.warning("%s: %s", self.path, text)
+        self.warnings.append(text)
+
+    # -- signals -------------------------------------------------------------------------
+    def add(self, name: str, t, values, unit: str, source: str) -> None:
+        """Add one signal (cleaned; what is dropped is counted as '<source>: <reason>')."""
+        t = np.asarray(t, float)
+        values = np.asarray(values, float)
+        if t.size == 0:
+            return
+        sig, dropped = Signal.clean(name, t, values, unit, source)
+        for reason, n in dropped.items():
+            self.skip(f"{name}: {reason}", n)
+        if len(sig):
+            self.signals[name] = sig
+
+    def add_many(self, t, columns: dict, units: dict, source: str) -> None:
+        for name, v in columns.items():
+            self.add(name, t, v, units[name], source)
+
+    def event(self, t_s: float, kind: str, text: str = "") -> None:
+        self.events.append(Event(float(t_s), kind, text))
+
+    def segment(self, label: str, intervals: Sequence[tuple[float, float]]) -> None:
+        self.segments[label] = tuple(intervals)
+
+    # -- finishing -----------------------------------------------------------------------
+    def derive_velocity(self) -> None:
+        """vx, vy, vz from x, y, z by central differences when velocity is missing."""
+        done = []
+        for p, v in (("x", "vx"), ("y", "vy"), ("z", "vz")):
+            if v not in self.signals and p in self.signals and len(self.signals[p]) >= 3:
+                s = self.signals[p]
+                self.add(v, s.t, central_difference(s.t, s.values), "m/s", f"d/dt {s.source}")
+                done.append(v)
+        if done:
+            self.notes.append(f"{', '.join(done)} derived from position by central differences "
+                              f"(not across gaps longer than 2.5 sample steps)")
+
+    def in_flight_from_height(self, min_rise_m: float = 0.3, min_len_s: float = 1.0) -> None:
+        """'in_flight' where armed and z is at least ``min_rise_m`` above the take-off level
+        (a low percentile of z while armed). Needs "armed" segments: without them (mocap,
+        truncated logs) whether the vehicle flies is left undetermined."""
+        armed = self.segments.get("armed")
+        if "in_flight" in self.segments or "z" not in self.signals or armed is None:
+            return
+        z = self.signals["z"]
+        if len(z) < 3:
+            return
+        mask = np.zeros(len(z), bool)
+        for a, b in armed:
+            mask |= (z.t >= a) & (z.t <= b)
+        if not mask.any():
+            self.segments["in_flight"] = ()
+            return
+        ground = float(np.percentile(z.values[mask], 2))
+        flying = intervals_from_bool(z.t, mask & (z.values > ground + min_rise_m), min_len_s=min_len_s)
+        # a flight ends at the latest with its armed interval
+        flying = tuple((a, min(b, next((e for s, e in armed if s <= a <= e), b))) for a, b in flying)
+        self.segments["in_flight"] = flying
+        self.notes.append(f"in_flight: armed and z more than {min_rise_m} m above "
+                          f"the take-off level {ground:.2f} m")
+
+    def build(self, *, min_signals: int = 1) -> Flight:
+        if len(self.signals) < min_signals:
+            detail = ""
+            if self.skipped:
+                detail = " (" + ", ".join(f"{k}: {n}" for k, n in self.skipped.items()) + ")"
+            raise LogFormatError(self.path, f"no usable {self.format} signals found{detail}")
+        self.derive_velocity()
+        prov = Provenance(files=(self.path,), format=self.format, vehicle=self.vehicle,
+                          firmware=self.firmware, notes=tuple(self.notes))
+        diag = Diagnostics(self.skipped, tuple(self.warnings))
+        return Flight(self.signals, prov, diag, self.segments, tuple(self.events))
+
+
+def first_finite(*values) -> float:
+    for v in values:
+        if v is not None and math.isfinite(v):
+            return float(v)
+    return math.nan

@@ -1,0 +1,373 @@
+"""ArduPilot DataFlash ``.bin`` logs (pymavlink ``DFReader``) -> :class:`Flight`.
+
+What is read (old 3.x names / new 4.x names), converted from NED/FRD to ENU/FLU:
+
+* ``ATT`` Roll/Pitch/Yaw (deg) -> roll, pitch, yaw (rad, :func:`euler_frd_ned_to_flu_enu`)
+* ``EKF1`` (3.x) / ``NKF1`` / ``XKF1`` (4.x, core ``C == 0``) VN VE VD, PN PE PD -> vx vy vz, x y z.
+  When a log holds both NKF1 and XKF1, the parameter ``AHRS_EKF_TYPE`` picks (else the larger).
+* ``IMU`` (instance 0) GyrX..Z, AccX..Z (FRD) -> wx wy wz, ax ay az (FLU: y and z negated)
+* ``RCOU`` ``Ch1..`` / ``C1..`` PWM -> motor1.. (0..1); channels that are always 0 are dropped.
+  The servo-function mapping is not applied: channel N becomes motorN.
+* ``CTUN`` ``ThrOut`` (3.x: 0..1000, detected by its range) / ``ThO`` (4.x: 0..1) -> throttle
+* ``CURR`` (3.x; centivolts / centiamps when the values say so) / ``BAT`` (4.x, instance 0) -> battery
+* ``GPS`` (3D fix only) Lat Lng Alt -> lat lon alt; ``BARO`` Alt -> baro_alt
+* ``MODE`` -> "mode" events; ``EV`` ARMED/DISARMED/NOT_LANDED/LAND_COMPLETE and ``ARM`` -> segments
+  and events; ``ERR`` -> "error" events (subsystem 12, crash check -> "crash"); ``MSG`` -> firmware.
+
+Time: the boot clock of each message (``TimeUS`` µs or ``TimeMS`` ms; 3.x ``GPS`` uses ``T``, as
+its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages without a time field
+(``EV``, ``ERR``, 3.x ``MSG``) take the time of the previous timed message.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import math
+import os
+import re
+from operator import attrgetter
+
+import numpy as np
+
+from droneid.errors import LogFormatError
+from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
+
+from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+
+log = logging.getLogger(__name__)
+
+__all__ = ["read_dataflash", "MESSAGE_TYPES"]
+
+#: DataFlash message types this reader asks pymavlink for.
+MESSAGE_TYPES = ("ATT", "EKF1", "NKF1", "XKF1", "IMU", "RCOU", "CTUN", "CURR", "BAT", "GPS",
+                 "BARO", "MODE", "EV", "ERR", "MSG", "ARM", "PARM")
+
+_EV_ARMED, _EV_DISARMED, _EV_LAND_COMPLETE, _EV_NOT_LANDED = 10, 11, 18, 28
+_ERR_CRASH = 12
+_DEG = math.pi / 180.0
+
+# fields wanted per type (those a given log lacks are ignored)
+_WANT = {
+    "ATT": ("Roll", "Pitch", "Yaw"),
+    "EKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "NKF1": ("C", "VN", "VE", "VD", "PN", "PE", "PD"),
+    "XKF1": ("C", "VN", "VE", "VD", "PN", "PE", "PD"),
+    "IMU": ("I", "GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"),
+    "RCOU": tuple(f"Ch{i}" for i in range(1, 17)) + tuple(f"C{i}" for i in range(1, 17)),
+    "CTUN": ("ThrOut", "ThO"),
+    "CURR": ("Volt", "Curr"),
+    "BAT": ("Inst", "Volt", "Curr"),
+    "GPS": ("I", "Status", "Lat", "Lng", "Alt"),
+    "BARO": ("I", "Alt"),
+    "MODE": ("Mode", "ModeNum"),
+    "EV": ("Id",),
+    "ERR": ("Subsys", "ECode"),
+    "MSG": ("Message",),
+    "ARM": ("ArmState",),
+    "PARM": ("Name", "Value"),
+}
+
+
+def _open(path):
+    from pymavlink import DFReader  # wrapped here: pymavlink reads globals at import
+    try:
+        return DFReader.DFReader_binary(path, zero_time_base=True)
+    except Exception as exc:  # pymavlink raises bare exceptions on broken headers
+        raise LogFormatError(path, f"not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
+
+
+class _TypeRows:
+    """Rows of one message type: a time column and the wanted fields, as Python lists."""
+    __slots__ = ("time_field", "fields", "get", "rows", "times")
+
+    def __init__(self, mtype: str, columns: list[str]):
+        if mtype == "GPS" and "T" in columns:
+            self.time_field = "T"                      # 3.x: TimeMS is GPS time of week
+        elif mtype == "GPS" and "TimeUS" not in columns:
+            self.time_field = None                     # GPS time of week only: not the boot clock
+        elif "TimeUS" in columns:
+            self.time_field = "TimeUS"
+        elif "TimeMS" in columns:
+            self.time_field = "TimeMS"
+        else:
+            self.time_field = None
+        self.fields = tuple(f for f in _WANT[mtype] if f in columns)
+        self.get = attrgetter(*self.fields) if len(self.fields) > 1 else (
+            (lambda m, g=attrgetter(self.fields[0]): (g(m),)) if self.fields else (lambda m: ()))
+        self.rows: list = []
+        self.times: list = []
+
+
+def _scan(path, b: FlightBuilder):
+    """One pass over the log: per-type time and field lists (boot seconds)."""
+    noise = io.StringIO()
+    with contextlib.redirect_stderr(noise):   # pymavlink prints "bad header" lines
+        dflog = _open(path)
+        types = _loop(dflog, b)
+    _check_end(dflog, b)
+    bad = sum(1 for line in noise.getvalue().splitlines() if line.startswith(("bad header", "Skipped")))
+    if bad:
+        b.skip("corrupt bytes or unknown records (pymavlink resynchronised)", bad)
+    return types
+
+
+def _loop(dflog, b: FlightBuilder) -> dict:
+    """The streaming loop: only the wanted types, fields pulled into lists per type."""
+    types: dict[str, _TypeRows] = {}
+    last_boot = math.nan
+    recv = dflog.recv_match
+    wanted = list(MESSAGE_TYPES)
+    n_bad = 0
+    while True:
+        try:
+            m = recv(type=wanted)
+        except Exception as exc:  # a cut or corrupt record: keep what came before
+            n_bad += 1
+            b.warn(f"reading stopped at a corrupt record ({type(exc).__name__}: {exc})")
+            break
+        if m is None:
+            break
+        mtype = m.get_type()
+        tr = types.get(mtype)
+        if tr is None:
+            tr = types[mtype] = _TypeRows(mtype, list(m.get_fieldnames()))
+        if tr.time_field is not None:
+            raw = getattr(m, tr.time_field)
+            boot = last_boot = raw * (1e-6 if tr.time_field == "TimeUS" else 1e-3)
+        else:
+            boot = last_boot
+        tr.times.append(boot)
+        tr.rows.append(tr.get(m))
+    if n_bad:
+        b.skip("corrupt records", n_bad)
+    return types
+
+
+def _check_end(dflog, b: FlightBuilder) -> None:
+    """Count a record cut by the end of the file (DFReader drops it silently)."""
+    try:
+        last = max((offs[-1], mtype) for mtype, offs in enumerate(dflog.offsets) if offs)
+        ofs, mtype = last
+        end = ofs + dflog.formats[mtype].len
+        size = dflog.data_len
+    except (AttributeError, ValueError, KeyError, IndexError):
+        return
+    if end > size:
+        b.skip("record cut by the end of the file", 1)
+        b.warn(f"the log ends inside a record (at byte {ofs} of {size}): read up to the cut")
+    elif end < size:
+        b.skip("record cut by the end of the file", 1)
+        b.warn(f"{size - end} bytes after the last complete record (a cut record): ignored")
+
+
+def _cols(tr: _TypeRows, t0: float):
+    t = np.asarray(tr.times, float) - t0
+    cols = {}
+    if tr.rows:
+        arr = list(zip(*tr.rows))
+        for f, col in zip(tr.fields, arr):
+            try:
+                cols[f] = np.asarray(col, float)
+            except (TypeError, ValueError):
+                cols[f] = np.asarray(col, object)
+    return t, cols
+
+
+def _instance0(t, cols, key):
+    if key in cols:
+        m = cols[key] == 0
+        return t[m], {k: v[m] for k, v in cols.items()}
+    return t, cols
+
+
+def read_dataflash(path) -> object:
+    """Read an ArduPilot DataFlash ``.bin`` log into a :class:`Flight` (see the module doc)."""
+    path = os.fspath(path)
+    b = FlightBuilder(path, "dataflash")
+    types = _scan(path, b)
+    timed = [min((x for x in tr.times if x == x), default=math.inf)
+             for tr in types.values() if tr.time_field]
+    t0 = min(timed, default=math.inf)
+    if not math.isfinite(t0):
+        raise LogFormatError(path, "no time-stamped DataFlash messages found (empty or corrupt log)")
+    data = {k: _cols(tr, t0) for k, tr in types.items()}
+    params = {}
+    if "PARM" in data:
+        for name, value in types["PARM"].rows:
+            params[name] = value
+
+    # firmware, vehicle
+    for row in types.get("MSG", _TypeRows("MSG", [])).rows:
+        text = str(row[0])
+        if b.firmware is None and re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)\s*V?\d", text):
+            b.firmware = text.strip()
+        m = re.match(r"Frame:\s*(\S+)", text)
+        if m:
+            b.vehicle = m.group(1).lower()
+    if b.vehicle is None and b.firmware:
+        m = re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)", b.firmware)
+        b.vehicle = m.group(1).lower() if m else None
+
+    if "ATT" in data:
+        t, c = data["ATT"]
+        r, p, y = euler_frd_ned_to_flu_enu(c["Roll"] * _DEG, c["Pitch"] * _DEG, c["Yaw"] * _DEG)
+        b.add_many(t, {"roll": r, "pitch": p, "yaw": y},
+                   {"roll": "rad", "pitch": "rad", "yaw": "rad"}, "ATT.Roll/Pitch/Yaw")
+
+    ekf = _pick_ekf(data, params)
+    if ekf:
+        t, c = _instance0(*data[ekf], "C")
+        x, y, z = ned_to_enu(c["PN"], c["PE"], c["PD"])
+        vx, vy, vz = ned_to_enu(c["VN"], c["VE"], c["VD"])
+        b.add_many(t, {"vx": vx, "vy": vy, "vz": vz}, dict.fromkeys(("vx", "vy", "vz"), "m/s"),
+                   f"{ekf}.VN/VE/VD")
+        b.add_many(t, {"x": x, "y": y, "z": z}, dict.fromkeys("xyz", "m"), f"{ekf}.PN/PE/PD")
+
+    if "IMU" in data:
+        t, c = _instance0(*data["IMU"], "I")
+        b.add_many(t, {"wx": c["GyrX"], "wy": -c["GyrY"], "wz": -c["GyrZ"]},
+                   dict.fromkeys(("wx", "wy", "wz"), "rad/s"), "IMU.GyrX/Y/Z")
+        b.add_many(t, {"ax": c["AccX"], "ay": -c["AccY"], "az": -c["AccZ"]},
+                   dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "IMU.AccX/Y/Z")
+
+    if "RCOU" in data:
+        t, c = data["RCOU"]
+        for f, v in c.items():
+            n = int(f.lstrip("Ch").lstrip("C"))
+            if np.any(v > 0):
+                b.add(f"motor{n}", t, pwm_to_unit(v), "1", f"RCOU.{f}")
+
+    if "CTUN" in data:
+        t, c = data["CTUN"]
+        f = "ThO" if "ThO" in c else "ThrOut" if "ThrOut" in c else None
+        if f:
+            v = c[f]
+            finite = v[np.isfinite(v)]
+            scale = 1000.0 if finite.size and finite.max() > 1.5 else 1.0
+            b.add("throttle", t, v / scale, "1", f"CTUN.{f}" + (" / 1000" if scale > 1 else ""))
+
+    bat = "BAT" if "BAT" in data else "CURR" if "CURR" in data else None
+    if bat:
+        t, c = _instance0(*data[bat], "Inst")
+        volt, curr = c["Volt"], c.get("Curr")
+        finite = volt[np.isfinite(volt)]
+        scale = 100.0 if finite.size and np.median(finite) > 100.0 else 1.0
+        b.add("battery_voltage", t, volt / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
+        if curr is not None:
+            b.add("battery_current", t, curr / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
+
+    if "GPS" in data:
+        t, c = _instance0(*data["GPS"], "I")
+        fix = c["Status"] >= 3
+        b.skip("GPS samples without a 3D fix", int((~fix).sum()))
+        if fix.any():
+            b.add_many(t[fix], {"lat": c["Lat"][fix], "lon": c["Lng"][fix], "alt": c["Alt"][fix]},
+                       {"lat": "deg", "lon": "deg", "alt": "m"}, "GPS.Lat/Lng/Alt")
+
+    if "BARO" in data:
+        t, c = _instance0(*data["BARO"], "I")
+        b.add("baro_alt", t, c["Alt"], "m", "BARO.Alt")
+
+    _events(b, data, types)
+    b.in_flight_from_height()
+    return b.build()
+
+
+def _pick_ekf(data, params):
+    have = [k for k in ("XKF1", "NKF1", "EKF1") if k in data and len(data[k][0])]
+    if not have:
+        return None
+    kind = params.get("AHRS_EKF_TYPE")
+    if kind == 3 and "XKF1" in have:
+        return "XKF1"
+    if kind == 2 and "NKF1" in have:
+        return "NKF1"
+    return max(have, key=lambda k: len(data[k][0]))
+
+
+def _mode_name(num: int, vehicle: str | None) -> str:
+    try:
+        from pymavlink import mavutil
+        table = {"copter": mavutil.mode_mapping_acm, "plane": mavutil.mode_mapping_apm,
+                 "rover": mavutil.mode_mapping_rover}.get(vehicle or "copter", mavutil.mode_mapping_acm)
+        if vehicle and vehicle not in ("plane", "rover", "sub"):
+            table = mavutil.mode_mapping_acm
+        return table.get(int(num), f"mode {int(num)}")
+    except Exception:  # pragma: no cover - mode names are cosmetic
+        return f"mode {num}"
+
+
+def _events(b: FlightBuilder, data, types):
+    end = b.signals and max(s.end_s for s in b.signals.values()) or 0.0
+    arm_t, arm_v = [], []
+    air_t, air_v = [], []
+    if "MODE" in data:
+        t, c = data["MODE"]
+        num = c.get("ModeNum", c.get("Mode"))
+        for ti, n in zip(t, num):
+            b.event(ti, "mode", _mode_name(n, b.vehicle))
+    if "EV" in data:
+        t, c = data["EV"]
+        for ti, i in zip(t, c["Id"]):
+            i = int(i)
+            if i == _EV_ARMED:
+                arm_t.append(ti), arm_v.append(True)
+                b.event(ti, "armed")
+            elif i == _EV_DISARMED:
+                arm_t.append(ti), arm_v.append(False)
+                air_t.append(ti), air_v.append(False)
+                b.event(ti, "disarmed")
+            elif i == _EV_NOT_LANDED:
+                air_t.append(ti), air_v.append(True)
+                b.event(ti, "takeoff")
+            elif i == _EV_LAND_COMPLETE:
+                air_t.append(ti), air_v.append(False)
+                b.event(ti, "land")
+            else:
+                b.event(ti, "event", f"EV {i}")
+    if "ARM" in data and not arm_t:
+        t, c = data["ARM"]
+        for ti, s in zip(t, c["ArmState"]):
+            arm_t.append(ti), arm_v.append(bool(s))
+            b.event(ti, "armed" if s else "disarmed")
+    crash_t = None
+    if "ERR" in data:
+        t, c = data["ERR"]
+        for ti, sub, code in zip(t, c["Subsys"], c["ECode"]):
+            if int(sub) == _ERR_CRASH and int(code) != 0:
+                b.event(ti, "crash", f"ERR subsystem {int(sub)} code {int(code)} (crash check)")
+                crash_t = ti if crash_t is None else crash_t
+            else:
+                b.event(ti, "error", f"ERR subsystem {int(sub)} code {int(code)}")
+    if arm_t:
+        b.segment("armed", _state_intervals(arm_t, arm_v, end))
+    if air_t:
+        b.segment("in_flight", _state_intervals(air_t, air_v, end))
+    _tilt_crash(b, crash_t)
+
+
+def _state_intervals(t, v, end):
+    t = np.asarray(t, float)
+    v = np.asarray(v, bool)
+    return intervals_from_bool(t, v, end_s=end)
+
+
+def _tilt_crash(b: FlightBuilder, crash_t):
+    """A 'crash' event where the vehicle, armed, tilts beyond 90 deg (flipped over)."""
+    if crash_t is not None or not ("roll" in b.signals and "pitch" in b.signals):
+        return
+    r, p = b.signals["roll"], b.signals["pitch"]
+    n = min(len(r), len(p))
+    tilt_cos = np.cos(r.values[:n]) * np.cos(p.values[:n])
+    armed = b.segments.get("armed")
+    t = r.t[:n]
+    mask = tilt_cos < 0.0
+    if armed:
+        in_arm = np.zeros(n, bool)
+        for a, c in armed:
+            in_arm |= (t >= a) & (t <= c)
+        mask &= in_arm
+    if mask.any():
+        i = int(np.flatnonzero(mask)[0])
+        b.event(t[i], "crash", "attitude beyond 90 deg tilt while armed (flipped over)")

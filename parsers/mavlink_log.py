@@ -1,0 +1,316 @@
+"""MAVLink telemetry logs (``.tlog``: 8-byte big-endian µs UNIX time stamp + one MAVLink v1/v2
+frame, repeated) -> :class:`Flight`.
+
+Frames are split here and only the wanted message ids are decoded with pymavlink's
+``ardupilotmega`` v2 dialect (which also decodes v1 frames). Bad CRCs, unknown ids, garbage bytes
+and a frame cut by the end of the file are skipped and counted.
+
+Vehicle: several systems share a tlog (the GCS sends HEARTBEATs too, radios send RADIO_STATUS).
+The vehicle is the system id whose HEARTBEAT has a vehicle ``type`` (not GCS, tracker, gimbal,
+camera, onboard computer, ...) and a valid autopilot, with the most heartbeats; ``sysid=`` overrides.
+
+Time: the tlog's own time stamps (when the GCS logged each frame), in seconds from the first frame
+of the file. They exist for every message and never reset on a vehicle reboot; they carry the
+radio link's jitter (tens of ms), small next to the 1-10 Hz telemetry rates. Several messages
+logged with the same stamp keep the first (counted as duplicate stamps).
+
+Read (all NED/FRD converted to ENU/FLU):
+ATTITUDE (roll pitch yaw, body rates), ATTITUDE_QUATERNION (qw..qz), LOCAL_POSITION_NED (x y z,
+vx vy vz), GLOBAL_POSITION_INT (lat lon alt; its NED cm/s velocity only when LOCAL_POSITION_NED is
+absent), HIGHRES_IMU > SCALED_IMU > RAW_IMU (first present; RAW_IMU is assumed to use ArduPilot's
+scaling, milli-g and milli-rad/s, as ArduPilot sends it; PX4 never sends RAW_IMU in that form),
+SERVO_OUTPUT_RAW (port 0, PWM -> motorN 0..1), VFR_HUD throttle (% -> 0..1), SYS_STATUS battery
+(mV, cA; the "unknown" values 0/65535 and -1 are skipped) else BATTERY_STATUS, HEARTBEAT (armed
+flag -> "armed" segments, custom mode -> "mode" events), EXTENDED_SYS_STATE landed_state ->
+"in_flight", STATUSTEXT -> firmware string.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import re
+
+import numpy as np
+
+from droneid.errors import LogFormatError
+from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
+
+from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+
+log = logging.getLogger(__name__)
+
+__all__ = ["read_tlog", "MESSAGE_NAMES", "iter_frames"]
+
+MESSAGE_NAMES = ("HEARTBEAT", "ATTITUDE", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED",
+                 "GLOBAL_POSITION_INT", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU", "SERVO_OUTPUT_RAW",
+                 "VFR_HUD", "SYS_STATUS", "BATTERY_STATUS", "EXTENDED_SYS_STATE", "STATUSTEXT")
+
+# MAV_TYPE values that are not a vehicle
+_NOT_VEHICLE = {0, 5, 6, 18, 26, 27, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42}
+_MAV_AUTOPILOT_INVALID = 8
+_MAV_MODE_FLAG_SAFETY_ARMED = 128
+_VEHICLE_NAMES = {1: "fixed wing", 2: "quadrotor", 3: "coaxial", 4: "helicopter", 10: "ground rover",
+                  11: "surface boat", 12: "submarine", 13: "hexarotor", 14: "octorotor",
+                  15: "tricopter", 19: "vtol", 20: "vtol", 21: "vtol", 22: "vtol", 23: "vtol",
+                  24: "vtol", 25: "vtol", 29: "dodecarotor"}
+_AUTOPILOT_NAMES = {3: "ArduPilot", 12: "PX4"}
+_T_MIN_US, _T_MAX_US = 946684800_000000, 4102444800_000000  # years 2000 .. 2100
+
+
+def _dialect():
+    from pymavlink.dialects.v20 import ardupilotmega as mav  # v2 dialect parses v1 frames too
+    return mav
+
+
+def iter_frames(data: bytes, counts: dict):
+    """Yield ``(t_us, msgid, frame_bytes)`` for each MAVLink frame of a tlog buffer.
+
+    Garbage is skipped byte by byte until a plausible ``timestamp + magic`` is found; the skipped
+    bytes and a final frame cut by the end of the buffer are counted in ``counts``.
+    """
+    n = len(data)
+    pos = 0
+    last_t = None
+    garbage = 0
+    while pos + 10 <= n:
+        magic = data[pos + 8]
+        t_us = int.from_bytes(data[pos:pos + 8], "big")
+        ok_t = _T_MIN_US < t_us < _T_MAX_US and (last_t is None or abs(t_us - last_t) < 86_400_000_000)
+        if magic == 0xFE and ok_t:
+            flen = data[pos + 9] + 8
+            if pos + 8 + flen > n:
+                counts["frame cut by the end of the file"] = counts.get("frame cut by the end of the file", 0) + 1
+                break
+            frame = data[pos + 8:pos + 8 + flen]
+            msgid = frame[5]
+        elif magic == 0xFD and ok_t and pos + 11 <= n:
+            flen = data[pos + 9] + 12 + (13 if data[pos + 10] & 1 else 0)
+            if pos + 8 + flen > n:
+                counts["frame cut by the end of the file"] = counts.get("frame cut by the end of the file", 0) + 1
+                break
+            frame = data[pos + 8:pos + 8 + flen]
+            msgid = frame[7] | (frame[8] << 8) | (frame[9] << 16)
+        else:
+            pos += 1
+            garbage += 1
+            continue
+        last_t = t_us
+        yield t_us, msgid, frame
+        pos += 8 + flen
+    if garbage:
+        counts["garbage bytes between frames"] = counts.get("garbage bytes between frames", 0) + garbage
+
+
+def read_tlog(path, sysid: int | None = None):
+    """Read a MAVLink ``.tlog`` into a :class:`Flight` (see the module doc)."""
+    path = os.fspath(path)
+    mav = _dialect()
+    with open(path, "rb") as f:
+        data = f.read()
+    if not data:
+        raise LogFormatError(path, "the file is empty")
+    ids = {getattr(mav, f"MAVLINK_MSG_ID_{name}"): name for name in MESSAGE_NAMES}
+    parser = mav.MAVLink(None)
+    counts: dict[str, int] = {}
+    rows: dict[tuple[int, str], list] = {}
+    times: dict[tuple[int, str], list] = {}
+    t_first = None
+    n_frames = 0
+    for t_us, msgid, frame in iter_frames(data, counts):
+        n_frames += 1
+        if t_first is None:
+            t_first = t_us
+        name = ids.get(msgid)
+        if name is None:
+            continue
+        try:
+            m = parser.decode(bytearray(frame))
+        except mav.MAVError as exc:
+            reason = "bad CRC" if "CRC" in str(exc) else "undecodable frame"
+            counts[reason] = counts.get(reason, 0) + 1
+            continue
+        key = (m.get_srcSystem(), name)
+        rows.setdefault(key, []).append(m)
+        times.setdefault(key, []).append(t_us)
+    if n_frames == 0:
+        raise LogFormatError(path, "no MAVLink frames found (not a tlog, or corrupt from the start)")
+    b = FlightBuilder(path, "tlog")
+    for k, v in counts.items():
+        b.skip(k, v)
+    vid = _vehicle_sysid(rows, sysid, path)
+    msgs = {name: (np.asarray(times[(s, name)], float) - t_first) * 1e-6
+            for (s, name) in rows if s == vid}
+    get = {name: rows[(vid, name)] for name in msgs}
+    _convert(b, msgs, get)
+    return b.build()
+
+
+def _vehicle_sysid(rows, sysid, path) -> int:
+    systems = sorted({s for s, _ in rows})
+    if sysid is not None:
+        if sysid not in systems:
+            raise LogFormatError(path, f"system id {sysid} sends no wanted messages; "
+                                       f"system ids in the log: {systems}")
+        return int(sysid)
+    best, n_best = None, 0
+    for (s, name), ms in rows.items():
+        if name != "HEARTBEAT":
+            continue
+        n = sum(1 for m in ms if m.type not in _NOT_VEHICLE and m.autopilot != _MAV_AUTOPILOT_INVALID)
+        if n > n_best:
+            best, n_best = s, n
+    if best is None:
+        # no vehicle heartbeat: the system with the most wanted messages
+        if not rows:
+            raise LogFormatError(path, "no vehicle messages (ATTITUDE, LOCAL_POSITION_NED, ...) found")
+        per = {}
+        for (s, _), ms in rows.items():
+            per[s] = per.get(s, 0) + len(ms)
+        best = max(per, key=per.get)
+    return int(best)
+
+
+def _col(ms, attr, scale=1.0):
+    return np.fromiter((getattr(m, attr) for m in ms), float, len(ms)) * scale
+
+
+def _convert(b: FlightBuilder, t, get):
+    rad = dict.fromkeys(("roll", "pitch", "yaw"), "rad")
+    if "STATUSTEXT" in get:
+        for m in get["STATUSTEXT"]:
+            text = str(m.text)
+            if b.firmware is None and re.search(r"(Copter|Plane|Rover|Sub|PX4)\S*\s*V?\d", text):
+                b.firmware = text.strip()
+            fm = re.match(r"Frame:\s*(\S+)", text)
+            if fm:
+                b.vehicle = fm.group(1).lower()
+    if "HEARTBEAT" in get:
+        _heartbeat(b, t["HEARTBEAT"], get["HEARTBEAT"])
+    if "ATTITUDE" in get:
+        ms, tt = get["ATTITUDE"], t["ATTITUDE"]
+        r, p, y = euler_frd_ned_to_flu_enu(_col(ms, "roll"), _col(ms, "pitch"), _col(ms, "yaw"))
+        b.add_many(tt, {"roll": r, "pitch": p, "yaw": y}, rad, "ATTITUDE.roll/pitch/yaw")
+        b.add_many(tt, {"wx": _col(ms, "rollspeed"), "wy": -_col(ms, "pitchspeed"),
+                        "wz": -_col(ms, "yawspeed")}, dict.fromkeys(("wx", "wy", "wz"), "rad/s"),
+                   "ATTITUDE.rollspeed/pitchspeed/yawspeed")
+    if "ATTITUDE_QUATERNION" in get:
+        ms, tt = get["ATTITUDE_QUATERNION"], t["ATTITUDE_QUATERNION"]
+        q = np.stack([_col(ms, a) for a in ("q1", "q2", "q3", "q4")], axis=-1)
+        q = quat_flu_enu_from_frd_ned(q)
+        b.add_many(tt, {"qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]},
+                   dict.fromkeys(("qw", "qx", "qy", "qz"), "1"), "ATTITUDE_QUATERNION.q1..q4")
+    if "LOCAL_POSITION_NED" in get:
+        ms, tt = get["LOCAL_POSITION_NED"], t["LOCAL_POSITION_NED"]
+        x, y, z = ned_to_enu(_col(ms, "x"), _col(ms, "y"), _col(ms, "z"))
+        vx, vy, vz = ned_to_enu(_col(ms, "vx"), _col(ms, "vy"), _col(ms, "vz"))
+        b.add_many(tt, {"x": x, "y": y, "z": z}, dict.fromkeys("xyz", "m"), "LOCAL_POSITION_NED.x/y/z")
+        b.add_many(tt, {"vx": vx, "vy": vy, "vz": vz}, dict.fromkeys(("vx", "vy", "vz"), "m/s"),
+                   "LOCAL_POSITION_NED.vx/vy/vz")
+    if "GLOBAL_POSITION_INT" in get:
+        ms, tt = get["GLOBAL_POSITION_INT"], t["GLOBAL_POSITION_INT"]
+        lat, lon = _col(ms, "lat", 1e-7), _col(ms, "lon", 1e-7)
+        valid = (lat != 0) | (lon != 0)
+        b.skip("GLOBAL_POSITION_INT without a position (lat = lon = 0)", int((~valid).sum()))
+        b.add_many(tt[valid], {"lat": lat[valid], "lon": lon[valid], "alt": _col(ms, "alt", 1e-3)[valid]},
+                   {"lat": "deg", "lon": "deg", "alt": "m"}, "GLOBAL_POSITION_INT.lat/lon/alt")
+        if "vx" not in b.signals:
+            vx, vy, vz = ned_to_enu(_col(ms, "vx", 0.01), _col(ms, "vy", 0.01), _col(ms, "vz", 0.01))
+            b.add_many(tt, {"vx": vx, "vy": vy, "vz": vz}, dict.fromkeys(("vx", "vy", "vz"), "m/s"),
+                       "GLOBAL_POSITION_INT.vx/vy/vz")
+    _imu(b, t, get)
+    if "SERVO_OUTPUT_RAW" in get:
+        ms, tt = get["SERVO_OUTPUT_RAW"], t["SERVO_OUTPUT_RAW"]
+        port0 = np.fromiter((getattr(m, "port", 0) == 0 for m in ms), bool, len(ms))
+        for i in range(1, 17):
+            attr = f"servo{i}_raw"
+            if not hasattr(ms[0], attr):
+                break
+            v = _col(ms, attr)[port0]
+            if np.any(v > 0):
+                b.add(f"motor{i}", tt[port0], pwm_to_unit(v), "1", f"SERVO_OUTPUT_RAW.{attr}")
+    if "VFR_HUD" in get:
+        b.add("throttle", t["VFR_HUD"], _col(get["VFR_HUD"], "throttle", 0.01), "1", "VFR_HUD.throttle / 100")
+    _battery(b, t, get)
+    if "EXTENDED_SYS_STATE" in get:
+        ms, tt = get["EXTENDED_SYS_STATE"], t["EXTENDED_SYS_STATE"]
+        landed = _col(ms, "landed_state")
+        if np.any(landed > 0):  # 0 = undefined
+            b.segment("in_flight", intervals_from_bool(tt, landed == 2))
+    b.in_flight_from_height()
+
+
+def _imu(b, t, get):
+    for name, acc_scale, gyro_scale in (("HIGHRES_IMU", 1.0, 1.0),
+                                         ("SCALED_IMU", 9.80665e-3, 1e-3),
+                                         ("RAW_IMU", 9.80665e-3, 1e-3)):
+        if name not in get:
+            continue
+        ms, tt = get[name], t[name]
+        b.add_many(tt, {"ax": _col(ms, "xacc", acc_scale), "ay": -_col(ms, "yacc", acc_scale),
+                        "az": -_col(ms, "zacc", acc_scale)}, dict.fromkeys(("ax", "ay", "az"), "m/s^2"),
+                   f"{name}.xacc/yacc/zacc" + (" (milli-g)" if acc_scale != 1 else ""))
+        if "wx" not in b.signals or name == "HIGHRES_IMU":
+            b.add_many(tt, {"wx": _col(ms, "xgyro", gyro_scale), "wy": -_col(ms, "ygyro", gyro_scale),
+                            "wz": -_col(ms, "zgyro", gyro_scale)}, dict.fromkeys(("wx", "wy", "wz"), "rad/s"),
+                       f"{name}.xgyro/ygyro/zgyro" + (" (mrad/s)" if gyro_scale != 1 else ""))
+        if name == "RAW_IMU":
+            b.notes.append("RAW_IMU assumed in ArduPilot's scaling: milli-g and milli-rad/s")
+        return
+
+
+def _battery(b, t, get):
+    if "SYS_STATUS" in get:
+        ms, tt = get["SYS_STATUS"], t["SYS_STATUS"]
+        v = _col(ms, "voltage_battery")
+        ok = (v > 0) & (v < 65535)
+        b.skip("SYS_STATUS battery voltage unknown (0 or 65535)", int((~ok).sum()))
+        if ok.any():
+            b.add("battery_voltage", tt[ok], v[ok] * 1e-3, "V", "SYS_STATUS.voltage_battery / 1000")
+        c = _col(ms, "current_battery")
+        ok = c >= 0
+        if ok.any():
+            b.add("battery_current", tt[ok], c[ok] * 1e-2, "A", "SYS_STATUS.current_battery / 100")
+    if "battery_voltage" not in b.signals and "BATTERY_STATUS" in get:
+        ms, tt = get["BATTERY_STATUS"], t["BATTERY_STATUS"]
+        v = np.fromiter((m.voltages[0] for m in ms), float, len(ms))
+        ok = (v > 0) & (v < 65535)
+        if ok.any():
+            b.add("battery_voltage", tt[ok], v[ok] * 1e-3, "V", "BATTERY_STATUS.voltages[0] / 1000")
+        c = _col(ms, "current_battery")
+        ok = c >= 0
+        if ok.any() and "battery_current" not in b.signals:
+            b.add("battery_current", tt[ok], c[ok] * 1e-2, "A", "BATTERY_STATUS.current_battery / 100")
+
+
+def _heartbeat(b: FlightBuilder, tt, ms):
+    valid = np.fromiter((m.type not in _NOT_VEHICLE for m in ms), bool, len(ms))
+    if not valid.any():
+        return
+    tt = tt[valid]
+    ms = [m for m, ok in zip(ms, valid) if ok]
+    m0 = ms[0]
+    b.vehicle = b.vehicle or _VEHICLE_NAMES.get(m0.type, f"MAV_TYPE {m0.type}")
+    if b.firmware is None and m0.autopilot in _AUTOPILOT_NAMES:
+        b.firmware = _AUTOPILOT_NAMES[m0.autopilot]
+    armed = np.fromiter((bool(m.base_mode & _MAV_MODE_FLAG_SAFETY_ARMED) for m in ms), bool, len(ms))
+    end = max((s.end_s for s in b.signals.values()), default=float(tt[-1]))
+    b.segment("armed", intervals_from_bool(tt, armed, end_s=max(end, float(tt[-1]))))
+    prev_armed = None
+    prev_mode = None
+    for ti, m, a in zip(tt, ms, armed):
+        if a != prev_armed:
+            if prev_armed is not None or a:
+                b.event(ti, "armed" if a else "disarmed")
+            prev_armed = a
+        mode = _mode_string(m)
+        if mode != prev_mode:
+            b.event(ti, "mode", mode)
+            prev_mode = mode
+
+
+def _mode_string(m) -> str:
+    try:
+        from pymavlink import mavutil
+        return str(mavutil.mode_string_v10(m))
+    except Exception:  # pragma: no cover - cosmetic
+        return f"custom_mode {m.custom_mode}"

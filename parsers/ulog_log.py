@@ -1,0 +1,178 @@
+"""PX4 ULog ``.ulg`` (pyulog) -> :class:`Flight`.
+
+Only the topics below are loaded (pyulog's ``message_name_filter_list``), instance 0 of each
+(multi_id 0). Time: each topic's ``timestamp`` (µs since boot) minus the log's start time stamp.
+
+* vehicle_attitude ``q[0..3]`` (FRD body -> NED world) -> qw..qz via
+  :func:`quat_flu_enu_from_frd_ned`, and roll/pitch/yaw from that quaternion
+* vehicle_local_position x y z vx vy vz (NED; samples flagged invalid by xy_valid / z_valid /
+  v_xy_valid / v_z_valid are skipped and counted) -> ENU
+* vehicle_angular_velocity xyz (FRD) -> wx wy wz (FLU); else sensor_combined gyro_rad
+* sensor_combined accelerometer_m_s2 (FRD) -> ax ay az (FLU); else vehicle_acceleration xyz
+* actuator_motors control[i] (0..1) -> motor{i+1}; else actuator_outputs output[i] (PWM -> 0..1;
+  only the first ``noutputs`` channels that ever leave 0)
+* vehicle_thrust_setpoint xyz[2] (FRD, negative up) -> throttle = -xyz[2] (0..1)
+* battery_status voltage_v, current_a
+* vehicle_status arming_state (2 = armed) -> "armed" segments, nav_state -> "mode" events
+* vehicle_land_detected landed -> "in_flight" segments
+"""
+from __future__ import annotations
+
+import logging
+import os
+
+import numpy as np
+
+from droneid.errors import LogFormatError
+from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
+
+from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+
+log = logging.getLogger(__name__)
+
+__all__ = ["read_ulog", "TOPICS"]
+
+TOPICS = ("vehicle_attitude", "vehicle_local_position", "vehicle_angular_velocity",
+          "sensor_combined", "vehicle_acceleration", "actuator_motors", "actuator_outputs",
+          "vehicle_thrust_setpoint", "battery_status", "vehicle_status", "vehicle_land_detected")
+
+_ARMING_STATE_ARMED = 2
+_NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUTO_LOITER",
+               5: "AUTO_RTL", 10: "ACRO", 12: "DESCEND", 13: "TERMINATION", 14: "OFFBOARD",
+               15: "STAB", 17: "AUTO_TAKEOFF", 18: "AUTO_LAND", 19: "AUTO_FOLLOW_TARGET",
+               20: "AUTO_PRECLAND", 21: "ORBIT", 22: "AUTO_VTOL_TAKEOFF"}
+
+
+def read_ulog(path):
+    """Read a PX4 ULog into a :class:`Flight` (see the module doc)."""
+    path = os.fspath(path)
+    from pyulog import ULog
+    try:
+        ulog = ULog(path, message_name_filter_list=list(TOPICS), disable_str_exceptions=True)
+    except Exception as exc:  # pyulog raises TypeError/IndexError/struct.error on bad files
+        raise LogFormatError(path, f"not a readable ULog ({type(exc).__name__}: {exc})") from None
+    b = FlightBuilder(path, "ulog")
+    topics = {}
+    for d in ulog.data_list:
+        if d.multi_id == 0 and d.name in TOPICS and len(d.data["timestamp"]):
+            topics[d.name] = d.data
+    # some topics carry samples stamped just before the header's start time: start at the earliest
+    # (within 1 s of it; a zero stamp of an uninitialised message must not move the origin)
+    floor = ulog.start_timestamp - 1_000_000
+    t0 = min([ulog.start_timestamp] + [int(np.min(ts[ts >= floor])) for ts in
+                                       (np.asarray(d["timestamp"]) for d in topics.values())
+                                       if np.any(ts >= floor)])
+    info = ulog.msg_info_dict
+    b.firmware = " ".join(str(x) for x in ("PX4", info.get("ver_sw_release_str") or info.get("ver_sw"))
+                          if x) or None
+    b.vehicle = info.get("ver_hw")
+    if getattr(ulog, "file_corruption", False):
+        b.skip("corrupt ULog sections (pyulog resynchronised)", 1)
+        b.warn("the ULog file is corrupt in places; pyulog skipped the damaged data")
+
+    def tt(d):
+        return (np.asarray(d["timestamp"], float) - t0) * 1e-6
+
+    if "vehicle_attitude" in topics:
+        d = topics["vehicle_attitude"]
+        q = np.stack([d[f"q[{i}]"] for i in range(4)], axis=-1).astype(float)
+        q = quat_flu_enu_from_frd_ned(q)
+        t = tt(d)
+        b.add_many(t, {"qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]},
+                   dict.fromkeys(("qw", "qx", "qy", "qz"), "1"), "vehicle_attitude.q")
+        r, p, y = quat_to_euler(q)
+        b.add_many(t, {"roll": r, "pitch": p, "yaw": y}, dict.fromkeys(("roll", "pitch", "yaw"), "rad"),
+                   "vehicle_attitude.q (to Euler)")
+    if "vehicle_local_position" in topics:
+        d = topics["vehicle_local_position"]
+        t = tt(d)
+        for names, flag, unit, what in ((("x", "y", "z"), ("xy_valid", "z_valid"), "m", "x/y/z"),
+                                        (("vx", "vy", "vz"), ("v_xy_valid", "v_z_valid"), "m/s",
+                                         "vx/vy/vz")):
+            e, n, u = ned_to_enu(d[names[0]], d[names[1]], d[names[2]])
+            ok_xy = d[flag[0]].astype(bool) if flag[0] in d else np.ones(t.size, bool)
+            ok_z = d[flag[1]].astype(bool) if flag[1] in d else np.ones(t.size, bool)
+            b.skip(f"vehicle_local_position samples with {flag[0]} false", int((~ok_xy).sum()))
+            b.skip(f"vehicle_local_position samples with {flag[1]} false", int((~ok_z).sum()))
+            src = f"vehicle_local_position.{what}"
+            b.add(names[0], t[ok_xy], e[ok_xy], unit, src)
+            b.add(names[1], t[ok_xy], n[ok_xy], unit, src)
+            b.add(names[2], t[ok_z], u[ok_z], unit, src)
+    if "vehicle_angular_velocity" in topics:
+        d = topics["vehicle_angular_velocity"]
+        b.add_many(tt(d), {"wx": d["xyz[0]"], "wy": -d["xyz[1]"], "wz": -d["xyz[2]"]},
+                   dict.fromkeys(("wx", "wy", "wz"), "rad/s"), "vehicle_angular_velocity.xyz")
+    elif "sensor_combined" in topics:
+        d = topics["sensor_combined"]
+        b.add_many(tt(d), {"wx": d["gyro_rad[0]"], "wy": -d["gyro_rad[1]"], "wz": -d["gyro_rad[2]"]},
+                   dict.fromkeys(("wx", "wy", "wz"), "rad/s"), "sensor_combined.gyro_rad")
+    if "sensor_combined" in topics:
+        d = topics["sensor_combined"]
+        b.add_many(tt(d), {"ax": d["accelerometer_m_s2[0]"], "ay": -d["accelerometer_m_s2[1]"],
+                           "az": -d["accelerometer_m_s2[2]"]},
+                   dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "sensor_combined.accelerometer_m_s2")
+    elif "vehicle_acceleration" in topics:
+        d = topics["vehicle_acceleration"]
+        b.add_many(tt(d), {"ax": d["xyz[0]"], "ay": -d["xyz[1]"], "az": -d["xyz[2]"]},
+                   dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "vehicle_acceleration.xyz")
+    _motors(b, topics, tt)
+    if "vehicle_thrust_setpoint" in topics:
+        d = topics["vehicle_thrust_setpoint"]
+        b.add("throttle", tt(d), -np.asarray(d["xyz[2]"], float), "1", "-vehicle_thrust_setpoint.xyz[2]")
+    if "battery_status" in topics:
+        d = topics["battery_status"]
+        v = np.asarray(d["voltage_v"], float)
+        ok = v > 0
+        b.skip("battery_status samples with voltage_v <= 0", int((~ok).sum()))
+        b.add("battery_voltage", tt(d)[ok], v[ok], "V", "battery_status.voltage_v")
+        c = np.asarray(d["current_a"], float)
+        okc = c >= 0
+        b.add("battery_current", tt(d)[okc], c[okc], "A", "battery_status.current_a")
+    _status(b, topics, tt)
+    return b.build()
+
+
+def _motors(b, topics, tt):
+    if "actuator_motors" in topics:
+        d = topics["actuator_motors"]
+        for i in range(16):
+            k = f"control[{i}]"
+            if k in d and np.any(np.nan_to_num(d[k]) > 0):
+                b.add(f"motor{i + 1}", tt(d), d[k], "1", f"actuator_motors.{k}")
+        return
+    if "actuator_outputs" in topics:
+        d = topics["actuator_outputs"]
+        n = int(np.max(d["noutputs"])) if "noutputs" in d else 16
+        for i in range(min(n, 16)):
+            k = f"output[{i}]"
+            if k in d and np.any(d[k] > 0):
+                b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k]), "1", f"actuator_outputs.{k}")
+
+
+def _status(b, topics, tt):
+    end = max((s.end_s for s in b.signals.values()), default=0.0)
+    if "vehicle_status" in topics:
+        d = topics["vehicle_status"]
+        t = tt(d)
+        armed = np.asarray(d["arming_state"]) == _ARMING_STATE_ARMED
+        b.segment("armed", intervals_from_bool(t, armed, end_s=end))
+        prev_a, prev_n = False, None
+        for ti, a, n in zip(t, armed, d["nav_state"]):
+            if a != prev_a:
+                b.event(ti, "armed" if a else "disarmed")
+                prev_a = a
+            if n != prev_n:
+                b.event(ti, "mode", _NAV_STATES.get(int(n), f"nav_state {int(n)}"))
+                prev_n = n
+    if "vehicle_land_detected" in topics:
+        d = topics["vehicle_land_detected"]
+        t = tt(d)
+        air = ~np.asarray(d["landed"]).astype(bool)
+        b.segment("in_flight", intervals_from_bool(t, air, end_s=end))
+        prev = False
+        for ti, a in zip(t, air):
+            if a != prev:
+                b.event(ti, "takeoff" if a else "land")
+                prev = a
+    else:
+        b.in_flight_from_height()
