@@ -1,0 +1,73 @@
+"""``droneid demo`` (``make demo``): the paper's drone experiment on the shipped sample logs.
+
+Trains on the eight-shaped flight, tests on the square flight (as the paper's Bebop 2 experiment),
+identifies v̇x and v̇y with the tilt-drag model's 3 terms as prior features and the paper's
+constraints, prints the equations and the comparison table and writes the report. The budget is
+cut so the whole demo takes about a minute on 2 cores; ``droneid identify`` runs the full budget.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from ._common import ProgressBar
+
+#: about a minute on a 2-core machine (see notes/README_identify.md for the measured time)
+DEMO_BUDGET = {"runs": 4, "generations": 4000, "population": 300}
+_FORMATS = (".tlog", ".csv", ".mcap", ".bin", ".ulg")
+
+
+def find_sample_logs(folder: Path | None = None) -> tuple[Path, Path]:
+    """(train eight log, test square log) from sample_logs/, preferring one format for both."""
+    from ..errors import DataError
+    candidates = [folder] if folder else [Path.cwd() / "sample_logs",
+                                          Path(__file__).resolve().parents[2] / "sample_logs"]
+    for d in candidates:
+        if not d.is_dir():
+            continue
+        for ext in _FORMATS:
+            eight = sorted(p for p in d.glob(f"*eight*{ext}"))
+            square = sorted(p for p in d.glob(f"*square*{ext}"))
+            if eight and square:
+                return eight[0], square[0]
+    raise DataError("the sample logs (sample_logs/*eight*, *square*) are missing; "
+                    "run `make sample-logs` to create them")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("demo", help="identify v̇x, v̇y on the shipped sample logs (train eight, test square)",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("--out", default="out/demo_report", metavar="DIR", help="report folder (default out/demo_report)")
+    p.add_argument("--jobs", type=int, default=None, help="parallel workers (default: all cores)")
+    p.add_argument("--runs", type=int, default=DEMO_BUDGET["runs"], help=f"SNGP runs per target (default {DEMO_BUDGET['runs']})")
+    p.add_argument("--generations", type=int, default=DEMO_BUDGET["generations"],
+                   help=f"generations per run (default {DEMO_BUDGET['generations']}; the paper: 60000)")
+    p.add_argument("--population", type=int, default=DEMO_BUDGET["population"],
+                   help=f"population (default {DEMO_BUDGET['population']}; the paper: 500)")
+    p.add_argument("--logs", default=None, metavar="DIR", help="folder of the sample logs (default sample_logs/)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..identify import IdentifyConfig, identify
+    from ..report_identify import format_text, write_result
+    from .identify import read_logs
+    t0 = time.perf_counter()
+    train_path, test_path = find_sample_logs(Path(args.logs) if args.logs else None)
+    print(f"droneid demo: train on {train_path.name} (eight), test on {test_path.name} (square); "
+          f"3 prior features (tilt-drag terms) + the paper's constraints; {args.runs} runs x "
+          f"{args.generations} generations, population {args.population} (the paper: 50 x 60000 x 500)\n")
+    cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), prior="tilt-drag", prior_features=3,
+                              constraints="paper", runs=args.runs, generations=args.generations,
+                              population=args.population, jobs=args.jobs, seed=0)
+    train, test = read_logs([train_path]), read_logs([test_path])
+    result = identify(train, test, cfg, progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
+    write_result(result, args.out)
+    print(format_text(result))
+    print(f"\nreport: {args.out}/report.html (also report.md, result.json, PNG figures); "
+          f"demo wall time {time.perf_counter() - t0:.0f} s")
+    if result["interrupted"]:
+        print("droneid demo: interrupted; the finished runs are reported", file=sys.stderr)
+        return 130
+    return 0
