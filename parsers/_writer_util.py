@@ -1,0 +1,47 @@
+"""Helpers shared by the log writers: sampling a flight's signals on one time base."""
+from __future__ import annotations
+
+import numpy as np
+
+from droneid.errors import DataError
+from droneid.frames import unwrap_angle, wrap_angle
+
+#: fixed epoch of written logs (2024-01-01 00:00:00 UTC): outputs never depend on the clock
+EPOCH_S = 1_704_067_200
+EPOCH_US = EPOCH_S * 1_000_000
+EPOCH_NS = EPOCH_S * 1_000_000_000
+
+_ANGLES = ("roll", "pitch", "yaw")
+
+
+def group(flight, names, required=None):
+    """Signals ``names`` of ``flight`` on the time base of the first present required one.
+
+    Returns ``(t, {name: values})`` or ``None`` when a required signal is missing. Signals on
+    other time bases are interpolated (angles unwrapped first); missing optional ones are NaN.
+    """
+    required = names if required is None else required
+    if not all(flight.has(n) for n in required):
+        return None
+    base = next((n for n in names if flight.has(n)), None)
+    if base is None:
+        return None
+    t = flight[base].t
+    out = {}
+    for n in names:
+        if not flight.has(n):
+            out[n] = np.full(t.size, np.nan)
+            continue
+        s = flight[n]
+        if s.t.size == t.size and np.array_equal(s.t, t):
+            out[n] = s.values
+        elif n in _ANGLES:
+            out[n] = wrap_angle(np.interp(t, s.t, unwrap_angle(s.values)))
+        else:
+            out[n] = np.interp(t, s.t, s.values)
+    return t, out
+
+
+def require_some(flight, path, what):
+    if not flight.signals:
+        raise DataError(f"cannot write {path}: the flight has no signals ({what})")

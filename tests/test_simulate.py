@@ -1,0 +1,267 @@
+"""Simulator physics against planted truth.
+
+Residuals are "accelerations from the logged velocity (central differences) minus the paper's
+tilt-drag model on the logged states"; each effect must move them in the analytically expected
+direction and by the expected size.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from droneid.errors import ConfigError
+from droneid.simulate import EFFECTS, PATHS, parse_effects, simulate, tilt_drag_model
+
+G, KD = 9.81, 0.28
+RATE = 20.0
+DUR = 24.0
+
+
+def _cols(flight, *names):
+    return [flight[n].values for n in names]
+
+
+def _residual(flight):
+    """(rx, ry, t, idx): differentiated logged velocity minus the tilt-drag model (interior samples)."""
+    vx, vy, r, p, y = _cols(flight, "vx", "vy", "roll", "pitch", "yaw")
+    t = flight["vx"].t
+    ax = (vx[2:] - vx[:-2]) / (t[2:] - t[:-2])
+    ay = (vy[2:] - vy[:-2]) / (t[2:] - t[:-2])
+    mx, my = tilt_drag_model(vx, vy, r, p, y, KD, G)
+    return ax - mx[1:-1], ay - my[1:-1], t[1:-1], slice(1, -1)
+
+
+def _rms(x):
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def _slope(pred, resid):
+    """Least-squares slope of resid on pred (no intercept) and their correlation."""
+    pred, resid = np.ravel(pred), np.ravel(resid)
+    return float(pred @ resid / (pred @ pred)), float(np.corrcoef(pred, resid)[0, 1])
+
+
+@pytest.fixture(scope="module")
+def control():
+    return simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3)
+
+
+@pytest.fixture(scope="module")
+def control_clean():
+    return simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, noise=False)
+
+
+# ---------------------------------------------------------------------------------------------
+def test_deterministic_from_seed():
+    a = simulate(path="random", duration_s=5, rate_hz=RATE, seed=7)
+    b = simulate(path="random", duration_s=5, rate_hz=RATE, seed=7)
+    c = simulate(path="random", duration_s=5, rate_hz=RATE, seed=8)
+    for n in a.flight.names:
+        np.testing.assert_array_equal(a.flight[n].values, b.flight[n].values)
+    assert a.truth == b.truth
+    assert not np.array_equal(a.flight["x"].values, c.flight["x"].values)
+
+
+def test_flight_contents(control):
+    f = control.flight
+    expected = {"x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "qw", "qx", "qy", "qz",
+                "wx", "wy", "wz", "ax", "ay", "az", "throttle", "thrust", "motor1", "motor2",
+                "motor3", "motor4", "battery_voltage"}
+    assert set(f.names) == expected
+    assert f.provenance.format == "simulated"
+    assert len(f["x"]) == int(DUR * RATE) + 1
+    assert f.segments["in_flight"] == ((0.0, DUR),)
+    assert np.allclose(np.diff(f["x"].t), 1 / RATE)
+    # the quaternion is the logged Euler angles
+    from droneid.frames import quat_to_euler
+    r, p, y = quat_to_euler(np.column_stack(_cols(f, "qw", "qx", "qy", "qz")))
+    np.testing.assert_allclose(r, f["roll"].values, atol=1e-12)
+    np.testing.assert_allclose(p, f["pitch"].values, atol=1e-12)
+    # the accelerometer's specific force has the size of the true (a + g e3)
+    tr = control.truth
+    true_norm = np.sqrt(np.square(tr["ax"]) + np.square(tr["ay"]) + np.square(np.add(tr["az"], G)))
+    log_norm = np.sqrt(sum(np.square(v) for v in _cols(f, "ax", "ay", "az")))
+    np.testing.assert_allclose(log_norm, true_norm, atol=0.25)
+    # moderate tilt like the paper's Bebop flights
+    tilt = control.truth["model"]["max_tilt_rad"]
+    assert 0.15 < tilt < 0.3
+    import json
+    json.dumps(control.truth, allow_nan=False)
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_every_path_tracks(path):
+    res = simulate(path=path, duration_s=8, rate_hz=RATE, seed=1, noise=False)
+    f = res.flight
+    z = f["z"].values
+    assert np.all(np.abs(z - 1.5) < 0.02)
+    assert res.truth["model"]["max_tilt_rad"] < 0.3
+
+
+def test_hover_holds_position():
+    res = simulate(path="hover", duration_s=10, rate_hz=RATE, seed=0, noise=False)
+    f = res.flight
+    for n in ("x", "y"):
+        assert np.max(np.abs(f[n].values)) < 1e-6
+    assert np.max(np.abs(f["z"].values - 1.5)) < 1e-6
+    np.testing.assert_allclose(f["throttle"].values, 0.5, atol=1e-6)
+    np.testing.assert_allclose(f["az"].values, G, atol=1e-6)
+
+
+def test_control_flight_matches_tilt_drag_to_noise_level(control, control_clean):
+    # noise-free: only the model's 2nd-order geometry and the differencing error remain
+    rx, ry, _, _ = _residual(control_clean.flight)
+    assert _rms(rx) < 0.03 and _rms(ry) < 0.03
+    m = control.truth["model"]
+    assert m["geometry_rmse_x"] < 0.02 and m["truth_rmse_x"] < 0.02
+    # with mocap noise: the residual is the noise of the differentiated velocity
+    rx, ry, _, _ = _residual(control.flight)
+    hover = simulate(path="hover", duration_s=DUR, rate_hz=RATE, seed=3)
+    hx, hy, _, _ = _residual(hover.flight)
+    assert _rms(rx) < 1.15 * _rms(hx) and _rms(ry) < 1.15 * _rms(hy)
+    assert _rms(rx) < 0.3
+    assert abs(np.mean(rx)) < 0.03 and abs(np.mean(ry)) < 0.03
+
+
+def test_wind_shifts_residual_by_kd_w():
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects={"wind": (2.0, -1.0)})
+    rx, ry, _, _ = _residual(res.flight)
+    # drag acts on v - w: v_dot = ... - kD (v - w), so the residual is +kD w
+    assert np.mean(rx) == pytest.approx(KD * 2.0, abs=0.05)
+    assert np.mean(ry) == pytest.approx(KD * -1.0, abs=0.05)
+
+
+def test_gust_residual_follows_the_wind():
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects={"gust": None})
+    rx, ry, _, idx = _residual(res.flight)
+    wx = np.asarray(res.truth["true"]["wind_x"])[idx]
+    wy = np.asarray(res.truth["true"]["wind_y"])[idx]
+    s, c = _slope(KD * np.concatenate([wx, wy]), np.concatenate([rx, ry]))
+    assert s == pytest.approx(1.0, abs=0.15) and c > 0.7
+    assert np.std(wx) > 0.3   # it does gust
+
+
+def test_quadratic_drag_residual():
+    c = 0.1
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects={"quadratic_drag": c})
+    f = res.flight
+    rx, ry, _, idx = _residual(f)
+    vx, vy, vz = (v[idx] for v in _cols(f, "vx", "vy", "vz"))
+    speed = np.sqrt(vx**2 + vy**2 + vz**2)
+    s, corr = _slope(np.concatenate([-speed * vx, -speed * vy]), np.concatenate([rx, ry]))
+    assert s == pytest.approx(c, rel=0.15) and corr > 0.6
+
+
+def test_anisotropic_drag_residual():
+    eff = parse_effects({"anisotropic_drag": None})["anisotropic_drag"]
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects={"anisotropic_drag": None})
+    f = res.flight
+    rx, ry, _, idx = _residual(f)
+    from droneid.frames import euler_to_matrix
+    R = euler_to_matrix(*(v[idx] for v in _cols(f, "roll", "pitch", "yaw")))
+    v = np.column_stack([c[idx] for c in _cols(f, "vx", "vy", "vz")])
+    vb = np.einsum("nji,nj->ni", R, v)
+    drag = np.einsum("nij,nj->ni", R, -vb * np.array([eff["kx"], eff["ky"], eff["kz"]]))
+    pred = drag[:, :2] + KD * v[:, :2]          # true drag minus the model's -kD v
+    s, corr = _slope(pred, np.column_stack([rx, ry]))
+    assert s == pytest.approx(1.0, abs=0.15) and corr > 0.6
+
+
+def test_attitude_bias_residual():
+    b_roll, b_pitch = 0.03, -0.02
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3,
+                   effects={"attitude_bias": {"roll": b_roll, "pitch": b_pitch}})
+    f = res.flight
+    rx, ry, _, idx = _residual(f)
+    yaw = f["yaw"].values[idx]
+    # model(logged) - model(true) ~ g (cos(yaw) b_pitch + sin(yaw) b_roll) in x and
+    # g (sin(yaw) b_pitch - cos(yaw) b_roll) in y; the residual has the opposite sign
+    px = -G * (np.cos(yaw) * b_pitch + np.sin(yaw) * b_roll)
+    py = -G * (np.sin(yaw) * b_pitch - np.cos(yaw) * b_roll)
+    assert np.mean(rx - px) == pytest.approx(0.0, abs=0.04)
+    assert np.mean(ry - py) == pytest.approx(0.0, abs=0.04)
+    assert abs(np.mean(py)) > 0.2
+
+
+def test_attitude_delay_residual_follows_attitude_rate():
+    tau = 0.1
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects={"attitude_delay": tau})
+    f = res.flight
+    rx, ry, t, idx = _residual(f)
+    vx, vy, r, p, y = _cols(f, "vx", "vy", "roll", "pitch", "yaw")
+    tx, ty = tilt_drag_model(0 * vx, 0 * vy, r, p, np.unwrap(y), KD, G)   # tilt terms only
+    tt = f["vx"].t
+    dtx = (tx[2:] - tx[:-2]) / (tt[2:] - tt[:-2])
+    dty = (ty[2:] - ty[:-2]) / (tt[2:] - tt[:-2])
+    s, corr = _slope(np.concatenate([dtx, dty]), np.concatenate([rx, ry]))
+    assert s == pytest.approx(tau, rel=0.25) and corr > 0.6
+
+
+def test_thrust_variation_residual():
+    res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, noise=False,
+                   effects={"thrust_variation": None})
+    f = res.flight
+    rx, ry, t, idx = _residual(f)
+    vx, vy, vz, r, p, y = _cols(f, "vx", "vy", "vz", "roll", "pitch", "yaw")
+    assert np.ptp(f["z"].values) > 0.8
+    az = np.gradient(vz, f["vz"].t)[idx]
+    tx, ty = tilt_drag_model(0 * vx, 0 * vy, r, p, y, KD, G)
+    k = (az + KD * vz[idx]) / G      # extra thrust over hover balance, relative
+    s, corr = _slope(np.concatenate([k * tx[idx], k * ty[idx]]), np.concatenate([rx, ry]))
+    assert s == pytest.approx(1.0, abs=0.2) and corr > 0.8
+
+
+def test_battery_sag_needs_more_throttle_not_a_new_tilt_law():
+    eff = {"battery_sag": {"v_start": 12.6, "v_end": 10.8, "exponent": 2.0}}
+    res = simulate(path="hover", duration_s=20, rate_hz=RATE, seed=3, effects=eff, noise=False)
+    f = res.flight
+    thr, volt = f["throttle"].values, f["battery_voltage"].values
+    assert volt[0] > volt[-1] + 1.5
+    # thrust per throttle falls as (V/V0)^2; after the integrator settles, throttle * gain = hover
+    late = f["throttle"].t > 5
+    hover = 0.5 * (volt[late] / 12.6) ** -2.0
+    np.testing.assert_allclose(thr[late], hover, rtol=0.01)
+    # the flight's tilt-drag law is unaffected (vertical balance still holds)
+    res2 = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects=eff, noise=False)
+    rx, ry, _, _ = _residual(res2.flight)
+    assert _rms(rx) < 0.04 and _rms(ry) < 0.04
+
+
+def test_ground_effect_lowers_hover_throttle():
+    radius, alt = 0.12, 0.15
+    res = simulate(path="hover", duration_s=5, rate_hz=RATE, seed=0, noise=False,
+                   effects={"ground_effect": {"rotor_radius_m": radius, "altitude_m": alt}})
+    f = res.flight
+    assert np.allclose(f["z"].values, alt, atol=1e-3)
+    gain = 1.0 / (1.0 - (radius / (4 * alt)) ** 2)
+    np.testing.assert_allclose(f["throttle"].values, 0.5 / gain, rtol=2e-3)
+
+
+def test_effect_parsing_and_errors():
+    assert parse_effects({"wind": (1, 2)})["wind"] == {"wx": 1.0, "wy": 2.0}
+    assert parse_effects({"wind": None})["wind"] == EFFECTS["wind"]
+    assert parse_effects(["quadratic_drag"]) == {"quadratic_drag": {"c": 0.1}}
+    with pytest.raises(ConfigError, match="did you mean 'wind'"):
+        simulate(effects={"wnd": 1})
+    with pytest.raises(ConfigError, match="no parameter"):
+        parse_effects({"wind": {"speed": 1}})
+    with pytest.raises(ConfigError, match="at most 2"):
+        parse_effects({"wind": (1, 2, 3)})
+    with pytest.raises(ConfigError, match="did you mean 'k_drag'"):
+        simulate(k_dreg=0.3)
+    with pytest.raises(ConfigError, match="path"):
+        simulate(path="eigth")
+    with pytest.raises(ConfigError):
+        simulate(duration_s=-1)
+    with pytest.raises(ConfigError):
+        simulate(sim_rate_hz=100)
+
+
+def test_internal_rate_at_least_200hz_and_rate_independence():
+    """The same flight logged at 20 and 100 Hz agrees at common times (noise off)."""
+    a = simulate(path="circle", duration_s=4, rate_hz=20, seed=0, noise=False)
+    b = simulate(path="circle", duration_s=4, rate_hz=100, seed=0, noise=False)
+    np.testing.assert_allclose(a.flight["x"].values, b.flight["x"].values[::5], atol=1e-9)
+    assert math.isclose(a.truth["model"]["max_tilt_rad"], b.truth["model"]["max_tilt_rad"], rel_tol=1e-2)
