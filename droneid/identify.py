@@ -201,7 +201,7 @@ def _load_constraint_set(spec: str, target: str, prior: str):
         return None
     if spec == "paper":
         return pc.get_constraints("paper", target=target, prior=prior)
-    return pc.load_constraints(spec)
+    return pc.load_constraints(spec, target=target)
 
 
 def _constraint_set_for(cfg: IdentifyConfig, target: str):

@@ -35,7 +35,9 @@ def run(args) -> int:
         print(f"== {t}: {r['equation'] or '(model)'}")
         keys = [k for k in ("rmse_identified", "rmse_empirical", "rmse_empirical_refit")
                 if k in next(iter(r["errors"].values()))]
-        header = ["data", "samples"] + [k.replace("rmse_", "e_d ").replace("_", " ") for k in keys]
+        labels = {"rmse_identified": "e_d identified", "rmse_empirical": "e_d empirical",
+                  "rmse_empirical_refit": "e_d empirical refit"}
+        header = ["data", "samples"] + [labels[k] for k in keys]
         rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
         print(_text_table(header, rows))
         print("errors: RMSE in m/s²\n")
