@@ -16,7 +16,6 @@ from droneid.cli import main
 
 # TEMPORARY until the engine and dataset branches are merged into this branch (then removed)
 pytest.importorskip("droneid.sngp", reason="engine branch not merged yet")
-pytest.importorskip("droneid.dataset", reason="dataset branch not merged yet")
 
 SCHEMA_METRICS = ("rmse_train", "rmse_test", "constraint_rmse_test")
 TINY = ["--generations", "300", "--population", "100", "--jobs", "1"]
@@ -176,14 +175,13 @@ def test_identify_in_a_process_pool_matches_in_process(logs):
     assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])
 
 
-def test_demo_on_sample_logs_with_a_tiny_budget(logs, tmp_path, capsys):
-    import shutil
-    d = tmp_path / "sample_logs"
-    d.mkdir()
-    shutil.copy(logs[0], d / "demo_eight.tlog")
-    shutil.copy(logs[1], d / "demo_square.tlog")
-    code, out, _ = run_cli(capsys, "-q", "demo", "--logs", d, "--out", tmp_path / "demo", "--runs", "1",
+def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
+    from conftest import SAMPLE_LOGS
+    if not SAMPLE_LOGS.is_dir():
+        pytest.skip("sample_logs/ is absent")
+    code, out, _ = run_cli(capsys, "-q", "demo", "--logs", SAMPLE_LOGS, "--out", tmp_path / "demo", "--runs", "1",
                            "--generations", "100", "--population", "60", "--jobs", "1")
     assert code == 0
+    assert "paper_train_eight.tlog" in out and "paper_test_square.tlog" in out
     assert "vx_dot = " in out and "vy_dot = " in out and "identified, best run" in out
     assert (tmp_path / "demo" / "report.html").is_file()

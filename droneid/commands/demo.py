@@ -27,8 +27,8 @@ def find_sample_logs(folder: Path | None = None) -> tuple[Path, Path]:
         if not d.is_dir():
             continue
         for ext in _FORMATS:
-            eight = sorted(p for p in d.glob(f"*eight*{ext}"))
-            square = sorted(p for p in d.glob(f"*square*{ext}"))
+            eight = sorted(d.glob(f"*train*eight*{ext}")) or sorted(d.glob(f"*eight*{ext}"))
+            square = sorted(d.glob(f"*test*square*{ext}")) or sorted(d.glob(f"*square*{ext}"))
             if eight and square:
                 return eight[0], square[0]
     raise DataError("the sample logs (sample_logs/*eight*, *square*) are missing; "
@@ -45,7 +45,8 @@ def register(sub) -> None:
                    help=f"generations per run (default {DEMO_BUDGET['generations']}; the paper: 60000)")
     p.add_argument("--population", type=int, default=DEMO_BUDGET["population"],
                    help=f"population (default {DEMO_BUDGET['population']}; the paper: 500)")
-    p.add_argument("--logs", default=None, metavar="DIR", help="folder of the sample logs (default sample_logs/)")
+    p.add_argument("--logs", "--dir", dest="logs", default=None, metavar="DIR",
+                   help="folder of the sample logs (default sample_logs/)")
     p.set_defaults(func=run)
 
 

@@ -1,0 +1,22 @@
+"""``droneid sample-logs``: regenerate the shipped sample logs (byte-identical for the same code)."""
+from __future__ import annotations
+
+
+def register(sub):
+    p = sub.add_parser("sample-logs", help="regenerate the shipped sample logs (sample_logs/)",
+                       description="Simulate and write every sample log defined in droneid/samples.py, "
+                                   "plus its README. The output is byte-identical on every run.")
+    p.add_argument("--out", default="sample_logs", metavar="DIR", help="output folder (default sample_logs)")
+    p.add_argument("--only", action="append", default=None, metavar="NAME",
+                   help="write only this sample (repeatable; the README is then not rewritten)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..samples import generate
+    from ._common import ProgressBar
+    paths = generate(args.out, names=args.only, progress=ProgressBar("sample-logs", quiet=args.quiet))
+    if not args.quiet:
+        for p in paths:
+            print(p)
+    return 0

@@ -1,0 +1,617 @@
+"""From flights to regression data: :class:`DatasetBuilder` and train/test splits.
+
+``DatasetBuilder(...).build(flights, target="vx_dot")`` picks the in-flight part of each flight,
+resamples the signals on a uniform grid of period ``ts`` seconds, computes the derivative target
+with a differentiator of :mod:`droneid.differentiation` and returns a :class:`droneid.data.Dataset`
+whose notes say what was done.
+
+Steps, per flight:
+
+1. **Which part.** ``in_flight="auto"``: the log's ``in_flight`` segments (intersected with
+   ``armed`` when both exist); otherwise the ``armed`` segments or the whole log, with ground time
+   removed by detection (ground = near the lowest height AND still AND at idle power, using those
+   of z / speed / throttle-thrust-motors the flight has); then everything from a crash on is
+   dropped (a ``crash`` event, tilt above ``crash_tilt_deg`` held for ``crash_hold_s``, or
+   specific force above ``crash_accel`` on two samples within 0.2 s), with ``crash_margin_s``
+   before it. ``in_flight="all"`` keeps the whole log. ``time_windows`` (seconds in each flight's
+   own time base) then restrict every flight. Gaps longer than ``max(max_gap_s, 5 periods)`` in a
+   required signal split the data: nothing is interpolated or differenced across them.
+2. **Resampling.** Linear interpolation at ``t0 + k·ts`` in each interval. Signals in rad
+   (roll, pitch, yaw, any signal with unit "rad") are unwrapped before and wrapped to [-π, π)
+   after, when the original was wrapped; quaternions are made sign-continuous, interpolated and
+   renormalised; when roll/pitch/yaw are absent they are derived from the quaternion at the
+   native rate first, so Euler angles and quaternions agree.
+3. **Targets.** ``<s>_dot`` is the derivative of signal ``s`` (``vx_dot`` from ``vx``); when
+   ``vx``/``vy``/``vz`` are absent they come from ``x``/``y``/``z`` (velocity inputs by one, the
+   target by two differentiations, said in the notes). ``forward`` and ``central`` work on the
+   grid (the paper: ``v̇[k] = (v[k+1] − v[k]) / Ts``, the last sample of each interval dropped);
+   the smoothing ones (``savgol``, ``spline``) work at the signal's native rate (uniformly
+   resampled) and the derivative is then sampled on the grid.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .data import Dataset
+from .differentiation import DIFFERENTIATORS, get_differentiator
+from .errors import ConfigError, DataError, MissingSignalError, check_choice
+from .flight import CANONICAL_SIGNALS, Flight, Signal, is_canonical
+from .frames import quat_to_euler, wrap_angle
+
+__all__ = ["DatasetBuilder", "PAPER_INPUTS", "split_time_block", "split_by_flight", "subsample",
+           "resample_signal", "in_flight_intervals"]
+
+log = logging.getLogger(__name__)
+
+#: The inputs the paper uses per target (``throttle`` for vz_dot only when the flights have it).
+PAPER_INPUTS = {
+    "vx_dot": ("vx", "pitch", "roll", "yaw"),
+    "vy_dot": ("vy", "pitch", "roll", "yaw"),
+    "vz_dot": ("vz", "roll", "pitch", "throttle"),
+}
+_POSITION_OF = {"vx": "x", "vy": "y", "vz": "z"}
+_QUAT = ("qw", "qx", "qy", "qz")
+_EULER = ("roll", "pitch", "yaw")
+
+Interval = tuple[float, float]
+
+
+# -- interval algebra ---------------------------------------------------------------------------
+def _intersect(a: Sequence[Interval], b: Sequence[Interval]) -> list[Interval]:
+    out = []
+    for a0, a1 in a:
+        for b0, b1 in b:
+            lo, hi = max(a0, b0), min(a1, b1)
+            if hi > lo:
+                out.append((lo, hi))
+    return sorted(out)
+
+
+def _subtract(a: Sequence[Interval], holes: Sequence[Interval]) -> list[Interval]:
+    out = list(a)
+    for h0, h1 in holes:
+        nxt = []
+        for a0, a1 in out:
+            if h1 <= a0 or h0 >= a1:
+                nxt.append((a0, a1))
+                continue
+            if h0 > a0:
+                nxt.append((a0, h0))
+            if h1 < a1:
+                nxt.append((h1, a1))
+        out = nxt
+    return out
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) index pairs of the True runs of a boolean array (stop exclusive)."""
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    d = np.diff(m.astype(np.int8))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _fmt_iv(ivs: Sequence[Interval]) -> str:
+    return ", ".join(f"{a:.2f}-{b:.2f} s" for a, b in ivs) or "none"
+
+
+# -- resampling ---------------------------------------------------------------------------------
+def _is_angle(sig: Signal) -> bool:
+    return sig.name in _EULER or sig.unit == "rad"
+
+
+def resample_signal(sig: Signal, t: np.ndarray) -> np.ndarray:
+    """``sig`` linearly interpolated at times ``t``; nan outside its time span.
+
+    Angles (unit rad) are unwrapped before interpolation and wrapped to [-π, π) after when the
+    original values were within [-π, π]."""
+    t = np.asarray(t, dtype=np.float64)
+    if len(sig) == 0:
+        return np.full(t.shape, np.nan)
+    v = sig.values
+    wrapped = False
+    if _is_angle(sig):
+        wrapped = bool(np.all(np.abs(v) <= math.pi + 1e-6))
+        v = np.unwrap(v)
+    if len(sig) == 1:
+        out = np.where(t == sig.t[0], v[0], np.nan)
+    else:
+        out = np.interp(t, sig.t, v, left=np.nan, right=np.nan)
+    return wrap_angle(out) if wrapped else out
+
+
+def _resample_quaternion(flight: Flight, t: np.ndarray) -> dict[str, np.ndarray]:
+    """qw..qz at ``t``: sign-continuous, interpolated per component on the qw stamps, renormalised."""
+    ref = flight["qw"]
+    q = np.column_stack([resample_signal(flight[n], ref.t) for n in _QUAT])
+    # the same rotation may flip sign between samples: keep each close to the previous one
+    flips = np.cumsum(np.concatenate([[0], (np.einsum("ij,ij->i", q[1:], q[:-1]) < 0)])) % 2
+    q[flips == 1] *= -1
+    out = np.column_stack([np.interp(t, ref.t, q[:, i], left=np.nan, right=np.nan) for i in range(4)])
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    return {n: out[:, i] for i, n in enumerate(_QUAT)}
+
+
+def _with_euler_from_quaternion(flight: Flight) -> tuple[Flight, list[str]]:
+    if flight.has(*_EULER) or not flight.has(*_QUAT):
+        return flight, []
+    ref = flight["qw"]
+    q = np.column_stack([resample_signal(flight[n], ref.t) for n in _QUAT])
+    ok = np.all(np.isfinite(q), axis=1)
+    roll, pitch, yaw = quat_to_euler(q[ok])
+    sigs = [Signal(n, ref.t[ok], v, "rad", "quaternion qw,qx,qy,qz") for n, v in
+            zip(_EULER, (roll, pitch, yaw)) if not flight.has(n)]
+    return (flight.with_signals(*sigs),
+            [f"{', '.join(s.name for s in sigs)} derived from the attitude quaternion"])
+
+
+# -- which part of a flight ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Detect:
+    min_height_m: float
+    still_speed: float
+    idle_fraction: float
+    min_segment_s: float
+    crash_tilt_deg: float
+    crash_hold_s: float
+    crash_accel: float
+    crash_margin_s: float
+
+
+def _grid_values(flight: Flight, name: str, t: np.ndarray):
+    return resample_signal(flight[name], t) if flight.has(name) else None
+
+
+def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarray | None, str]:
+    """Ground mask on grid ``t`` (None when the flight has no cue for it) and a note."""
+    cues, used = [], []
+    z = _grid_values(flight, "z", t)
+    if z is not None and np.isfinite(z).any():
+        z_ground = np.nanpercentile(z, 1)
+        cues.append(np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m)
+        used.append("height")
+    power = None
+    for name in ("throttle", "thrust"):
+        power = _grid_values(flight, name, t)
+        if power is not None:
+            break
+    if power is None:
+        motors = [_grid_values(flight, f"motor{i}", t) for i in range(1, 17) if flight.has(f"motor{i}")]
+        if motors:
+            power = np.nanmean(np.column_stack(motors), axis=1)
+    if power is not None and np.isfinite(power).any():
+        top = np.nanpercentile(power, 90)
+        if top > 0:
+            cues.append(np.nan_to_num(power, nan=0.0) < p.idle_fraction * top)
+            used.append("power")
+    if not cues:
+        return None, "no height or power signal: ground time not detected"
+    if flight.has("vx", "vy", "vz"):
+        v = np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
+        cues.append(np.nan_to_num(v, nan=0.0) < p.still_speed)
+        used.append("speed")
+    return np.logical_and.reduce(cues), f"ground detected from {'+'.join(used)}"
+
+
+def _crash_time(flight: Flight, ivs: Sequence[Interval], p: _Detect) -> tuple[float | None, str]:
+    """The earliest crash time inside ``ivs`` and why, or (None, "")."""
+    found = []
+    for e in flight.events:
+        if e.kind == "crash" and any(a <= e.t_s <= b for a, b in ivs):
+            found.append((e.t_s, f"crash event at {e.t_s:.2f} s"))
+    if flight.has("roll", "pitch"):
+        t = flight["roll"].t
+        tilt = np.degrees(np.maximum(np.abs(flight["roll"].values),
+                                     np.abs(resample_signal(flight["pitch"], t))))
+        inside = np.zeros(t.size, bool)
+        for a, b in ivs:
+            inside |= (t >= a) & (t <= b)
+        for i0, i1 in _runs(np.nan_to_num(tilt) > p.crash_tilt_deg):
+            if t[i1 - 1] - t[i0] >= p.crash_hold_s and inside[i0:i1].any():
+                found.append((float(t[i0]), f"tilt above {p.crash_tilt_deg:g} deg for "
+                                             f"{t[i1 - 1] - t[i0]:.2f} s from {t[i0]:.2f} s"))
+                break
+    if flight.has("ax", "ay", "az"):
+        t = flight["ax"].t
+        f = np.sqrt(flight["ax"].values ** 2 + resample_signal(flight["ay"], t) ** 2
+                    + resample_signal(flight["az"], t) ** 2)
+        big = np.flatnonzero(np.nan_to_num(f) > p.crash_accel)
+        for i, j in zip(big[:-1], big[1:]):
+            if t[j] - t[i] <= 0.2 and any(a <= t[i] <= b for a, b in ivs):
+                found.append((float(t[i]), f"specific force above {p.crash_accel:g} m/s^2 "
+                                           f"at {t[i]:.2f} s"))
+                break
+    if not found:
+        return None, ""
+    return min(found)
+
+
+def in_flight_intervals(flight: Flight, *, ts: float = 0.05, detect: _Detect | None = None
+                        ) -> tuple[list[Interval], list[str]]:
+    """The airborne, pre-crash time intervals of a flight (seconds) and notes on how found."""
+    p = detect or DatasetBuilder()._detect()
+    span = [(flight.start_s, flight.end_s)]
+    notes = []
+    seg = flight.segments
+    if seg.get("in_flight"):
+        ivs = _intersect(span, seg["in_flight"])
+        if seg.get("armed"):
+            ivs = _intersect(ivs, seg["armed"])
+        notes.append(f"in-flight part from the log's segments: {_fmt_iv(ivs)}")
+    else:
+        ivs = _intersect(span, seg["armed"]) if seg.get("armed") else span
+        if seg.get("armed"):
+            notes.append(f"armed part from the log's segments: {_fmt_iv(ivs)}")
+        step = min(0.1, ts)
+        t = np.arange(span[0][0], span[0][1] + step / 2, step)
+        ground, why = _detect_ground(flight, t, p)
+        if ground is not None and ground.any():
+            holes = [(t[i0] - step / 2, t[i1 - 1] + step / 2) for i0, i1 in _runs(ground)]
+            ivs = [iv for iv in _subtract(ivs, holes) if iv[1] - iv[0] >= p.min_segment_s]
+            notes.append(f"{why}; airborne: {_fmt_iv(ivs)}")
+        else:
+            notes.append(why if ground is None else f"{why}: none found")
+    t_crash, why = _crash_time(flight, ivs, p)
+    if t_crash is not None:
+        ivs = _intersect(ivs, [(-math.inf, t_crash - p.crash_margin_s)])
+        notes.append(f"crash trimmed ({why}): data after {t_crash - p.crash_margin_s:.2f} s dropped")
+    return ivs, notes
+
+
+def _gaps(sig: Signal, max_gap_s: float) -> list[Interval]:
+    if len(sig) < 2:
+        return []
+    dt = np.diff(sig.t)
+    limit = max(max_gap_s, 5 * float(np.median(dt)))
+    return [(float(sig.t[i]), float(sig.t[i + 1])) for i in np.flatnonzero(dt > limit)]
+
+
+# -- the builder --------------------------------------------------------------------------------
+class DatasetBuilder:
+    """Builds regression datasets from flights (see the module docstring for the steps).
+
+    Parameters (stored as given; checked by :meth:`build`)
+    ----------
+    ts : grid period in seconds (paper: 0.05)
+    method : differentiator name, one of :data:`droneid.differentiation.DIFFERENTIATORS`
+    window_s : smoothing window in seconds for ``savgol`` (default 0.25) and ``spline``
+        (default: chosen by cross-validation); must be None for ``forward`` and ``central``
+    in_flight : ``"auto"`` (segments / detection / crash trim) or ``"all"`` (whole logs)
+    time_windows : sequence of ``(start_s, end_s)`` kept in every flight (its own time base)
+    max_gap_s : a longer gap (or 5 sample periods, whichever is longer) in a required signal
+        splits the data
+    min_height_m, still_speed, idle_fraction, min_segment_s : ground detection thresholds (m above
+        the lowest height, m/s, fraction of the 90th-percentile power, shortest airborne run in s)
+    crash_tilt_deg, crash_hold_s, crash_accel, crash_margin_s : crash detection
+    """
+
+    def __init__(self, ts=0.05, method="forward", window_s=None, in_flight="auto",
+                 time_windows=None, *, max_gap_s=0.5, min_height_m=0.15, still_speed=0.3,
+                 idle_fraction=0.3, min_segment_s=1.0, crash_tilt_deg=60.0, crash_hold_s=0.5,
+                 crash_accel=60.0, crash_margin_s=0.5):
+        self.ts = ts
+        self.method = method
+        self.window_s = window_s
+        self.in_flight = in_flight
+        self.time_windows = time_windows
+        self.max_gap_s = max_gap_s
+        self.min_height_m = min_height_m
+        self.still_speed = still_speed
+        self.idle_fraction = idle_fraction
+        self.min_segment_s = min_segment_s
+        self.crash_tilt_deg = crash_tilt_deg
+        self.crash_hold_s = crash_hold_s
+        self.crash_accel = crash_accel
+        self.crash_margin_s = crash_margin_s
+
+    def _detect(self) -> _Detect:
+        return _Detect(self.min_height_m, self.still_speed, self.idle_fraction, self.min_segment_s,
+                       self.crash_tilt_deg, self.crash_hold_s, self.crash_accel, self.crash_margin_s)
+
+    # -- validation --
+    def _validate(self):
+        for name in ("ts", "max_gap_s", "min_height_m", "still_speed", "idle_fraction",
+                     "min_segment_s", "crash_tilt_deg", "crash_hold_s", "crash_accel",
+                     "crash_margin_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
+                    or (name == "ts" and v == 0):
+                raise ConfigError(f"The '{name}' parameter of DatasetBuilder must be a "
+                                  f"{'positive' if name == 'ts' else 'non-negative'} number. "
+                                  f"Got {v!r} instead.")
+        check_choice("method", self.method, DIFFERENTIATORS, owner="DatasetBuilder")
+        check_choice("in_flight", self.in_flight, ("auto", "all"), owner="DatasetBuilder")
+        if self.window_s is not None and self.method in ("forward", "central"):
+            raise ConfigError(f"The 'window_s' parameter of DatasetBuilder applies to the smoothing "
+                              f"methods (savgol, spline), not to {self.method!r}. Got {self.window_s!r}.")
+        params = {} if self.window_s is None else {"window_s": self.window_s}
+        diff = get_differentiator(self.method, **params)
+        windows = None
+        if self.time_windows is not None:
+            windows = []
+            for w in self.time_windows:
+                try:
+                    a, b = (float(x) for x in w)
+                except (TypeError, ValueError):
+                    raise ConfigError(f"a time window must be a (start_s, end_s) pair. Got {w!r}.") from None
+                if not (a < b) or math.isnan(a) or math.isnan(b):
+                    raise ConfigError(f"time window {w!r} is empty or not finite: start must be < end")
+                windows.append((a, b))
+        return diff, windows
+
+    # -- build --
+    def build(self, flights, target: str = "vx_dot", inputs=None, extras=None) -> Dataset:
+        """The dataset for ``target`` from one flight or a sequence of flights.
+
+        ``inputs``: signal names (default: :data:`PAPER_INPUTS` for the target). ``extras``: further
+        signals resampled on the same grid into ``Dataset.extra`` (default: every canonical signal
+        all flights have; ``()`` for none). Raises MissingSignalError, ConfigError or DataError.
+        """
+        diff, windows = self._validate()
+        if isinstance(flights, Flight):
+            flights = [flights]
+        flights = list(flights)
+        if not flights or not all(isinstance(f, Flight) for f in flights):
+            raise ConfigError("build() needs a Flight or a non-empty sequence of Flights")
+        if not isinstance(target, str) or not target.endswith("_dot") or len(target) <= 4:
+            raise ConfigError(f"The 'target' parameter must name a derivative such as 'vx_dot'. "
+                              f"Got {target!r} instead.")
+        source = target[:-4]
+        prepared, prep_notes = [], []
+        for f in flights:
+            g, n = _with_euler_from_quaternion(f)
+            prepared.append(g)
+            prep_notes.append(n)
+
+        def available(f: Flight, name: str) -> bool:
+            return f.has(name) or (name in _POSITION_OF and f.has(_POSITION_OF[name])) \
+                or (name in _QUAT and f.has(*_QUAT))
+
+        if inputs is None:
+            if target not in PAPER_INPUTS:
+                raise ConfigError(f"no default inputs for target {target!r}: pass inputs "
+                                  f"(defaults exist for {', '.join(PAPER_INPUTS)})")
+            inputs = [n for n in PAPER_INPUTS[target]
+                      if n != "throttle" or all(f.has("throttle") for f in prepared)]
+        elif isinstance(inputs, str):
+            inputs = [s.strip() for s in inputs.split(",") if s.strip()]
+        inputs = list(dict.fromkeys(inputs))
+        if not inputs:
+            raise ConfigError("no inputs given")
+        if target in inputs:
+            raise ConfigError(f"the target {target!r} cannot also be an input")
+        explicit_extras = extras is not None
+        if extras is None:
+            names = set()
+            for f in prepared:
+                names |= {n for n in f.names if is_canonical(n)} | \
+                    {v for v, p in _POSITION_OF.items() if f.has(p)}
+            extras = [n for n in (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)))
+                      if n in names and n not in inputs]
+        elif isinstance(extras, str):
+            extras = [s.strip() for s in extras.split(",") if s.strip()]
+        extras = [n for n in dict.fromkeys(extras) if n not in inputs and n != target]
+
+        for f in prepared:
+            where = f"flight '{f.name}'" + (f" ({f.provenance.files[0]})" if f.provenance.files else "")
+            for n in [*inputs, *(extras if explicit_extras else ())]:
+                if not available(f, n):
+                    raise MissingSignalError(n, f.names, where=where)
+            if not available(f, source):
+                raise MissingSignalError(source, f.names, where=f"{where} (needed for {target})")
+
+        sources = _unique_names([f.name for f in flights])
+        notes = [f"grid period ts = {self.ts:g} s; target {target} by {diff!r}"]
+        parts = []
+        for k, f in enumerate(prepared):
+            cols, y, t, fnotes = self._build_one(f, diff, windows, source, inputs, extras,
+                                                 explicit_extras)
+            notes.extend(f"{sources[k]}: {n}" for n in prep_notes[k] + fnotes)
+            parts.append((k, cols, y, t))
+        n_total = sum(p[2].size for p in parts)
+        if n_total == 0:
+            raise DataError(f"no samples left for {target}: " + "; ".join(notes[1:]))
+        # extras must exist for every sample: drop incomplete automatic ones
+        keep_extras = []
+        for n in extras:
+            vals = [p[1].get(n) for p in parts if p[2].size]
+            if all(v is not None and np.all(np.isfinite(v)) for v in vals):
+                keep_extras.append(n)
+            elif explicit_extras:
+                keep_extras.append(n)
+                notes.append(f"extra '{n}' is nan where the signal has no data")
+            else:
+                notes.append(f"extra '{n}' left out: not available over the whole grid of every flight")
+        X = np.vstack([np.column_stack([p[1][n] for n in inputs]) for p in parts if p[2].size])
+        y = np.concatenate([p[2] for p in parts if p[2].size])
+        t = np.concatenate([p[3] for p in parts if p[3].size])
+        fl = np.concatenate([np.full(p[2].size, p[0]) for p in parts if p[2].size])
+        extra = {n: np.concatenate([p[1][n] for p in parts if p[2].size]) for n in keep_extras}
+        notes.append(f"{y.size} samples from {len(flights)} flight(s)")
+        return Dataset(X, y, t, tuple(inputs), target, fl, tuple(sources), extra, tuple(notes))
+
+    def _build_one(self, f: Flight, diff, windows, source, inputs, extras, explicit_extras):
+        notes: list[str] = []
+        ts = float(self.ts)
+        if self.in_flight == "auto":
+            ivs, n = in_flight_intervals(f, ts=ts, detect=self._detect())
+            notes.extend(n)
+        else:
+            ivs = [(f.start_s, f.end_s)]
+        if windows is not None:
+            ivs = _intersect(ivs, windows)
+            notes.append(f"time windows applied: {_fmt_iv(ivs)}")
+        # required signals: their common span, minus their gaps
+        need = {}
+        derived = []
+        for n in [source, *inputs, *(extras if explicit_extras else ())]:
+            if f.has(n):
+                need[n] = f[n]
+            elif n in _POSITION_OF and f.has(_POSITION_OF[n]):
+                need[_POSITION_OF[n]] = f[_POSITION_OF[n]]
+                derived.append(n)
+            elif n in _QUAT:
+                for q in _QUAT:
+                    need[q] = f[q]
+        for n, sig in need.items():
+            ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]), _gaps(sig, self.max_gap_s))
+            if len(sig) > 1 and sig.rate_hz < 1.0 / ts * 0.999:
+                notes.append(f"signal '{n}' is sampled at {sig.rate_hz:.3g} Hz, below the grid rate "
+                             f"{1 / ts:.3g} Hz: interpolated")
+        for n in dict.fromkeys(derived):
+            what = "the target" if n == source else "input"
+            notes.append(f"{n} ({what}) derived from {_POSITION_OF[n]} by {diff.name} differences"
+                         + (" (target: differentiated twice)" if n == source else ""))
+        cols_parts, y_parts, t_parts = [], [], []
+        n_dropped = n_short = 0
+        for a, b in ivs:
+            grid = a + ts * np.arange(int(math.floor((b - a) / ts + 1e-9)) + 1)
+            if grid.size < max(3, diff.min_samples):
+                n_short += 1
+                continue
+            cols = {}
+            for n in dict.fromkeys([*inputs, *extras]):
+                cols[n] = self._column(f, n, grid, diff, a, b)
+            y = self._derivative(f, source, grid, diff, a, b)
+            ok = np.isfinite(y)
+            for n in inputs:
+                ok &= np.isfinite(cols[n])
+            n_dropped += int((~ok).sum())
+            cols_parts.append({k: (v[ok] if v is not None else None) for k, v in cols.items()})
+            y_parts.append(y[ok])
+            t_parts.append(grid[ok])
+        if n_short:
+            notes.append(f"{n_short} interval(s) shorter than the differentiator needs were skipped")
+        if n_dropped:
+            notes.append(f"{n_dropped} grid sample(s) without a finite target or input dropped "
+                         + ("(the forward difference has none at the end of each interval)"
+                            if diff.name == "forward" else ""))
+        used = [(float(tp[0]), float(tp[-1])) for tp in t_parts if tp.size]
+        notes.append(f"used {_fmt_iv(used)}")
+        if not y_parts:
+            return {}, np.empty(0), np.empty(0), notes
+        cols = {}
+        for n in dict.fromkeys([*inputs, *extras]):
+            vals = [c[n] for c in cols_parts]
+            cols[n] = None if any(v is None for v in vals) else np.concatenate(vals)
+        return cols, np.concatenate(y_parts), np.concatenate(t_parts), notes
+
+    def _column(self, f: Flight, name: str, grid, diff, a, b):
+        if f.has(name):
+            return resample_signal(f[name], grid)
+        if name in _QUAT and f.has(*_QUAT):
+            return _resample_quaternion(f, grid)[name]
+        if name in _POSITION_OF and f.has(_POSITION_OF[name]):
+            return self._differentiate(f[_POSITION_OF[name]], grid, diff, a, b, order=1)
+        return None
+
+    def _derivative(self, f: Flight, source: str, grid, diff, a, b):
+        if f.has(source):
+            return self._differentiate(f[source], grid, diff, a, b, order=1)
+        return self._differentiate(f[_POSITION_OF[source]], grid, diff, a, b, order=2)
+
+    @staticmethod
+    def _differentiate(sig: Signal, grid, diff, a, b, order: int):
+        angle = _is_angle(sig)
+        if diff.smoothing:
+            # at the native rate (uniform), then sampled on the grid
+            h = min(float(np.median(np.diff(sig.t))) if len(sig) > 1 else grid[1] - grid[0],
+                    float(grid[1] - grid[0]))
+            fine = a + h * np.arange(int(math.floor((b - a) / h + 1e-9)) + 1)
+            v = _unwrapped(sig, fine) if angle else resample_signal(sig, fine)
+            for _ in range(order):
+                v = diff(v, fine)
+            return np.interp(grid, fine, v)
+        v = _unwrapped(sig, grid) if angle else resample_signal(sig, grid)
+        for _ in range(order):
+            v = diff(v, grid)
+            if order > 1 and not np.all(np.isfinite(v)):
+                # forward differences: keep the finite prefix for the next pass
+                k = int(np.argmin(np.isfinite(v)))
+                nxt = np.full_like(v, np.nan)
+                if k >= 2:
+                    nxt[:k] = diff(v[:k], grid[:k])
+                return nxt
+        return v
+
+
+def _unwrapped(sig: Signal, t) -> np.ndarray:
+    return np.interp(t, sig.t, np.unwrap(sig.values), left=np.nan, right=np.nan)
+
+
+def _unique_names(names: Sequence[str]) -> list[str]:
+    out, seen = [], {}
+    for n in names:
+        if names.count(n) > 1:
+            seen[n] = seen.get(n, 0) + 1
+            out.append(f"{n}#{seen[n]}")
+        else:
+            out.append(n)
+    return out
+
+
+# -- splits -------------------------------------------------------------------------------------
+def split_time_block(ds: Dataset, test_fraction: float = 0.3, block: str = "last"
+                     ) -> tuple[Dataset, Dataset]:
+    """Train and test sets by time blocks: in every flight, the ``last`` (or ``middle``)
+    ``test_fraction`` of its samples (in time order) is the test set."""
+    if isinstance(test_fraction, bool) or not isinstance(test_fraction, (int, float)) \
+            or not 0 < test_fraction < 1:
+        raise ConfigError(f"The 'test_fraction' parameter must be a number in (0, 1). "
+                          f"Got {test_fraction!r} instead.")
+    check_choice("block", block, ("last", "middle"), owner="split_time_block")
+    test = np.zeros(len(ds), bool)
+    for k in np.unique(ds.flight):
+        idx = np.flatnonzero(ds.flight == k)
+        idx = idx[np.argsort(ds.t[idx], kind="stable")]
+        m = int(round(test_fraction * idx.size))
+        if m == 0 or m == idx.size:
+            continue
+        start = idx.size - m if block == "last" else (idx.size - m) // 2
+        test[idx[start:start + m]] = True
+    if not test.any() or test.all():
+        raise DataError(f"cannot split {len(ds)} samples with test_fraction={test_fraction}")
+    return _noted(ds.subset(~test), f"train: time-block split ({block} {test_fraction:g} is test)"), \
+        _noted(ds.subset(test), f"test: time-block split ({block} {test_fraction:g} of each flight)")
+
+
+def split_by_flight(ds: Dataset, test) -> tuple[Dataset, Dataset]:
+    """Train and test sets by flight: ``test`` is a source name, an index, or a sequence of them
+    (the paper trains on one flight and tests on another)."""
+    items = [test] if isinstance(test, (str, int)) else list(test)
+    idx = set()
+    for it in items:
+        if isinstance(it, str):
+            if it not in ds.sources:
+                raise MissingSignalError(it, ds.sources, where="the dataset's flights")
+            idx.add(ds.sources.index(it))
+        else:
+            if not 0 <= int(it) < len(ds.sources):
+                raise ConfigError(f"flight index {it} out of range 0..{len(ds.sources) - 1}")
+            idx.add(int(it))
+    mask = np.isin(ds.flight, sorted(idx))
+    if not mask.any() or mask.all():
+        raise DataError("split by flight leaves the train or the test set empty")
+    names = ", ".join(ds.sources[i] for i in sorted(idx))
+    return _noted(ds.subset(~mask), f"train: flights other than {names}"), \
+        _noted(ds.subset(mask), f"test: flight(s) {names}")
+
+
+def subsample(ds: Dataset, n: int, seed=0) -> Dataset:
+    """``n`` samples drawn without replacement (kept in their original order); the whole
+    dataset when it has ``n`` or fewer."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ConfigError(f"The 'n' parameter of subsample must be a positive integer. Got {n!r} instead.")
+    if n >= len(ds):
+        return ds
+    idx = np.sort(np.random.default_rng(seed).choice(len(ds), size=int(n), replace=False))
+    return _noted(ds.subset(idx), f"subsampled to {n} of {len(ds)} samples (seed {seed})")
+
+
+def _noted(ds: Dataset, note: str) -> Dataset:
+    return Dataset(ds.X, ds.y, ds.t, ds.input_names, ds.target_name, ds.flight, ds.sources,
+                   ds.extra, ds.notes + (note,))
