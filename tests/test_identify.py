@@ -185,3 +185,40 @@ def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
     assert "paper_train_eight.tlog" in out and "paper_test_square.tlog" in out
     assert "vx_dot = " in out and "vy_dot = " in out and "identified, best run" in out
     assert (tmp_path / "demo" / "report.html").is_file()
+
+
+def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
+    """A KeyboardInterrupt in the third run: the first two are reported, flagged interrupted."""
+    import droneid.identify as ident
+    from parsers import read_flight
+    real = ident.run_job
+
+    def flaky(job):
+        if job.index == 2:
+            raise KeyboardInterrupt
+        return real(job)
+
+    monkeypatch.setattr(ident, "run_job", flaky)
+    cfg = ident.IdentifyConfig.make(targets=("vx_dot",), runs=4, generations=100, population=60, jobs=1)
+    res = ident.identify([read_flight(logs[0])], [read_flight(logs[1])], cfg)
+    assert res.interrupted and len(res.targets["vx_dot"].runs) == 2
+    assert "interrupted: 2 of 4 runs" in res.notes[0]
+    from droneid.report_identify import format_text, write_result
+    write_result(res.to_dict(), tmp_path)
+    assert "interrupted" in format_text(res.to_dict())
+
+
+@pytest.mark.slow
+def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
+    distributed = pytest.importorskip("distributed")
+    from droneid.identify import IdentifyConfig, identify
+    from parsers import read_flight
+    train, test = read_flight(logs[0]), read_flight(logs[1])
+    cfg = dict(targets=("vx_dot",), runs=2, generations=150, population=60, seed=4)
+    a = identify([train], [test], IdentifyConfig.make(jobs=1, **cfg)).targets["vx_dot"]
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  protocol="tcp://", dashboard_address=None) as cluster:
+        res = identify([train], [test], IdentifyConfig.make(scheduler=cluster.scheduler_address, **cfg))
+    b = res.targets["vx_dot"]
+    assert res.backend.startswith("dask(")
+    assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])
