@@ -354,12 +354,25 @@ def run_job(job: RunJob) -> dict:
         "rmse_train": float(est.rmse_train_), "rmse_test": _rmse(pred_test, job.y_test),
         "constraint_rmse_train": _float(ec_train), "constraint_rmse_test": ec_test,
         "qualified": bool(getattr(est, "qualified_", True)),
-        "equation": str(est.equation_), "coefficients": {str(k): float(v) for k, v in est.coef_.items()},
+        "equation": str(est.equation_), "equation_expanded": _expanded(est),
+        "coefficients": {str(k): float(v) for k, v in est.coef_.items()},
         "prior_coefficients": {str(k): float(v) for k, v in (est.prior_coef_ or {}).items()},
         "intercept": float(est.intercept_), "wall_s": float(getattr(est, "wall_s_", time.perf_counter() - t0)),
         "generations": int(getattr(est, "generations_", job.engine.get("generations", 0))),
         "archive": archive, "model": est.to_dict(), "pred_test": pred_test,
     }
+
+
+def _expanded(est) -> str:
+    """The fitted model with the prior features written out, floats to 4 significant figures."""
+    import sympy as sp
+    expr = getattr(est, "expr_", None)
+    if expr is None:
+        return str(est.equation_)
+    try:
+        return str(sp.N(expr, 4))
+    except (TypeError, ValueError):  # pragma: no cover - sympy oddities
+        return str(expr)
 
 
 def _float(v) -> float:
@@ -406,7 +419,7 @@ def improvement_pct(reference: float, value: float) -> float:
 
 
 RUN_KEYS = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
-            "qualified", "wall_s", "generations", "equation", "archive")
+            "qualified", "wall_s", "generations", "equation", "equation_expanded", "archive")
 
 
 @dataclass
@@ -502,7 +515,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
         empirical_terms=_feature_dicts(p.priors3),
         equation=readable_equation(p.target, best["coefficients"], best["prior_coefficients"],
                                    best["intercept"]) if best else None,
-        equation_expanded=f"{p.target} = {best['equation']}" if best else None,
+        equation_expanded=f"{p.target} = {best.get('equation_expanded') or best['equation']}" if best else None,
         coefficients=dict(best["coefficients"]) if best else {},
         prior_coefficients=dict(best["prior_coefficients"]) if best else {},
         intercept=best["intercept"] if best else None,

@@ -41,13 +41,16 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
                    "equation": doc["targets"][t].get("equation")} for t in chosen}
         out["_config"] = doc.get("config") or {}
         return out
-    # a bare model file: the caller names its target
-    if not targets or len(targets) != 1:
-        raise ConfigError(f"{path} is a single model: name its target with --target (e.g. vx_dot)")
-    inputs = doc.get("feature_names") or doc.get("input_names")
+    # a bare model file (SNGPRegressor.to_dict()): its target is saved in it or named by the caller
+    from .identify import TARGETS
+    target = targets[0] if targets and len(targets) == 1 else doc.get("target")
+    if target not in TARGETS:
+        raise ConfigError(f"{path} is a single model without a known target: name it with --target "
+                          f"(one of {', '.join(TARGETS)})")
+    inputs = doc.get("inputs")
     if not inputs:
-        raise DataError(f"{path}: a model file must list its 'feature_names'")
-    return {targets[0]: {"model": doc, "inputs": list(inputs), "empirical_terms": [],
+        raise DataError(f"{path}: a model file must list its 'inputs'")
+    return {target: {"model": doc, "inputs": list(inputs), "empirical_terms": [],
                          "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {}}
 
 

@@ -27,11 +27,17 @@ def _f(v) -> float:
         return float("nan")
 
 
+def efmt(v) -> str:
+    """An error value, 4 significant figures; float round-off (< 1e-12) shown as 0."""
+    x = _f(v)
+    return "0" if math.isfinite(x) and abs(x) < 1e-12 else fmt(v)
+
+
 def error_rows(tr: dict) -> list[list[str]]:
     """The comparison table of one target: empirical, refit, identified best and median."""
     def row(label, d):
         d = d or {}
-        return [label, fmt(d.get("rmse_train")), fmt(d.get("rmse_test")), fmt(d.get("constraint_rmse_test"))]
+        return [label, efmt(d.get("rmse_train")), efmt(d.get("rmse_test")), efmt(d.get("constraint_rmse_test"))]
     n = len(tr.get("runs") or [])
     return [row("empirical model as given", tr.get("empirical")),
             row("empirical model refit (LS)", tr.get("empirical_refit")),
