@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import platform
 import sys
 import time
@@ -349,6 +350,7 @@ def run_job(job: RunJob) -> dict:
     archive = [{"rmse_train": float(a.get("rmse_train", np.nan)),
                 "constraint_rmse_train": _float(a.get("constraint_rmse_train"))}
                for a in (getattr(est, "archive_", None) or [])]
+    model = est.to_dict()
     return {
         "target": job.target, "variant": job.variant, "index": job.index, "seed": job.seed,
         "rmse_train": float(est.rmse_train_), "rmse_test": _rmse(pred_test, job.y_test),
@@ -359,7 +361,8 @@ def run_job(job: RunJob) -> dict:
         "prior_coefficients": {str(k): float(v) for k, v in (est.prior_coef_ or {}).items()},
         "intercept": float(est.intercept_), "wall_s": float(getattr(est, "wall_s_", time.perf_counter() - t0)),
         "generations": int(getattr(est, "generations_", job.engine.get("generations", 0))),
-        "archive": archive, "model": est.to_dict(), "pred_test": pred_test,
+        "archive": archive, "model": model, "pred_test": pred_test,
+        "prior_symbols": {p["symbol"]: p["name"] for p in model.get("priors", []) if "symbol" in p},
     }
 
 
@@ -451,20 +454,45 @@ class TargetResult:
     notes: list = field(default_factory=list)
 
 
+_LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
+
+
+def _top_level_sum(text: str) -> bool:
+    """Whether ``text`` (sympy's str form) is a sum at the outermost level."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += ch == "("
+        depth -= ch == ")"
+        if depth == 0 and i > 0 and text[i - 1:i + 2] in (" + ", " - "):
+            return True
+    return False
+
+
+def display_term(term: str, prior_symbols: dict | None = None, sig: int = 4) -> tuple[str, bool]:
+    """(text, negated): a term with floats to ``sig`` figures and prior symbols as ⟨name⟩; a
+    leading minus of a product is moved out (``negated``) and sums are parenthesised."""
+    text = _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(term))
+    for sym in sorted(prior_symbols or {}, key=len, reverse=True):
+        text = re.sub(rf"\b{re.escape(sym)}\b", f"⟨{prior_symbols[sym]}⟩", text)
+    negated = False
+    if _top_level_sum(text):
+        return f"({text})", False
+    if text.startswith("-"):
+        text, negated = text[1:], True
+    return text, negated
+
+
 def readable_equation(target: str, coefficients: dict, prior_coefficients: dict, intercept,
-                      sig: int = 4) -> str:
-    """``target = β·⟨prior⟩ + ... + β·term + ... + β0``, prior features by name, 4 significant figures."""
-    parts = []
-    for name, b in prior_coefficients.items():
-        parts.append((b, f"⟨{name}⟩"))
+                      prior_symbols: dict | None = None, sig: int = 4) -> str:
+    """``target = β·⟨prior⟩ + ... + β·term + ... + β0``: prior features by name (also inside
+    evolved terms), numbers to ``sig`` significant figures."""
+    parts = [(float(b), f"⟨{name}⟩") for name, b in prior_coefficients.items()]
     for term, b in coefficients.items():
         if term in prior_coefficients:
             continue
-        parts.append((b, str(term)))
-    out = []
-    for b, term in parts:
-        sign = "-" if b < 0 else "+"
-        out.append(f"{sign} {abs(b):.{sig}g}·{term}")
+        text, neg = display_term(term, prior_symbols, sig)
+        parts.append((-float(b) if neg else float(b), text))
+    out = [f"{'-' if b < 0 else '+'} {abs(b):.{sig}g}·{term}" for b, term in parts]
     if intercept is not None and _float(intercept) != 0.0:
         out.append(f"{'-' if intercept < 0 else '+'} {abs(intercept):.{sig}g}")
     body = " ".join(out) if out else "0"
@@ -514,7 +542,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
         test_data=p.test_description, holdout=p.holdout, prior_features=_feature_dicts(feats),
         empirical_terms=_feature_dicts(p.priors3),
         equation=readable_equation(p.target, best["coefficients"], best["prior_coefficients"],
-                                   best["intercept"]) if best else None,
+                                   best["intercept"], best.get("prior_symbols")) if best else None,
         equation_expanded=f"{p.target} = {best.get('equation_expanded') or best['equation']}" if best else None,
         coefficients=dict(best["coefficients"]) if best else {},
         prior_coefficients=dict(best["prior_coefficients"]) if best else {},

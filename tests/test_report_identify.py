@@ -134,3 +134,12 @@ def test_config_quick_budget_and_overrides():
     assert q.quick and q.runs == 2 and q.generations < 60000
     p = IdentifyConfig.make(targets="vx_dot,vy_dot")
     assert p.generations == 60000 and p.population == 500 and p.targets == ("vx_dot", "vy_dot")
+
+
+def test_readable_equation_shows_prior_symbols_by_name_and_rounds():
+    from droneid.identify import display_term
+    syms = {"P2_g_sin": "g_sin", "P1_a": "a"}
+    assert display_term("-sin(357.0494022507776*P2_g_sin)", syms) == ("sin(357*⟨g_sin⟩)", True)
+    assert display_term("-P1_a**2 + cos(P2_g_sin)", syms) == ("(-⟨a⟩**2 + cos(⟨g_sin⟩))", False)
+    eq = readable_equation("vx_dot", {"-sin(P1_a)": -0.5, "vx**2": 0.25}, {"a": 1.0}, 0.0, syms)
+    assert eq == "vx_dot = 1·⟨a⟩ + 0.5·sin(⟨a⟩) + 0.25·vx**2"
