@@ -474,12 +474,13 @@ def display_term(term: str, prior_symbols: dict | None = None, sig: int = 4) -> 
     text = _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(term))
     for sym in sorted(prior_symbols or {}, key=len, reverse=True):
         text = re.sub(rf"\b{re.escape(sym)}\b", f"⟨{prior_symbols[sym]}⟩", text)
-    negated = False
     if _top_level_sum(text):
         return f"({text})", False
-    if text.startswith("-"):
-        text, negated = text[1:], True
-    return text, negated
+    negated = text.startswith("-")
+    return text[1:] if negated else text, negated
+
+
+_LEADING_NUMBER = re.compile(r"^(\d+(?:\.\d*)?(?:e[+-]?\d+)?)\*(?=\S)")
 
 
 def readable_equation(target: str, coefficients: dict, prior_coefficients: dict, intercept,
@@ -491,7 +492,11 @@ def readable_equation(target: str, coefficients: dict, prior_coefficients: dict,
         if term in prior_coefficients:
             continue
         text, neg = display_term(term, prior_symbols, sig)
-        parts.append((-float(b) if neg else float(b), text))
+        b = -float(b) if neg else float(b)
+        lead = _LEADING_NUMBER.match(text)
+        if lead:  # 2.283·8.0*x -> 18.26·x
+            b, text = b * float(lead.group(1)), text[lead.end():]
+        parts.append((b, text))
     out = [f"{'-' if b < 0 else '+'} {abs(b):.{sig}g}·{term}" for b, term in parts]
     if intercept is not None and _float(intercept) != 0.0:
         out.append(f"{'-' if intercept < 0 else '+'} {abs(intercept):.{sig}g}")

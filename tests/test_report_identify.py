@@ -141,5 +141,6 @@ def test_readable_equation_shows_prior_symbols_by_name_and_rounds():
     syms = {"P2_g_sin": "g_sin", "P1_a": "a"}
     assert display_term("-sin(357.0494022507776*P2_g_sin)", syms) == ("sin(357*⟨g_sin⟩)", True)
     assert display_term("-P1_a**2 + cos(P2_g_sin)", syms) == ("(-⟨a⟩**2 + cos(⟨g_sin⟩))", False)
-    eq = readable_equation("vx_dot", {"-sin(P1_a)": -0.5, "vx**2": 0.25}, {"a": 1.0}, 0.0, syms)
-    assert eq == "vx_dot = 1·⟨a⟩ + 0.5·sin(⟨a⟩) + 0.25·vx**2"
+    eq = readable_equation("vx_dot", {"-sin(P1_a)": -0.5, "vx**2": 0.25, "8.0*P1_a*vx": 0.5}, {"a": 1.0},
+                           0.0, syms)
+    assert eq == "vx_dot = 1·⟨a⟩ + 0.5·sin(⟨a⟩) + 0.25·vx**2 + 4·⟨a⟩*vx"
