@@ -38,8 +38,8 @@ def main(argv=None) -> int:
     from droneid.simulate import simulate
     from droneid.study import format_study, study
 
-    train = simulate(path="eight", duration_s=8.05, seed=11).flight
-    test = simulate(path="square", duration_s=12.6, seed=12).flight
+    train = simulate(path="eight", duration_s=8.0, seed=11).flight
+    test = simulate(path="square", duration_s=12.55, seed=12).flight
     cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=args.runs, generations=args.generations,
                               population=args.population, jobs=args.jobs, scheduler=args.scheduler, seed=0)
     workers = args.jobs or default_jobs()

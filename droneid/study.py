@@ -123,6 +123,11 @@ def _p(v) -> str:
     return f"{v:.2g}" if v >= 1e-3 else f"{v:.1e}"
 
 
+def efmt(v) -> str:
+    from .report_identify import efmt as _efmt
+    return _efmt(v)
+
+
 def study_table(result: dict) -> tuple[list[str], list[list[str]]]:
     """Header and rows shaped like the paper's Tables II-III: one row per scenario × prior
     variant, per target the median e_d^test, the median e_c^test and the rank-sum p-value of the
@@ -137,14 +142,14 @@ def study_table(result: dict) -> tuple[list[str], list[list[str]]]:
             row = [scenario, _label(k)]
             for t in names:
                 v = result["targets"][t]["variants"][_variant(scenario, k)]
-                row += [fmt(v["median_rmse_test"]), fmt(v["median_constraint_rmse_test"]),
+                row += [efmt(v["median_rmse_test"]), efmt(v["median_constraint_rmse_test"]),
                         _p(v["p_value_vs_no_prior"])]
             rows.append(row)
     for key, label in (("empirical", "as given"), ("empirical_refit", "refit (LS)")):
         row = ["empirical model", label]
         for t in names:
             e = result["targets"][t][key]
-            row += [fmt(e["rmse_test"]), fmt(e["constraint_rmse_test"]), "—"]
+            row += [efmt(e["rmse_test"]), efmt(e["constraint_rmse_test"]), "—"]
         rows.append(row)
     return header, rows
 
