@@ -19,7 +19,7 @@ import numpy as np
 from .errors import DataError
 from .identify import (IdentifyConfig, make_jobs, prepare_target, run_job, select_best, versions,
                        flight_provenance)
-from .reporting import Document, fmt, new_figure
+from .reporting import Document, new_figure
 
 __all__ = ["study", "SCENARIOS", "PRIOR_VARIANTS", "study_table", "format_study", "study_document",
            "write_study"]

@@ -10,7 +10,7 @@ import pytest
 from droneid.errors import ConfigError
 from droneid.identify import (IdentificationResult, IdentifyConfig, improvement_pct, readable_equation,
                               run_seeds, select_best)
-from droneid.report_identify import build_document, error_rows, format_text, pareto_front, write_result
+from droneid.report_identify import error_rows, format_text, pareto_front, write_result
 
 
 def hand_built_result(constraints="paper") -> dict:
