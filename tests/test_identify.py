@@ -14,9 +14,6 @@ import pytest
 
 from droneid.cli import main
 
-# TEMPORARY until the engine and dataset branches are merged into this branch (then removed)
-pytest.importorskip("droneid.sngp", reason="engine branch not merged yet")
-
 SCHEMA_METRICS = ("rmse_train", "rmse_test", "constraint_rmse_test")
 TINY = ["--generations", "300", "--population", "100", "--jobs", "1"]
 

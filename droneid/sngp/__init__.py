@@ -1,0 +1,11 @@
+"""SNGP symbolic regression with prior features and formal constraints (the paper's engine).
+
+``SNGPRegressor`` is the estimator; ``SymbolicModel`` a fitted equation that can be saved as
+JSON (``to_dict``/``from_dict``) and evaluated with numpy. The operator table is in
+:mod:`droneid.sngp.operators`, the compiled kernels in :mod:`droneid.sngp.kernels`.
+"""
+from .estimator import SNGPRegressor
+from .model import SymbolicModel
+from .operators import DEFAULT_FUNCTIONS, OPERATORS
+
+__all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS"]

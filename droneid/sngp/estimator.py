@@ -1,0 +1,507 @@
+"""SNGPRegressor: the estimator-style front of the engine (validation, search, model building).
+
+``__init__`` only stores keyword parameters (unknown names are rejected with a suggestion);
+``fit`` validates, runs the compiled search (:mod:`droneid.sngp.search`), prunes dead features,
+simplifies the equation with sympy under a time limit and fills the ``*_`` attributes.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import re
+import signal
+import threading
+import time
+from collections.abc import Sequence
+
+import numpy as np
+import sympy as sp
+
+from ..constraints import ConstraintSamples, constraint_rmse
+from ..errors import ConfigError, DataError, MissingSignalError, NotFittedError, did_you_mean
+from ..expressions import compile_expression, parse_expression, symbol
+from . import kernels as K
+from . import population as popmod
+from .model import SymbolicModel, round_expr, to_text
+from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
+from .population import CONSTANTS, Population, Problem
+from .search import run_search
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SNGPRegressor"]
+
+_PARAMS = {
+    "functions": DEFAULT_FUNCTIONS,
+    "population_size": 500,
+    "generations": 60000,
+    "n_features": 10,
+    "max_depth": 7,
+    "gamma": 0.05,
+    "n_epochs": 30,
+    "n_threads": 2,
+    "seed": None,
+    "progress": None,
+    "identity_steps": 100,
+    "simplify_s": 2.0,
+}
+_CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
+_RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
+PRUNE_RTOL = 1e-6
+
+
+class SNGPRegressor:
+    """Single Node Genetic Programming with prior features and formal constraints.
+
+    Parameters (keyword only): ``functions`` (names from the operator table), ``population_size``
+    (nodes), ``generations``, ``n_features`` (nf, prior features included), ``max_depth``,
+    ``gamma`` (e_c threshold of the constrained variant, target units), ``n_epochs``,
+    ``n_threads`` (search threads per epoch, run one after the other), ``seed`` (None: drawn),
+    ``progress`` (callable(done, total, message)), ``identity_steps`` (local steps relinking
+    feature slots at the end of each thread), ``simplify_s`` (sympy time budget; 0 disables).
+    """
+
+    def __init__(self, *, functions=DEFAULT_FUNCTIONS, population_size=500, generations=60000,
+                 n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
+                 progress=None, identity_steps=100, simplify_s=2.0, **unknown):
+        if unknown:
+            name = next(iter(unknown))
+            raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
+                              f"{did_you_mean(name, _PARAMS)}; valid: {', '.join(_PARAMS)}")
+        self.functions = functions
+        self.population_size = population_size
+        self.generations = generations
+        self.n_features = n_features
+        self.max_depth = max_depth
+        self.gamma = gamma
+        self.n_epochs = n_epochs
+        self.n_threads = n_threads
+        self.seed = seed
+        self.progress = progress
+        self.identity_steps = identity_steps
+        self.simplify_s = simplify_s
+
+    # -- sklearn-style parameter access -------------------------------------------------------
+    def get_params(self, deep: bool = True) -> dict:
+        return {k: getattr(self, k) for k in _PARAMS}
+
+    def set_params(self, **params) -> "SNGPRegressor":
+        for k, v in params.items():
+            if k not in _PARAMS:
+                raise ConfigError(f"SNGPRegressor has no parameter '{k}'{did_you_mean(k, _PARAMS)}")
+            setattr(self, k, v)
+        return self
+
+    def __repr__(self) -> str:
+        changed = {k: v for k, v in self.get_params().items() if v is not _PARAMS[k] and v != _PARAMS[k]}
+        return f"SNGPRegressor({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
+
+    # -- validation ----------------------------------------------------------------------------
+    def _validate_params(self) -> None:
+        def bad(name, expected, value):
+            raise ConfigError(f"The '{name}' parameter of SNGPRegressor must be {expected}. "
+                              f"Got {value!r} instead.")
+
+        def integer(name, lo):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                bad(name, f"an int >= {lo}", v)
+
+        funcs = self.functions
+        if isinstance(funcs, str) or not isinstance(funcs, Sequence) or not funcs:
+            bad("functions", "a non-empty sequence of operator names", funcs)
+        for f in funcs:
+            if f not in operator_names():
+                raise ConfigError(f"The 'functions' parameter of SNGPRegressor has an unknown "
+                                  f"operator {f!r}{did_you_mean(str(f), operator_names())}; "
+                                  f"known: {', '.join(operator_names())}")
+        integer("population_size", 20)
+        integer("generations", 1)
+        integer("n_features", 1)
+        integer("max_depth", 1)
+        integer("n_epochs", 1)
+        integer("n_threads", 1)
+        integer("identity_steps", 0)
+        if isinstance(self.gamma, bool) or not isinstance(self.gamma, (int, float)) \
+                or not self.gamma > 0 or not math.isfinite(self.gamma):
+            bad("gamma", "a positive finite number", self.gamma)
+        if self.seed is not None and (isinstance(self.seed, bool)
+                                      or not isinstance(self.seed, (int, np.integer)) or self.seed < 0):
+            bad("seed", "None or an int >= 0", self.seed)
+        if self.progress is not None and not callable(self.progress):
+            bad("progress", "None or a callable(done, total, message)", self.progress)
+        if not isinstance(self.simplify_s, (int, float)) or self.simplify_s < 0:
+            bad("simplify_s", "a number >= 0 (seconds)", self.simplify_s)
+
+    # -- fit -----------------------------------------------------------------------------------
+    def fit(self, X, y, *, feature_names=None, priors=(), prior_names=None, constraints=None):
+        t_start = time.perf_counter()
+        self._validate_params()
+        X = np.asarray(X, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64).ravel()
+        if X.ndim != 2:
+            raise DataError(f"X must be a 2-D array (samples x inputs), got shape {X.shape}")
+        if X.shape[0] != y.size:
+            raise DataError(f"X has {X.shape[0]} rows but y has {y.size} values")
+        if y.size < 3:
+            raise DataError(f"SNGP needs at least 3 training samples, got {y.size}")
+        if not np.isfinite(X).all() or not np.isfinite(y).all():
+            raise DataError("X and y must be finite (drop or interpolate NaN/inf samples first)")
+        names = self._feature_names(feature_names, X.shape[1])
+        prior_exprs, prior_syms, prior_labels = self._priors(priors, prior_names, names)
+        n_prior = len(prior_exprs)
+        if n_prior > self.n_features:
+            raise ConfigError(f"{n_prior} prior features exceed n_features={self.n_features} "
+                              "(prior features count toward nf)")
+        cs = self._constraints(constraints, names)
+        constrained = cs is not None and len(cs) > 0
+
+        seed = int(self.seed) if self.seed is not None else \
+            int(np.random.SeedSequence().generate_state(1)[0])
+        rng = np.random.default_rng(np.random.SeedSequence(seed))
+
+        # terminal rows: inputs then priors, over training columns then constraint columns
+        Xall = X if not constrained else np.vstack([X, cs.X])
+        cols = {n: Xall[:, i] for i, n in enumerate(names)}
+        prior_vals = []
+        for sym, expr in zip(prior_syms, prior_exprs):
+            v = compile_expression(expr, names)(cols)
+            if not np.isfinite(v[:y.size]).all():
+                raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
+                                f"{int((~np.isfinite(v[:y.size])).sum())} training samples")
+            if not np.isfinite(v).all():
+                raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
+                                "constraint samples")
+            prior_vals.append(v)
+        terminals = np.vstack([Xall.T] + [v[None, :] for v in prior_vals]) if prior_vals else Xall.T
+        terminals = np.ascontiguousarray(terminals)
+        yc = y - y.mean()
+        if constrained:
+            ckind = np.asarray(cs.kind, dtype=np.int64)
+            cbound = np.asarray(cs.bound, dtype=np.float64)
+        else:
+            ckind, cbound = np.zeros(0, dtype=np.int64), np.zeros(0)
+        problem = Problem(y=y.copy(), yc=yc, syy=float(yc @ yc), ckind=ckind, cbound=cbound,
+                          terminals=terminals)
+        try:
+            template = popmod.build_population(
+                tuple(self.functions), int(self.population_size), len(names), n_prior,
+                int(self.n_features) - n_prior, int(self.max_depth), y.size, Xall.shape[0],
+                constrained, rng)
+        except ValueError as exc:
+            raise ConfigError(f"The 'population_size' parameter of SNGPRegressor is too small: "
+                              f"{exc}") from None
+        result = run_search(template, problem, generations=int(self.generations),
+                            n_epochs=int(self.n_epochs), n_threads=int(self.n_threads),
+                            identity_steps=int(self.identity_steps), gamma=float(self.gamma),
+                            rng=rng, progress=self.progress)
+
+        self._names = names
+        self._prior_syms = prior_syms
+        self._prior_labels = prior_labels
+        self._prior_exprs = dict(zip(prior_syms, prior_exprs))
+        self._problem = problem
+        self._template = template
+
+        # final model
+        if constrained and result.archive:
+            qualified = [r for r in result.archive if r[1] < self.gamma]
+            chosen = min(qualified, key=lambda r: r[0]) if qualified else \
+                min(result.archive, key=lambda r: r[1])
+            final = self._population_from_links(chosen[2], chosen[3])
+            self.qualified_ = bool(qualified)
+            if not qualified:
+                log.warning("no model met the constraint error threshold gamma=%g; returning the "
+                            "lowest-e_c model (e_c=%g)", self.gamma, chosen[1])
+        else:
+            final = result.best
+            self.qualified_ = True
+        model, ed, ec = self._build_model(final, y, cs if constrained else None)
+        self.model_ = model
+        self._cs_train = cs
+        self.rmse_train_ = ed
+        self.constraint_rmse_train_ = ec if constrained else float("nan")
+        if constrained and self.qualified_ and not ec < self.gamma:
+            self.qualified_ = False
+        self._render(model)
+        self.archive_ = self._archive(result.archive) if constrained else [
+            {"rmse_train": ed, "constraint_rmse_train": float("nan"), "equation": self.equation_}]
+        self.generations_ = int(result.generations)
+        self.seed_ = seed
+        self.search_stats_ = {
+            "search_s": result.wall_s,
+            "generations": int(result.generations),
+            "node_evaluations": int(result.evaluations),
+            "accepted": int(result.accepted),
+            "failed_fits": int(result.failed_fits),
+            "generations_per_s": result.generations / result.wall_s if result.wall_s > 0 else float("nan"),
+            "node_evaluations_per_s": result.evaluations / result.wall_s if result.wall_s > 0 else float("nan"),
+        }
+        self.n_features_in_ = len(names)
+        self.feature_names_in_ = tuple(names)
+        self.wall_s_ = time.perf_counter() - t_start
+        return self
+
+    # -- helpers for fit -----------------------------------------------------------------------
+    @staticmethod
+    def _feature_names(feature_names, d: int) -> tuple[str, ...]:
+        if feature_names is None:
+            return tuple(f"x{i}" for i in range(d))
+        names = tuple(str(n) for n in feature_names)
+        if len(names) != d:
+            raise ConfigError(f"feature_names has {len(names)} names but X has {d} columns")
+        if len(set(names)) != len(names):
+            raise ConfigError(f"feature_names must be unique, got {list(names)}")
+        for n in names:
+            if not n.isidentifier() or n in _RESERVED:
+                raise ConfigError(f"feature name {n!r} is not usable as a symbol "
+                                  "(use letters, digits and _; not pi, e, E, I, N, S, O, Q)")
+        return names
+
+    @staticmethod
+    def _priors(priors, prior_names, names):
+        if priors is None:
+            priors = ()
+        if isinstance(priors, (str, sp.Basic)):
+            priors = (priors,)
+        priors = list(priors)
+        if prior_names is not None:
+            prior_names = [str(p) for p in prior_names]
+            if len(prior_names) != len(priors):
+                raise ConfigError(f"prior_names has {len(prior_names)} names for {len(priors)} priors")
+        exprs, syms, labels = [], [], {}
+        for i, p in enumerate(priors):
+            label = prior_names[i] if prior_names else f"prior{i + 1}"
+            if isinstance(p, str):
+                expr = parse_expression(p, names, what=f"prior {label!r}")
+            elif isinstance(p, sp.Basic):
+                unknown = sorted(s.name for s in p.free_symbols if s.name not in names)
+                if unknown:
+                    raise MissingSignalError(unknown[0], names, where=f"prior {label!r}")
+                expr = p.xreplace({s: symbol(s.name) for s in p.free_symbols})
+            else:
+                raise ConfigError(f"prior {label!r} must be a string or a sympy expression, "
+                                  f"got {type(p).__name__}")
+            clean = re.sub(r"\W+", "_", label).strip("_")
+            sym = f"P{i + 1}" if not prior_names or not clean else f"P{i + 1}_{clean}"
+            while sym in names or sym in syms:
+                sym += "_"
+            exprs.append(expr)
+            syms.append(sym)
+            labels[sym] = label
+        return exprs, syms, labels
+
+    @staticmethod
+    def _constraints(constraints, names):
+        if constraints is None:
+            return None
+        if not isinstance(constraints, ConstraintSamples):
+            raise ConfigError(f"constraints must be ConstraintSamples, got {type(constraints).__name__}")
+        if len(constraints) == 0:
+            return None
+        missing = [n for n in names if n not in constraints.input_names]
+        if missing:
+            raise MissingSignalError(missing[0], constraints.input_names, where="the constraint samples")
+        cs = constraints.reorder(names)
+        if not np.isfinite(cs.X).all():
+            raise DataError("constraint samples must be finite")
+        return cs
+
+    def _population_from_links(self, a, b) -> Population:
+        pop = self._template.copy()
+        popmod.load_terminals(pop, self._problem)
+        pop.a[:] = a
+        pop.b[:] = b
+        popmod.evaluate_all(pop, self._problem)
+        p = self._problem
+        ok = K._solve_model(pop.op, pop.V, pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, p.y,
+                            p.ckind, p.cbound, pop.beta, pop.cols, pop.obj)
+        if not ok:
+            pop.obj[:2] = np.inf
+        return pop
+
+    def _node_exprs(self, pop: Population):
+        lay = pop.lay
+        head_end, tail0 = int(lay[K.L_HEAD]), int(lay[K.L_TAIL])
+        terminals = [symbol(n) for n in self._names] + [symbol(s) for s in self._prior_syms]
+        memo: dict[int, sp.Expr] = {}
+
+        def expr(n: int) -> sp.Expr:
+            if n in memo:
+                return memo[n]
+            code = int(pop.op[n])
+            if code == CONST:
+                e = _CONST_EXPR[n] if n < len(_CONST_EXPR) else sp.Float(pop.cval[n])
+            elif n < head_end:
+                e = sp.Float(float(pop.current(n)[0]))
+            elif n < tail0:
+                e = terminals[n - head_end]
+            elif code == IDENT:
+                e = expr(int(pop.a[n]))
+            else:
+                op = by_code(code)
+                args = [expr(int(pop.a[n]))] + ([expr(int(pop.b[n]))] if op.arity == 2 else [])
+                e = op.sympy(*args)
+            memo[n] = e
+            return e
+        return expr
+
+    def _build_model(self, pop: Population, y, cs):
+        """Refit the final population's features, prune dead ones, return (model, e_d, e_c)."""
+        nt = y.size
+        n_prior = len(self._prior_syms)
+        feat_nodes = [int(c) for c, bta in zip(pop.cols, pop.beta)
+                      if c >= int(pop.lay[K.L_ID]) and bta != 0.0]
+        prior_nodes = list(range(int(pop.lay[K.L_TAIL]) - n_prior, int(pop.lay[K.L_TAIL])))
+        cols = prior_nodes + feat_nodes
+        A = np.column_stack([np.ones(pop.V.shape[2])] + [pop.current(c) for c in cols])
+        At, Ac = A[:nt], A[nt:]
+        constrained = cs is not None
+
+        def fit(keep):
+            beta = _lstsq(At[:, keep], y)
+            ed = float(np.sqrt(np.mean((y - At[:, keep] @ beta) ** 2)))
+            ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
+            return beta, ed, ec
+
+        keep = list(range(A.shape[1]))
+        beta, ed, ec = fit(keep)
+        tiny = 1e-12 * (float(np.std(y)) + 1e-300)
+        for j in range(1 + n_prior, A.shape[1]):     # evolved features only
+            trial = [k for k in keep if k != j]
+            b2, ed2, ec2 = fit(trial)
+            if ed2 <= ed * (1 + PRUNE_RTOL) + tiny and (not constrained or ec2 <= ec * (1 + PRUNE_RTOL) + tiny):
+                keep, beta, ed, ec = trial, b2, ed2, ec2
+        node_expr = self._node_exprs(pop)
+        terms, coefs = [], []
+        intercept = 0.0
+        for k, bta in zip(keep, beta):
+            if k == 0:
+                intercept = float(bta)
+            else:
+                terms.append(node_expr(cols[k - 1]))
+                coefs.append(float(bta))
+        model = SymbolicModel(self._names, terms, coefs, intercept,
+                              {s: self._prior_exprs[s] for s in self._prior_syms},
+                              dict(self._prior_labels))
+        return model, ed, (ec if constrained else float("nan"))
+
+    def _render(self, model: SymbolicModel) -> None:
+        """Simplified forms of the model: equation_, expr_, latex_, coef_, prior_coef_."""
+        deadline = time.perf_counter() + float(self.simplify_s)
+        prior_set = {symbol(s) for s in self._prior_syms}
+        simple_terms = []
+        for t in model.terms:
+            left = deadline - time.perf_counter()
+            simple_terms.append(_guarded_simplify(t, left) if t not in prior_set else t)
+        self.coef_ = {}
+        self.prior_coef_ = {self._prior_labels[s]: 0.0 for s in self._prior_syms}
+        display = sp.Float(model.intercept)
+        for t, st, c in zip(model.terms, simple_terms, model.coefs):
+            if t in prior_set:
+                self.prior_coef_[self._prior_labels[t.name]] = c
+            else:
+                key = to_text(st)
+                self.coef_[key] = self.coef_.get(key, 0.0) + c
+            display = display + sp.Float(c) * st
+        self.intercept_ = model.intercept
+        self.expr_raw_ = model.expression(expand_priors=True)
+        expanded = display.xreplace({symbol(s): e for s, e in self._prior_exprs.items()})
+        self.expr_ = expanded
+        shown = round_expr(display)
+        self.equation_ = to_text(shown)
+        self.latex_ = sp.latex(shown)
+
+    def _archive(self, archive) -> list[dict]:
+        out = []
+        for ed, ec, a, b in archive:
+            pop = self._population_from_links(a, b)
+            node_expr = self._node_exprs(pop)
+            expr = sp.Integer(0)
+            for c, bta in zip(pop.cols, pop.beta):
+                if c == -1:
+                    expr += sp.Float(float(bta))
+                elif c >= 0 and bta != 0.0:
+                    expr += sp.Float(float(bta)) * node_expr(int(c))
+            out.append({"rmse_train": ed, "constraint_rmse_train": ec,
+                        "equation": to_text(round_expr(expr))})
+        return out
+
+    # -- use -----------------------------------------------------------------------------------
+    def _check_fitted(self):
+        if not hasattr(self, "model_"):
+            raise NotFittedError("This SNGPRegressor is not fitted yet; call fit(X, y, ...) first")
+
+    def predict(self, X) -> np.ndarray:
+        self._check_fitted()
+        return self.model_.predict(X)
+
+    def rmse(self, X, y) -> float:
+        y = np.asarray(y, dtype=float).ravel()
+        return float(np.sqrt(np.mean((self.predict(X) - y) ** 2)))
+
+    def constraint_rmse(self, cs: ConstraintSamples) -> float:
+        """e_c of the fitted model on constraint samples ``cs`` (e.g. the held-out test draw)."""
+        self._check_fitted()
+        cs = self._constraints(cs, self.feature_names_in_)
+        if cs is None:
+            return float("nan")
+        return constraint_rmse(self.predict(cs.X), cs)
+
+    def to_dict(self) -> dict:
+        self._check_fitted()
+        d = self.model_.to_dict()
+        d.update({"equation": self.equation_, "rmse_train": self.rmse_train_,
+                  "constraint_rmse_train": self.constraint_rmse_train_, "qualified": self.qualified_,
+                  "prior_coef": dict(self.prior_coef_), "seed": self.seed_,
+                  "generations": self.generations_,
+                  "params": {k: v for k, v in self.get_params().items() if k != "progress"}})
+        d["params"]["functions"] = list(d["params"]["functions"])
+        return d
+
+
+def _lstsq(A: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least squares on column-normalised A (SVD, tiny singular values cut): never raises."""
+    norms = np.sqrt((A * A).sum(axis=0))
+    norms[norms == 0] = 1.0
+    try:
+        beta, *_ = np.linalg.lstsq(A / norms, y, rcond=1e-12)
+    except np.linalg.LinAlgError:
+        return np.zeros(A.shape[1])
+    return beta / norms
+
+
+class _Timeout(Exception):
+    pass
+
+
+def _guarded_simplify(expr: sp.Expr, seconds: float, max_ops: int = 60) -> sp.Expr:
+    """sympy.simplify with a wall-clock limit (SIGALRM in the main thread) and a size cap.
+
+    Returns ``expr`` unchanged when it is too big, time runs out, or the result is not smaller.
+    """
+    if seconds <= 0.01 or sp.count_ops(expr) > max_ops:
+        return expr
+    in_main = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+    if not in_main:
+        if sp.count_ops(expr) > 15:
+            return expr
+        try:
+            out = sp.simplify(expr)
+        except Exception:   # noqa: BLE001 - simplification is optional
+            return expr
+    else:
+        def _alarm(signum, frame):
+            raise _Timeout()
+        old = signal.signal(signal.SIGALRM, _alarm)
+        signal.setitimer(signal.ITIMER_REAL, min(seconds, 1.0))
+        try:
+            out = sp.simplify(expr)
+        except _Timeout:
+            return expr
+        except Exception:   # noqa: BLE001
+            return expr
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, old)
+    return out if sp.count_ops(out) <= sp.count_ops(expr) else expr

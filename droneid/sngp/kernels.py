@@ -1,0 +1,776 @@
+"""numba kernels of the SNGP search: node evaluation, mutation, least squares, (1+1) acceptance.
+
+Everything that runs once per generation lives here and is compiled: Python only calls
+:func:`init_population` and :func:`run_chunk` (a few hundred to a few thousand generations per
+call) and copies populations between threads. The arrays are described in
+:class:`droneid.sngp.population.Population`.
+
+Value cache: ``V[2, P, N]`` holds each node's output over the N columns (training samples,
+then constraint samples). Every node owns two rows; ``buf[n]`` says which one is current. A
+re-evaluated node writes into its other row and flips ``buf``; rejecting the candidate flips
+the dirtied nodes back, so nothing is ever copied per generation (the undo log is the list of
+changed links and dirtied nodes).
+
+``lay`` (int64) holds the layout: see the ``L_*`` indices below.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .operators import CONST, DIV_EPS, IDENT, MAX_ABS, by_name
+
+# layout indices into ``lay``
+L_HEAD, L_VAR, L_TAIL, L_ID, L_P, L_NPRIOR, L_NT, L_DEPTH, L_MODE = range(9)
+# objective slots in ``obj``
+O_ED, O_EC, O_SCORE = 0, 1, 2
+# stats slots
+S_EVALS, S_ACCEPT, S_GENS, S_FAILED = 0, 1, 2, 3
+
+ADD = by_name("add").code
+SUB = by_name("sub").code
+MUL = by_name("mul").code
+SQUARE = by_name("square").code
+CUBE = by_name("cube").code
+SIN = by_name("sin").code
+COS = by_name("cos").code
+NEG = by_name("neg").code
+DIV = by_name("div").code
+SQRTABS = by_name("sqrtabs").code
+TAN = by_name("tan").code
+ABS = by_name("abs").code
+EXP = by_name("exp").code
+TANH = by_name("tanh").code
+
+P_TERMINAL = 0.25   # probability that a new link goes to a terminal
+P_HEAD = 0.1        # probability that a mutation hits the head block
+TOURNAMENT = 3
+MAX_MUTATIONS = 10
+PIVOT_TOL = 1e-11   # Cholesky: drop a column whose normalised Schur complement is below this
+CONST_TOL = 1e-12   # a node is constant on the training data when var <= CONST_TOL * (1 + mean^2)
+
+#: No fastmath: reassociation would make sums depend on how LLVM inlined and vectorised a loop,
+#: and then a freshly compiled kernel and a cached one could disagree in the last bit (and the
+#: search would diverge). Reductions use four explicit accumulators instead, which is both
+#: deterministic and vectorisable.
+FM = False
+#: Our sin/cos are exact to ~1 ulp only after Cody-Waite reduction for |x| <= this; beyond it
+#: the kernel falls back to libm.
+TRIG_REDUCE_MAX = 1e5
+_TWO_OVER_PI = 0.63661977236758134308
+_PIO2_1 = 1.57079632673412561417e+00
+_PIO2_2 = 6.07710050630396597660e-11
+_PIO2_3 = 2.02226624871116645580e-21
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@njit(cache=True, fastmath=FM, inline="always")
+def _sin_or_cos(x, shift):
+    """sin(x) (shift 0) or cos(x) (shift 1) without libm calls, so that loops vectorise.
+
+    fdlibm's kernels on [-pi/4, pi/4] after a three-part Cody-Waite reduction; valid for
+    |x| <= TRIG_REDUCE_MAX (callers check).
+    """
+    k = math.floor(x * _TWO_OVER_PI + 0.5)
+    r = ((x - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3
+    z = r * r
+    sn = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    cs = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    q = k + shift
+    half = math.floor(q * 0.5)
+    odd = q - 2.0 * half                     # 1 for quadrants 1 and 3
+    neg = half - 2.0 * math.floor(half * 0.5)  # 1 for quadrants 2 and 3
+    v = cs if odd > 0.5 else sn
+    return -v if neg > 0.5 else v
+
+
+@njit(cache=True, fastmath=FM)
+def _maxabs(x):
+    m = 0.0
+    for i in range(x.shape[0]):
+        v = abs(x[i])
+        m = v if v > m else m
+    return m
+
+
+@njit(cache=True)
+def _scalar_op(code, x, y):
+    if code == ADD:
+        return x + y
+    if code == SUB:
+        return x - y
+    if code == MUL:
+        return x * y
+    if code == SQUARE:
+        return x * x
+    if code == CUBE:
+        return x * x * x
+    if code == SIN:
+        return math.sin(x)
+    if code == COS:
+        return math.cos(x)
+    if code == NEG:
+        return -x
+    if code == DIV:
+        if abs(y) > DIV_EPS:
+            return x / y
+        return np.nan
+    if code == SQRTABS:
+        return math.sqrt(abs(x))
+    if code == TAN:
+        return math.tan(x)
+    if code == ABS:
+        return abs(x)
+    if code == EXP:
+        if x > 700.0:
+            return np.inf
+        return math.exp(x)
+    if code == TANH:
+        return math.tanh(x)
+    return np.nan
+
+
+@njit(cache=True, fastmath=FM)
+def _vector_op(code, xa, xb, out):
+    """out = op(xa, xb) elementwise (xb ignored for unary ops)."""
+    n = out.shape[0]
+    if code == IDENT:
+        for i in range(n):
+            out[i] = xa[i]
+    elif code == ADD:
+        for i in range(n):
+            out[i] = xa[i] + xb[i]
+    elif code == SUB:
+        for i in range(n):
+            out[i] = xa[i] - xb[i]
+    elif code == MUL:
+        for i in range(n):
+            out[i] = xa[i] * xb[i]
+    elif code == SQUARE:
+        for i in range(n):
+            out[i] = xa[i] * xa[i]
+    elif code == CUBE:
+        for i in range(n):
+            out[i] = xa[i] * xa[i] * xa[i]
+    elif code == SIN or code == COS:
+        shift = 0.0 if code == SIN else 1.0
+        if _maxabs(xa) <= TRIG_REDUCE_MAX:
+            for i in range(n):
+                out[i] = _sin_or_cos(xa[i], shift)
+        elif code == SIN:
+            for i in range(n):
+                out[i] = math.sin(xa[i])
+        else:
+            for i in range(n):
+                out[i] = math.cos(xa[i])
+    elif code == NEG:
+        for i in range(n):
+            out[i] = -xa[i]
+    elif code == DIV:
+        for i in range(n):
+            d = xb[i]
+            out[i] = xa[i] / d if abs(d) > DIV_EPS else np.nan
+    elif code == SQRTABS:
+        for i in range(n):
+            out[i] = math.sqrt(abs(xa[i]))
+    elif code == TAN:
+        for i in range(n):
+            out[i] = math.tan(xa[i])
+    elif code == ABS:
+        for i in range(n):
+            out[i] = abs(xa[i])
+    elif code == EXP:
+        for i in range(n):
+            x = xa[i]
+            out[i] = math.exp(x) if x < 700.0 else np.inf
+    elif code == TANH:
+        for i in range(n):
+            out[i] = math.tanh(xa[i])
+    else:
+        for i in range(n):
+            out[i] = np.nan
+
+
+@njit(cache=True)
+def apply_op(code, xa, xb):
+    """The compiled kernel of one operator on whole vectors (for tests against the numpy kernels)."""
+    out = np.empty(xa.shape[0])
+    _vector_op(code, xa, xb, out)
+    return out
+
+
+@njit(cache=True, fastmath=FM)
+def _row_stats(row, nt, yc, syy):
+    """(valid, constant, fit) of one node's output row; fit = 1 - |corr(row, y)| on training columns.
+
+    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude.
+    """
+    n = row.shape[0]
+    bad = 0
+    for i in range(n):
+        bad += 0 if abs(row[i]) <= MAX_ABS else 1     # NaN compares false
+    if bad > 0:
+        return False, True, 1.0
+    s0 = s1 = s2 = s3 = 0.0
+    q0 = q1 = q2 = q3 = 0.0
+    c0 = c1 = c2 = c3 = 0.0
+    m = nt - nt % 4
+    for i in range(0, m, 4):
+        v0 = row[i]
+        v1 = row[i + 1]
+        v2 = row[i + 2]
+        v3 = row[i + 3]
+        s0 += v0
+        s1 += v1
+        s2 += v2
+        s3 += v3
+        q0 += v0 * v0
+        q1 += v1 * v1
+        q2 += v2 * v2
+        q3 += v3 * v3
+        c0 += v0 * yc[i]
+        c1 += v1 * yc[i + 1]
+        c2 += v2 * yc[i + 2]
+        c3 += v3 * yc[i + 3]
+    for i in range(m, nt):
+        v = row[i]
+        s0 += v
+        q0 += v * v
+        c0 += v * yc[i]
+    s = (s0 + s1) + (s2 + s3)
+    sxx = (q0 + q1) + (q2 + q3)
+    sxy = (c0 + c1) + (c2 + c3)                # yc is centred: this is the centred sum
+    mean = s / nt
+    var = sxx - s * mean
+    if var <= CONST_TOL * nt * (1.0 + mean * mean):
+        return True, True, 1.0
+    if syy <= 0.0:
+        return True, False, 1.0
+    c = abs(sxy) / math.sqrt(var * syy)
+    if c > 1.0:
+        c = 1.0
+    return True, False, 1.0 - c
+
+
+@njit(cache=True)
+def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
+    """Recompute node n into its spare row, flip ``buf[n]`` and update valid/isconst/fit."""
+    nb = 1 - buf[n]
+    out = V[nb, n]
+    code = op[n]
+    if n < lay[L_HEAD]:          # constants and head block: derived constants
+        if code == CONST:
+            val = cval[n]
+        else:
+            x = V[buf[a[n]], a[n], 0]
+            y = 0.0
+            if b[n] >= 0:
+                y = V[buf[b[n]], b[n], 0]
+            val = _scalar_op(code, x, y)
+            if not (abs(val) <= MAX_ABS):
+                val = cval[n]    # the node's proxy constant
+        out[:] = val
+        buf[n] = nb
+        valid[n] = 1
+        isconst[n] = 1
+        fit[n] = 1.0
+        return
+    sa = a[n]
+    sb = b[n]
+    buf[n] = nb
+    if valid[sa] == 0 or (sb >= 0 and valid[sb] == 0):
+        valid[n] = 0
+        isconst[n] = 1
+        fit[n] = 1.0
+        return
+    if code == IDENT:           # a feature slot just mirrors its successor
+        out[:] = V[buf[sa], sa]
+        valid[n] = valid[sa]
+        isconst[n] = isconst[sa]
+        fit[n] = fit[sa]
+        return
+    xa = V[buf[sa], sa]
+    if sb >= 0:
+        xb = V[buf[sb], sb]
+    else:
+        xb = xa
+    _vector_op(code, xa, xb, out)
+    ok, cst, f = _row_stats(out, lay[L_NT], yc, syy)
+    valid[n] = 1 if ok else 0
+    isconst[n] = 1 if cst else 0
+    fit[n] = f
+
+
+@njit(cache=True)
+def _depths(a, b, lay, depth):
+    t0 = lay[L_TAIL]
+    for n in range(t0):
+        depth[n] = 0
+    for n in range(t0, lay[L_P]):
+        d = depth[a[n]]
+        if b[n] >= 0 and depth[b[n]] > d:
+            d = depth[b[n]]
+        depth[n] = d + 1
+
+
+@njit(cache=True)
+def _levels_to_root(m, a, b, lay, ltr):
+    """Longest path from node m up to any node that (transitively) uses it."""
+    P = lay[L_P]
+    for n in range(m, P):
+        ltr[n] = 0
+    for p in range(P - 1, m, -1):
+        lp = ltr[p] + 1
+        s = a[p]
+        if s >= m and ltr[s] < lp:
+            ltr[s] = lp
+        s = b[p]
+        if s >= m and ltr[s] < lp:
+            ltr[s] = lp
+    return ltr[m]
+
+
+@njit(cache=True)
+def _terminal(lay):
+    """A terminal: constant/head node or variable (incl. prior terminals), 50/50."""
+    if lay[L_HEAD] > 0 and np.random.random() < 0.5:
+        return np.random.randint(0, lay[L_HEAD])
+    return np.random.randint(lay[L_HEAD], lay[L_TAIL])
+
+
+@njit(cache=True)
+def _pick_successor(m, ltr_m, depth, lay):
+    """A new successor for tail/identity node m obeying depth(s) + levelsToRoot(m) < max depth."""
+    t0 = lay[L_TAIL]
+    hi = m if m < lay[L_ID] else lay[L_ID]
+    if hi <= t0 or 1 + ltr_m >= lay[L_DEPTH] or np.random.random() < P_TERMINAL:
+        return _terminal(lay)
+    for _ in range(16):
+        s = np.random.randint(t0, hi)
+        if depth[s] + ltr_m < lay[L_DEPTH]:
+            return s
+    return _terminal(lay)
+
+
+@njit(cache=True, fastmath=FM)
+def _dot(x, y, n):
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for t in range(0, m, 4):
+        s0 += x[t] * y[t]
+        s1 += x[t + 1] * y[t + 1]
+        s2 += x[t + 2] * y[t + 2]
+        s3 += x[t + 3] * y[t + 3]
+    for t in range(m, n):
+        s0 += x[t] * y[t]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, fastmath=FM)
+def _sum(x, n):
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for t in range(0, m, 4):
+        s0 += x[t]
+        s1 += x[t + 1]
+        s2 += x[t + 2]
+        s3 += x[t + 3]
+    for t in range(m, n):
+        s0 += x[t]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, fastmath=FM)
+def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj_out):
+    """Least squares over [1 | priors | valid identity features]; fills beta/cols/obj_out.
+
+    Returns False when no finite fit exists. Columns that are (numerically) linear combinations
+    of earlier ones get coefficient 0: pivoted-out by a Cholesky factorisation of the
+    column-normalised Gram matrix (so the intercept and the priors win over evolved features).
+    Identity features with the same fitness as an earlier one are skipped (duplicate filter).
+    """
+    P = lay[L_P]
+    nt = lay[L_NT]
+    N = V.shape[2]
+    K = cols.shape[0]
+    k = 0
+    cols[k] = -1
+    k += 1
+    for p in range(lay[L_TAIL] - lay[L_NPRIOR], lay[L_TAIL]):
+        cols[k] = p
+        k += 1
+    for n in range(lay[L_ID], P):
+        if valid[n] == 0 or isconst[n] == 1:
+            continue
+        dup = False
+        for j in range(1 + lay[L_NPRIOR], k):
+            if fit[cols[j]] == fit[n]:
+                dup = True
+                break
+        if dup or k >= K:
+            continue
+        cols[k] = n
+        k += 1
+    for j in range(k, K):
+        cols[j] = -2
+    G = np.zeros((k, k))
+    r = np.zeros(k)
+    r[0] = _sum(y, nt)
+    G[0, 0] = nt
+    for i in range(1, k):
+        ci = cols[i]
+        xi = V[buf[ci], ci]
+        r[i] = _dot(xi, y, nt)
+        s = _sum(xi, nt)
+        G[i, 0] = s
+        G[0, i] = s
+        for j in range(1, i + 1):
+            cj = cols[j]
+            s = _dot(xi, V[buf[cj], cj], nt)
+            G[i, j] = s
+            G[j, i] = s
+    # normalise and factorise with column dropping
+    d = np.empty(k)
+    keep = np.ones(k, dtype=np.uint8)
+    for i in range(k):
+        if G[i, i] > 0.0 and G[i, i] < np.inf:
+            d[i] = math.sqrt(G[i, i])
+        else:
+            d[i] = 1.0
+            keep[i] = 0
+    L = np.zeros((k, k))
+    for j in range(k):
+        if keep[j] == 0:
+            continue
+        s = G[j, j] / (d[j] * d[j])
+        for p in range(j):
+            if keep[p]:
+                s -= L[j, p] * L[j, p]
+        if not (s > PIVOT_TOL):
+            keep[j] = 0
+            continue
+        L[j, j] = math.sqrt(s)
+        for i in range(j + 1, k):
+            if keep[i] == 0:
+                continue
+            s2 = G[i, j] / (d[i] * d[j])
+            for p in range(j):
+                if keep[p]:
+                    s2 -= L[i, p] * L[j, p]
+            L[i, j] = s2 / L[j, j]
+    z = np.zeros(k)
+    for i in range(k):
+        if keep[i] == 0:
+            continue
+        s = r[i] / d[i]
+        for p in range(i):
+            if keep[p]:
+                s -= L[i, p] * z[p]
+        z[i] = s / L[i, i]
+    x = np.zeros(k)
+    for i in range(k - 1, -1, -1):
+        if keep[i] == 0:
+            continue
+        s = z[i]
+        for p in range(i + 1, k):
+            if keep[p]:
+                s -= L[p, i] * x[p]
+        x[i] = s / L[i, i]
+    for i in range(K):
+        beta[i] = 0.0
+    for i in range(k):
+        if keep[i]:
+            beta[i] = x[i] / d[i]
+            if not (abs(beta[i]) < np.inf):
+                return False
+    # predictions on all columns, then residuals (training) and violations (constraints)
+    pred = np.full(N, beta[0])
+    for i in range(1, k):
+        if keep[i] == 0:
+            continue
+        ci = cols[i]
+        xi = V[buf[ci], ci]
+        bi = beta[i]
+        for t in range(N):
+            pred[t] += bi * xi[t]
+    sse = 0.0
+    for t in range(nt):
+        e = y[t] - pred[t]
+        sse += e * e
+    sve = 0.0
+    for t in range(nt, N):
+        j = t - nt
+        e = pred[t] - cbound[j]
+        kd = ckind[j]
+        if kd == 1:
+            e = e if e > 0.0 else 0.0
+        elif kd == 2:
+            e = -e if e < 0.0 else 0.0
+        sve += e * e
+    ed = math.sqrt(sse / nt)
+    ec = math.sqrt(sve / (N - nt)) if N > nt else 0.0
+    if not (ed < np.inf and ec < np.inf):
+        return False
+    obj_out[O_ED] = ed
+    obj_out[O_EC] = ec
+    return True
+
+
+@njit(cache=True)
+def _score(ed, ec, mode, weight):
+    if mode == 0:
+        return ed
+    return (1.0 - weight) * ed + weight * ec
+
+
+@njit(cache=True)
+def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
+    """Keep (ed, ec) and its links if no archived model is at least as good in both."""
+    n = arch_n[0]
+    for i in range(n):
+        if arch_obj[i, 0] <= ed and arch_obj[i, 1] <= ec:
+            return
+    j = 0
+    for i in range(n):
+        if ed <= arch_obj[i, 0] and ec <= arch_obj[i, 1]:
+            continue   # dominated by the newcomer
+        if j != i:
+            arch_obj[j, 0] = arch_obj[i, 0]
+            arch_obj[j, 1] = arch_obj[i, 1]
+            arch_a[j, :] = arch_a[i, :]
+            arch_b[j, :] = arch_b[i, :]
+        j += 1
+    n = j
+    K = arch_obj.shape[0]
+    if n >= K:
+        # full: drop the most crowded interior point (by log-distance of its neighbours)
+        order = np.argsort(arch_obj[:n, 0])
+        worst = -1
+        gap = np.inf
+        for q in range(1, n - 1):
+            lo = order[q - 1]
+            hi = order[q + 1]
+            g = (math.log(arch_obj[hi, 0] + 1e-300) - math.log(arch_obj[lo, 0] + 1e-300)
+                 + math.log(arch_obj[lo, 1] + 1e-300) - math.log(arch_obj[hi, 1] + 1e-300))
+            if g < gap:
+                gap = g
+                worst = order[q]
+        if worst < 0:
+            return
+        n -= 1
+        if worst != n:
+            arch_obj[worst, 0] = arch_obj[n, 0]
+            arch_obj[worst, 1] = arch_obj[n, 1]
+            arch_a[worst, :] = arch_a[n, :]
+            arch_b[worst, :] = arch_b[n, :]
+    arch_obj[n, 0] = ed
+    arch_obj[n, 1] = ec
+    arch_a[n, :] = a
+    arch_b[n, :] = b
+    arch_n[0] = n + 1
+
+
+@njit(cache=True)
+def init_population(seed, op, a, b, cval, V, buf, valid, isconst, fit, lay, y, yc, syy,
+                    ckind, cbound, beta, cols, obj):
+    """Random links for head, tail and identity nodes; evaluate everything; fit the model."""
+    np.random.seed(seed)
+    P = lay[L_P]
+    head0 = 0
+    while head0 < lay[L_HEAD] and op[head0] == CONST:
+        head0 += 1
+    for n in range(lay[L_HEAD]):
+        buf[n] = 0
+        if n >= head0:
+            a[n] = np.random.randint(0, n)
+            b[n] = np.random.randint(0, n)
+        _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+    for n in range(lay[L_HEAD], lay[L_TAIL]):     # variables and prior terminals (rows preset)
+        ok, cst, f = _row_stats(V[buf[n], n], lay[L_NT], yc, syy)
+        valid[n] = 1 if ok else 0
+        isconst[n] = 1 if cst else 0
+        fit[n] = f
+    depth = np.zeros(P, dtype=np.int64)
+    for n in range(lay[L_TAIL], P):
+        for attempt in range(20):
+            a[n] = _pick_successor(n, 0, depth, lay)
+            b[n] = -1
+            if _is_binary(op[n]):
+                b[n] = _pick_successor(n, 0, depth, lay)
+            _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+            if valid[n] == 1 and isconst[n] == 0:
+                break
+        d = depth[a[n]]
+        if b[n] >= 0 and depth[b[n]] > d:
+            d = depth[b[n]]
+        depth[n] = d + 1
+    ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj)
+    if not ok:
+        obj[O_ED] = np.inf
+        obj[O_EC] = np.inf
+    return ok
+
+
+@njit(cache=True)
+def _is_binary(code):
+    return code == ADD or code == SUB or code == MUL or code == DIV
+
+
+@njit(cache=True)
+def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid, isconst, fit,
+              lay, y, yc, syy, ckind, cbound, beta, cols, obj,
+              arch_obj, arch_a, arch_b, arch_n, stats):
+    """``n_gens`` generations of (1+1) local search on the population, in place.
+
+    Each generation: k ~ U{1..10} mutations (identity relinks only when ``identity_only``),
+    re-evaluation of the dirtied nodes in ascending index order, least-squares refit, and
+    acceptance when the score is not worse (neutral moves accepted); otherwise undo.
+    """
+    np.random.seed(seed)
+    P = lay[L_P]
+    t0 = lay[L_TAIL]
+    id0 = lay[L_ID]
+    mode = lay[L_MODE]
+    head0 = 0
+    while head0 < lay[L_HEAD] and op[head0] == CONST:
+        head0 += 1
+    has_head = head0 < lay[L_HEAD]
+    K = beta.shape[0]
+    depth = np.zeros(P, dtype=np.int64)
+    ltr = np.zeros(P, dtype=np.int64)
+    bp = np.empty(P)
+    stamp = np.zeros(P, dtype=np.int64)
+    mutated = np.zeros(P, dtype=np.int64)
+    u_node = np.empty(MAX_MUTATIONS, dtype=np.int64)
+    u_slot = np.empty(MAX_MUTATIONS, dtype=np.int64)
+    u_old = np.empty(MAX_MUTATIONS, dtype=np.int64)
+    dirty = np.empty(P, dtype=np.int64)
+    d_valid = np.empty(P, dtype=np.uint8)
+    d_const = np.empty(P, dtype=np.uint8)
+    d_fit = np.empty(P)
+    nbeta = np.empty(K)
+    ncols = np.empty(K, dtype=np.int64)
+    nobj = np.zeros(3)
+    obj[O_SCORE] = _score(obj[O_ED], obj[O_EC], mode, weight)
+    for g in range(n_gens):
+        gen_id = stats[S_GENS] + 1
+        stats[S_GENS] = gen_id
+        # bestPred: lowest fit among a node and everything that uses it
+        if not identity_only:
+            for n in range(P):
+                bp[n] = fit[n]
+            for p in range(P - 1, t0 - 1, -1):
+                s = a[p]
+                if bp[p] < bp[s]:
+                    bp[s] = bp[p]
+                s = b[p]
+                if s >= 0 and bp[p] < bp[s]:
+                    bp[s] = bp[p]
+        k = 1 if identity_only else np.random.randint(1, MAX_MUTATIONS + 1)
+        nm = 0
+        lowest = P
+        for _ in range(k):
+            if identity_only:
+                m = np.random.randint(id0, P)
+            elif has_head and np.random.random() < P_HEAD:
+                m = np.random.randint(head0, lay[L_HEAD])
+            else:
+                m = np.random.randint(t0, P)
+                for _t in range(TOURNAMENT - 1):
+                    c = np.random.randint(t0, P)
+                    if bp[c] < bp[m]:
+                        m = c
+            slot = 0
+            if b[m] >= 0 and np.random.random() < 0.5:
+                slot = 1
+            if m < lay[L_HEAD]:
+                s = np.random.randint(0, m)
+            else:
+                _depths(a, b, lay, depth)
+                lt = _levels_to_root(m, a, b, lay, ltr)
+                s = _pick_successor(m, lt, depth, lay)
+            u_node[nm] = m
+            u_slot[nm] = slot
+            if slot == 0:
+                u_old[nm] = a[m]
+                a[m] = s
+            else:
+                u_old[nm] = b[m]
+                b[m] = s
+            nm += 1
+            mutated[m] = gen_id
+            if m < lowest:
+                lowest = m
+        # re-evaluate the mutated nodes and everything above them, ascending
+        nd = 0
+        for n in range(lowest, P):
+            if n >= lay[L_HEAD] and n < t0:
+                continue
+            hit = mutated[n] == gen_id
+            if not hit and n >= head0:
+                s = a[n]
+                if s >= lowest and stamp[s] == gen_id:
+                    hit = True
+                else:
+                    s = b[n]
+                    if s >= lowest and stamp[s] == gen_id:
+                        hit = True
+            if not hit:
+                continue
+            stamp[n] = gen_id
+            dirty[nd] = n
+            d_valid[nd] = valid[n]
+            d_const[nd] = isconst[n]
+            d_fit[nd] = fit[n]
+            nd += 1
+            _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+        stats[S_EVALS] += nd
+        ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols, nobj)
+        accept = False
+        if ok:
+            sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
+            if mode == 1:
+                _archive_insert(nobj[O_ED], nobj[O_EC], a, b, arch_obj, arch_a, arch_b, arch_n)
+            if sc <= obj[O_SCORE]:
+                accept = True
+                obj[O_ED] = nobj[O_ED]
+                obj[O_EC] = nobj[O_EC]
+                obj[O_SCORE] = sc
+                for i in range(K):
+                    beta[i] = nbeta[i]
+                    cols[i] = ncols[i]
+        else:
+            stats[S_FAILED] += 1
+        if accept:
+            stats[S_ACCEPT] += 1
+        else:
+            for i in range(nm - 1, -1, -1):
+                if u_slot[i] == 0:
+                    a[u_node[i]] = u_old[i]
+                else:
+                    b[u_node[i]] = u_old[i]
+            for i in range(nd):
+                n = dirty[i]
+                buf[n] = 1 - buf[n]
+                valid[n] = d_valid[i]
+                isconst[n] = d_const[i]
+                fit[n] = d_fit[i]
+    return stats[S_GENS]
+
+
+@njit(cache=True)
+def evaluate_all(op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
+    """Recompute every non-terminal node in ascending order (after links were set from outside)."""
+    for n in range(lay[L_P]):
+        if n >= lay[L_HEAD] and n < lay[L_TAIL]:     # variables and prior terminals
+            ok, cst, f = _row_stats(V[buf[n], n], lay[L_NT], yc, syy)
+            valid[n] = 1 if ok else 0
+            isconst[n] = 1 if cst else 0
+            fit[n] = f
+            continue
+        _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)

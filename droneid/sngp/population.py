@@ -1,0 +1,134 @@
+"""The SNGP population as a small dataclass of numpy arrays (what the numba kernels work on).
+
+Node layout, by ascending index (every link points to a lower index, so ascending order is a
+valid evaluation order)::
+
+    [constants | head block | variables | prior terminals | tail | identity nodes]
+     0 .. 5      ~1/4 of the   one per     one per prior     F[j mod |F|]  nf - np feature
+                 function      input                                       slots (arity 1)
+                 slots
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from . import kernels as K
+from .operators import CONST, HEAD_OPERATORS, IDENT, VAR, by_name
+
+CONSTANTS = (0.0, 0.5, 1.0, 2.0, 3.0, float(np.pi))
+
+
+@dataclass
+class Problem:
+    """The data a run works on (read-only for the kernels)."""
+    y: np.ndarray          # (nt,) training target
+    yc: np.ndarray         # centred target
+    syy: float
+    ckind: np.ndarray      # (m,) constraint relation per constraint column
+    cbound: np.ndarray     # (m,)
+    terminals: np.ndarray  # (n_inputs + n_priors, nt + m): variable and prior rows
+
+
+@dataclass
+class Population:
+    op: np.ndarray       # (P,) int64 operator code per node (fixed for the run)
+    a: np.ndarray        # (P,) int64 first successor (-1: none)
+    b: np.ndarray        # (P,) int64 second successor (-1: none / unary)
+    cval: np.ndarray     # (P,) constant values; head nodes: proxy constant
+    V: np.ndarray        # (2, P, N) cached outputs, two rows per node
+    buf: np.ndarray      # (P,) int64 which row of V is current
+    valid: np.ndarray    # (P,) uint8
+    isconst: np.ndarray  # (P,) uint8 constant on the training columns
+    fit: np.ndarray      # (P,) 1 - |corr(output, y)|
+    lay: np.ndarray      # layout, see kernels.L_*
+    beta: np.ndarray     # (nf + 1,) coefficients of the current model
+    cols: np.ndarray     # (nf + 1,) node per coefficient (-1 intercept, -2 unused)
+    obj: np.ndarray      # (3,) e_d, e_c, score
+
+    def copy(self) -> "Population":
+        return Population(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+
+    def copy_from(self, other: "Population") -> None:
+        for f in fields(self):
+            np.copyto(getattr(self, f.name), getattr(other, f.name))
+
+    @property
+    def identity_nodes(self) -> range:
+        return range(int(self.lay[K.L_ID]), int(self.lay[K.L_P]))
+
+    def current(self, n: int) -> np.ndarray:
+        return self.V[self.buf[n], n]
+
+
+def build_population(functions: tuple[str, ...], population_size: int, n_inputs: int,
+                     n_priors: int, n_identity: int, max_depth: int, nt: int, n_columns: int,
+                     constrained: bool, rng: np.random.Generator,
+                     head_fraction: float = 0.25) -> Population:
+    """An empty (unlinked) population with the layout fixed; links are drawn by the kernel."""
+    n_const = len(CONSTANTS)
+    slots = population_size - n_const - n_inputs - n_priors - n_identity
+    n_head = int(round(head_fraction * slots))
+    n_tail = slots - n_head
+    if n_tail < 2:
+        raise ValueError("population too small for the inputs, priors and features")
+    head_end = n_const + n_head
+    tail0 = head_end + n_inputs + n_priors
+    id0 = tail0 + n_tail
+    P = id0 + n_identity
+    op = np.empty(P, dtype=np.int64)
+    cval = np.zeros(P)
+    op[:n_const] = CONST
+    cval[:n_const] = CONSTANTS
+    for j in range(n_head):
+        op[n_const + j] = by_name(HEAD_OPERATORS[j % len(HEAD_OPERATORS)]).code
+    cval[n_const:head_end] = rng.uniform(-10.0, 10.0, n_head)   # proxies for failed head nodes
+    op[head_end:tail0] = VAR
+    codes = [by_name(f).code for f in functions]
+    for j in range(n_tail):
+        op[tail0 + j] = codes[j % len(codes)]
+    op[id0:] = IDENT
+    lay = np.zeros(9, dtype=np.int64)
+    lay[K.L_HEAD] = head_end
+    lay[K.L_VAR] = head_end
+    lay[K.L_TAIL] = tail0
+    lay[K.L_ID] = id0
+    lay[K.L_P] = P
+    lay[K.L_NPRIOR] = n_priors
+    lay[K.L_NT] = nt
+    lay[K.L_DEPTH] = max_depth
+    lay[K.L_MODE] = 1 if constrained else 0
+    kmax = 1 + n_priors + n_identity
+    return Population(
+        op=op, a=np.full(P, -1, dtype=np.int64), b=np.full(P, -1, dtype=np.int64), cval=cval,
+        V=np.zeros((2, P, n_columns)), buf=np.zeros(P, dtype=np.int64),
+        valid=np.zeros(P, dtype=np.uint8), isconst=np.zeros(P, dtype=np.uint8), fit=np.ones(P),
+        lay=lay, beta=np.zeros(kmax), cols=np.full(kmax, -2, dtype=np.int64), obj=np.zeros(3))
+
+
+def load_terminals(pop: Population, problem: Problem) -> None:
+    t0 = int(pop.lay[K.L_VAR])
+    nterm = problem.terminals.shape[0]
+    pop.V[0, t0:t0 + nterm] = problem.terminals
+    pop.V[1, t0:t0 + nterm] = problem.terminals
+
+
+def init(pop: Population, problem: Problem, seed: int) -> bool:
+    return bool(K.init_population(seed, pop.op, pop.a, pop.b, pop.cval, pop.V, pop.buf, pop.valid,
+                                  pop.isconst, pop.fit, pop.lay, problem.y, problem.yc, problem.syy,
+                                  problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj))
+
+
+def evaluate_all(pop: Population, problem: Problem) -> None:
+    K.evaluate_all(pop.op, pop.a, pop.b, pop.cval, pop.V, pop.buf, pop.valid, pop.isconst,
+                   pop.fit, pop.lay, problem.yc, problem.syy)
+
+
+def run(pop: Population, problem: Problem, seed: int, n_gens: int, identity_only: bool,
+        weight: float, archive, stats: np.ndarray) -> None:
+    arch_obj, arch_a, arch_b, arch_n = archive
+    K.run_chunk(seed, n_gens, identity_only, weight, pop.op, pop.a, pop.b, pop.cval, pop.V,
+                pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, problem.y, problem.yc,
+                problem.syy, problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj,
+                arch_obj, arch_a, arch_b, arch_n, stats)
