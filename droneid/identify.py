@@ -368,14 +368,11 @@ def run_job(job: RunJob) -> dict:
 
 def _expanded(est) -> str:
     """The fitted model with the prior features written out, floats to 4 significant figures."""
-    import sympy as sp
+    from droneid.sngp.model import round_expr, to_text
     expr = getattr(est, "expr_", None)
     if expr is None:
         return str(est.equation_)
-    try:
-        return str(sp.N(expr, 4))
-    except (TypeError, ValueError):  # pragma: no cover - sympy oddities
-        return str(expr)
+    return to_text(round_expr(expr, 4))
 
 
 def _float(v) -> float:
