@@ -65,6 +65,8 @@ class IdentifyConfig:
     ts, method : dataset sampling period (s) and differentiator
     test_fraction : held-out time block when no test flights are given
     quick : whether the quick budget was asked for (informational; the numbers are above)
+    simplify_s : sympy simplification budget per run (s); 0 keeps the raw terms (the study does,
+        since it reports errors only: simplification is a third of a paper-budget run)
     """
     targets: tuple[str, ...] = ("vx_dot", "vy_dot")
     prior: str = "tilt-drag"
@@ -84,6 +86,7 @@ class IdentifyConfig:
     method: str = "forward"
     test_fraction: float = 0.3
     quick: bool = False
+    simplify_s: float = 2.0
 
     @classmethod
     def make(cls, *, quick: bool = False, **given) -> "IdentifyConfig":
@@ -122,6 +125,8 @@ class IdentifyConfig:
                               f"({self.n_features}): prior features count toward the {self.n_features}")
         if self.jobs is not None and (not isinstance(self.jobs, int) or self.jobs < 1):
             raise ConfigError(f"The 'jobs' parameter must be a positive integer. Got {self.jobs!r} instead.")
+        if not (isinstance(self.simplify_s, (int, float)) and 0 <= self.simplify_s < 600):
+            raise ConfigError(f"The 'simplify_s' parameter must be in [0, 600) s. Got {self.simplify_s!r} instead.")
         for name in ("ts", "gamma"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -144,7 +149,7 @@ class IdentifyConfig:
         """Keyword arguments of ``SNGPRegressor`` (without seed/progress)."""
         return {"population_size": int(self.population), "generations": int(self.generations),
                 "n_features": int(self.n_features), "max_depth": int(self.max_depth),
-                "gamma": float(self.gamma)}
+                "gamma": float(self.gamma), "simplify_s": float(self.simplify_s)}
 
 
 # ------------------------------------------------------------------------------------------------
