@@ -10,7 +10,8 @@ Steps, per flight:
 1. **Which part.** ``in_flight="auto"``: the log's ``in_flight`` segments (intersected with
    ``armed`` when both exist); otherwise the ``armed`` segments or the whole log, with ground time
    removed by detection (ground = near the lowest height AND still AND at idle power, using those
-   of z / speed / throttle-thrust-motors the flight has); then everything from a crash on is
+   of z / speed / throttle-thrust-motors the flight has; the height cue only when the log climbs
+   more than ``3 * min_height_m`` above its lowest point); then everything from a crash on is
    dropped (a ``crash`` event, tilt above ``crash_tilt_deg`` held for ``crash_hold_s``, or
    specific force above ``crash_accel`` on two samples within 0.2 s), with ``crash_margin_s``
    before it. ``in_flight="all"`` keeps the whole log. ``time_windows`` (seconds in each flight's
@@ -26,7 +27,7 @@ Steps, per flight:
    target by two differentiations, said in the notes). ``forward`` and ``central`` work on the
    grid (the paper: ``v̇[k] = (v[k+1] − v[k]) / Ts``, the last sample of each interval dropped);
    the smoothing ones (``savgol``, ``spline``) work at the signal's native rate (uniformly
-   resampled) and the derivative is then sampled on the grid.
+   resampled, at most 10 samples per grid step) and the derivative is then sampled on the grid.
 """
 from __future__ import annotations
 
@@ -172,8 +173,10 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
     z = _grid_values(flight, "z", t)
     if z is not None and np.isfinite(z).any():
         z_ground = np.nanpercentile(z, 1)
-        cues.append(np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m)
-        used.append("height")
+        # only a log that climbs well above its lowest point shows where the ground is
+        if np.nanpercentile(z, 99) - z_ground > 3 * p.min_height_m:
+            cues.append(np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m)
+            used.append("height")
     power = None
     for name in ("throttle", "thrust"):
         power = _grid_values(flight, name, t)
@@ -189,7 +192,7 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
             cues.append(np.nan_to_num(power, nan=0.0) < p.idle_fraction * top)
             used.append("power")
     if not cues:
-        return None, "no height or power signal: ground time not detected"
+        return None, "no power signal and no climb from a lowest height: ground time not detected"
     if flight.has("vx", "vy", "vz"):
         v = np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
         cues.append(np.nan_to_num(v, nan=0.0) < p.still_speed)
@@ -410,7 +413,8 @@ class DatasetBuilder:
         for k, f in enumerate(prepared):
             cols, y, t, fnotes = self._build_one(f, diff, windows, source, inputs, extras,
                                                  explicit_extras)
-            notes.extend(f"{sources[k]}: {n}" for n in prep_notes[k] + fnotes)
+            notes.extend(f"{sources[k]}: {n}" for n in
+                         [*(f"log: {n}" for n in f.provenance.notes), *prep_notes[k], *fnotes])
             parts.append((k, cols, y, t))
         n_total = sum(p[2].size for p in parts)
         if n_total == 0:
@@ -518,9 +522,10 @@ class DatasetBuilder:
     def _differentiate(sig: Signal, grid, diff, a, b, order: int):
         angle = _is_angle(sig)
         if diff.smoothing:
-            # at the native rate (uniform), then sampled on the grid
-            h = min(float(np.median(np.diff(sig.t))) if len(sig) > 1 else grid[1] - grid[0],
-                    float(grid[1] - grid[0]))
+            # at the native rate (uniform; at most 10 steps per grid step), then on the grid
+            ts = float(grid[1] - grid[0])
+            native = float(np.median(np.diff(sig.t))) if len(sig) > 1 else ts
+            h = min(max(native, ts / 10), ts)
             fine = a + h * np.arange(int(math.floor((b - a) / h + 1e-9)) + 1)
             v = _unwrapped(sig, fine) if angle else resample_signal(sig, fine)
             for _ in range(order):

@@ -29,13 +29,12 @@ All randomness comes from ``numpy.random.default_rng(SeedSequence(seed))`` child
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
 from dataclasses import dataclass
 from types import MappingProxyType
 
 import numpy as np
 
-from .errors import ConfigError, did_you_mean
+from .errors import ConfigError, check_choice, did_you_mean
 from .flight import Flight, Provenance, Signal, canonical_unit
 from .frames import euler_to_matrix, euler_to_quat, wrap_angle
 
@@ -67,6 +66,16 @@ EFFECTS = MappingProxyType({
     # drag coefficients along body x, body y and body z (1/s), replacing the isotropic k_D
     "anisotropic_drag": {"kx": 0.15, "ky": 0.45, "kz": 0.28},
 })
+
+# (effect, param) -> (lower bound, inclusive)
+_EFFECT_MIN = {
+    ("quadratic_drag", "c"): (0.0, True), ("gust", "sigma"): (0.0, True), ("gust", "tau_s"): (0.0, False),
+    ("ground_effect", "rotor_radius_m"): (0.0, False), ("ground_effect", "altitude_m"): (0.0, False),
+    ("battery_sag", "v_start"): (0.0, False), ("battery_sag", "v_end"): (0.0, False),
+    ("attitude_delay", "tau_s"): (0.0, True), ("thrust_variation", "period_s"): (0.0, False),
+    ("anisotropic_drag", "kx"): (0.0, True), ("anisotropic_drag", "ky"): (0.0, True),
+    ("anisotropic_drag", "kz"): (0.0, True),
+}
 
 #: keyword parameters of :func:`simulate` (besides path, duration_s, rate_hz, effects, seed, noise)
 DEFAULT_PARAMS = MappingProxyType({
@@ -159,6 +168,10 @@ def parse_effects(effects) -> dict:
         for k, v in spec.items():
             if not math.isfinite(v):
                 raise ConfigError(f"effect '{eid}' parameter '{k}' must be finite, got {v}")
+            lo = _EFFECT_MIN.get((eid, k))
+            if lo is not None and not (v > lo[0] or (lo[1] and v == lo[0])):
+                raise ConfigError(f"effect '{eid}' parameter '{k}' must be {'>=' if lo[1] else '>'} "
+                                  f"{lo[0]}, got {v}")
         out[eid] = spec
     return out
 
@@ -218,9 +231,9 @@ def _reference(path, t, P, rng, total_s):
             wp = rng.uniform(-size, size, size=(n_seg + 1, 2))
             wp[0] = 0.0
         segs = np.full(n_seg, float(period))
-        if path == "random":  # time per segment grows with its length (about 1 m/s average)
+        if path == "random":  # time per segment grows with its length (min-jerk peak speed <= 1 m/s)
             dist = np.linalg.norm(np.diff(wp, axis=0), axis=1)
-            segs = np.maximum(period, dist / 1.0 * 1.875)
+            segs = np.maximum(period, 1.875 * dist / 1.0)
         pp, vv, aa = _min_jerk_path(wp, segs, t)
         p[:, :2], v[:, :2], a[:, :2] = pp, vv, aa
     elif path == "hover":
@@ -249,27 +262,33 @@ class _Dyn:
         ge = eff.get("ground_effect")
         self.ge_r = ge["rotor_radius_m"] if ge else 0.0
 
-    def rhs(self, s, ref, wind, gain_batt):
-        """Derivative of the state and auxiliaries (world accel, thrust, throttle, ...)."""
+    def command(self, s, ref):
+        """The controller (it knows the nominal drag only, no wind): roll and pitch set-points
+        and the vertical thrust per unit mass ``fz``."""
         (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s
-        (rpx, rpy, rpz, rvx, rvy, rvz, rax, ray, raz, ryaw, ryawd) = ref
-        P = self.P
-        g, kd = self.g, self.kd
-        # --- controller (knows nominal drag only, no wind) ---
-        ex, ey, ez = rpx - px, rpy - py, rpz - pz
-        fx = rax + P["kp"] * ex + P["kd"] * (rvx - vx) + P["ki"] * ix + kd * vx
-        fy = ray + P["kp"] * ey + P["kd"] * (rvy - vy) + P["ki"] * iy + kd * vy
-        fz = raz + P["kp_z"] * ez + P["kd_z"] * (rvz - vz) + P["ki_z"] * iz + kd * vz + g
+        (rpx, rpy, rpz, rvx, rvy, rvz, rax, ray, raz, _, _) = ref
+        P, g, kd = self.P, self.g, self.kd
+        fx = rax + P["kp"] * (rpx - px) + P["kd"] * (rvx - vx) + P["ki"] * ix + kd * vx
+        fy = ray + P["kp"] * (rpy - py) + P["kd"] * (rvy - vy) + P["ki"] * iy + kd * vy
+        fz = raz + P["kp_z"] * (rpz - pz) + P["kd_z"] * (rvz - vz) + P["ki_z"] * iz + kd * vz + g
         fz = max(fz, 0.2 * g)
         cy, sy = math.cos(y), math.sin(y)
         fxb = cy * fx + sy * fy          # desired thrust vector in the yaw frame
         fyb = -sy * fx + cy * fy
         fn = math.sqrt(fxb * fxb + fyb * fyb + fz * fz)
-        r_d = math.asin(max(-1.0, min(1.0, -fyb / fn)))
-        p_d = math.atan2(fxb, fz)
         mt = self.max_tilt
-        r_d = max(-mt, min(mt, r_d))
-        p_d = max(-mt, min(mt, p_d))
+        r_d = max(-mt, min(mt, math.asin(max(-1.0, min(1.0, -fyb / fn)))))
+        p_d = max(-mt, min(mt, math.atan2(fxb, fz)))
+        return r_d, p_d, fz
+
+    def rhs(self, s, ref, wind, gain_batt):
+        """Derivative of the state and auxiliaries (world accel, thrust, throttle, ...)."""
+        (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s
+        (rpx, rpy, rpz, rvx, rvy, rvz, rax, ray, raz, ryaw, ryawd) = ref
+        g, kd = self.g, self.kd
+        ex, ey, ez = rpx - px, rpy - py, rpz - pz
+        r_d, p_d, fz = self.command(s, ref)
+        cy, sy = math.cos(y), math.sin(y)
         cr, sr, cp, sp = math.cos(r), math.sin(r), math.cos(p), math.sin(p)
         t_cmd = self.m * fz / (cr * cp)
         throttle = max(0.0, min(1.0, t_cmd / self.tmax))
@@ -401,7 +420,6 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     ``model`` (RMSE of the paper's model against the exact Z-Y-X hover geometry and against the
     true accelerations, both on the true states).
     """
-    from .errors import check_choice
     check_choice("path", path, PATHS, owner="simulate")
     P = _check_params(params, path)
     eff = parse_effects(effects)
@@ -469,7 +487,7 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
             g0 /= (1 - q * q)
         s0[11] = (1.0 / g0 - 1.0) * P["g"] / P["ki_z"]
     for _ in range(30):
-        s0[6], s0[7] = _setpoint(dyn, s0, refs[0])
+        s0[6], s0[7], _ = dyn.command(s0, refs[0])
     states, derivs, auxs = _rk4(dyn, s0, refs, wind.tolist(), gains.tolist(), n_steps, dt)
 
     # ---- sample at log times ----
@@ -582,20 +600,6 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
         },
     }
     return SimResult(flight, truth)
-
-
-def _setpoint(dyn, s, ref):
-    """The controller's roll/pitch set-point at state s (used to start in steady tracking)."""
-    (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s
-    (rpx, rpy, rpz, rvx, rvy, rvz, rax, ray, raz, ryaw, ryawd) = ref
-    P, kd, g = dyn.P, dyn.kd, dyn.g
-    fx = rax + P["kp"] * (rpx - px) + P["kd"] * (rvx - vx) + kd * vx
-    fy = ray + P["kp"] * (rpy - py) + P["kd"] * (rvy - vy) + kd * vy
-    fz = raz + g + kd * vz
-    cy, sy = math.cos(y), math.sin(y)
-    fxb, fyb = cy * fx + sy * fy, -sy * fx + cy * fy
-    fn = math.sqrt(fxb * fxb + fyb * fyb + fz * fz)
-    return math.asin(-fyb / fn), math.atan2(fxb, fz)
 
 
 def _round(x, nd: int = 9):

@@ -40,22 +40,23 @@ def get_reader(name: str) -> Callable[..., Flight]:
 
 
 def _looks_like_tlog(head: bytes) -> bool:
-    """At least two MAVLink frames, each after an 8-byte big-endian µs timestamp."""
-    pos, frames = 0, 0
-    while pos + 10 <= len(head) and frames < 3:
+    """MAVLink frames, each after an 8-byte big-endian µs UNIX time stamp, make up most of the
+    head of the file (a few garbage bytes are tolerated; the reader counts them)."""
+    pos, frames, garbage = 0, 0, 0
+    n = len(head)
+    while pos + 10 <= n:
         magic = head[pos + 8]
-        if magic == 0xFE:
-            ln = head[pos + 9] + 8
-        elif magic == 0xFD:
-            ln = head[pos + 9] + 12 + (13 if pos + 10 < len(head) and head[pos + 10] & 1 else 0)
-        else:
-            return False
         ts = int.from_bytes(head[pos:pos + 8], "big")
-        if not (946684800_000000 < ts < 4102444800_000000):  # 2000 .. 2100 in µs
-            return False
-        frames += 1
-        pos += 8 + ln
-    return frames >= 2 or (frames == 1 and pos >= len(head))
+        if magic in (0xFE, 0xFD) and 946684800_000000 < ts < 4102444800_000000:  # 2000..2100
+            ln = head[pos + 9] + (8 if magic == 0xFE else 12)
+            if magic == 0xFD and pos + 10 < n and head[pos + 10] & 1:
+                ln += 13
+            frames += 1
+            pos += 8 + ln
+        else:
+            pos += 1
+            garbage += 1
+    return frames >= 1 and garbage <= 0.25 * max(pos, 1) and (frames >= 2 or n < 64)
 
 
 def _csv_kind(head: bytes) -> str | None:

@@ -8,7 +8,6 @@ and turns boolean "armed" samples into segments.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -165,9 +164,3 @@ class FlightBuilder:
         diag = Diagnostics(self.skipped, tuple(self.warnings))
         return Flight(self.signals, prov, diag, self.segments, tuple(self.events))
 
-
-def first_finite(*values) -> float:
-    for v in values:
-        if v is not None and math.isfinite(v):
-            return float(v)
-    return math.nan

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from droneid.errors import DataError
-from droneid.frames import unwrap_angle, wrap_angle
+from droneid.flight import Signal
+from droneid.frames import euler_to_quat, quat_to_euler, unwrap_angle, wrap_angle
 
 #: fixed epoch of written logs (2024-01-01 00:00:00 UTC): outputs never depend on the clock
 EPOCH_S = 1_704_067_200
@@ -45,3 +46,21 @@ def group(flight, names, required=None):
 def require_some(flight, path, what):
     if not flight.signals:
         raise DataError(f"cannot write {path}: the flight has no signals ({what})")
+
+
+def complete_attitude(flight):
+    """The flight with Euler angles derived from the quaternion, or the quaternion from the
+    Euler angles, where only one of them is present (formats need both)."""
+    euler, quat = ("roll", "pitch", "yaw"), ("qw", "qx", "qy", "qz")
+    if flight.has(*quat) and not flight.has(*euler):
+        t, v = group(flight, quat)
+        r, p, y = quat_to_euler(np.column_stack([v[n] for n in quat]))
+        return flight.with_signals(*(Signal(n, t, a, "rad", "derived from qw..qz")
+                                     for n, a in zip(euler, (r, p, y))))
+    if flight.has(*euler) and not flight.has(*quat):
+        t, v = group(flight, euler)
+        q = euler_to_quat(v["roll"], v["pitch"], v["yaw"])
+        q = np.where(q[:, :1] < 0, -q, q)
+        return flight.with_signals(*(Signal(n, t, q[:, k], "1", "derived from roll/pitch/yaw")
+                                     for k, n in enumerate(quat)))
+    return flight

@@ -31,6 +31,7 @@ from operator import attrgetter
 import numpy as np
 
 from droneid.errors import LogFormatError
+from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
@@ -45,6 +46,8 @@ MESSAGE_TYPES = ("ATT", "EKF1", "NKF1", "XKF1", "IMU", "RCOU", "CTUN", "CURR", "
 
 _EV_ARMED, _EV_DISARMED, _EV_LAND_COMPLETE, _EV_NOT_LANDED = 10, 11, 18, 28
 _ERR_CRASH = 12
+_EV_NAMES = {15: "auto armed", 17: "land complete maybe", 19: "lost GPS", 21: "flip start",
+             22: "flip end", 25: "home set"}
 _DEG = math.pi / 180.0
 
 # fields wanted per type (those a given log lacks are ignored)
@@ -93,8 +96,11 @@ class _TypeRows:
         else:
             self.time_field = None
         self.fields = tuple(f for f in _WANT[mtype] if f in columns)
-        self.get = attrgetter(*self.fields) if len(self.fields) > 1 else (
-            (lambda m, g=attrgetter(self.fields[0]): (g(m),)) if self.fields else (lambda m: ()))
+        if len(self.fields) > 1:
+            self.get = attrgetter(*self.fields)           # returns a tuple
+        else:
+            one = attrgetter(*self.fields) if self.fields else (lambda m: None)
+            self.get = lambda m: (one(m),)
         self.rows: list = []
         self.times: list = []
 
@@ -181,7 +187,7 @@ def _instance0(t, cols, key):
     return t, cols
 
 
-def read_dataflash(path) -> object:
+def read_dataflash(path) -> Flight:
     """Read an ArduPilot DataFlash ``.bin`` log into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     b = FlightBuilder(path, "dataflash")
@@ -234,7 +240,7 @@ def read_dataflash(path) -> object:
     if "RCOU" in data:
         t, c = data["RCOU"]
         for f, v in c.items():
-            n = int(f.lstrip("Ch").lstrip("C"))
+            n = int(re.sub(r"^Ch?", "", f))
             if np.any(v > 0):
                 b.add(f"motor{n}", t, pwm_to_unit(v), "1", f"RCOU.{f}")
 
@@ -253,9 +259,11 @@ def read_dataflash(path) -> object:
         volt, curr = c["Volt"], c.get("Curr")
         finite = volt[np.isfinite(volt)]
         scale = 100.0 if finite.size and np.median(finite) > 100.0 else 1.0
-        b.add("battery_voltage", t, volt / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
-        if curr is not None:
-            b.add("battery_current", t, curr / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
+        ok = volt > 0          # 0 V: no battery monitor configured
+        b.skip(f"{bat}.Volt is 0 (no battery monitor)", int((~ok).sum()))
+        b.add("battery_voltage", t[ok], volt[ok] / scale, "V", f"{bat}.Volt" + (" / 100" if scale > 1 else ""))
+        if curr is not None and ok.any():
+            b.add("battery_current", t[ok], curr[ok] / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
 
     if "GPS" in data:
         t, c = _instance0(*data["GPS"], "I")
@@ -325,7 +333,7 @@ def _events(b: FlightBuilder, data, types):
                 air_t.append(ti), air_v.append(False)
                 b.event(ti, "land")
             else:
-                b.event(ti, "event", f"EV {i}")
+                b.event(ti, "event", _EV_NAMES.get(i, f"EV {i}"))
     if "ARM" in data and not arm_t:
         t, c = data["ARM"]
         for ti, s in zip(t, c["ArmState"]):
@@ -355,8 +363,15 @@ def _state_intervals(t, v, end):
 
 def _tilt_crash(b: FlightBuilder, crash_t):
     """A 'crash' event where the vehicle, armed, tilts beyond 90 deg (flipped over)."""
-    if crash_t is not None or not ("roll" in b.signals and "pitch" in b.signals):
-        return
+    if crash_t is None and "roll" in b.signals and "pitch" in b.signals:
+        crash_t = _flip_time(b)
+    if crash_t is not None and "in_flight" in b.segments:
+        # the flight ends at the crash: what follows is tumbling or lying on the ground
+        b.segment("in_flight", tuple((a, min(c, crash_t)) for a, c in b.segments["in_flight"]
+                                     if a < crash_t))
+
+
+def _flip_time(b: FlightBuilder):
     r, p = b.signals["roll"], b.signals["pitch"]
     n = min(len(r), len(p))
     tilt_cos = np.cos(r.values[:n]) * np.cos(p.values[:n])
@@ -368,6 +383,8 @@ def _tilt_crash(b: FlightBuilder, crash_t):
         for a, c in armed:
             in_arm |= (t >= a) & (t <= c)
         mask &= in_arm
-    if mask.any():
-        i = int(np.flatnonzero(mask)[0])
-        b.event(t[i], "crash", "attitude beyond 90 deg tilt while armed (flipped over)")
+    if not mask.any():
+        return None
+    i = int(np.flatnonzero(mask)[0])
+    b.event(t[i], "crash", "attitude beyond 90 deg tilt while armed (flipped over)")
+    return float(t[i])

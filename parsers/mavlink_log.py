@@ -2,7 +2,8 @@
 frame, repeated) -> :class:`Flight`.
 
 Frames are split here and only the wanted message ids are decoded with pymavlink's
-``ardupilotmega`` v2 dialect (which also decodes v1 frames). Bad CRCs, unknown ids, garbage bytes
+``ardupilotmega`` v2 dialect (which also decodes v1 frames); of each decoded message only the
+fields in :data:`FIELDS` are kept, as numbers, so no message objects outlive the loop. Bad CRCs, unknown ids, garbage bytes
 and a frame cut by the end of the file are skipped and counted.
 
 Vehicle: several systems share a tlog (the GCS sends HEARTBEATs too, radios send RADIO_STATUS).
@@ -29,21 +30,49 @@ from __future__ import annotations
 import logging
 import os
 import re
+from operator import attrgetter
+from types import SimpleNamespace
 
 import numpy as np
 
 from droneid.errors import LogFormatError
+from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
 
 log = logging.getLogger(__name__)
 
-__all__ = ["read_tlog", "MESSAGE_NAMES", "iter_frames"]
+__all__ = ["read_tlog", "MESSAGE_NAMES", "FIELDS", "iter_frames"]
 
 MESSAGE_NAMES = ("HEARTBEAT", "ATTITUDE", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED",
                  "GLOBAL_POSITION_INT", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU", "SERVO_OUTPUT_RAW",
                  "VFR_HUD", "SYS_STATUS", "BATTERY_STATUS", "EXTENDED_SYS_STATE", "STATUSTEXT")
+
+_IMU_FIELDS = ("xacc", "yacc", "zacc", "xgyro", "ygyro", "zgyro")
+#: message -> fields kept (as numbers) when the frame is decoded; nothing else is stored
+FIELDS = {
+    "HEARTBEAT": ("type", "autopilot", "base_mode", "custom_mode"),
+    "ATTITUDE": ("roll", "pitch", "yaw", "rollspeed", "pitchspeed", "yawspeed"),
+    "ATTITUDE_QUATERNION": ("q1", "q2", "q3", "q4"),
+    "LOCAL_POSITION_NED": ("x", "y", "z", "vx", "vy", "vz"),
+    "GLOBAL_POSITION_INT": ("lat", "lon", "alt", "vx", "vy", "vz"),
+    "HIGHRES_IMU": _IMU_FIELDS, "SCALED_IMU": _IMU_FIELDS, "RAW_IMU": _IMU_FIELDS,
+    "SERVO_OUTPUT_RAW": ("port",) + tuple(f"servo{i}_raw" for i in range(1, 17)),
+    "VFR_HUD": ("throttle",),
+    "SYS_STATUS": ("voltage_battery", "current_battery"),
+    "BATTERY_STATUS": ("voltage0", "current_battery"),
+    "EXTENDED_SYS_STATE": ("landed_state",),
+    "STATUSTEXT": ("text",),
+}
+
+
+def _getter(name):
+    if name == "BATTERY_STATUS":
+        return lambda m: (m.voltages[0], m.current_battery)
+    fields = FIELDS[name]
+    return attrgetter(*fields) if len(fields) > 1 else (lambda m, f=fields[0]: (getattr(m, f),))
+
 
 # MAV_TYPE values that are not a vehicle
 _NOT_VEHICLE = {0, 5, 6, 18, 26, 27, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42}
@@ -101,7 +130,7 @@ def iter_frames(data: bytes, counts: dict):
         counts["garbage bytes between frames"] = counts.get("garbage bytes between frames", 0) + garbage
 
 
-def read_tlog(path, sysid: int | None = None):
+def read_tlog(path, sysid: int | None = None) -> Flight:
     """Read a MAVLink ``.tlog`` into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     mav = _dialect()
@@ -110,6 +139,7 @@ def read_tlog(path, sysid: int | None = None):
     if not data:
         raise LogFormatError(path, "the file is empty")
     ids = {getattr(mav, f"MAVLINK_MSG_ID_{name}"): name for name in MESSAGE_NAMES}
+    getters = {name: _getter(name) for name in MESSAGE_NAMES}
     parser = mav.MAVLink(None)
     counts: dict[str, int] = {}
     rows: dict[tuple[int, str], list] = {}
@@ -130,7 +160,7 @@ def read_tlog(path, sysid: int | None = None):
             counts[reason] = counts.get(reason, 0) + 1
             continue
         key = (m.get_srcSystem(), name)
-        rows.setdefault(key, []).append(m)
+        rows.setdefault(key, []).append(getters[name](m))
         times.setdefault(key, []).append(t_us)
     if n_frames == 0:
         raise LogFormatError(path, "no MAVLink frames found (not a tlog, or corrupt from the start)")
@@ -140,7 +170,7 @@ def read_tlog(path, sysid: int | None = None):
     vid = _vehicle_sysid(rows, sysid, path)
     msgs = {name: (np.asarray(times[(s, name)], float) - t_first) * 1e-6
             for (s, name) in rows if s == vid}
-    get = {name: rows[(vid, name)] for name in msgs}
+    get = {name: _table(name, rows[(vid, name)]) for name in msgs}
     _convert(b, msgs, get)
     return b.build()
 
@@ -156,7 +186,7 @@ def _vehicle_sysid(rows, sysid, path) -> int:
     for (s, name), ms in rows.items():
         if name != "HEARTBEAT":
             continue
-        n = sum(1 for m in ms if m.type not in _NOT_VEHICLE and m.autopilot != _MAV_AUTOPILOT_INVALID)
+        n = sum(1 for typ, autopilot, *_ in ms if typ not in _NOT_VEHICLE and autopilot != _MAV_AUTOPILOT_INVALID)
         if n > n_best:
             best, n_best = s, n
     if best is None:
@@ -170,22 +200,28 @@ def _vehicle_sysid(rows, sysid, path) -> int:
     return int(best)
 
 
-def _col(ms, attr, scale=1.0):
-    return np.fromiter((getattr(m, attr) for m in ms), float, len(ms)) * scale
+def _table(name: str, rows: list) -> dict:
+    """Field tuples of one message type -> {field: column} (numbers as float arrays)."""
+    cols = {}
+    for f, col in zip(FIELDS[name], zip(*rows)):
+        cols[f] = np.asarray(col, dtype=object if name == "STATUSTEXT" else float)
+    return cols
+
+
+def _col(tab, field, scale=1.0):
+    return tab[field] * scale
 
 
 def _convert(b: FlightBuilder, t, get):
     rad = dict.fromkeys(("roll", "pitch", "yaw"), "rad")
     if "STATUSTEXT" in get:
-        for m in get["STATUSTEXT"]:
-            text = str(m.text)
+        for text in get["STATUSTEXT"]["text"]:
+            text = str(text)
             if b.firmware is None and re.search(r"(Copter|Plane|Rover|Sub|PX4)\S*\s*V?\d", text):
                 b.firmware = text.strip()
             fm = re.match(r"Frame:\s*(\S+)", text)
             if fm:
                 b.vehicle = fm.group(1).lower()
-    if "HEARTBEAT" in get:
-        _heartbeat(b, t["HEARTBEAT"], get["HEARTBEAT"])
     if "ATTITUDE" in get:
         ms, tt = get["ATTITUDE"], t["ATTITUDE"]
         r, p, y = euler_frd_ned_to_flu_enu(_col(ms, "roll"), _col(ms, "pitch"), _col(ms, "yaw"))
@@ -220,12 +256,10 @@ def _convert(b: FlightBuilder, t, get):
     _imu(b, t, get)
     if "SERVO_OUTPUT_RAW" in get:
         ms, tt = get["SERVO_OUTPUT_RAW"], t["SERVO_OUTPUT_RAW"]
-        port0 = np.fromiter((getattr(m, "port", 0) == 0 for m in ms), bool, len(ms))
+        port0 = ms["port"] == 0
         for i in range(1, 17):
             attr = f"servo{i}_raw"
-            if not hasattr(ms[0], attr):
-                break
-            v = _col(ms, attr)[port0]
+            v = ms[attr][port0]
             if np.any(v > 0):
                 b.add(f"motor{i}", tt[port0], pwm_to_unit(v), "1", f"SERVO_OUTPUT_RAW.{attr}")
     if "VFR_HUD" in get:
@@ -236,6 +270,8 @@ def _convert(b: FlightBuilder, t, get):
         landed = _col(ms, "landed_state")
         if np.any(landed > 0):  # 0 = undefined
             b.segment("in_flight", intervals_from_bool(tt, landed == 2))
+    if "HEARTBEAT" in get:      # last: the armed interval may run to the last sample of any signal
+        _heartbeat(b, t["HEARTBEAT"], get["HEARTBEAT"])
     b.in_flight_from_height()
 
 
@@ -272,7 +308,7 @@ def _battery(b, t, get):
             b.add("battery_current", tt[ok], c[ok] * 1e-2, "A", "SYS_STATUS.current_battery / 100")
     if "battery_voltage" not in b.signals and "BATTERY_STATUS" in get:
         ms, tt = get["BATTERY_STATUS"], t["BATTERY_STATUS"]
-        v = np.fromiter((m.voltages[0] for m in ms), float, len(ms))
+        v = ms["voltage0"]
         ok = (v > 0) & (v < 65535)
         if ok.any():
             b.add("battery_voltage", tt[ok], v[ok] * 1e-3, "V", "BATTERY_STATUS.voltages[0] / 1000")
@@ -282,35 +318,38 @@ def _battery(b, t, get):
             b.add("battery_current", tt[ok], c[ok] * 1e-2, "A", "BATTERY_STATUS.current_battery / 100")
 
 
-def _heartbeat(b: FlightBuilder, tt, ms):
-    valid = np.fromiter((m.type not in _NOT_VEHICLE for m in ms), bool, len(ms))
+def _heartbeat(b: FlightBuilder, tt, hb):
+    valid = ~np.isin(hb["type"], list(_NOT_VEHICLE))
     if not valid.any():
         return
     tt = tt[valid]
-    ms = [m for m, ok in zip(ms, valid) if ok]
-    m0 = ms[0]
-    b.vehicle = b.vehicle or _VEHICLE_NAMES.get(m0.type, f"MAV_TYPE {m0.type}")
-    if b.firmware is None and m0.autopilot in _AUTOPILOT_NAMES:
-        b.firmware = _AUTOPILOT_NAMES[m0.autopilot]
-    armed = np.fromiter((bool(m.base_mode & _MAV_MODE_FLAG_SAFETY_ARMED) for m in ms), bool, len(ms))
+    typ, autopilot = hb["type"][valid].astype(int), hb["autopilot"][valid].astype(int)
+    base, custom = hb["base_mode"][valid].astype(int), hb["custom_mode"][valid].astype(int)
+    b.vehicle = b.vehicle or _VEHICLE_NAMES.get(typ[0], f"MAV_TYPE {typ[0]}")
+    if b.firmware is None and autopilot[0] in _AUTOPILOT_NAMES:
+        b.firmware = _AUTOPILOT_NAMES[autopilot[0]]
+    armed = (base & _MAV_MODE_FLAG_SAFETY_ARMED) != 0
     end = max((s.end_s for s in b.signals.values()), default=float(tt[-1]))
     b.segment("armed", intervals_from_bool(tt, armed, end_s=max(end, float(tt[-1]))))
     prev_armed = None
     prev_mode = None
-    for ti, m, a in zip(tt, ms, armed):
+    for i, ti in enumerate(tt):
+        a = bool(armed[i])
         if a != prev_armed:
             if prev_armed is not None or a:
                 b.event(ti, "armed" if a else "disarmed")
             prev_armed = a
-        mode = _mode_string(m)
+        mode = _mode_string(int(typ[i]), int(autopilot[i]), int(base[i]), int(custom[i]))
         if mode != prev_mode:
             b.event(ti, "mode", mode)
             prev_mode = mode
 
 
-def _mode_string(m) -> str:
+def _mode_string(typ: int, autopilot: int, base_mode: int, custom_mode: int) -> str:
+    hb = SimpleNamespace(type=typ, autopilot=autopilot, base_mode=base_mode, custom_mode=custom_mode,
+                         get_type=lambda: "HEARTBEAT")
     try:
         from pymavlink import mavutil
-        return str(mavutil.mode_string_v10(m))
+        return str(mavutil.mode_string_v10(hb))
     except Exception:  # pragma: no cover - cosmetic
-        return f"custom_mode {m.custom_mode}"
+        return f"custom_mode {custom_mode}"

@@ -16,8 +16,8 @@ rc         std_msgs/msg/UInt16MultiArray on a topic named *joy*/*rc*   rc1..rcN 
 =========  =========================================================  =========================
 
 Frames: ROS data follow REP-103 (world ENU, body FLU), the internal convention, so nothing is
-rotated, except a ``frame_id`` ending in ``ned`` (REP-105 ``*_ned`` frames: converted NED->ENU,
-FRD->FLU). The frame_ids seen are listed in the provenance notes. With several candidate topics
+rotated, except a ``frame_id`` ending in ``ned`` or ``frd`` (REP-105 ``*_ned`` world and ``*_frd``
+body frames: converted NED->ENU, FRD->FLU). The frame_ids seen are listed in the provenance notes. With several candidate topics
 for a role, the one with the most messages is used and the others named in a warning.
 ROS ``BatteryState.current`` is negative while discharging; droneid's battery_current is positive
 while discharging, so its sign is flipped.
@@ -31,10 +31,12 @@ import json
 import logging
 import os
 import re
+import struct
 
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
+from droneid.flight import Flight
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler, quat_to_matrix
 
 from ._build import FlightBuilder
@@ -92,13 +94,14 @@ def _pick_topics(path, channels, schemas, counts, overrides, b):
             if len(cands) > 1:
                 b.warn(f"several {role} topics ({', '.join(cands)}): using {cands[0]} "
                        f"(choose with --topic {role}=TOPIC)")
-    if "odom" in chosen and "pose" in chosen and overrides and "odom" in overrides and "pose" not in overrides:
-        del chosen["pose"]
     return chosen
 
 
-def read_mcap(path, topics=None):
-    """Read a ROS 2 MCAP file into a :class:`Flight` (see the module doc)."""
+def read_mcap(path, topics=None, *, _fast: bool = True) -> Flight:
+    """Read a ROS 2 MCAP file into a :class:`Flight` (see the module doc).
+
+    Header-first geometry messages in CDR are decoded straight into numpy (``_fast``; falls back
+    to mcap-ros2's decoder for anything else, and tests compare both)."""
     path = os.fspath(path)
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
@@ -114,7 +117,8 @@ def read_mcap(path, topics=None):
             summary = reader.get_summary()
         except (McapError, Exception) as exc:  # noqa: BLE001 - mcap raises several types
             summary = None
-            b.warn(f"no usable MCAP summary ({type(exc).__name__}: {exc}); scanning the whole file")
+            b.warn(f"no MCAP summary ({type(exc).__name__}); the file is probably cut: "
+                   f"scanning it record by record")
         channels, schemas, counts = _channels(path, f, summary, factories)
         if not channels:
             raise LogFormatError(path, "the MCAP file holds no channels")
@@ -124,7 +128,7 @@ def read_mcap(path, topics=None):
                                      for c in channels.values()))
             raise LogFormatError(path, f"no topic with a known schema (PoseStamped, TwistStamped, "
                                        f"Odometry, Imu, BatteryState); topics: {names}")
-        rows = _read_messages(path, f, factories, chosen, b)
+        rows = _read_messages(path, f, factories, chosen, b, fast=_fast)
     _convert(b, rows, chosen)
     return b.build()
 
@@ -150,103 +154,168 @@ def _channels(path, f, summary, factories):
     return channels, schemas, counts
 
 
-def _iter_decoded(path, f, factories, topic_list, b):
-    """(channel, log_time_ns, decoded message) for the chosen topics, surviving a cut file."""
-    from mcap.reader import make_reader
+_P, _Q = ("position",), ("orientation",)
+_XYZ, _XYZW = ("x", "y", "z"), ("x", "y", "z", "w")
+
+
+def _paths(prefix, names):
+    return [prefix + (n,) for n in names]
+
+
+#: schema -> field paths giving one float vector per message (role order, see _convert)
+_FIELDS = {
+    "geometry_msgs/msg/PoseStamped": _paths(("pose", "position"), _XYZ) + _paths(("pose", "orientation"), _XYZW),
+    "geometry_msgs/msg/PoseWithCovarianceStamped": _paths(("pose", "pose", "position"), _XYZ)
+    + _paths(("pose", "pose", "orientation"), _XYZW),
+    "geometry_msgs/msg/TwistStamped": _paths(("twist", "linear"), _XYZ) + _paths(("twist", "angular"), _XYZ),
+    "nav_msgs/msg/Odometry": _paths(("pose", "pose", "position"), _XYZ)
+    + _paths(("pose", "pose", "orientation"), _XYZW) + _paths(("twist", "twist", "linear"), _XYZ)
+    + _paths(("twist", "twist", "angular"), _XYZ),
+    "sensor_msgs/msg/Imu": _paths(("angular_velocity",), _XYZ) + _paths(("linear_acceleration",), _XYZ),
+    "sensor_msgs/msg/BatteryState": [("voltage",), ("current",)],
+}
+#: schema -> (has a child_frame_id string after the header, float64 indices after the header)
+#: for decoding CDR directly into numpy (the layout is fixed by the message definitions)
+_FAST_CDR = {
+    "geometry_msgs/msg/PoseStamped": (False, list(range(7))),
+    "geometry_msgs/msg/PoseWithCovarianceStamped": (False, list(range(7))),
+    "geometry_msgs/msg/TwistStamped": (False, list(range(6))),
+    "nav_msgs/msg/Odometry": (True, list(range(7)) + list(range(43, 49))),
+    "sensor_msgs/msg/Imu": (False, [13, 14, 15, 25, 26, 27]),
+}
+
+
+def _cdr_fast(data: bytes, child: bool, idx: list):
+    """(stamp_ns, frame_id, float vector) from a CDR message with a std_msgs/Header first."""
+    if len(data) < 16 or data[0] != 0:
+        raise ValueError("not plain CDR")
+    e = "<" if data[1] & 1 else ">"
+    sec, nsec, slen = struct.unpack_from(e + "iII", data, 4)
+    pos = 16 + slen
+    frame = data[16:16 + max(slen - 1, 0)].decode("utf-8", "replace")
+    if child:
+        pos = 4 + ((pos - 4 + 3) & ~3)
+        (clen,) = struct.unpack_from(e + "I", data, pos)
+        pos += 4 + clen
+    pos = 4 + ((pos - 4 + 7) & ~7)
+    n = max(idx) + 1
+    if pos + 8 * n > len(data):
+        raise ValueError("CDR message too short")
+    vec = np.frombuffer(data, dtype=e + "f8", count=n, offset=pos)[idx]
+    return sec * 1_000_000_000 + nsec, frame, vec
+
+
+def _iter_records(f, topic_list, b):
+    """(channel, schema, Message record) for the chosen topics, in file order.
+
+    Streams the records (no index needed), so a file cut anywhere yields everything before
+    the cut; the cut is counted.
+    """
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+    wanted = set(topic_list)
+    schemas, channels = {}, {}
     f.seek(0)
     try:
-        reader = make_reader(f, decoder_factories=factories)
-        it = reader.iter_messages(topics=topic_list)
-        for schema, channel, message in it:
-            try:
-                if channel.message_encoding == "json":
-                    obj = json.loads(message.data)
-                else:
-                    obj = _decode(reader, factories, schema, channel, message)
-            except Exception:  # noqa: BLE001 - one bad message: skip and count
-                b.skip(f"{channel.topic}: undecodable messages", 1)
-                continue
-            yield channel, message.log_time, obj
+        for rec in StreamReader(f, skip_magic=False).records:
+            if isinstance(rec, Message):
+                ch = channels.get(rec.channel_id)
+                if ch is not None and ch.topic in wanted:
+                    yield ch, schemas.get(ch.schema_id), rec
+            elif isinstance(rec, Schema):
+                schemas[rec.id] = rec
+            elif isinstance(rec, Channel):
+                channels[rec.id] = rec
     except Exception as exc:  # noqa: BLE001 - cut or corrupt file: keep what was read
         b.skip("MCAP read stopped at a corrupt or cut record", 1)
-        b.warn(f"MCAP reading stopped early ({type(exc).__name__}: {exc})")
+        b.warn(f"MCAP reading stopped early ({type(exc).__name__}: {str(exc)[:120]})")
 
 
-_DECODERS: dict = {}
-
-
-def _decode(reader, factories, schema, channel, message):
-    key = (id(factories[0]) if factories else 0, schema.id if schema else None, channel.message_encoding)
-    dec = _DECODERS.get(key)
+def _decoder(path, factories, schema, channel, cache):
+    key = (schema.id if schema else None, channel.message_encoding)
+    dec = cache.get(key)
     if dec is None:
-        for fac in factories:
-            dec = fac.decoder_for(channel.message_encoding, schema)
-            if dec is not None:
-                break
+        if channel.message_encoding == "json":
+            dec = json.loads
+        else:
+            for fac in factories:
+                dec = fac.decoder_for(channel.message_encoding, schema)
+                if dec is not None:
+                    break
         if dec is None:
-            raise LogFormatError(reader, f"no decoder for encoding {channel.message_encoding!r}")
-        _DECODERS[key] = dec
-    return dec(message.data)
+            raise LogFormatError(path, f"no decoder for message encoding {channel.message_encoding!r} "
+                                       f"(topic {channel.topic})")
+        cache[key] = dec
+    return dec
 
 
-def _read_messages(path, f, factories, chosen, b):
+def _generic(obj, schema_name):
+    """(stamp_ns or 0, frame_id or None, vector) from a decoded message (object or JSON dict)."""
+    stamp, frame = 0, None
+    if _has(obj, "header"):
+        hdr = _get(obj, "header")
+        st = _get(hdr, "stamp")
+        stamp = int(_get(st, "sec")) * 1_000_000_000 + int(_get(st, "nanosec"))
+        frame = str(_get(hdr, "frame_id"))
+    if schema_name == "std_msgs/msg/UInt16MultiArray":
+        return stamp, frame, np.asarray(list(_get(obj, "data")), float)
+    return stamp, frame, np.array([float(_get(obj, *p)) for p in _FIELDS[schema_name]])
+
+
+def _read_messages(path, f, factories, chosen, b, fast: bool = True):
+    """role -> {"t": log/stamp ns, "vec": float vectors, "frame": frame_ids} (numbers only)."""
     topic_role = {tp: role for role, tp in chosen.items()}
-    rows = {role: {"t": [], "msgs": [], "frame": set()} for role in chosen}
-    _DECODERS.clear()
-    for channel, log_ns, obj in _iter_decoded(path, f, factories, list(topic_role), b):
-        role = topic_role[channel.topic]
-        r = rows[role]
-        t_ns = log_ns
+    rows = {role: {"t": [], "vec": [], "frame": set(), "schema": None} for role in chosen}
+    cache: dict = {}
+    for ch, schema, rec in _iter_records(f, list(topic_role), b):
+        r = rows[topic_role[ch.topic]]
+        name = _norm_schema(schema.name) if schema else ""
+        r["schema"] = name
         try:
-            hdr = _get(obj, "header")
-            stamp = _get(hdr, "stamp")
-            s = int(_get(stamp, "sec")) * 1_000_000_000 + int(_get(stamp, "nanosec"))
-            if s > 0:
-                t_ns = s
-            r["frame"].add(str(_get(hdr, "frame_id")))
-        except (KeyError, AttributeError, TypeError):
-            pass
-        r["t"].append(t_ns)
-        r["msgs"].append(obj)
+            spec = _FAST_CDR.get(name) if fast and ch.message_encoding == "cdr" else None
+            try:
+                stamp, frame, vec = _cdr_fast(rec.data, *spec) if spec else (None, None, None)
+            except (ValueError, struct.error):
+                stamp = None
+            if stamp is None:
+                obj = _decoder(path, factories, schema, ch, cache)(rec.data)
+                stamp, frame, vec = _generic(obj, name)
+        except LogFormatError:
+            raise
+        except Exception:  # noqa: BLE001 - one bad message: skip and count
+            b.skip(f"{ch.topic}: undecodable messages", 1)
+            continue
+        if frame is not None:
+            r["frame"].add(frame)
+        r["t"].append(stamp if stamp > 0 else rec.log_time)
+        r["vec"].append(vec)
     return rows
-
-
-def _xyz(msgs, *path):
-    out = np.empty((len(msgs), 3))
-    for i, m in enumerate(msgs):
-        v = _get(m, *path)
-        out[i] = (_get(v, "x"), _get(v, "y"), _get(v, "z"))
-    return out
-
-
-def _quat(msgs, *path):
-    out = np.empty((len(msgs), 4))
-    for i, m in enumerate(msgs):
-        q = _get(m, *path)
-        out[i] = (_get(q, "w"), _get(q, "x"), _get(q, "y"), _get(q, "z"))
-    return out
 
 
 def _convert(b: FlightBuilder, rows, chosen):
     t0 = min((min(r["t"]) for r in rows.values() if r["t"]), default=None)
     if t0 is None:
         return
-    for role, r in rows.items():
+    # odom first: a dedicated pose / twist / imu topic then replaces what odom gave
+    for role in sorted(rows, key=lambda k: k != "odom"):
+        r = rows[role]
         if not r["t"]:
             continue
         t = (np.asarray(r["t"], dtype=np.int64) - t0) * 1e-9
-        msgs = r["msgs"]
         topic = chosen[role]
-        ned = any(fr.lower().endswith("ned") for fr in r["frame"])
-        if r["frame"]:
-            b.notes.append(f"{topic}: frame_id {', '.join(sorted(r['frame']))}"
-                           + (" (NED, converted to ENU)" if ned else " (taken as ENU/FLU, REP-103)"))
+        ned = any(fr.lower().endswith(("ned", "frd")) for fr in r["frame"])
+        if r["frame"] - {""} and role != "battery":
+            b.notes.append(f"{topic}: frame_id {', '.join(sorted(r['frame'] - {''}))}"
+                           + (" (NED/FRD, converted to ENU/FLU)" if ned else " (taken as ENU/FLU, REP-103)"))
+        if role == "rc":
+            n = min(v.size for v in r["vec"])
+            arr = np.array([v[:n] for v in r["vec"]], float)
+            for i in range(n):
+                b.add(f"rc{i + 1}", t, arr[:, i], "us", f"{topic} data[{i}]")
+            continue
+        V = np.vstack(r["vec"])
         if role in ("pose", "odom"):
-            base = ("pose",) if role == "pose" else ("pose", "pose")
-            if role == "pose" and msgs and _has(msgs[0], "pose", "pose"):
-                base = ("pose", "pose")  # PoseWithCovarianceStamped
-            p = _xyz(msgs, *base, "position")
-            q = _quat(msgs, *base, "orientation")
+            p, q = V[:, 0:3], V[:, [6, 3, 4, 5]]          # (w, x, y, z)
             if ned:
                 p = np.stack(ned_to_enu(p[:, 0], p[:, 1], p[:, 2]), axis=-1)
                 q = quat_flu_enu_from_frd_ned(q)
@@ -260,43 +329,38 @@ def _convert(b: FlightBuilder, rows, chosen):
             b.add_many(t, {"roll": roll, "pitch": pitch, "yaw": yaw},
                        dict.fromkeys(("roll", "pitch", "yaw"), "rad"), src + ".orientation (to Euler)")
             if role == "odom":
-                v_body = _xyz(msgs, "twist", "twist", "linear")
-                w = _xyz(msgs, "twist", "twist", "angular")
-                if ned:
-                    v_body = v_body * np.array([1, -1, -1])
-                    w = w * np.array([1, -1, -1])
+                v_body, w = V[:, 7:10], V[:, 10:13]
+                if ned:   # FRD body -> FLU body
+                    v_body, w = v_body * np.array([1, -1, -1]), w * np.array([1, -1, -1])
                 v = np.einsum("nij,nj->ni", quat_to_matrix(q), v_body)
                 b.add_many(t, {"vx": v[:, 0], "vy": v[:, 1], "vz": v[:, 2]},
                            dict.fromkeys(("vx", "vy", "vz"), "m/s"), f"{topic} twist.linear (body -> world)")
                 b.add_many(t, {"wx": w[:, 0], "wy": w[:, 1], "wz": w[:, 2]},
                            dict.fromkeys(("wx", "wy", "wz"), "rad/s"), f"{topic} twist.angular")
         elif role == "twist":
-            v = _xyz(msgs, "twist", "linear")
+            v = V[:, 0:3]
             if ned:
                 v = np.stack(ned_to_enu(v[:, 0], v[:, 1], v[:, 2]), axis=-1)
             b.add_many(t, {"vx": v[:, 0], "vy": v[:, 1], "vz": v[:, 2]},
                        dict.fromkeys(("vx", "vy", "vz"), "m/s"), f"{topic} twist.linear")
         elif role == "imu":
-            w = _xyz(msgs, "angular_velocity")
-            a = _xyz(msgs, "linear_acceleration")
+            w, a = V[:, 0:3], V[:, 3:6]
             if ned:
                 w, a = w * np.array([1, -1, -1]), a * np.array([1, -1, -1])
-            if "wx" not in b.signals:
-                b.add_many(t, {"wx": w[:, 0], "wy": w[:, 1], "wz": w[:, 2]},
-                           dict.fromkeys(("wx", "wy", "wz"), "rad/s"), f"{topic} angular_velocity")
+            b.add_many(t, {"wx": w[:, 0], "wy": w[:, 1], "wz": w[:, 2]},
+                       dict.fromkeys(("wx", "wy", "wz"), "rad/s"), f"{topic} angular_velocity")
             b.add_many(t, {"ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2]},
                        dict.fromkeys(("ax", "ay", "az"), "m/s^2"), f"{topic} linear_acceleration")
         elif role == "battery":
-            v = np.array([float(_get(m, "voltage")) for m in msgs])
-            c = np.array([float(_get(m, "current")) for m in msgs])
-            b.add("battery_voltage", t, v, "V", f"{topic} voltage")
-            b.add("battery_current", t, -c, "A", f"{topic} -current (ROS: negative discharging)")
-        elif role == "rc":
-            data = [list(_get(m, "data")) for m in msgs]
-            n = min(len(d) for d in data) if data else 0
-            arr = np.array([d[:n] for d in data], float)
-            for i in range(n):
-                b.add(f"rc{i + 1}", t, arr[:, i], "us", f"{topic} data[{i}]")
+            # ROS: NaN means "not measured" (not damage); current is negative while discharging
+            for k, name, unit, sign, src in ((0, "battery_voltage", "V", 1.0, "voltage"),
+                                             (1, "battery_current", "A", -1.0, "-current (ROS: negative discharging)")):
+                ok = np.isfinite(V[:, k])
+                if ok.any():
+                    b.skip(f"{topic} {name}: NaN (not measured)", int((~ok).sum()))
+                    b.add(name, t[ok], sign * V[ok, k], unit, f"{topic} {src}")
+                else:
+                    b.notes.append(f"{topic}: {name.split('_')[1]} not measured (NaN)")
     b.in_flight_from_height()
 
 

@@ -17,7 +17,10 @@ topic                       type                          content
 ``/drone/motors``           std_msgs/msg/Float32MultiArray motor1..motorN (0..1), dim label ``motors``
 ==========================  ============================  ===================================================
 
-Log and header times are ``EPOCH (2024-01-01 UTC) + t`` in ns, never the wall clock.
+Log and header times are ``EPOCH (2024-01-01 UTC) + t`` in ns, never the wall clock (readers
+that count from the earliest stamp shift a flight that does not start at 0). Euler angles or
+quaternion missing from the flight are derived from the other; a pose without any attitude gets
+a NaN orientation (not available), never a made-up identity.
 Precision: float64 except Float32 topics, battery voltage (float32).
 """
 from __future__ import annotations
@@ -29,7 +32,7 @@ import numpy as np
 
 from droneid.io_util import atomic_write_bytes
 
-from ._writer_util import EPOCH_NS, group, require_some
+from ._writer_util import EPOCH_NS, complete_attitude, group, require_some
 
 __all__ = ["write_mcap", "SCHEMAS", "TOPICS"]
 
@@ -122,6 +125,7 @@ def write_mcap(flight, path) -> str:
 
     path = os.fspath(path)
     require_some(flight, path, "mcap")
+    flight = complete_attitude(flight)
     msgs: list[tuple[int, int, str, dict]] = []   # (t_ns, order, topic, message)
 
     def stamp(t_s):
@@ -136,7 +140,7 @@ def write_mcap(flight, path) -> str:
     g = group(flight, ("x", "y", "z") + quat, required=("x", "y", "z"))
     if g:
         t, v = g
-        q = _quat_or_identity(v)
+        q = _quat_or_nan(v)
         for i in range(t.size):
             ns, h = header(t[i], "map")
             msgs.append((ns, 0, "/drone/pose", {
@@ -154,7 +158,7 @@ def write_mcap(flight, path) -> str:
     if any(flight.has(n) for n in imu):
         first = next(n for n in imu if flight.has(n))
         t, v = group(flight, (first,) + imu + quat, required=(first,))
-        q = _quat_or_identity(v)
+        q = _quat_or_nan(v)
         has_q = all(flight.has(n) for n in quat)
         for i in range(t.size):
             ns, h = header(t[i], "base_link")
@@ -212,8 +216,6 @@ def _vec(v, names, i):
     return {ax: float(np.nan_to_num(v[n][i])) for ax, n in zip("xyz", names)}
 
 
-def _quat_or_identity(v):
+def _quat_or_nan(v):
     q = np.column_stack([v["qw"], v["qx"], v["qy"], v["qz"]])
-    bad = ~np.all(np.isfinite(q), axis=1)
-    q[bad] = (1.0, 0.0, 0.0, 0.0)
     return [{"x": float(b), "y": float(c), "z": float(d), "w": float(a)} for a, b, c, d in q]

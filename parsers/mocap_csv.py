@@ -42,6 +42,7 @@ import re
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
+from droneid.flight import Flight
 from droneid.frames import quat_to_euler, wrap_angle
 
 from ._build import FlightBuilder, intervals_from_bool
@@ -77,7 +78,7 @@ def _read_text(path) -> str:
         return raw.decode("latin-1")
 
 
-def read_motive_csv(path, body: str | None = None, axes=("x", "-z", "y")):
+def read_motive_csv(path, body: str | None = None, axes=("x", "-z", "y")) -> Flight:
     """Read an OptiTrack Motive CSV export (see the module doc)."""
     path = os.fspath(path)
     A = axes_matrix(axes)
@@ -241,19 +242,22 @@ def _to_bool(col) -> np.ndarray:
     return np.isin(np.char.lower(s.astype(str)), ("true", "1", "yes", "1.0"))
 
 
-def read_flat_csv(path, column_map=None):
+def read_flat_csv(path, column_map=None) -> Flight:
     """Read a flat CSV with one header row of recognisable column names (see the module doc)."""
     path = os.fspath(path)
     import pandas as pd
-    try:
-        df = pd.read_csv(path, low_memory=False)
-    except pd.errors.EmptyDataError:
-        raise LogFormatError(path, "the file is empty") from None
-    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise LogFormatError(path, f"not a readable CSV ({str(exc).splitlines()[0]})") from None
-    columns = [str(c) for c in df.columns]
-    df.columns = columns
+    def _read(**kw):
+        try:
+            return pd.read_csv(path, low_memory=False, **kw)
+        except pd.errors.EmptyDataError:
+            raise LogFormatError(path, "the file is empty") from None
+        except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+            raise LogFormatError(path, f"not a readable CSV ({str(exc).splitlines()[0]})") from None
+
+    # the header first, then only the recognised columns (wide CSVs: read what is used)
+    columns = [str(c) for c in _read(nrows=0).columns]
     found = _match_columns(columns, column_map, path)
+    df = _read(usecols=sorted(set(found.values()))) if found else _read(nrows=0)
     shown = ", ".join(columns[:20]) + (", ..." if len(columns) > 20 else "")
     if "t" not in found:
         raise LogFormatError(path, f"no time column (t, time, timestamp, ...; or column_map={{'t': ...}}); "

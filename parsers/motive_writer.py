@@ -31,7 +31,7 @@ import numpy as np
 from droneid.errors import DataError
 from droneid.io_util import atomic_write_text
 
-from ._writer_util import group, require_some
+from ._writer_util import complete_attitude, group, require_some
 
 __all__ = ["write_motive_csv", "enu_to_motive", "motive_to_enu"]
 
@@ -52,6 +52,7 @@ def write_motive_csv(flight, path, body: str = "drone") -> str:
     """Write ``flight`` (x y z and qw qx qy qz) to ``path`` as a Motive CSV (atomically)."""
     path = os.fspath(path)
     require_some(flight, path, "motive csv")
+    flight = complete_attitude(flight)
     names = ("x", "y", "z", "qw", "qx", "qy", "qz")
     g = group(flight, names)
     if g is None:

@@ -3,7 +3,10 @@
 Each record is an 8-byte big-endian UNIX time stamp in µs followed by one packed MAVLink 2 frame
 (system 1, component 1, sequence counting up). Time stamps are ``EPOCH (2024-01-01 UTC) + t``,
 never the wall clock, so the same flight always gives the same bytes; ``time_boot_ms`` /
-``time_usec`` are the flight's seconds.
+``time_usec`` are the flight's seconds. The first HEARTBEAT is at t = 0, so readers that count
+from the first frame recover the flight's own times. Each message is written on the time base of
+its first field (e.g. ATTITUDE on roll's); other fields on other time bases are interpolated.
+Euler angles or quaternion missing from the flight are derived from the other.
 
 Messages (ENU/FLU -> NED/FRD through the involutions of :mod:`droneid.frames`):
 
@@ -16,6 +19,8 @@ HIGHRES_IMU               xacc = ax, yacc = -ay, zacc = -az (specific force, FRD
 SERVO_OUTPUT_RAW          servoN_raw = 1000 + 1000 * motorN (µs PWM)
 VFR_HUD                   throttle (integer %), groundspeed, heading, alt = z, climb = vz
 SYS_STATUS                voltage_battery (mV), current_battery (cA, -1 when unknown)
+EXTENDED_SYS_STATE        landed_state IN_AIR inside the "in_flight" segments, else ON_GROUND
+                          (on the position/attitude time base; only when the flight has segments)
 ========================  =========================================================================
 
 Precision: float32 fields (~1e-7 relative), PWM 1e-3, throttle 1 %, voltage 1 mV, heading 1 deg.
@@ -31,7 +36,7 @@ import numpy as np
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 from droneid.io_util import atomic_write_bytes
 
-from ._writer_util import EPOCH_US, group, require_some
+from ._writer_util import EPOCH_US, complete_attitude, group, require_some
 
 __all__ = ["write_tlog"]
 
@@ -41,6 +46,7 @@ _FLAG_CUSTOM_MODE = 1
 _FLAG_STABILIZE = 16
 _FLAG_ARMED = 128
 _MAV_STATE_STANDBY, _MAV_STATE_ACTIVE = 3, 4
+_MAV_LANDED_STATE_ON_GROUND, _MAV_LANDED_STATE_IN_AIR = 1, 2
 
 
 def _f(x):
@@ -53,13 +59,16 @@ def write_tlog(flight, path) -> str:
 
     path = os.fspath(path)
     require_some(flight, path, "tlog")
+    flight = complete_attitude(flight)
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     records: list[tuple[int, int, object]] = []   # (t_us, order, message)
 
     def add(t_s, order, msg):
         records.append((int(round(t_s * 1e6)), order, msg))
 
-    t_start, t_end = flight.start_s, flight.end_s
+    # heartbeats from t = 0 (or the first sample, if earlier): readers count time from the first
+    # frame, so a flight's own time origin survives the round trip
+    t_start, t_end = min(0.0, flight.start_s), flight.end_s
     armed = flight.segments.get("armed", ())
     for k in range(int(math.floor(t_end - t_start)) + 1):
         ts = t_start + k
@@ -126,6 +135,15 @@ def write_tlog(flight, path) -> str:
         ca = np.where(np.isfinite(v["battery_current"]), np.round(v["battery_current"] * 100), -1).astype(int)
         for i in range(t.size):
             add(t[i], 7, mav.sys_status_encode(0, 0, 0, 0, int(mv[i]), int(ca[i]), -1, 0, 0, 0, 0, 0, 0))
+
+    if "in_flight" in flight.segments:
+        base = next((n for n in ("x", "roll", "vx", "qw") if flight.has(n)), None)
+        times = flight[base].t if base else np.array([t_start + k for k in range(int(t_end - t_start) + 1)])
+        flying = flight.segments["in_flight"]
+        for ts in times:
+            air = any(a <= ts <= b for a, b in flying)
+            add(ts, 8, mav.extended_sys_state_encode(
+                0, _MAV_LANDED_STATE_IN_AIR if air else _MAV_LANDED_STATE_ON_GROUND))
 
     records.sort(key=lambda r: (r[0], r[1]))
     out = bytearray()

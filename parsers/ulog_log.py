@@ -24,6 +24,7 @@ import os
 import numpy as np
 
 from droneid.errors import LogFormatError
+from droneid.flight import Flight
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
@@ -43,7 +44,7 @@ _NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUT
                20: "AUTO_PRECLAND", 21: "ORBIT", 22: "AUTO_VTOL_TAKEOFF"}
 
 
-def read_ulog(path):
+def read_ulog(path) -> Flight:
     """Read a PX4 ULog into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     from pyulog import ULog
@@ -63,9 +64,8 @@ def read_ulog(path):
                                        (np.asarray(d["timestamp"]) for d in topics.values())
                                        if np.any(ts >= floor)])
     info = ulog.msg_info_dict
-    b.firmware = " ".join(str(x) for x in ("PX4", info.get("ver_sw_release_str") or info.get("ver_sw"))
-                          if x) or None
-    b.vehicle = info.get("ver_hw")
+    b.firmware = _firmware(info)
+    b.vehicle = _vehicle(info, topics.get("vehicle_status"))
     if getattr(ulog, "file_corruption", False):
         b.skip("corrupt ULog sections (pyulog resynchronised)", 1)
         b.warn("the ULog file is corrupt in places; pyulog skipped the damaged data")
@@ -130,6 +130,33 @@ def read_ulog(path):
         b.add("battery_current", tt(d)[okc], c[okc], "A", "battery_status.current_a")
     _status(b, topics, tt)
     return b.build()
+
+
+def _firmware(info) -> str | None:
+    """"PX4 v1.11.2 (8583f1da)" from ver_sw_release (0xMMmmppTT) and the git hash."""
+    rel, sw = info.get("ver_sw_release"), info.get("ver_sw")
+    parts = [str(info.get("sys_name") or "PX4")]
+    if isinstance(rel, (int, np.integer)) and rel > 0:
+        parts.append(f"v{(rel >> 24) & 0xFF}.{(rel >> 16) & 0xFF}.{(rel >> 8) & 0xFF}")
+    if sw:
+        parts.append(f"({str(sw)[:8]})")
+    return " ".join(parts) if len(parts) > 1 else None
+
+
+_VEHICLE_TYPES = {1: "rotary wing", 2: "fixed wing", 3: "rover", 4: "airship"}
+
+
+def _vehicle(info, status) -> str | None:
+    hw = info.get("ver_hw")
+    kind = None
+    if status is not None and len(status["timestamp"]):
+        if "is_vtol" in status and np.any(status["is_vtol"]):
+            kind = "vtol"
+        elif "vehicle_type" in status:
+            kind = _VEHICLE_TYPES.get(int(status["vehicle_type"][0]))
+    if kind and hw:
+        return f"{kind} on {hw}"
+    return kind or hw
 
 
 def _motors(b, topics, tt):

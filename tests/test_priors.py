@@ -150,3 +150,20 @@ def test_bad_user_priors_name_file_and_prior(tmp_path, body, match):
     assert "bad.toml" in str(exc.value)
     if "not valid TOML" not in match:
         assert "prior 'evil'" in str(exc.value)
+
+
+def test_shipped_example_files_load():
+    from pathlib import Path
+
+    from priors.constraints import load_constraints
+    root = Path(__file__).resolve().parents[1] / "priors"
+    models = load_priors(root / "example_priors.toml")
+    assert set(models) == {"tilt-quadratic-drag", "hover-thrust"}
+    assert len(models["tilt-quadratic-drag"].features("vy_dot")) == 3
+    cs = load_constraints(root / "example_constraints.toml")
+    assert len(cs) == 3 and cs.target == "vx_dot"
+    s = cs.sample(("vx", "pitch", "roll", "yaw", "throttle"), 10, seed=0)
+    cols = {n: s.X[:, i] for i, n in enumerate(s.input_names)}
+    from droneid.constraints import constraint_rmse
+    pred = get_prior("tilt-drag").evaluate(cols, "vx_dot", 1)[:, 0]
+    assert constraint_rmse(pred, s) < 1e-12  # the paper's model meets these too

@@ -249,6 +249,10 @@ def test_effect_parsing_and_errors():
         parse_effects({"wind": {"speed": 1}})
     with pytest.raises(ConfigError, match="at most 2"):
         parse_effects({"wind": (1, 2, 3)})
+    with pytest.raises(ConfigError, match="must be >= 0"):
+        parse_effects({"attitude_delay": -0.1})
+    with pytest.raises(ConfigError, match="must be > 0"):
+        parse_effects({"gust": {"tau_s": 0}})
     with pytest.raises(ConfigError, match="did you mean 'k_drag'"):
         simulate(k_dreg=0.3)
     with pytest.raises(ConfigError, match="path"):

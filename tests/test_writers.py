@@ -237,28 +237,57 @@ def test_writers_need_signals(tmp_path):
 
 
 def test_read_flight_round_trip(flight, tmp_path):
+    """The project readers (branch parsers) read what the writers wrote, within format precision."""
     parsers = pytest.importorskip("parsers")
     if not hasattr(parsers, "read_flight"):
         pytest.skip("parsers.read_flight is not merged yet")
     files = {"tlog": write_tlog(flight, tmp_path / "f.tlog"), "mcap": write_mcap(flight, tmp_path / "f.mcap"),
              "motive_csv": write_motive_csv(flight, tmp_path / "f.csv")}
-    tol = {"x": 1e-5, "y": 1e-5, "z": 1e-5, "roll": 1e-5, "pitch": 1e-5, "yaw": 1e-5, "vx": 1e-5,
-           "vy": 1e-5, "vz": 1e-5, "qw": 1e-5, "qx": 1e-5, "qy": 1e-5, "qz": 1e-5, "wx": 1e-5,
-           "wy": 1e-5, "wz": 1e-5, "ax": 1e-4, "ay": 1e-4, "az": 1e-4, "throttle": 5e-3,
-           "motor1": 1e-3, "motor2": 1e-3, "motor3": 1e-3, "motor4": 1e-3, "battery_voltage": 1e-3}
+    tol = {"x": 1e-6, "y": 1e-6, "z": 1e-6, "roll": 1e-6, "pitch": 1e-6, "yaw": 1e-6, "vx": 1e-6,
+           "vy": 1e-6, "vz": 1e-6, "qw": 1e-6, "qx": 1e-6, "qy": 1e-6, "qz": 1e-6, "wx": 1e-6,
+           "wy": 1e-6, "wz": 1e-6, "ax": 1e-5, "ay": 1e-5, "az": 1e-5, "throttle": 5e-3 + 1e-9,
+           "motor1": 5e-4 + 1e-9, "motor2": 5e-4 + 1e-9, "motor3": 5e-4 + 1e-9, "motor4": 5e-4 + 1e-9,
+           "battery_voltage": 5e-4 + 1e-9}
+    pose = ("x", "y", "z", "roll", "pitch", "yaw", "qw", "qx", "qy", "qz")
+    carried = {
+        "tlog": tuple(tol),                       # all but thrust (no MAVLink field)
+        "mcap": pose + ("vx", "vy", "vz", "wx", "wy", "wz", "ax", "ay", "az", "battery_voltage"),
+        "motive_csv": pose,                       # pose only; 6 decimals
+    }
     for fmt, path in files.items():
         assert parsers.detect_format(path) == fmt
         got = parsers.read_flight(path)
-        carried = ("x", "y", "z", "roll", "pitch", "yaw") if fmt == "motive_csv" else tuple(tol)
-        names = [n for n in carried if got.has(n)]
-        assert {"x", "y", "z"} <= set(names), (fmt, got.names)
-        for n in names:
-            s = got[n]
-            ref = flight[n]
-            vals = np.interp(ref.t, s.t, np.unwrap(s.values) if n == "yaw" else s.values)
-            d = vals - ref.values
+        for n in carried[fmt]:
+            assert got.has(n), (fmt, n, got.names)
+            s, ref = got[n], flight[n]
+            np.testing.assert_allclose(s.t, ref.t, atol=1e-6, err_msg=f"{fmt} {n} time")
+            d = s.values - ref.values
             if n in ("roll", "pitch", "yaw"):
                 d = wrap_angle(d)
-            if n.startswith("q"):   # quaternion sign is free
-                continue
-            assert np.max(np.abs(d)) <= tol[n], (fmt, n, np.max(np.abs(d)))
+            atol = 2e-6 if fmt == "motive_csv" else tol[n]
+            assert np.max(np.abs(d)) <= atol, (fmt, n, np.max(np.abs(d)))
+    tl = parsers.read_flight(files["tlog"])
+    assert tl.segments["armed"] == flight.segments["armed"]
+    assert tl.segments["in_flight"] == flight.segments["in_flight"]
+
+
+def test_writers_fill_attitude_and_keep_time_origin(tmp_path):
+    """A flight with Euler angles only, starting at t = 0.5 s: the tlog still carries the quaternion
+    and its times; the MCAP pose gets the quaternion from the angles (not an identity)."""
+    t = np.arange(10) * 0.1 + 0.5
+    roll, pitch, yaw = 0.1 * np.sin(t), 0.05 * np.cos(t), wrap_angle(3.0 + 0.2 * t)
+    sig = {"x": t, "y": -t, "z": 1 + 0 * t, "roll": roll, "pitch": pitch, "yaw": yaw}
+    f = Flight({k: Signal(k, t, np.asarray(v), "1") for k, v in sig.items()})
+    msgs = _read_tlog_minimal(write_tlog(f, tmp_path / "e.tlog"))
+    assert msgs["HEARTBEAT"][0][0] == 0.0
+    tq = np.array([tt for tt, _ in msgs["ATTITUDE_QUATERNION"]])
+    np.testing.assert_allclose(tq, t, atol=1e-6)
+    q = quat_flu_enu_from_frd_ned(np.array([[m.q1, m.q2, m.q3, m.q4] for _, m in msgs["ATTITUDE_QUATERNION"]]))
+    qref = euler_to_quat(roll, pitch, yaw)
+    np.testing.assert_allclose(q, np.where(qref[:, :1] < 0, -qref, qref), atol=1e-6)
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with open(write_mcap(f, tmp_path / "e.mcap"), "rb") as fh:
+        oris = [m.pose.orientation for _, _, _, m in
+                make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/drone/pose"])]
+    assert abs(oris[0].w) < 0.2 and abs(oris[0].z) > 0.98      # yaw ~ 3.1 rad, not identity

@@ -1,0 +1,21 @@
+"""benchmarks/bench_read.py runs and droneid stays near the bare pymavlink loop."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from conftest import real_log
+
+
+@pytest.mark.slow
+def test_bench_read_ratio():
+    real_log("ardupilot/copter33_quad_log171.bin")
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_read.py"
+    spec = importlib.util.spec_from_file_location("bench_read", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    res = mod.run(repeat=1)
+    assert res["messages"] > 30000 and res["samples"] > 100000
+    assert res["ratio"] < 1.6      # target 1.3 (see the benchmark); loose here: shared CI machines
