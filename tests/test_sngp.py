@@ -260,3 +260,39 @@ def test_progress_called_and_json_round_trip():
     # the simplified sympy expression evaluates to the same predictions
     from droneid.expressions import compile_expression
     np.testing.assert_allclose(compile_expression(m.expr_, NAMES)(cols), m.predict(X), rtol=1e-9, atol=1e-9)
+
+
+def test_depth_limit_holds_after_search():
+    """Every feature tree stays within max_depth (depth rule with levelsToRoot)."""
+    from droneid.sngp import kernels as Kn
+    from droneid.sngp import population as pm
+    from droneid.sngp.search import run_search
+    X, y = flight_data(extra=-0.3)
+    yc = y - y.mean()
+    prob = pm.Problem(y=y, yc=yc, syy=float(yc @ yc), ckind=np.zeros(0, dtype=np.int64),
+                      cbound=np.zeros(0), terminals=np.ascontiguousarray(X.T))
+    for depth_limit in (3, 7):
+        tmpl = pm.build_population(("add", "mul", "sin", "cube"), 200, 4, 0, 6, depth_limit,
+                                   len(y), len(y), False, np.random.default_rng(0))
+        res = run_search(tmpl, prob, generations=3000, n_epochs=3, n_threads=2, identity_steps=50,
+                         gamma=0.05, rng=np.random.default_rng(1))
+        pop = res.best
+        t0 = int(pop.lay[Kn.L_TAIL])
+        depth = np.zeros(len(pop.a), dtype=int)
+        for n in range(t0, len(pop.a)):
+            depth[n] = 1 + max(depth[pop.a[n]], depth[pop.b[n]] if pop.b[n] >= 0 else 0)
+        assert depth[int(pop.lay[Kn.L_ID]):].max() <= depth_limit
+        assert depth.max() <= depth_limit
+
+
+def test_constrained_reports_when_no_model_qualifies(caplog):
+    X, y = flight_data(n=80, seed=2)
+    cs = paper_constraints(3)
+    # demand vx_dot = 5 where the data say ~0: LS on the training data cannot satisfy it
+    cs = ConstraintSamples(cs.X, cs.kind, np.full(len(cs), 5.0), cs.group, cs.input_names)
+    m = SNGPRegressor(generations=300, seed=0, gamma=1e-3).fit(X, y, feature_names=NAMES,
+                                                             constraints=cs)
+    assert m.qualified_ is False
+    assert m.constraint_rmse_train_ == min(r["constraint_rmse_train"] for r in m.archive_) or \
+        m.constraint_rmse_train_ > 1e-3
+    assert "no model met" in caplog.text

@@ -89,7 +89,7 @@ def _sin_or_cos(x, shift):
     return -v if neg > 0.5 else v
 
 
-@njit(cache=True, fastmath=FM)
+@njit(cache=True, fastmath=FM, inline="always")
 def _maxabs(x):
     m = 0.0
     for i in range(x.shape[0]):
@@ -135,7 +135,7 @@ def _scalar_op(code, x, y):
     return np.nan
 
 
-@njit(cache=True, fastmath=FM)
+@njit(cache=True, fastmath=FM, inline="always")
 def _vector_op(code, xa, xb, out):
     """out = op(xa, xb) elementwise (xb ignored for unary ops)."""
     n = out.shape[0]
@@ -204,7 +204,7 @@ def apply_op(code, xa, xb):
     return out
 
 
-@njit(cache=True, fastmath=FM)
+@njit(cache=True, fastmath=FM, inline="always")
 def _row_stats(row, nt, yc, syy):
     """(valid, constant, fit) of one node's output row; fit = 1 - |corr(row, y)| on training columns.
 
@@ -212,10 +212,6 @@ def _row_stats(row, nt, yc, syy):
     """
     n = row.shape[0]
     bad = 0
-    for i in range(n):
-        bad += 0 if abs(row[i]) <= MAX_ABS else 1     # NaN compares false
-    if bad > 0:
-        return False, True, 1.0
     s0 = s1 = s2 = s3 = 0.0
     q0 = q1 = q2 = q3 = 0.0
     c0 = c1 = c2 = c3 = 0.0
@@ -225,6 +221,8 @@ def _row_stats(row, nt, yc, syy):
         v1 = row[i + 1]
         v2 = row[i + 2]
         v3 = row[i + 3]
+        bad += (0 if abs(v0) <= MAX_ABS else 1) + (0 if abs(v1) <= MAX_ABS else 1) \
+            + (0 if abs(v2) <= MAX_ABS else 1) + (0 if abs(v3) <= MAX_ABS else 1)
         s0 += v0
         s1 += v1
         s2 += v2
@@ -239,9 +237,14 @@ def _row_stats(row, nt, yc, syy):
         c3 += v3 * yc[i + 3]
     for i in range(m, nt):
         v = row[i]
+        bad += 0 if abs(v) <= MAX_ABS else 1       # NaN compares false
         s0 += v
         q0 += v * v
         c0 += v * yc[i]
+    for i in range(nt, n):                          # constraint columns: validity only
+        bad += 0 if abs(row[i]) <= MAX_ABS else 1
+    if bad > 0:
+        return False, True, 1.0
     s = (s0 + s1) + (s2 + s3)
     sxx = (q0 + q1) + (q2 + q3)
     sxy = (c0 + c1) + (c2 + c3)                # yc is centred: this is the centred sum
@@ -306,7 +309,7 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
     fit[n] = f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _depths(a, b, lay, depth):
     t0 = lay[L_TAIL]
     for n in range(t0):
@@ -318,24 +321,54 @@ def _depths(a, b, lay, depth):
         depth[n] = d + 1
 
 
-@njit(cache=True)
-def _levels_to_root(m, a, b, lay, ltr):
-    """Longest path from node m up to any node that (transitively) uses it."""
-    P = lay[L_P]
-    for n in range(m, P):
-        ltr[n] = 0
-    for p in range(P - 1, m, -1):
-        lp = ltr[p] + 1
-        s = a[p]
-        if s >= m and ltr[s] < lp:
-            ltr[s] = lp
-        s = b[p]
-        if s >= m and ltr[s] < lp:
-            ltr[s] = lp
-    return ltr[m]
+@njit(cache=True, inline="always")
+def _raise_bounds(m, s, a, b, lay, depth, ltr, stack):
+    """After linking m -> s: raise depth bounds above m and levelsToRoot bounds below s."""
+    d = depth[s] + 1
+    if d > depth[m]:
+        depth[m] = d
+        for n in range(m + 1, lay[L_P]):
+            dn = depth[a[n]]
+            if b[n] >= 0 and depth[b[n]] > dn:
+                dn = depth[b[n]]
+            if dn + 1 > depth[n]:
+                depth[n] = dn + 1
+    t0 = lay[L_TAIL]
+    if ltr[s] < ltr[m] + 1:
+        ltr[s] = ltr[m] + 1
+        top = 0
+        stack[top] = s
+        top += 1
+        while top > 0:
+            top -= 1
+            n = stack[top]
+            lp = ltr[n] + 1
+            c = a[n]
+            if c >= t0 and ltr[c] < lp:
+                ltr[c] = lp
+                stack[top] = c
+                top += 1
+            c = b[n]
+            if c >= t0 and ltr[c] < lp:
+                ltr[c] = lp
+                stack[top] = c
+                top += 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _changed(r0, r1, valid_now, valid_before):
+    """Whether a re-evaluated node's output differs from its previous one (its two rows)."""
+    if valid_now != valid_before:
+        return True
+    if valid_now == 0:
+        return False
+    for t in range(r0.shape[0]):
+        if r0[t] != r1[t]:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def _terminal(lay):
     """A terminal: constant/head node or variable (incl. prior terminals), 50/50."""
     if lay[L_HEAD] > 0 and np.random.random() < 0.5:
@@ -343,7 +376,7 @@ def _terminal(lay):
     return np.random.randint(lay[L_HEAD], lay[L_TAIL])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pick_successor(m, ltr_m, depth, lay):
     """A new successor for tail/identity node m obeying depth(s) + levelsToRoot(m) < max depth."""
     t0 = lay[L_TAIL]
@@ -357,7 +390,7 @@ def _pick_successor(m, ltr_m, depth, lay):
     return _terminal(lay)
 
 
-@njit(cache=True, fastmath=FM)
+@njit(cache=True, fastmath=FM, inline="always")
 def _dot(x, y, n):
     s0 = s1 = s2 = s3 = 0.0
     m = n - n % 4
@@ -371,7 +404,7 @@ def _dot(x, y, n):
     return (s0 + s1) + (s2 + s3)
 
 
-@njit(cache=True, fastmath=FM)
+@njit(cache=True, fastmath=FM, inline="always")
 def _sum(x, n):
     s0 = s1 = s2 = s3 = 0.0
     m = n - n % 4
@@ -521,7 +554,7 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _score(ed, ec, mode, weight):
     if mode == 0:
         return ed
@@ -643,7 +676,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
     K = beta.shape[0]
     depth = np.zeros(P, dtype=np.int64)
     ltr = np.zeros(P, dtype=np.int64)
+    stack = np.empty(P * (lay[L_DEPTH] + 2), dtype=np.int64)
     bp = np.empty(P)
+    if identity_only:
+        _depths(a, b, lay, depth)
     stamp = np.zeros(P, dtype=np.int64)
     mutated = np.zeros(P, dtype=np.int64)
     u_node = np.empty(MAX_MUTATIONS, dtype=np.int64)
@@ -660,17 +696,27 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
     for g in range(n_gens):
         gen_id = stats[S_GENS] + 1
         stats[S_GENS] = gen_id
-        # bestPred: lowest fit among a node and everything that uses it
+        # bestPred (lowest fit among a node and everything that uses it) and levelsToRoot, in
+        # one pass over the users (descending); depth in one ascending pass. Within the
+        # generation both are then only raised (conservative bounds), recomputed next time.
         if not identity_only:
             for n in range(P):
                 bp[n] = fit[n]
+                ltr[n] = 0
             for p in range(P - 1, t0 - 1, -1):
+                lp = ltr[p] + 1
                 s = a[p]
                 if bp[p] < bp[s]:
                     bp[s] = bp[p]
+                if ltr[s] < lp:
+                    ltr[s] = lp
                 s = b[p]
-                if s >= 0 and bp[p] < bp[s]:
-                    bp[s] = bp[p]
+                if s >= 0:
+                    if bp[p] < bp[s]:
+                        bp[s] = bp[p]
+                    if ltr[s] < lp:
+                        ltr[s] = lp
+            _depths(a, b, lay, depth)
         k = 1 if identity_only else np.random.randint(1, MAX_MUTATIONS + 1)
         nm = 0
         lowest = P
@@ -690,10 +736,12 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                 slot = 1
             if m < lay[L_HEAD]:
                 s = np.random.randint(0, m)
+            elif identity_only:
+                s = _pick_successor(m, 0, depth, lay)   # identity nodes have no users
             else:
-                _depths(a, b, lay, depth)
-                lt = _levels_to_root(m, a, b, lay, ltr)
-                s = _pick_successor(m, lt, depth, lay)
+                s = _pick_successor(m, ltr[m], depth, lay)
+                if s >= t0:
+                    _raise_bounds(m, s, a, b, lay, depth, ltr, stack)
             u_node[nm] = m
             u_slot[nm] = slot
             if slot == 0:
@@ -706,8 +754,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
             mutated[m] = gen_id
             if m < lowest:
                 lowest = m
-        # re-evaluate the mutated nodes and everything above them, ascending
+        # re-evaluate the mutated nodes and every node above a changed one, ascending; a node
+        # whose output comes out identical (e.g. invalid before and after) does not dirty its users
         nd = 0
+        id_changed = False
         for n in range(lowest, P):
             if n >= lay[L_HEAD] and n < t0:
                 continue
@@ -722,30 +772,37 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                         hit = True
             if not hit:
                 continue
-            stamp[n] = gen_id
             dirty[nd] = n
             d_valid[nd] = valid[n]
             d_const[nd] = isconst[n]
             d_fit[nd] = fit[n]
             nd += 1
             _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+            if _changed(V[0, n], V[1, n], valid[n], d_valid[nd - 1]):
+                stamp[n] = gen_id
+                if n >= id0:
+                    id_changed = True
         stats[S_EVALS] += nd
-        ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols, nobj)
         accept = False
-        if ok:
-            sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
-            if mode == 1:
-                _archive_insert(nobj[O_ED], nobj[O_EC], a, b, arch_obj, arch_a, arch_b, arch_n)
-            if sc <= obj[O_SCORE]:
-                accept = True
-                obj[O_ED] = nobj[O_ED]
-                obj[O_EC] = nobj[O_EC]
-                obj[O_SCORE] = sc
-                for i in range(K):
-                    beta[i] = nbeta[i]
-                    cols[i] = ncols[i]
+        if not id_changed:
+            accept = True          # the model is the same: a neutral move
         else:
-            stats[S_FAILED] += 1
+            ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols,
+                              nobj)
+            if ok:
+                sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
+                if mode == 1:
+                    _archive_insert(nobj[O_ED], nobj[O_EC], a, b, arch_obj, arch_a, arch_b, arch_n)
+                if sc <= obj[O_SCORE]:
+                    accept = True
+                    obj[O_ED] = nobj[O_ED]
+                    obj[O_EC] = nobj[O_EC]
+                    obj[O_SCORE] = sc
+                    for i in range(K):
+                        beta[i] = nbeta[i]
+                        cols[i] = ncols[i]
+            else:
+                stats[S_FAILED] += 1
         if accept:
             stats[S_ACCEPT] += 1
         else:
