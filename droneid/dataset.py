@@ -474,6 +474,7 @@ class DatasetBuilder:
         n_dropped = n_short = 0
         for a, b in ivs:
             grid = a + ts * np.arange(int(math.floor((b - a) / ts + 1e-9)) + 1)
+            grid[-1] = min(grid[-1], b)  # the 1e-9 tolerance must not step past the data's end
             if grid.size < max(3, diff.min_samples):
                 n_short += 1
                 continue
@@ -527,6 +528,7 @@ class DatasetBuilder:
             native = float(np.median(np.diff(sig.t))) if len(sig) > 1 else ts
             h = min(max(native, ts / 10), ts)
             fine = a + h * np.arange(int(math.floor((b - a) / h + 1e-9)) + 1)
+            fine[-1] = min(fine[-1], b)
             v = _unwrapped(sig, fine) if angle else resample_signal(sig, fine)
             for _ in range(order):
                 v = diff(v, fine)
