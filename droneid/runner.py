@@ -73,8 +73,12 @@ def _call_star(args):
     return _call(*args)
 
 
-def _ignore_sigint():
+def _init_worker(log_level: int):
+    """Pool worker: Ctrl-C is the main process's business; log errors only (or everything
+    under --debug), since per-run warnings reach the result as data anyway."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.basicConfig(level=log_level if log_level <= logging.DEBUG else max(log_level, logging.ERROR),
+                        format="droneid worker: %(levelname)s: %(message)s")
 
 
 def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, scheduler=None,
@@ -136,7 +140,7 @@ def _run_pool(fn, jobs, n_jobs, record, outcome):
     import multiprocessing as mp
     outcome.backend = f"pool({n_jobs})"
     ctx = mp.get_context("spawn")  # no fork of a process that may hold threads or locks
-    pool = ctx.Pool(n_jobs, initializer=_ignore_sigint)
+    pool = ctx.Pool(n_jobs, initializer=_init_worker, initargs=(logging.getLogger().getEffectiveLevel(),))
     try:
         for index, status, payload in pool.imap_unordered(
                 _call_star, [(fn, i, j) for i, j in enumerate(jobs)]):
