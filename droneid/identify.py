@@ -249,7 +249,7 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     for name, d in (("training", train), ("test", test)):
         if len(d) < 10:
             raise DataError(f"the {name} data for {target} have only {len(d)} samples (need >= 10)")
-    priors3 = tuple(prior.features(target, 3))
+    priors3 = tuple(prior.features(target))  # every term (the tilt-drag model has 3)
     prior1 = tuple(prior.features(target, 1))
     train_set, eval_set = _constraint_set_for(cfg, target)
     test_seed, _ = run_seeds(cfg.seed, 0)
