@@ -43,7 +43,7 @@ _PARAMS = {
     "seed": None,
     "progress": None,
     "identity_steps": 100,
-    "simplify_s": 2.0,
+    "simplify_s": 0.5,
 }
 _CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
@@ -63,7 +63,7 @@ class SNGPRegressor:
 
     def __init__(self, *, functions=DEFAULT_FUNCTIONS, population_size=500, generations=60000,
                  n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
-                 progress=None, identity_steps=100, simplify_s=2.0, **unknown):
+                 progress=None, identity_steps=100, simplify_s=0.5, **unknown):
         if unknown:
             name = next(iter(unknown))
             raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
@@ -230,6 +230,7 @@ class SNGPRegressor:
         self.seed_ = seed
         self.search_stats_ = {
             "search_s": result.wall_s,
+            "search_cpu_s": result.cpu_s,
             "generations": int(result.generations),
             "node_evaluations": int(result.evaluations),
             "accepted": int(result.accepted),
@@ -313,9 +314,7 @@ class SNGPRegressor:
         pop.a[:] = a
         pop.b[:] = b
         popmod.evaluate_all(pop, self._problem)
-        p = self._problem
-        ok = K._solve_model(pop.op, pop.V, pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, p.y,
-                            p.ckind, p.cbound, pop.beta, pop.cols, pop.obj)
+        ok = popmod.solve(pop, self._problem)
         if not ok:
             pop.obj[:2] = np.inf
         return pop
@@ -491,17 +490,30 @@ def _guarded_simplify(expr: sp.Expr, seconds: float, max_ops: int = 60) -> sp.Ex
         except Exception:   # noqa: BLE001 - simplification is optional
             return expr
     else:
+        active = [True]
+
         def _alarm(signum, frame):
-            raise _Timeout()
+            if not active[0]:
+                return
+            # Raise only inside sympy: a signal can also land in foreign code run meanwhile
+            # (a gc callback, a __del__) that would swallow the exception. Re-arm either way,
+            # so the next tick ends the simplification if this one does not.
+            signal.setitimer(signal.ITIMER_REAL, 0.02)
+            where = frame.f_code.co_filename if frame is not None else ""
+            if "sympy" in where or "mpmath" in where or where == __file__:
+                raise _Timeout()
         old = signal.signal(signal.SIGALRM, _alarm)
-        signal.setitimer(signal.ITIMER_REAL, min(seconds, 1.0))
         try:
-            out = sp.simplify(expr)
+            try:
+                signal.setitimer(signal.ITIMER_REAL, min(seconds, 1.0))
+                out = sp.simplify(expr)
+            finally:
+                active[0] = False
+                signal.setitimer(signal.ITIMER_REAL, 0)
         except _Timeout:
             return expr
-        except Exception:   # noqa: BLE001
+        except Exception:   # noqa: BLE001 - simplification is optional
             return expr
         finally:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, old)
+            signal.signal(signal.SIGALRM, old if old is not None else signal.SIG_DFL)
     return out if sp.count_ops(out) <= sp.count_ops(expr) else expr

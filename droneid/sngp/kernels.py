@@ -59,34 +59,47 @@ FM = False
 #: Our sin/cos are exact to ~1 ulp only after Cody-Waite reduction for |x| <= this; beyond it
 #: the kernel falls back to libm.
 TRIG_REDUCE_MAX = 1e5
-_TWO_OVER_PI = 0.63661977236758134308
 _PIO2_1 = 1.57079632673412561417e+00
 _PIO2_2 = 6.07710050630396597660e-11
 _PIO2_3 = 2.02226624871116645580e-21
-_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
-_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
-_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
-_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+# Taylor coefficients of sin r (r^3 ... r^21): on |r| <= pi/2 the next term is below 2e-18
+_T3, _T5, _T7 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0
+_T9, _T11, _T13 = 1.0 / 362880.0, -1.0 / 39916800.0, 1.0 / 6227020800.0
+_T15, _T17 = -1.0 / 1307674368000.0, 1.0 / 355687428096000.0
+_T19, _T21 = -1.0 / 121645100408832000.0, 1.0 / 51090942171709440000.0
+_INV_PI = 0.31830988618379067154
 
 
 @njit(cache=True, fastmath=FM, inline="always")
 def _sin_or_cos(x, shift):
     """sin(x) (shift 0) or cos(x) (shift 1) without libm calls, so that loops vectorise.
 
-    fdlibm's kernels on [-pi/4, pi/4] after a three-part Cody-Waite reduction; valid for
-    |x| <= TRIG_REDUCE_MAX (callers check).
+    x = m*pi/2 + r with m even (sin) or odd (cos), |r| <= pi/2, by a three-part Cody-Waite
+    reduction (exact products for |x| <= TRIG_REDUCE_MAX, callers check); then one odd
+    polynomial: sin x = (-1)^k sin r, cos x = -(-1)^k sin r.
     """
-    k = math.floor(x * _TWO_OVER_PI + 0.5)
-    r = ((x - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3
+    if shift == 0.0:
+        k = math.floor(x * _INV_PI + 0.5)
+        m = 2.0 * k
+        sign = 1.0
+    else:
+        k = math.floor(x * _INV_PI)
+        m = 2.0 * k + 1.0
+        sign = -1.0
+    r = ((x - m * _PIO2_1) - m * _PIO2_2) - m * _PIO2_3
     z = r * r
-    sn = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    cs = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    q = k + shift
-    half = math.floor(q * 0.5)
-    odd = q - 2.0 * half                     # 1 for quadrants 1 and 3
-    neg = half - 2.0 * math.floor(half * 0.5)  # 1 for quadrants 2 and 3
-    v = cs if odd > 0.5 else sn
-    return -v if neg > 0.5 else v
+    p = _T19 + z * _T21
+    p = _T17 + z * p
+    p = _T15 + z * p
+    p = _T13 + z * p
+    p = _T11 + z * p
+    p = _T9 + z * p
+    p = _T7 + z * p
+    p = _T5 + z * p
+    p = _T3 + z * p
+    v = r + r * z * p
+    odd = k - 2.0 * math.floor(k * 0.5)
+    return sign * v if odd < 0.5 else -sign * v
 
 
 @njit(cache=True, fastmath=FM, inline="always")
@@ -418,14 +431,71 @@ def _sum(x, n):
     return (s0 + s1) + (s2 + s3)
 
 
+@njit(cache=True, inline="always")
+def _gidx(node, lay):
+    """Row of a least-squares column in the Gram cache: 0 intercept, then priors, then slots."""
+    if node < 0:
+        return 0
+    if node >= lay[L_ID]:
+        return 1 + lay[L_NPRIOR] + node - lay[L_ID]
+    return 1 + node - (lay[L_TAIL] - lay[L_NPRIOR])
+
+
+@njit(cache=True)
+def _gram_row(node, V, buf, valid, isconst, lay, y, gram, rhs):
+    """Recompute the Gram-cache row and column of ``node`` (a prior or an identity node)
+    against the intercept, the priors and every usable identity node; training columns only."""
+    nt = lay[L_NT]
+    g = _gidx(node, lay)
+    x = V[buf[node], node]
+    rhs[g] = _dot(x, y, nt)
+    s = _sum(x, nt)
+    gram[g, 0] = s
+    gram[0, g] = s
+    for p in range(lay[L_TAIL] - lay[L_NPRIOR], lay[L_TAIL]):
+        h = _gidx(p, lay)
+        v = _dot(x, V[buf[p], p], nt)
+        gram[g, h] = v
+        gram[h, g] = v
+    for m in range(lay[L_ID], lay[L_P]):
+        if valid[m] == 0 or isconst[m] == 1:
+            continue
+        h = _gidx(m, lay)
+        v = _dot(x, V[buf[m], m], nt)
+        gram[g, h] = v
+        gram[h, g] = v
+
+
+@njit(cache=True)
+def _gram_full(V, buf, valid, isconst, lay, y, gram, rhs):
+    nt = lay[L_NT]
+    gram[0, 0] = nt
+    rhs[0] = _sum(y, nt)
+    for p in range(lay[L_TAIL] - lay[L_NPRIOR], lay[L_TAIL]):
+        _gram_row(p, V, buf, valid, isconst, lay, y, gram, rhs)
+    for m in range(lay[L_ID], lay[L_P]):
+        if valid[m] == 1 and isconst[m] == 0:
+            _gram_row(m, V, buf, valid, isconst, lay, y, gram, rhs)
+
+
+@njit(cache=True)
+def solve_fresh(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj, gram, rhs):
+    """Rebuild the Gram cache and fit the model (after links were set from outside)."""
+    _gram_full(V, buf, valid, isconst, lay, y, gram, rhs)
+    return _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj,
+                        gram, rhs)
+
+
 @njit(cache=True, fastmath=FM)
-def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj_out):
+def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj_out,
+                 gram, rhs):
     """Least squares over [1 | priors | valid identity features]; fills beta/cols/obj_out.
 
     Returns False when no finite fit exists. Columns that are (numerically) linear combinations
     of earlier ones get coefficient 0: pivoted-out by a Cholesky factorisation of the
     column-normalised Gram matrix (so the intercept and the priors win over evolved features).
     Identity features with the same fitness as an earlier one are skipped (duplicate filter).
+    The Gram matrix entries come from the cache ``gram``/``rhs`` (see :func:`_gram_row`).
     """
     P = lay[L_P]
     nt = lay[L_NT]
@@ -453,20 +523,13 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
         cols[j] = -2
     G = np.zeros((k, k))
     r = np.zeros(k)
-    r[0] = _sum(y, nt)
-    G[0, 0] = nt
-    for i in range(1, k):
-        ci = cols[i]
-        xi = V[buf[ci], ci]
-        r[i] = _dot(xi, y, nt)
-        s = _sum(xi, nt)
-        G[i, 0] = s
-        G[0, i] = s
-        for j in range(1, i + 1):
-            cj = cols[j]
-            s = _dot(xi, V[buf[cj], cj], nt)
-            G[i, j] = s
-            G[j, i] = s
+    for i in range(k):
+        gi = _gidx(cols[i], lay)
+        r[i] = rhs[gi]
+        for j in range(i + 1):
+            v = gram[gi, _gidx(cols[j], lay)]
+            G[i, j] = v
+            G[j, i] = v
     # normalise and factorise with column dropping
     d = np.empty(k)
     keep = np.ones(k, dtype=np.uint8)
@@ -610,7 +673,7 @@ def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
 
 @njit(cache=True)
 def init_population(seed, op, a, b, cval, V, buf, valid, isconst, fit, lay, y, yc, syy,
-                    ckind, cbound, beta, cols, obj):
+                    ckind, cbound, beta, cols, obj, gram, rhs):
     """Random links for head, tail and identity nodes; evaluate everything; fit the model."""
     np.random.seed(seed)
     P = lay[L_P]
@@ -642,7 +705,8 @@ def init_population(seed, op, a, b, cval, V, buf, valid, isconst, fit, lay, y, y
         if b[n] >= 0 and depth[b[n]] > d:
             d = depth[b[n]]
         depth[n] = d + 1
-    ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj)
+    ok = solve_fresh(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj,
+                     gram, rhs)
     if not ok:
         obj[O_ED] = np.inf
         obj[O_EC] = np.inf
@@ -656,7 +720,7 @@ def _is_binary(code):
 
 @njit(cache=True)
 def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid, isconst, fit,
-              lay, y, yc, syy, ckind, cbound, beta, cols, obj,
+              lay, y, yc, syy, ckind, cbound, beta, cols, obj, gram, rhs,
               arch_obj, arch_a, arch_b, arch_n, stats):
     """``n_gens`` generations of (1+1) local search on the population, in place.
 
@@ -692,6 +756,11 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
     nbeta = np.empty(K)
     ncols = np.empty(K, dtype=np.int64)
     nobj = np.zeros(3)
+    KG = gram.shape[0]
+    n_slots = P - id0
+    g_node = np.empty(max(n_slots, 1), dtype=np.int64)
+    g_row = np.empty((max(n_slots, 1), KG))
+    g_rhs = np.empty(max(n_slots, 1))
     obj[O_SCORE] = _score(obj[O_ED], obj[O_EC], mode, weight)
     for g in range(n_gens):
         gen_id = stats[S_GENS] + 1
@@ -725,6 +794,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                 m = np.random.randint(id0, P)
             elif has_head and np.random.random() < P_HEAD:
                 m = np.random.randint(head0, lay[L_HEAD])
+                for _t in range(TOURNAMENT - 1):
+                    c = np.random.randint(head0, lay[L_HEAD])
+                    if bp[c] < bp[m]:
+                        m = c
             else:
                 m = np.random.randint(t0, P)
                 for _t in range(TOURNAMENT - 1):
@@ -784,11 +857,22 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                     id_changed = True
         stats[S_EVALS] += nd
         accept = False
+        ng = 0
         if not id_changed:
             accept = True          # the model is the same: a neutral move
         else:
+            # refresh the Gram-cache rows of the feature slots that changed (undo log kept)
+            for n in range(id0, P):
+                if stamp[n] == gen_id and valid[n] == 1 and isconst[n] == 0:
+                    g = _gidx(n, lay)
+                    g_node[ng] = g
+                    g_rhs[ng] = rhs[g]
+                    for j in range(KG):
+                        g_row[ng, j] = gram[g, j]
+                    ng += 1
+                    _gram_row(n, V, buf, valid, isconst, lay, y, gram, rhs)
             ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols,
-                              nobj)
+                              nobj, gram, rhs)
             if ok:
                 sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
                 if mode == 1:
@@ -806,6 +890,12 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
         if accept:
             stats[S_ACCEPT] += 1
         else:
+            for i in range(ng - 1, -1, -1):
+                g = g_node[i]
+                rhs[g] = g_rhs[i]
+                for j in range(KG):
+                    gram[g, j] = g_row[i, j]
+                    gram[j, g] = g_row[i, j]
             for i in range(nm - 1, -1, -1):
                 if u_slot[i] == 0:
                     a[u_node[i]] = u_old[i]

@@ -46,6 +46,8 @@ class Population:
     beta: np.ndarray     # (nf + 1,) coefficients of the current model
     cols: np.ndarray     # (nf + 1,) node per coefficient (-1 intercept, -2 unused)
     obj: np.ndarray      # (3,) e_d, e_c, score
+    gram: np.ndarray     # (1 + np + nid, 1 + np + nid) cached Gram matrix of [1 | priors | slots]
+    rhs: np.ndarray      # (1 + np + nid,) cached [1 | priors | slots]^T y
 
     def copy(self) -> "Population":
         return Population(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
@@ -104,7 +106,8 @@ def build_population(functions: tuple[str, ...], population_size: int, n_inputs:
         op=op, a=np.full(P, -1, dtype=np.int64), b=np.full(P, -1, dtype=np.int64), cval=cval,
         V=np.zeros((2, P, n_columns)), buf=np.zeros(P, dtype=np.int64),
         valid=np.zeros(P, dtype=np.uint8), isconst=np.zeros(P, dtype=np.uint8), fit=np.ones(P),
-        lay=lay, beta=np.zeros(kmax), cols=np.full(kmax, -2, dtype=np.int64), obj=np.zeros(3))
+        lay=lay, beta=np.zeros(kmax), cols=np.full(kmax, -2, dtype=np.int64), obj=np.zeros(3),
+        gram=np.zeros((kmax, kmax)), rhs=np.zeros(kmax))
 
 
 def load_terminals(pop: Population, problem: Problem) -> None:
@@ -117,12 +120,20 @@ def load_terminals(pop: Population, problem: Problem) -> None:
 def init(pop: Population, problem: Problem, seed: int) -> bool:
     return bool(K.init_population(seed, pop.op, pop.a, pop.b, pop.cval, pop.V, pop.buf, pop.valid,
                                   pop.isconst, pop.fit, pop.lay, problem.y, problem.yc, problem.syy,
-                                  problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj))
+                                  problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj,
+                                  pop.gram, pop.rhs))
 
 
 def evaluate_all(pop: Population, problem: Problem) -> None:
     K.evaluate_all(pop.op, pop.a, pop.b, pop.cval, pop.V, pop.buf, pop.valid, pop.isconst,
                    pop.fit, pop.lay, problem.yc, problem.syy)
+
+
+def solve(pop: Population, problem: Problem) -> bool:
+    """Rebuild the Gram cache and refit the model of ``pop`` (after evaluate_all)."""
+    return bool(K.solve_fresh(pop.op, pop.V, pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay,
+                              problem.y, problem.ckind, problem.cbound, pop.beta, pop.cols,
+                              pop.obj, pop.gram, pop.rhs))
 
 
 def run(pop: Population, problem: Problem, seed: int, n_gens: int, identity_only: bool,
@@ -131,4 +142,4 @@ def run(pop: Population, problem: Problem, seed: int, n_gens: int, identity_only
     K.run_chunk(seed, n_gens, identity_only, weight, pop.op, pop.a, pop.b, pop.cval, pop.V,
                 pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, problem.y, problem.yc,
                 problem.syy, problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj,
-                arch_obj, arch_a, arch_b, arch_n, stats)
+                pop.gram, pop.rhs, arch_obj, arch_a, arch_b, arch_n, stats)

@@ -33,6 +33,7 @@ class SearchResult:
     accepted: int = 0
     failed_fits: int = 0
     wall_s: float = 0.0
+    cpu_s: float = 0.0
 
 
 def key(pop: Population, constrained: bool, gamma: float):
@@ -43,17 +44,21 @@ def key(pop: Population, constrained: bool, gamma: float):
     return (0, ed) if ec < gamma else (1, ec)
 
 
-def schedule(generations: int, n_epochs: int, n_threads: int) -> tuple[int, int]:
-    """(epochs, generations per thread) so that epochs * threads * per_thread <= generations."""
+def schedule(generations: int, n_epochs: int, n_threads: int) -> list[list[int]]:
+    """Generations of each thread of each epoch: ``generations`` split as evenly as possible
+    over ``n_epochs x n_threads`` threads (fewer epochs when there are fewer generations)."""
     n_epochs = max(1, min(n_epochs, generations // max(1, n_threads)))
-    per_thread = max(1, generations // (n_epochs * n_threads))
-    return n_epochs, per_thread
+    slots = n_epochs * n_threads
+    base, extra = divmod(generations, slots)
+    counts = [base + (1 if i < extra else 0) for i in range(slots)]
+    return [counts[e * n_threads:(e + 1) * n_threads] for e in range(n_epochs)]
 
 
 def run_search(template: Population, problem: Problem, *, generations: int, n_epochs: int,
                n_threads: int, identity_steps: int, gamma: float, rng: np.random.Generator,
                progress=None) -> SearchResult:
     t_start = time.perf_counter()
+    c_start = time.process_time()
     constrained = bool(template.lay[K.L_MODE])
     P = int(template.lay[K.L_P])
     arch = (np.zeros((ARCHIVE_SIZE, 2)), np.zeros((ARCHIVE_SIZE, P), dtype=np.int64),
@@ -76,12 +81,14 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
         best, other = other, best
     work, cand = other, best.copy()
 
-    n_epochs, per_thread = schedule(generations, n_epochs, n_threads)
-    total = n_epochs * n_threads * per_thread
+    plan = schedule(generations, n_epochs, n_threads)
+    total = sum(map(sum, plan))
     done = 0
-    for epoch in range(n_epochs):
+    for epoch, threads in enumerate(plan):
         cand.copy_from(best)
-        for t in range(n_threads):
+        for t, per_thread in enumerate(threads):
+            if per_thread == 0:
+                continue
             weight = WEIGHTS[(epoch * n_threads + t) % len(WEIGHTS)]
             work.copy_from(best)
             left = per_thread
@@ -93,7 +100,7 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
                 if progress is not None:
                     progress(done, total, f"e_d={best.obj[K.O_ED]:.4g}"
                              + (f" e_c={best.obj[K.O_EC]:.3g}" if constrained else ""))
-            if identity_steps > 0:
+            if identity_steps > 0 and template.lay[K.L_ID] < template.lay[K.L_P]:
                 popmod.run(work, problem, seed(), identity_steps, True, weight, arch, stats)
             if key(work, constrained, gamma) < key(cand, constrained, gamma):
                 cand.copy_from(work)
@@ -106,4 +113,5 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
     return SearchResult(best=best, archive=archive, generations=total,
                         evaluations=int(stats[K.S_EVALS]), accepted=int(stats[K.S_ACCEPT]),
                         failed_fits=int(stats[K.S_FAILED]),
-                        wall_s=time.perf_counter() - t_start)
+                        wall_s=time.perf_counter() - t_start,
+                        cpu_s=time.process_time() - c_start)
