@@ -172,6 +172,7 @@ class TargetProblem:
     empirical: dict = field(default_factory=dict)
     empirical_refit: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
 
 
 def run_seeds(seed: int, runs: int) -> tuple[int, list[tuple[int, int]]]:
@@ -258,8 +259,25 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
         cs_test = eval_set.sample(list(train.input_names), n_per_constraint=cfg.n_constraint_samples,
                                   seed=test_seed)
     p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test)
+    p.notes.extend(range_notes(train, test))
     _empirical_baselines(p)
     return p
+
+
+def range_notes(train: Dataset, test: Dataset, margin: float = 0.05) -> list[str]:
+    """A note when test inputs leave the training range by more than ``margin`` of its span:
+    evolved terms (powers, products) extrapolate there and test errors can grow without bound."""
+    out = []
+    for i, name in enumerate(train.input_names):
+        lo, hi = float(np.min(train.X[:, i])), float(np.max(train.X[:, i]))
+        tlo, thi = float(np.min(test.X[:, i])), float(np.max(test.X[:, i]))
+        pad = margin * max(hi - lo, 1e-12)
+        if tlo < lo - pad or thi > hi + pad:
+            out.append(f"{name} [{tlo:.3g}, {thi:.3g}] vs training [{lo:.3g}, {hi:.3g}]")
+    if not out:
+        return []
+    return ["the test data leave the training range, where evolved terms extrapolate (test errors "
+            "of single runs can grow without bound there): " + "; ".join(out)]
 
 
 def _empirical_baselines(p: TargetProblem) -> None:
@@ -532,7 +550,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
         identified = {k: nan for k in metric}
         median = {k: nan for k in metric}
         pred = np.full(len(p.test), nan)
-    notes = [p.test_description]
+    notes = [p.test_description, *p.notes]
     if best is not None and not best.get("qualified", True):
         notes.append(f"no run met the constraint threshold e_c^train < {cfg.gamma}: the run with "
                      f"the lowest training constraint error is reported instead")

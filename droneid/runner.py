@@ -9,8 +9,8 @@ flagged ``interrupted`` and unfinished jobs are ``None``.
 Backends:
 
 - ``n_jobs == 1`` and no scheduler: in this process, in order (debuggable, no pickling);
-- ``n_jobs > 1``: a :mod:`multiprocessing` pool (spawned workers that ignore SIGINT, so only this
-  process sees Ctrl-C and can terminate them cleanly);
+- ``n_jobs > 1``: a :mod:`multiprocessing` pool (forked when no other thread is alive, else
+  spawned; workers ignore SIGINT, so only this process sees Ctrl-C and can terminate them);
 - ``scheduler="tcp://host:port"`` (or a running ``distributed.Client``): Dask distributed.
 """
 from __future__ import annotations
@@ -77,8 +77,10 @@ def _init_worker(log_level: int):
     """Pool worker: Ctrl-C is the main process's business; log errors only (or everything
     under --debug), since per-run warnings reach the result as data anyway."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    logging.basicConfig(level=log_level if log_level <= logging.DEBUG else max(log_level, logging.ERROR),
-                        format="droneid worker: %(levelname)s: %(message)s")
+    root = logging.getLogger()
+    if not root.handlers:
+        logging.basicConfig(format="droneid worker: %(levelname)s: %(message)s")
+    root.setLevel(log_level if log_level <= logging.DEBUG else max(log_level, logging.ERROR))
 
 
 def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, scheduler=None,
@@ -138,8 +140,12 @@ def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, schedul
 
 def _run_pool(fn, jobs, n_jobs, record, outcome):
     import multiprocessing as mp
+    import threading
     outcome.backend = f"pool({n_jobs})"
-    ctx = mp.get_context("spawn")  # no fork of a process that may hold threads or locks
+    # fork when it is safe (no other thread alive that could hold a lock): fast, and a caller's
+    # script needs no `if __name__ == "__main__":` guard; otherwise spawn
+    safe_fork = "fork" in mp.get_all_start_methods() and threading.active_count() == 1
+    ctx = mp.get_context("fork" if safe_fork else "spawn")
     pool = ctx.Pool(n_jobs, initializer=_init_worker, initargs=(logging.getLogger().getEffectiveLevel(),))
     try:
         for index, status, payload in pool.imap_unordered(

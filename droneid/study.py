@@ -97,6 +97,7 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
                 v["p_value_vs_no_prior"] = (None if k == 0 else
                                             _ranksum_p([r["rmse_test"] for r in v["runs"]], ref))
         targets[t] = {"n_train": len(p.train), "n_test": len(p.test), "test_data": p.test_description,
+                      "notes": list(p.notes),
                       "empirical": dict(p.empirical),
                       "empirical_refit": {k: v for k, v in p.empirical_refit.items()},
                       "variants": variants}
@@ -165,6 +166,7 @@ def format_study(result: dict) -> str:
     lines = [head]
     for t, tr in result["targets"].items():
         lines.append(f"{t}: {tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']}")
+        lines += [f"  NOTE: {n}" for n in tr.get("notes") or []]
     if result.get("interrupted"):
         lines.append(f"NOTE: interrupted; {result['runs_finished']} of {result['runs_total']} runs finished")
     header, rows = study_table(result)
@@ -187,6 +189,8 @@ def study_document(result: dict) -> Document:
     for t, tr in result["targets"].items():
         doc.heading(t)
         doc.paragraph(f"{tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']}.")
+        for n in tr.get("notes") or []:
+            doc.paragraph(f"NOTE: {n}")
         fig = new_figure(7.0, 3.4)
         ax = fig.add_subplot()
         data, labels = [], []
