@@ -81,13 +81,3 @@ def test_readme_command_reproduces_the_sample(tmp_path):
     for f in spec.formats:
         name = f"{spec.name}{FORMATS[f]}"
         assert (tmp_path / name).read_bytes() == (SAMPLE_LOGS / name).read_bytes(), name
-
-
-def test_demo_summarises_the_samples(capsys):
-    if not SAMPLE_LOGS.is_dir():
-        pytest.skip("sample_logs/ is absent")
-    assert main(["demo", "--dir", str(SAMPLE_LOGS)]) == 0
-    out = capsys.readouterr().out
-    for spec in SAMPLES:
-        assert spec.name in out
-    assert "wind 1.5,-1; quadratic_drag 0.15" in out

@@ -1,0 +1,82 @@
+"""``droneid identify``: identify analytic models from logs and compare them with the empirical one."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ._common import ProgressBar, print_json
+
+
+def read_logs(paths) -> list:
+    """Read every log with the format detected from its content (errors name the file)."""
+    from parsers import read_flight
+    return [read_flight(p) for p in paths]
+
+
+def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str) -> None:
+    """Options shared by identify, study and demo: data, prior, budget, parallelism."""
+    p.add_argument("--target", default="vx_dot,vy_dot",
+                   help="target(s), comma separated: vx_dot, vy_dot, vz_dot (default vx_dot,vy_dot)")
+    p.add_argument("--prior", default="tilt-drag", help="empirical model the priors come from (default tilt-drag)")
+    p.add_argument("--runs", type=int, default=None, help=runs_help)
+    p.add_argument("--jobs", type=int, default=None, help="parallel worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, metavar="URL",
+                   help="run on a Dask distributed cluster, e.g. tcp://host:8786, instead of local workers")
+    p.add_argument("--generations", type=int, default=None, help="SNGP generations per run (paper: 60000)")
+    p.add_argument("--population", type=int, default=None, help="SNGP population size (paper: 500)")
+    p.add_argument("--seed", type=int, default=0, help="root seed; run seeds are spawned from it (default 0)")
+    p.add_argument("--ts", type=float, default=0.05, help="sampling period of the data in s (paper: 0.05)")
+    p.add_argument("--method", default="forward",
+                   help="differentiator: forward (paper), central, savgol, spline")
+    p.add_argument("--quick", action="store_true",
+                   help="small budget for a fast look (3000 generations, population 200, 4 runs)")
+
+
+def config_from_args(args, **extra):
+    from ..identify import IdentifyConfig
+    return IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
+                               jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
+                               population=args.population, seed=args.seed, ts=args.ts, method=args.method,
+                               **extra)
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "identify", help="identify models from logs and compare them with the empirical model",
+        description="Identify an analytic model of each target from the training logs with SNGP "
+                    "(prior features + formal constraints), compare it with the empirical model as given "
+                    "and refit, and write a report. Defaults are the paper's setup: 3 prior features, "
+                    "the paper's constraints, 60000 generations, population 500; 10 runs.")
+    p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
+    p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
+                   help="test log(s); without them the last 30%% of the training data are held out")
+    add_budget_arguments(p, runs_help="independent SNGP runs per target (default 10; the paper: 50; --quick: 4)")
+    p.add_argument("--prior-features", type=int, default=3, choices=(0, 1, 3),
+                   help="0: no prior; 1: the empirical model as one feature; 3: its three terms (default)")
+    p.add_argument("--constraints", default="paper", help="paper (default), none, or a constraints TOML file")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="write result.json, report.md, report.html and PNG figures into DIR")
+    p.add_argument("--json", action="store_true", help="print the result summary as one JSON line")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..identify import identify
+    from ..report_identify import compact, format_text, write_result
+    cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints)
+    train = read_logs(args.train)
+    test = read_logs(args.test) if args.test else None
+    bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
+    result = identify(train, test, cfg, progress=bar).to_dict()
+    if args.report:
+        write_result(result, args.report)
+    if args.json:
+        print_json(compact(result))
+    else:
+        print(format_text(result))
+        if args.report:
+            print(f"\nreport written to {args.report}/ (result.json, report.html, report.md, figures)")
+    if result["interrupted"]:
+        print("droneid identify: interrupted; the finished runs are reported", file=sys.stderr)
+        return 130
+    return 0

@@ -1,0 +1,42 @@
+"""``droneid study``: the paper's comparison (Tables II-III) of prior variants and constraints."""
+from __future__ import annotations
+
+import sys
+
+from ._common import ProgressBar, print_json
+from .identify import add_budget_arguments, config_from_args, read_logs
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "study", help="compare no/1/3 prior features, with and without constraints, over many runs",
+        description="Run the paper's protocol on your data: scenarios baseline and constrained x prior "
+                    "features none/1/3 x R runs per target; prints and saves the median test errors and "
+                    "Wilcoxon rank-sum p-values of each prior variant against no prior.")
+    p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
+    p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
+                   help="test log(s); without them the last 30%% of the training data are held out")
+    add_budget_arguments(p, runs_help="runs per target, scenario and prior variant (default 10; paper: 50)")
+    p.add_argument("--constraints", default="paper", help="constraints of the constrained scenario: paper or FILE")
+    p.add_argument("--out", default="study", metavar="DIR", help="write study.json, study.md, study.html here")
+    p.add_argument("--json", action="store_true", help="print the study result as one JSON line")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..study import format_study, study, write_study
+    cfg = config_from_args(args, constraints=args.constraints)
+    train = read_logs(args.train)
+    test = read_logs(args.test) if args.test else None
+    bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
+    result = study(train, test, cfg, progress=bar)
+    write_study(result, args.out)
+    if args.json:
+        print_json(result)
+    else:
+        print(format_study(result))
+        print(f"\nstudy written to {args.out}/ (study.json, study.md, study.html)")
+    if result["interrupted"]:
+        print("droneid study: interrupted; the finished runs are reported", file=sys.stderr)
+        return 130
+    return 0

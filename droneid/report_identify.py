@@ -1,0 +1,271 @@
+"""Rendering an identification result: terminal text, report.md/report.html with PNG figures.
+
+Every function here takes the result as plain data (the ``result.json`` dict, see
+:meth:`droneid.identify.IdentificationResult.to_dict`) and renders it; nothing is recomputed
+from logs, so a saved result can be re-rendered anywhere.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .io_util import atomic_write_json
+from .reporting import Document, fmt, new_figure
+
+__all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front", "compact",
+           "ERROR_HEADER"]
+
+ERROR_HEADER = ("model", "e_d train", "e_d test", "e_c test")
+
+
+def _f(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def efmt(v) -> str:
+    """An error value, 4 significant figures; float round-off (< 1e-12) shown as 0."""
+    x = _f(v)
+    return "0" if math.isfinite(x) and abs(x) < 1e-12 else fmt(v)
+
+
+def error_rows(tr: dict) -> list[list[str]]:
+    """The comparison table of one target: empirical, refit, identified best and median."""
+    def row(label, d):
+        d = d or {}
+        return [label, efmt(d.get("rmse_train")), efmt(d.get("rmse_test")), efmt(d.get("constraint_rmse_test"))]
+    n = len(tr.get("runs") or [])
+    return [row("empirical model as given", tr.get("empirical")),
+            row("empirical model refit (LS)", tr.get("empirical_refit")),
+            row("identified, best run", tr.get("identified")),
+            row(f"identified, median of {n} runs", tr.get("identified_median"))]
+
+
+def _text_table(header, rows) -> str:
+    cols = list(zip(*([header] + rows)))
+    widths = [max(len(str(c)) for c in col) for col in cols]
+    line = lambda r: "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)  # noqa: E731
+                               for i, (c, w) in enumerate(zip(r, widths)))
+    return "\n".join([line(header), "  ".join("-" * w for w in widths)] + [line(r) for r in rows])
+
+
+def _pct(v) -> str:
+    v = _f(v)
+    return "—" if not math.isfinite(v) else f"{v:+.1f} %"
+
+
+def _legend(tr: dict) -> list[str]:
+    return [f"  ⟨{p['name']}⟩ = {p['expr']}" + (f"   ({p['description']})" if p.get("description") else "")
+            for p in tr.get("prior_features") or []]
+
+
+def format_text(result: dict) -> str:
+    """The terminal summary: per target the equation, the error table and the improvement."""
+    out = []
+    cfg = result.get("config", {})
+    out.append(f"droneid identify: prior {cfg.get('prior')} with {cfg.get('prior_features')} prior "
+               f"feature(s), constraints {cfg.get('constraints')}, {cfg.get('runs')} run(s) of "
+               f"{cfg.get('generations')} generations x population {cfg.get('population')}"
+               + (" (quick budget)" if cfg.get("quick") else ""))
+    for note in result.get("notes") or []:
+        out.append(f"NOTE: {note}")
+    for name, tr in result["targets"].items():
+        out += ["", f"== {name}  ({tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']})"]
+        if tr.get("equation"):
+            out.append(tr["equation"])
+            out += _legend(tr)
+            if tr.get("equation_expanded"):
+                out.append(f"  expanded: {tr['equation_expanded']}")
+        else:
+            out.append("(no finished run)")
+        out.append("")
+        out.append(_text_table(list(ERROR_HEADER), error_rows(tr)))
+        imp = tr.get("improvement_pct") or {}
+        out.append(f"errors in the target's units (m/s²); e_d = RMSE on data, e_c = constraint RMSE. "
+                   f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
+                   f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its refit.")
+        for note in tr.get("notes") or []:
+            if note != tr["test_data"]:
+                out.append(f"NOTE: {note}")
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------------------------------------
+# figures
+
+
+def pareto_front(points: np.ndarray) -> np.ndarray:
+    """Mask of the non-dominated rows of ``points`` (n, 2), both objectives minimised."""
+    pts = np.asarray(points, float)
+    keep = np.ones(len(pts), bool)
+    for i, p in enumerate(pts):
+        if not np.all(np.isfinite(p)):
+            keep[i] = False
+            continue
+        dom = np.all(pts <= p, axis=1) & np.any(pts < p, axis=1)
+        keep[i] = not dom.any()
+    return keep
+
+
+def _x_axis(series: dict):
+    t = np.asarray(series.get("t") or [], float)
+    fl = np.asarray(series.get("flight") or [], int)
+    if t.size and (fl.size == 0 or np.all(fl == fl[0])):
+        return t, "time in test flight (s)"
+    return np.arange(t.size), "test sample (flights one after another)"
+
+
+def fig_measured_vs_predicted(name: str, tr: dict):
+    s = tr["test_series"]
+    x, xl = _x_axis(s)
+    fig = new_figure(7.5, 3.4)
+    ax = fig.add_subplot()
+    ax.plot(x, s["y"], color="k", lw=1.2, label="measured")
+    ax.plot(x, s["empirical"], color="tab:orange", lw=1, label="empirical model")
+    ax.plot(x, s["identified"], color="tab:blue", lw=1, label="identified (best run)")
+    ax.set_xlabel(xl)
+    ax.set_ylabel(f"{name} (m/s²)")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{name} on the test data")
+    return fig
+
+
+def fig_residuals(name: str, tr: dict):
+    s = tr["test_series"]
+    x, xl = _x_axis(s)
+    y = np.asarray(s["y"], float)
+    fig = new_figure(7.5, 3.0)
+    ax = fig.add_subplot()
+    ax.plot(x, y - np.asarray(s["empirical"], float), color="tab:orange", lw=0.9, label="empirical model")
+    ax.plot(x, y - np.asarray(s["empirical_refit"], float), color="tab:green", lw=0.9, alpha=0.7,
+            label="empirical refit")
+    ax.plot(x, y - np.asarray(s["identified"], float), color="tab:blue", lw=0.9, label="identified")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel(xl)
+    ax.set_ylabel("measured − predicted (m/s²)")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{name}: residual on the test data")
+    return fig
+
+
+def fig_runs(name: str, tr: dict):
+    runs = tr.get("runs") or []
+    e = np.sort(np.array([_f(r.get("rmse_test")) for r in runs], float))
+    fig = new_figure(6.0, 3.2)
+    ax = fig.add_subplot()
+    ax.plot(np.arange(1, e.size + 1), e, "o-", color="tab:blue", ms=4, label="identified runs")
+    ax.axhline(_f(tr["empirical"].get("rmse_test")), color="tab:orange", ls="--", label="empirical model")
+    ax.axhline(_f(tr["empirical_refit"].get("rmse_test")), color="tab:green", ls=":", label="empirical refit")
+    ax.set_xlabel("run (sorted by test error)")
+    ax.set_ylabel("e_d test (m/s²)")
+    if e.size and np.nanmax(e) > 0 and np.nanmax(e) / max(np.nanmin(e), 1e-12) > 30:
+        ax.set_yscale("log")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{name}: runs sorted by test error")
+    return fig
+
+
+def fig_pareto(name: str, tr: dict, gamma: float | None):
+    pts = [(_f(a.get("rmse_train")), _f(a.get("constraint_rmse_train")))
+           for r in tr.get("runs") or [] for a in (r.get("archive") or [])]
+    pts = np.array([p for p in pts if all(math.isfinite(v) for v in p)], float).reshape(-1, 2)
+    if not len(pts):
+        return None
+    front = pareto_front(pts)
+    fig = new_figure(6.0, 3.6)
+    ax = fig.add_subplot()
+    ax.scatter(pts[~front, 0], pts[~front, 1], s=8, color="0.7", label="archived models")
+    order = np.argsort(pts[front, 0])
+    ax.plot(pts[front, 0][order], pts[front, 1][order], "o-", color="tab:red", ms=4, label="Pareto front")
+    if gamma:
+        ax.axhline(gamma, color="k", ls="--", lw=0.8, label=f"γ = {gamma:g}")
+    ax.set_xlabel("e_d train (m/s²)")
+    ax.set_ylabel("e_c train (m/s²)")
+    if np.all(pts[:, 1] > 0):
+        ax.set_yscale("log")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{name}: Pareto front of the archives")
+    return fig
+
+
+# ------------------------------------------------------------------------------------------------
+# documents
+
+
+def build_document(result: dict) -> Document:
+    """report.md / report.html content: config, per-target equation, table and figures."""
+    cfg = result.get("config", {})
+    doc = Document("droneid identification report")
+    doc.paragraph(f"Prior '{cfg.get('prior')}' with {cfg.get('prior_features')} prior feature(s); "
+                  f"constraints: {cfg.get('constraints')}; {cfg.get('runs')} SNGP run(s), "
+                  f"{cfg.get('generations')} generations, population {cfg.get('population')}, "
+                  f"seed {cfg.get('seed')}; Ts {cfg.get('ts')} s, {cfg.get('method')} differences. "
+                  f"Errors in m/s²: e_d is the RMSE on data, e_c the RMSE of constraint violations.")
+    for note in result.get("notes") or []:
+        doc.paragraph(f"NOTE: {note}")
+    prov = result.get("provenance") or {}
+    files = lambda part: ", ".join(str(f) for p in prov.get(part) or [] for f in (p.get("files") or []))  # noqa: E731
+    doc.paragraph(f"Training logs: {files('train') or '—'}. Test logs: {files('test') or '—'}.")
+    for name, tr in result["targets"].items():
+        doc.heading(name)
+        doc.paragraph(f"{tr['n_train']} training and {tr['n_test']} test samples; {tr['test_data']}. "
+                      f"Inputs: {', '.join(tr['inputs'])}.")
+        if tr.get("equation"):
+            doc.code("\n".join([tr["equation"], *_legend(tr)]
+                               + ([f"expanded: {tr['equation_expanded']}"] if tr.get("equation_expanded") else [])))
+        doc.table(ERROR_HEADER, error_rows(tr))
+        imp = tr.get("improvement_pct") or {}
+        doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
+                      f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its least-squares refit. "
+                      f"The best run is chosen by training error among runs meeting the constraint "
+                      f"threshold, never by test error.")
+        refit = tr["empirical_refit"].get("coefficients") or {}
+        if refit:
+            doc.paragraph("Empirical refit: " + ", ".join(f"{fmt(v)}·⟨{k}⟩" for k, v in refit.items())
+                          + f" + {fmt(tr['empirical_refit'].get('intercept'))}")
+        for note in tr.get("notes") or []:
+            if note != tr["test_data"]:
+                doc.paragraph(f"NOTE: {note}")
+        if tr.get("runs"):
+            doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "qualified", "wall (s)"],
+                      [[str(i + 1) + (" (best)" if i == tr.get("best_run") else ""), r.get("seed"),
+                        fmt(r.get("rmse_train")), fmt(r.get("rmse_test")), fmt(r.get("constraint_rmse_train")),
+                        fmt(r.get("constraint_rmse_test")), "yes" if r.get("qualified") else "no",
+                        fmt(r.get("wall_s"), 3)] for i, r in enumerate(tr["runs"])])
+        if tr.get("test_series", {}).get("y"):
+            doc.figure(fig_measured_vs_predicted(name, tr), f"{name}_test_prediction",
+                       "measured vs predicted on the test data (identified best run and empirical model)")
+            doc.figure(fig_residuals(name, tr), f"{name}_residuals", "residual over time on the test data")
+        if tr.get("runs"):
+            doc.figure(fig_runs(name, tr), f"{name}_runs",
+                       "runs sorted by test error; dashed: the empirical model's test error (cf. the paper's Figs. 2-3)")
+        if cfg.get("constraints") != "none" and tr.get("runs"):
+            fig = fig_pareto(name, tr, cfg.get("gamma"))
+            if fig is not None:
+                doc.figure(fig, f"{name}_pareto", "Pareto front of e_d^train vs e_c^train over the runs' archives")
+    vers = result.get("versions") or {}
+    doc.paragraph("Versions: " + ", ".join(f"{k} {v}" for k, v in vers.items()))
+    return doc
+
+
+def write_result(result: dict, directory) -> dict[str, Path]:
+    """Write result.json, report.md, report.html and the PNGs into ``directory`` (atomically)."""
+    d = Path(directory)
+    paths = {"json": atomic_write_json(d / "result.json", result)}
+    paths.update(build_document(result).write(d, "report"))
+    return paths
+
+
+def compact(result: dict) -> dict:
+    """The result without bulky parts (series, archives, the model): for ``--json`` output."""
+    out = {k: v for k, v in result.items() if k != "targets"}
+    out["targets"] = {}
+    for name, tr in result["targets"].items():
+        t = {k: v for k, v in tr.items() if k not in ("test_series", "model", "runs")}
+        t["runs"] = [{k: v for k, v in r.items() if k != "archive"} for r in tr.get("runs") or []]
+        out["targets"][name] = t
+    return out

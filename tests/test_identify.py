@@ -1,0 +1,235 @@
+"""End to end: identify / predict / study / demo through the CLI on simulated logs with planted truth.
+
+The logs are simulated flights shaped like the paper's drone experiment (train: eight, test:
+square), written as MAVLink tlogs and read back through the parsers, so the whole chain is
+exercised. Budgets are tiny (a few hundred generations) to keep the suite fast; the checks are
+on planted structure, not on observed numbers.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from droneid.cli import main
+
+SCHEMA_METRICS = ("rmse_train", "rmse_test", "constraint_rmse_test")
+TINY = ["--generations", "300", "--population", "100", "--jobs", "1"]
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    """(train eight tlog, test square tlog): planted truth = the paper's model with k_D = 0.4
+    (so the empirical model as given, k_D = 0.28, is off and its refit is right)."""
+    from droneid.simulate import simulate
+    from parsers.tlog_writer import write_tlog
+    d = tmp_path_factory.mktemp("logs")
+    train = d / "eight.tlog"
+    test = d / "square.tlog"
+    write_tlog(simulate(path="eight", duration_s=12, seed=1, k_drag=0.4).flight, train)
+    write_tlog(simulate(path="square", duration_s=14, seed=2, k_drag=0.4).flight, test)
+    return train, test
+
+
+def run_cli(capsys, *argv) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def identified(logs, tmp_path_factory):
+    """One CLI identify run shared by the schema / files / predict tests."""
+    train, test = logs
+    report = tmp_path_factory.mktemp("report")
+    code = main(["-q", "identify", str(train), "--test", str(test), "--target", "vx_dot,vy_dot",
+                 "--runs", "2", *TINY, "--report", str(report)])
+    assert code == 0
+    return report
+
+
+def test_identify_writes_the_documented_schema_and_files(identified):
+    names = {p.name for p in identified.iterdir()}
+    assert {"result.json", "report.md", "report.html"} <= names
+    for t in ("vx_dot", "vy_dot"):
+        assert {f"{t}_test_prediction.png", f"{t}_residuals.png", f"{t}_runs.png", f"{t}_pareto.png"} <= names
+    doc = json.loads((identified / "result.json").read_text())
+    assert {"targets", "config", "provenance", "versions"} <= set(doc)
+    for t in ("vx_dot", "vy_dot"):
+        tr = doc["targets"][t]
+        assert isinstance(tr["equation"], str) and tr["equation"].startswith(f"{t} = ")
+        assert isinstance(tr["coefficients"], dict) and isinstance(tr["prior_coefficients"], dict)
+        assert len(tr["prior_coefficients"]) == 3
+        for part in ("identified", "empirical", "empirical_refit"):
+            assert all(isinstance(tr[part][k], float) for k in SCHEMA_METRICS), part
+        assert len(tr["runs"]) == 2
+        for r in tr["runs"]:
+            assert {"seed", "rmse_train", "rmse_test", "constraint_rmse_test", "wall_s"} <= set(r)
+        assert tr["model"] and tr["holdout"] is False
+    assert doc["config"]["prior_features"] == 3 and doc["config"]["constraints"] == "paper"
+    assert doc["provenance"]["train"][0]["files"][0].endswith("eight.tlog")
+    html = (identified / "report.html").read_text()
+    assert html.count("data:image/png;base64,") == 8
+
+
+def test_predict_round_trip_reproduces_the_test_error(identified, logs, capsys):
+    _, test = logs
+    code, out, _ = run_cli(capsys, "predict", identified / "result.json", test, "--json")
+    assert code == 0
+    pred = json.loads(out)
+    doc = json.loads((identified / "result.json").read_text())
+    for t in ("vx_dot", "vy_dot"):
+        e = pred["targets"][t]["errors"]["all"]
+        assert e["n"] == doc["targets"][t]["n_test"]
+        assert e["rmse_identified"] == pytest.approx(doc["targets"][t]["identified"]["rmse_test"], rel=1e-6)
+        assert e["rmse_empirical"] == pytest.approx(doc["targets"][t]["empirical"]["rmse_test"], rel=1e-6)
+        assert e["rmse_empirical_refit"] == pytest.approx(doc["targets"][t]["empirical_refit"]["rmse_test"],
+                                                          rel=1e-6)
+    code, out, _ = run_cli(capsys, "predict", identified / "result.json", test, "--target", "vx_dot")
+    assert code == 0 and "e_d identified" in out and "vy_dot" not in out
+
+
+def test_identify_terminal_output_and_holdout_note(logs, capsys):
+    train, _ = logs
+    code, out, _ = run_cli(capsys, "-q", "identify", train, "--target", "vx_dot", "--runs", "1",
+                           "--prior-features", "1", "--constraints", "none", *TINY)
+    assert code == 0
+    assert "held out" in out and "time block" in out
+    assert "⟨tilt_drag_vx_dot⟩" in out
+    for label in ("empirical model as given", "empirical model refit (LS)", "identified, best run",
+                  "identified, median of 1 runs", "vs the empirical model"):
+        assert label in out
+
+
+def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, tmp_path):
+    """Planted truth: the paper's model with k_D = 0.4 (training: eight; test: another eight with
+    different noise, i.e. the same flight regime). The constrained + 3 prior variant must satisfy
+    the constraints far better than the unconstrained no-prior baseline, and predict no worse than
+    the empirical refit (which has the true structure) within 15 %: the identified model contains
+    the refit's features, so it can only lose to it by fitting noise with its evolved terms (over
+    8 runs of this budget: 0-11 % worse). On the SQUARE test flight the same runs are NOT reliably
+    close to the refit: the square reaches |v| = 1.85 m/s where training stopped at 1.45 m/s, and
+    evolved terms (powers of vx) extrapolate there; identify says so in a note (checked below)."""
+    from droneid.identify import IdentifyConfig, identify
+    from droneid.simulate import simulate
+    from parsers import read_flight
+    train = read_flight(logs[0])
+    test = simulate(path="eight", duration_s=12, seed=2, k_drag=0.4).flight
+    common = dict(targets=("vx_dot",), runs=2, generations=1500, population=150, jobs=1, seed=3)
+    guided = identify([train], [test], IdentifyConfig.make(prior_features=3, constraints="paper", **common))
+    base = identify([train], [test], IdentifyConfig.make(prior_features=0, constraints="none", **common))
+    g, b = guided.targets["vx_dot"], base.targets["vx_dot"]
+    assert g.identified_median["constraint_rmse_test"] < 0.1 * b.identified_median["constraint_rmse_test"]
+    assert g.identified["constraint_rmse_test"] < 0.05
+    assert g.identified["rmse_test"] <= 1.15 * g.empirical_refit["rmse_test"]
+    # the empirical model as given has the wrong drag, its refit finds k_D ~ 0.4
+    assert g.empirical_refit["rmse_test"] < g.empirical["rmse_test"]
+    kd = g.empirical_refit["coefficients"]["minus_kD_vx"] * 0.28  # the term is -0.28 vx
+    assert 0.3 < kd < 0.5
+    assert not any("training range" in n for n in g.notes)
+
+
+def test_test_data_outside_the_training_range_are_flagged(logs):
+    from droneid.identify import IdentifyConfig, prepare_target
+    from parsers import read_flight
+    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=10, population=40)
+    p = prepare_target([read_flight(logs[0])], [read_flight(logs[1])], "vx_dot", cfg)
+    assert any("leave the training range" in n and "vx [" in n for n in p.notes)
+
+
+def test_study_table_shape_and_p_values(logs, tmp_path, capsys):
+    train, test = logs
+    out_dir = tmp_path / "study"
+    code, out, _ = run_cli(capsys, "-q", "study", train, "--test", test, "--target", "vx_dot",
+                           "--runs", "2", "--generations", "200", "--population", "80", "--jobs", "1",
+                           "--out", out_dir)
+    assert code == 0
+    from droneid.study import study_table
+    doc = json.loads((out_dir / "study.json").read_text())
+    header, rows = study_table(doc)
+    assert header[:2] == ["scenario", "prior"] and len(header) == 5
+    assert len(rows) == 8  # 2 scenarios x 3 prior variants + empirical as given / refit
+    variants = doc["targets"]["vx_dot"]["variants"]
+    assert set(variants) == {f"{s}/{k}" for s in ("baseline", "constrained") for k in (0, 1, 3)}
+    for name, v in variants.items():
+        assert v["n_runs"] == 2
+        if name.endswith("/0"):
+            assert v["p_value_vs_no_prior"] is None
+        else:
+            assert 0.0 <= v["p_value_vs_no_prior"] <= 1.0
+    assert (out_dir / "study.md").is_file() and "p vs none" in out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["identify", "/nonexistent/log.tlog"], "log.tlog"),
+    (["identify", "{train}", "--target", "vx_dott"], "did you mean 'vx_dot'"),
+    (["identify", "{train}", "--constraints", "nofile.toml"], "constraints"),
+    (["predict", "/nonexistent.json", "{train}"], "nonexistent.json"),
+])
+def test_bad_input_is_one_line_exit_2(logs, capsys, argv, message):
+    argv = [a.replace("{train}", str(logs[0])) for a in argv]
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 2
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_identify_in_a_process_pool_matches_in_process(logs):
+    """Runs are seeded from one SeedSequence: the pool gives the same runs as one process."""
+    from droneid.identify import IdentifyConfig, identify
+    from parsers import read_flight
+    train, test = read_flight(logs[0]), read_flight(logs[1])
+    cfg = dict(targets=("vx_dot",), runs=2, generations=200, population=80, seed=5)
+    a = identify([train], [test], IdentifyConfig.make(jobs=1, **cfg)).targets["vx_dot"]
+    b = identify([train], [test], IdentifyConfig.make(jobs=2, **cfg)).targets["vx_dot"]
+    assert [r["seed"] for r in a.runs] == [r["seed"] for r in b.runs]
+    assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])
+
+
+def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
+    from conftest import SAMPLE_LOGS
+    if not SAMPLE_LOGS.is_dir():
+        pytest.skip("sample_logs/ is absent")
+    code, out, _ = run_cli(capsys, "-q", "demo", "--logs", SAMPLE_LOGS, "--out", tmp_path / "demo", "--runs", "1",
+                           "--generations", "100", "--population", "60", "--jobs", "1")
+    assert code == 0
+    assert "paper_train_eight.tlog" in out and "paper_test_square.tlog" in out
+    assert "vx_dot = " in out and "vy_dot = " in out and "identified, best run" in out
+    assert (tmp_path / "demo" / "report.html").is_file()
+
+
+def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
+    """A KeyboardInterrupt in the third run: the first two are reported, flagged interrupted."""
+    import droneid.identify as ident
+    from parsers import read_flight
+    real = ident.run_job
+
+    def flaky(job):
+        if job.index == 2:
+            raise KeyboardInterrupt
+        return real(job)
+
+    monkeypatch.setattr(ident, "run_job", flaky)
+    cfg = ident.IdentifyConfig.make(targets=("vx_dot",), runs=4, generations=100, population=60, jobs=1)
+    res = ident.identify([read_flight(logs[0])], [read_flight(logs[1])], cfg)
+    assert res.interrupted and len(res.targets["vx_dot"].runs) == 2
+    assert "interrupted: 2 of 4 runs" in res.notes[0]
+    from droneid.report_identify import format_text, write_result
+    write_result(res.to_dict(), tmp_path)
+    assert "interrupted" in format_text(res.to_dict())
+
+
+@pytest.mark.slow
+def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
+    distributed = pytest.importorskip("distributed")
+    from droneid.identify import IdentifyConfig, identify
+    from parsers import read_flight
+    train, test = read_flight(logs[0]), read_flight(logs[1])
+    cfg = dict(targets=("vx_dot",), runs=2, generations=150, population=60, seed=4)
+    a = identify([train], [test], IdentifyConfig.make(jobs=1, **cfg)).targets["vx_dot"]
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
+                                  protocol="tcp://", dashboard_address=None) as cluster:
+        res = identify([train], [test], IdentifyConfig.make(scheduler=cluster.scheduler_address, **cfg))
+    b = res.targets["vx_dot"]
+    assert res.backend.startswith("dask(")
+    assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])

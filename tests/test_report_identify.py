@@ -1,0 +1,146 @@
+"""Identification reports and selection, tested from hand-built results (no engine needed)."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from droneid.errors import ConfigError
+from droneid.identify import (IdentificationResult, IdentifyConfig, improvement_pct, readable_equation,
+                              run_seeds, select_best)
+from droneid.report_identify import error_rows, format_text, pareto_front, write_result
+
+
+def hand_built_result(constraints="paper") -> dict:
+    t = np.arange(0, 5, 0.05)
+    y = np.sin(t)
+    runs = [{"seed": 10 + i, "rmse_train": 0.1 + 0.01 * i, "rmse_test": 0.2 + 0.02 * i,
+             "constraint_rmse_train": 0.01 * (i + 1), "constraint_rmse_test": 0.02 * (i + 1),
+             "qualified": True, "wall_s": 1.5, "generations": 100, "equation": "x",
+             "archive": [{"rmse_train": 0.1 + j * 0.01, "constraint_rmse_train": 0.5 / (j + 1)}
+                         for j in range(5)]} for i in range(4)]
+    tr = {"target": "vx_dot", "inputs": ["vx", "pitch", "roll", "yaw"], "n_train": 160, "n_test": 100,
+          "test_data": "test flights: square", "holdout": False,
+          "prior_features": [{"name": "tilt_pitch", "expr": "9.81*tan(pitch)", "description": "d"}],
+          "empirical_terms": [],
+          "equation": "vx_dot = 0.9·⟨tilt_pitch⟩ - 0.3·vx", "equation_expanded": "vx_dot = 8.8*tan(pitch) - 0.3*vx",
+          "coefficients": {"vx": -0.3}, "prior_coefficients": {"tilt_pitch": 0.9}, "intercept": 0.0,
+          "identified": {"rmse_train": 0.1, "rmse_test": 0.2, "constraint_rmse_test": 0.02},
+          "identified_median": {"rmse_train": 0.115, "rmse_test": 0.23, "constraint_rmse_test": 0.05},
+          "empirical": {"rmse_train": 0.5, "rmse_test": 0.4, "constraint_rmse_test": 0.0},
+          "empirical_refit": {"rmse_train": 0.3, "rmse_test": 0.25, "constraint_rmse_test": 0.001,
+                              "coefficients": {"tilt_pitch": 0.95}, "intercept": 0.01},
+          "improvement_pct": {"vs_empirical": 50.0, "vs_empirical_refit": 20.0},
+          "runs": runs, "best_run": 0, "failed_runs": {}, "model": {"kind": "fake"},
+          "test_series": {"t": t.tolist(), "flight": [0] * t.size, "y": y.tolist(),
+                          "empirical": (0.8 * y).tolist(), "empirical_refit": (0.9 * y).tolist(),
+                          "identified": (0.97 * y).tolist()},
+          "notes": ["test flights: square"]}
+    cfg = IdentifyConfig(constraints=constraints).to_dict()
+    return {"schema": "droneid.identify/1", "targets": {"vx_dot": tr}, "config": cfg,
+            "provenance": {"train": [{"files": ["eight.tlog"]}], "test": [{"files": ["square.tlog"]}]},
+            "versions": {"droneid": "0"}, "interrupted": False, "wall_s": 1.0, "notes": []}
+
+
+def test_text_summary_has_equation_table_and_improvement():
+    text = format_text(hand_built_result())
+    assert "vx_dot = 0.9·⟨tilt_pitch⟩ - 0.3·vx" in text
+    assert "⟨tilt_pitch⟩ = 9.81*tan(pitch)" in text
+    for label in ("empirical model as given", "empirical model refit", "identified, best run",
+                  "identified, median of 4 runs"):
+        assert label in text
+    assert "+50.0 % vs the empirical model" in text
+
+
+def test_error_rows_shape():
+    rows = error_rows(hand_built_result()["targets"]["vx_dot"])
+    assert len(rows) == 4 and all(len(r) == 4 for r in rows)
+    assert rows[2][1:] == ["0.1", "0.2", "0.02"]
+
+
+def test_write_result_writes_json_markdown_html_and_pngs(tmp_path):
+    paths = write_result(hand_built_result(), tmp_path)
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"result.json", "report.md", "report.html", "vx_dot_test_prediction.png", "vx_dot_residuals.png",
+            "vx_dot_runs.png", "vx_dot_pareto.png"} <= names
+    assert json.loads((tmp_path / "result.json").read_text())["targets"]["vx_dot"]["equation"]
+    html = (tmp_path / "report.html").read_text()
+    assert html.count("data:image/png;base64,") == 4 and "<table>" in html
+    assert "![" in (tmp_path / "report.md").read_text()
+    assert not [n for n in names if n.endswith(".tmp")]
+    assert paths["json"].name == "result.json"
+
+
+def test_no_pareto_figure_without_constraints(tmp_path):
+    write_result(hand_built_result(constraints="none"), tmp_path)
+    assert not (tmp_path / "vx_dot_pareto.png").exists()
+
+
+def test_result_round_trips_through_from_dict():
+    d = hand_built_result()
+    back = IdentificationResult.from_dict(json.loads(json.dumps(d))).to_dict()
+    assert back["targets"]["vx_dot"]["equation"] == d["targets"]["vx_dot"]["equation"]
+    assert back["config"] == json.loads(json.dumps(d["config"]))
+
+
+def test_select_best_uses_training_error_of_qualified_runs_only():
+    runs = [{"rmse_train": 0.1, "rmse_test": 9.0, "qualified": False, "constraint_rmse_train": 1.0},
+            {"rmse_train": 0.3, "rmse_test": 0.1, "qualified": True, "constraint_rmse_train": 0.01},
+            {"rmse_train": 0.2, "rmse_test": 5.0, "qualified": True, "constraint_rmse_train": 0.04},
+            None]
+    assert select_best(runs[:3]) == 2        # lowest train error among qualified, test ignored
+    none_ok = [dict(r, qualified=False) for r in runs[:3]]
+    assert select_best(none_ok) == 1         # none qualified: lowest training constraint error
+    assert select_best([None, None]) is None
+
+
+def test_readable_equation_names_priors_and_signs():
+    eq = readable_equation("vy_dot", {"vy": -0.25, "sin(roll)": 0.125}, {"tilt": 1.02}, -0.01)
+    assert eq == "vy_dot = 1.02·⟨tilt⟩ - 0.25·vy + 0.125·sin(roll) - 0.01"
+
+
+def test_pareto_front_mask():
+    pts = np.array([[1, 5], [2, 2], [3, 3], [5, 1], [2, 6]])
+    assert pareto_front(pts).tolist() == [True, True, False, True, False]
+
+
+def test_improvement_pct():
+    assert improvement_pct(0.4, 0.2) == 50.0
+    assert math.isnan(improvement_pct(float("nan"), 0.2))
+
+
+def test_run_seeds_are_prefix_stable():
+    t1, s1 = run_seeds(7, 3)
+    t2, s2 = run_seeds(7, 10)
+    assert t1 == t2 and s1 == s2[:3] and len(set(s2)) == 10
+
+
+@pytest.mark.parametrize("given, match", [
+    ({"targets": "vx_dott"}, "did you mean 'vx_dot'"),
+    ({"prior_features": 2}, "prior_features"),
+    ({"constraints": "/nonexistent.toml"}, "constraints"),
+    ({"runs": 0}, "'runs'"),
+    ({"method": "backward"}, "method"),
+])
+def test_config_rejects_bad_values(given, match):
+    with pytest.raises(ConfigError, match=match):
+        IdentifyConfig.make(**given)
+
+
+def test_config_quick_budget_and_overrides():
+    q = IdentifyConfig.make(quick=True, runs=2)
+    assert q.quick and q.runs == 2 and q.generations < 60000
+    p = IdentifyConfig.make(targets="vx_dot,vy_dot")
+    assert p.generations == 60000 and p.population == 500 and p.targets == ("vx_dot", "vy_dot")
+
+
+def test_readable_equation_shows_prior_symbols_by_name_and_rounds():
+    from droneid.identify import display_term
+    syms = {"P2_g_sin": "g_sin", "P1_a": "a"}
+    assert display_term("-sin(357.0494022507776*P2_g_sin)", syms) == ("sin(357*⟨g_sin⟩)", True)
+    assert display_term("-P1_a**2 + cos(P2_g_sin)", syms) == ("(-⟨a⟩**2 + cos(⟨g_sin⟩))", False)
+    eq = readable_equation("vx_dot", {"-sin(P1_a)": -0.5, "vx**2": 0.25, "8.0*P1_a*vx": 0.5}, {"a": 1.0},
+                           0.0, syms)
+    assert eq == "vx_dot = 1·⟨a⟩ + 0.5·sin(⟨a⟩) + 0.25·vx**2 + 4·⟨a⟩*vx"
