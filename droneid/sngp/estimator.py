@@ -18,7 +18,8 @@ import numpy as np
 import sympy as sp
 
 from ..constraints import ConstraintSamples, constraint_rmse
-from ..errors import ConfigError, DataError, MissingSignalError, NotFittedError, did_you_mean
+from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
+                      did_you_mean)
 from ..expressions import compile_expression, parse_expression, symbol
 from . import kernels as K
 from . import population as popmod
@@ -44,6 +45,8 @@ _PARAMS = {
     "progress": None,
     "identity_steps": 100,
     "simplify_s": 0.5,
+    "prune": "exact",
+    "validation_fraction": 0.25,
 }
 _CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
@@ -58,12 +61,18 @@ class SNGPRegressor:
     ``gamma`` (e_c threshold of the constrained variant, target units), ``n_epochs``,
     ``n_threads`` (search threads per epoch, run one after the other), ``seed`` (None: drawn),
     ``progress`` (callable(done, total, message)), ``identity_steps`` (local steps relinking
-    feature slots at the end of each thread), ``simplify_s`` (sympy time budget; 0 disables).
+    feature slots at the end of each thread), ``simplify_s`` (sympy time budget; 0 disables),
+    ``prune`` ("exact": drop only features whose removal changes the training RMSE by < 1e-6
+    relative, as the spec says; "validation": the search sees only ``1 - validation_fraction``
+    of the training rows (contiguous blocks), evolved features are then dropped by backward
+    elimination while the error on the held-out blocks does not rise, and the kept features are
+    refit on all training rows: terms that only fit the noise of the search rows go).
     """
 
     def __init__(self, *, functions=DEFAULT_FUNCTIONS, population_size=500, generations=60000,
                  n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
-                 progress=None, identity_steps=100, simplify_s=0.5, **unknown):
+                 progress=None, identity_steps=100, simplify_s=0.5, prune="exact",
+                 validation_fraction=0.25, **unknown):
         if unknown:
             name = next(iter(unknown))
             raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
@@ -80,6 +89,8 @@ class SNGPRegressor:
         self.progress = progress
         self.identity_steps = identity_steps
         self.simplify_s = simplify_s
+        self.prune = prune
+        self.validation_fraction = validation_fraction
 
     # -- sklearn-style parameter access -------------------------------------------------------
     def get_params(self, deep: bool = True) -> dict:
@@ -132,6 +143,10 @@ class SNGPRegressor:
             bad("progress", "None or a callable(done, total, message)", self.progress)
         if not isinstance(self.simplify_s, (int, float)) or self.simplify_s < 0:
             bad("simplify_s", "a number >= 0 (seconds)", self.simplify_s)
+        check_choice("prune", self.prune, ("exact", "validation"), owner="SNGPRegressor")
+        v = self.validation_fraction
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.05 <= v <= 0.5:
+            bad("validation_fraction", "a number in [0.05, 0.5]", v)
 
     # -- fit -----------------------------------------------------------------------------------
     def fit(self, X, y, *, feature_names=None, priors=(), prior_names=None, constraints=None):
@@ -155,6 +170,11 @@ class SNGPRegressor:
                               "(prior features count toward nf)")
         cs = self._constraints(constraints, names)
         constrained = cs is not None and len(cs) > 0
+        X_all, y_all = X, y
+        val = _validation_rows(y.size, float(self.validation_fraction)) \
+            if self.prune == "validation" else None
+        if val is not None:
+            X, y = X_all[~val], y_all[~val]
 
         seed = int(self.seed) if self.seed is not None else \
             int(np.random.SeedSequence().generate_state(1)[0])
@@ -216,7 +236,8 @@ class SNGPRegressor:
         else:
             final = result.best
             self.qualified_ = True
-        model, ed, ec = self._build_model(final, y, cs if constrained else None)
+        model, ed, ec = self._build_model(final, y, cs if constrained else None,
+                                          None if val is None else (X_all, y_all, val))
         self.model_ = model
         self._cs_train = cs
         self.rmse_train_ = ed
@@ -345,8 +366,11 @@ class SNGPRegressor:
             return e
         return expr
 
-    def _build_model(self, pop: Population, y, cs):
-        """Refit the final population's features, prune dead ones, return (model, e_d, e_c)."""
+    def _build_model(self, pop: Population, y, cs, validation=None):
+        """Refit the final population's features, prune dead ones, return (model, e_d, e_c).
+
+        ``validation``: ``(X_all, y_all, mask)`` with the held-out rows of ``prune="validation"``;
+        then e_d is over all training rows."""
         nt = y.size
         n_prior = len(self._prior_syms)
         feat_nodes = [int(c) for c, bta in zip(pop.cols, pop.beta)
@@ -372,6 +396,9 @@ class SNGPRegressor:
             if ed2 <= ed * (1 + PRUNE_RTOL) + tiny and (not constrained or ec2 <= ec * (1 + PRUNE_RTOL) + tiny):
                 keep, beta, ed, ec = trial, b2, ed2, ec2
         node_expr = self._node_exprs(pop)
+        if validation is not None:
+            keep, beta, ed, ec = self._prune_validation(validation, A, At, Ac, y, cols, keep, ec,
+                                                        n_prior, node_expr, cs)
         terms, coefs = [], []
         intercept = 0.0
         for k, bta in zip(keep, beta):
@@ -384,6 +411,50 @@ class SNGPRegressor:
                               {s: self._prior_exprs[s] for s in self._prior_syms},
                               dict(self._prior_labels))
         return model, ed, (ec if constrained else float("nan"))
+
+    def _prune_validation(self, validation, A, At, Ac, y, cols, keep, ec, n_prior, node_expr, cs):
+        """Backward elimination of evolved features on the held-out rows, then a refit of the
+        kept columns on all training rows. Returns (keep, beta, e_d over all rows, e_c)."""
+        X_all, y_all, val = validation
+        env = {n: X_all[val, i] for i, n in enumerate(self._names)}
+        for sym, expr in self._prior_exprs.items():   # as SymbolicModel.predict evaluates them
+            env[sym] = compile_expression(expr, self._names)(env)
+        names = list(self._names) + list(self._prior_exprs)
+        Av = np.empty((int(val.sum()), A.shape[1]))
+        Av[:, 0] = 1.0
+        for j, c in enumerate(cols, start=1):
+            with np.errstate(all="ignore"):
+                Av[:, j] = compile_expression(node_expr(c), names)(env)
+        if not np.isfinite(Av).all():   # a feature undefined on the held-out rows must go
+            keep = [k for k in keep if k <= n_prior or np.isfinite(Av[:, k]).all()]
+        yv = y_all[val]
+        constrained = cs is not None
+
+        def score(kp):
+            beta = _lstsq(At[:, kp], y)
+            ev = float(np.sqrt(np.mean((yv - Av[:, kp] @ beta) ** 2)))
+            ecv = constraint_rmse(Ac[:, kp] @ beta, cs) if constrained else 0.0
+            return ev, ecv
+
+        cur, _ = score(keep)
+        while True:
+            best = None
+            for j in keep[1 + n_prior:]:
+                trial = [k for k in keep if k != j]
+                ev, ec2 = score(trial)
+                if constrained and not (ec2 < self.gamma or ec2 <= ec):
+                    continue
+                if best is None or ev < best[0]:
+                    best = (ev, trial)
+            if best is None or best[0] > cur * (1 + 1e-9):
+                break
+            cur, keep = best
+        Afull = np.empty((y_all.size, A.shape[1]))
+        Afull[~val], Afull[val] = At, Av
+        beta = _lstsq(Afull[:, keep], y_all)
+        ed = float(np.sqrt(np.mean((y_all - Afull[:, keep] @ beta) ** 2)))
+        ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
+        return keep, beta, ed, ec
 
     def _render(self, model: SymbolicModel) -> None:
         """Simplified forms of the model: equation_, expr_, latex_, coef_, prior_coef_."""
@@ -457,6 +528,20 @@ class SNGPRegressor:
                   "params": {k: v for k, v in self.get_params().items() if k != "progress"}})
         d["params"]["functions"] = list(d["params"]["functions"])
         return d
+
+
+def _validation_rows(n: int, fraction: float):
+    """Held-out rows for ``prune="validation"``: 8 contiguous blocks, every 4th held out
+    (blocks 1 and 5 for a quarter), so the held-out part spans the flight; None when too few rows."""
+    n_blocks = 8
+    n_val_blocks = max(1, int(round(fraction * n_blocks)))
+    if n < 40 * n_blocks // n_val_blocks or n < 80:
+        log.warning("prune='validation' needs at least 80 training samples (got %d): "
+                    "pruning only exactly dead features", n)
+        return None
+    block = np.minimum(np.arange(n) * n_blocks // n, n_blocks - 1)
+    held = set(np.round(np.linspace(1, n_blocks - 1, n_val_blocks, endpoint=False)).astype(int).tolist())
+    return np.isin(block, sorted(held))
 
 
 def _lstsq(A: np.ndarray, y: np.ndarray) -> np.ndarray:
