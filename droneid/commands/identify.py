@@ -13,7 +13,8 @@ def read_logs(paths) -> list:
     return [read_flight(p) for p in paths]
 
 
-def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str) -> None:
+def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
+                         prune_default: str = "validation") -> None:
     """Options shared by identify, study and demo: data, prior, budget, parallelism."""
     p.add_argument("--target", default="vx_dot,vy_dot",
                    help="target(s), comma separated: vx_dot, vy_dot, vz_dot (default vx_dot,vy_dot)")
@@ -30,6 +31,10 @@ def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str) -> None:
                    help="differentiator: forward (paper), central, savgol, spline")
     p.add_argument("--quick", action="store_true",
                    help="small budget for a fast look (3000 generations, population 200, 4 runs)")
+    p.add_argument("--prune", default=prune_default, choices=("validation", "exact"),
+                   help="validation: keep an evolved term only if it lowers the error on held-out "
+                        "blocks of the training data (short equations); exact: the paper's engine, "
+                        f"drop only dead terms (default {prune_default})")
 
 
 def config_from_args(args, **extra):
@@ -37,7 +42,7 @@ def config_from_args(args, **extra):
     return IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
                                jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
                                population=args.population, seed=args.seed, ts=args.ts, method=args.method,
-                               **extra)
+                               prune=args.prune, **extra)
 
 
 def register(sub) -> None:
