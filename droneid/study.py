@@ -131,10 +131,19 @@ def efmt(v) -> str:
     return _efmt(v)
 
 
+def _direction(median, median_none, nprior: int) -> str:
+    """' (lower)' / ' (higher)': the variant's median test error against no prior's (the
+    rank-sum test is two-sided, so the p-value alone does not say which way)."""
+    if nprior == 0 or median is None or median_none is None:
+        return ""
+    return " (lower)" if median < median_none else " (higher)" if median > median_none else ""
+
+
 def study_table(result: dict) -> tuple[list[str], list[list[str]]]:
     """Header and rows shaped like the paper's Tables II-III: one row per scenario × prior
-    variant, per target the median e_d^test, the median e_c^test and the rank-sum p-value of the
-    test errors against the same scenario's no-prior variant."""
+    variant, per target the median e_d^test, the median e_c^test and the two-sided rank-sum p-value of
+    the test errors against the same scenario's no-prior variant, with the direction of the
+    difference in medians."""
     names = list(result["targets"])
     header = ["scenario", "prior"]
     for t in names:
@@ -145,8 +154,9 @@ def study_table(result: dict) -> tuple[list[str], list[list[str]]]:
             row = [scenario, _label(k)]
             for t in names:
                 v = result["targets"][t]["variants"][_variant(scenario, k)]
+                none = result["targets"][t]["variants"][_variant(scenario, 0)]["median_rmse_test"]
                 row += [efmt(v["median_rmse_test"]), efmt(v["median_constraint_rmse_test"]),
-                        _p(v["p_value_vs_no_prior"])]
+                        _p(v["p_value_vs_no_prior"]) + _direction(v["median_rmse_test"], none, k)]
             rows.append(row)
     for key, label in (("empirical", "as given"), ("empirical_refit", "refit (LS)")):
         row = ["empirical model", label]
