@@ -534,8 +534,9 @@ class SNGPRegressor:
 
 
 def _validation_rows(n: int, fraction: float):
-    """Held-out rows for ``prune="validation"``: 8 contiguous blocks, every 4th held out
-    (blocks 1 and 5 for a quarter), so the held-out part spans the flight; None when too few rows."""
+    """Held-out rows for ``prune="validation"``: 8 contiguous blocks, ``round(fraction * 8)`` of
+    them held out, spread from block 1 on (blocks 1 and 4, 0-based, for a quarter), so the held-out
+    part spans the flight; None when too few rows."""
     n_blocks = 8
     n_val_blocks = max(1, int(round(fraction * n_blocks)))
     if n < 40 * n_blocks // n_val_blocks or n < 80:
