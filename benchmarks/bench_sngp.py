@@ -127,17 +127,8 @@ def main(argv=None) -> int:
 
 def paper_constraints(seed, m=50):
     """The paper's four vx_dot constraints (vx = 0; all demand vx_dot = 0)."""
-    from droneid.constraints import ConstraintSamples
-    r = np.random.default_rng(seed)
-    a = np.pi / 15
-    blocks = []
-    for pitch, roll, yaw in (((0, 0), (-a, a), (0, 0)), ((0, 0), (-a, a), (np.pi, np.pi)),
-                             ((-a, a), (0, 0), (np.pi / 2, np.pi / 2)),
-                             ((-a, a), (0, 0), (-np.pi / 2, -np.pi / 2))):
-        blocks.append(np.c_[np.zeros(m), r.uniform(*pitch, m), r.uniform(*roll, m), r.uniform(*yaw, m)])
-    X = np.vstack(blocks)
-    return ConstraintSamples(X, np.zeros(len(X)), np.zeros(len(X)), np.repeat(np.arange(4), m),
-                             tuple(NAMES))
+    from priors.constraints import get_constraints
+    return get_constraints("paper", "vx_dot").sample(NAMES, n_per_constraint=m, seed=seed)
 
 
 def accuracy(seeds):

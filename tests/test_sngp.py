@@ -34,16 +34,8 @@ def flight_data(n=160, seed=0, extra=0.0, noise=0.0):
 
 def paper_constraints(seed, m=50):
     """The paper's four vx_dot constraints (vx = 0, all demand vx_dot = 0)."""
-    r = np.random.default_rng(seed)
-    a = np.pi / 15
-    blocks = []
-    for pitch, roll, yaw in (((0, 0), (-a, a), (0, 0)), ((0, 0), (-a, a), (np.pi, np.pi)),
-                             ((-a, a), (0, 0), (np.pi / 2, np.pi / 2)),
-                             ((-a, a), (0, 0), (-np.pi / 2, -np.pi / 2))):
-        blocks.append(np.c_[np.zeros(m), r.uniform(*pitch, m), r.uniform(*roll, m), r.uniform(*yaw, m)])
-    X = np.vstack(blocks)
-    return ConstraintSamples(X, np.zeros(len(X)), np.zeros(len(X)), np.repeat(np.arange(4), m),
-                             tuple(NAMES), ("yaw0", "yawpi", "yaw+90", "yaw-90"))
+    from priors.constraints import get_constraints
+    return get_constraints("paper", "vx_dot").sample(NAMES, n_per_constraint=m, seed=seed)
 
 
 # -- operator table -------------------------------------------------------------------------------
