@@ -34,6 +34,7 @@ import sympy as sp
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice, did_you_mean
 from .expressions import compile_expression, symbol
+from .numerics import lstsq, rmse
 
 log = logging.getLogger(__name__)
 
@@ -336,18 +337,13 @@ class _Stack:
         out = {}
         for i, p in enumerate(self.parts):
             r = self.y[self.tidx == i] - pred[self.tidx == i]
-            out[p.target] = float(np.sqrt(np.mean(r ** 2)))
+            out[p.target] = rmse(r, 0.0)
         return out
 
 
-def _lstsq(X, y):
-    if X.shape[1] == 0:
-        return np.zeros(0)
-    scale = np.sqrt(np.mean(X ** 2, axis=0))
-    scale[scale == 0] = 1.0
-    beta, *_ = np.linalg.lstsq(X / scale, y, rcond=1e-10)
-    return beta / scale
 
+def _lstsq(X, y):
+    return lstsq(X, y, rcond=1e-10)
 
 def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
     """Held-out predictions by leave-one-block-out; per-block MSE and sample counts."""
@@ -664,8 +660,6 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         series=_series(model, base_fit, cur, plot_steps))
 
 
-def _rmse(y, pred) -> float:
-    return float(np.sqrt(np.mean((y - pred) ** 2)))
 
 
 def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dict:
@@ -674,7 +668,7 @@ def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dic
         t, tp = p.target, model.terms[p.target]
         q = model.te_parts[i] if model.te_parts else None
         out[t] = {
-            "rmse_prior": {"train": _rmse(p.y, p.prior_sum), "test": _rmse(q.y, q.prior_sum) if q else None},
+            "rmse_prior": {"train": rmse(p.y, p.prior_sum), "test": rmse(q.y, q.prior_sum) if q else None},
             "rmse_before": {k: base_fit[k][t] for k in ("train", "test", "cv")},
             "rmse_after": {k: cur[k][t] for k in ("train", "test", "cv")},
             "base_coefficients": {k.split(":", 1)[1]: v for k, v in base_fit["beta"].items()
@@ -773,8 +767,8 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
         q, tres = test
         tp = np.asarray(final.predict(_signal_matrix(q, names)), float)
         tp[~np.isfinite(tp)] = 0.0
-        tb = float(np.sqrt(np.mean(tres ** 2)))
-        ta = float(np.sqrt(np.mean((tres - tp) ** 2)))
+        tb = rmse(tres, 0.0)
+        ta = rmse(tres, tp)
         tmb, tn = _block_mse(tres, np.zeros_like(tres), q.block, nb)
         tma, _ = _block_mse(tres, tp, q.block, nb)
     ev = significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,

@@ -33,6 +33,7 @@ import numpy as np
 
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
+from .numerics import lstsq, rmse
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
@@ -193,9 +194,6 @@ def run_seeds(seed: int, runs: int) -> tuple[int, list[tuple[int, int]]]:
     return test_seed, [tuple(int(v) for v in k.generate_state(2)) for k in kids[1:]]
 
 
-def _rmse(a, b) -> float:
-    d = np.asarray(a, float) - np.asarray(b, float)
-    return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
 
 
 def _eval_features(feats, columns: dict, names) -> np.ndarray:
@@ -299,13 +297,13 @@ def _empirical_baselines(p: TargetProblem) -> None:
         from .constraints import constraint_rmse
         e_cs = _eval_features(p.prior1, _cs_columns(p.cs_test), names)[:, 0]
         ec = constraint_rmse(e_cs, p.cs_test)
-    p.empirical = {"rmse_train": _rmse(e_tr, p.train.y), "rmse_test": _rmse(e_te, p.test.y),
+    p.empirical = {"rmse_train": rmse(e_tr, p.train.y), "rmse_test": rmse(e_te, p.test.y),
                    "constraint_rmse_test": ec, "equation": f"{p.target} = {p.prior1[0].expr}",
                    "expr": str(p.prior1[0].expr)}
     # refit: least squares on the 3 terms + intercept
     A_tr = np.column_stack([_eval_features(p.priors3, tr_cols, names), np.ones(len(p.train))])
     A_te = np.column_stack([_eval_features(p.priors3, te_cols, names), np.ones(len(p.test))])
-    beta, *_ = np.linalg.lstsq(A_tr, p.train.y, rcond=None)
+    beta = lstsq(A_tr, p.train.y)
     r_tr, r_te = A_tr @ beta, A_te @ beta
     ec_refit = float("nan")
     if p.cs_test is not None:
@@ -314,7 +312,7 @@ def _empirical_baselines(p: TargetProblem) -> None:
                                 np.ones(len(p.cs_test))])
         ec_refit = constraint_rmse(A_cs @ beta, p.cs_test)
     coefs = {f.name: float(b) for f, b in zip(p.priors3, beta[:-1])}
-    p.empirical_refit = {"rmse_train": _rmse(r_tr, p.train.y), "rmse_test": _rmse(r_te, p.test.y),
+    p.empirical_refit = {"rmse_train": rmse(r_tr, p.train.y), "rmse_test": rmse(r_te, p.test.y),
                          "constraint_rmse_test": ec_refit, "coefficients": coefs,
                          "intercept": float(beta[-1])}
     p.series = {"t": p.test.t, "flight": p.test.flight, "y": p.test.y, "empirical": e_te,
@@ -383,7 +381,7 @@ def run_job(job: RunJob) -> dict:
     model = est.to_dict()
     return {
         "target": job.target, "variant": job.variant, "index": job.index, "seed": job.seed,
-        "rmse_train": float(est.rmse_train_), "rmse_test": _rmse(pred_test, job.y_test),
+        "rmse_train": float(est.rmse_train_), "rmse_test": rmse(pred_test, job.y_test),
         "constraint_rmse_train": _float(ec_train), "constraint_rmse_test": ec_test,
         "qualified": bool(getattr(est, "qualified_", True)),
         "equation": str(est.equation_), "equation_expanded": _expanded(est),

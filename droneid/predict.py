@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError, DataError, check_choice
+from .numerics import rmse
 
 __all__ = ["load_models", "predict_flights"]
 
@@ -54,9 +55,6 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
                          "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {}}
 
 
-def _rmse(a, b) -> float:
-    d = np.asarray(a, float) - np.asarray(b, float)
-    return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
 
 
 def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
@@ -95,7 +93,7 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         if len(ds.sources) > 1:
             groups += [(src, ds.flight == i) for i, src in enumerate(ds.sources)]
         for name, mask in groups:
-            per[name] = {"n": int(mask.sum()), **{f"rmse_{k}": _rmse(v[mask], ds.y[mask]) for k, v in preds.items()}}
+            per[name] = {"n": int(mask.sum()), **{f"rmse_{k}": rmse(v[mask], ds.y[mask]) for k, v in preds.items()}}
         out["targets"][target] = {"equation": m.get("equation"), "inputs": list(ds.input_names),
                                   "sources": list(ds.sources), "errors": per}
     return out

@@ -21,6 +21,8 @@ from ..constraints import ConstraintSamples, constraint_rmse
 from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
                       did_you_mean)
 from ..expressions import compile_expression, parse_expression, symbol
+from ..numerics import lstsq as _lstsq
+from ..numerics import rmse
 from . import kernels as K
 from . import population as popmod
 from .model import SymbolicModel, round_expr, to_text
@@ -386,7 +388,7 @@ class SNGPRegressor:
 
         def fit(keep):
             beta = _lstsq(At[:, keep], y)
-            ed = float(np.sqrt(np.mean((y - At[:, keep] @ beta) ** 2)))
+            ed = rmse(y, At[:, keep] @ beta)
             ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
             return beta, ed, ec
 
@@ -435,7 +437,7 @@ class SNGPRegressor:
 
         def score(kp):
             beta = _lstsq(At[:, kp], y)
-            ev = float(np.sqrt(np.mean((yv - Av[:, kp] @ beta) ** 2)))
+            ev = rmse(yv, Av[:, kp] @ beta)
             ecv = constraint_rmse(Ac[:, kp] @ beta, cs) if constrained else 0.0
             return ev, ecv
 
@@ -455,7 +457,7 @@ class SNGPRegressor:
         Afull = np.empty((y_all.size, A.shape[1]))
         Afull[~val], Afull[val] = At, Av
         beta = _lstsq(Afull[:, keep], y_all)
-        ed = float(np.sqrt(np.mean((y_all - Afull[:, keep] @ beta) ** 2)))
+        ed = rmse(y_all, Afull[:, keep] @ beta)
         ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
         return keep, beta, ed, ec
 
@@ -511,7 +513,7 @@ class SNGPRegressor:
 
     def rmse(self, X, y) -> float:
         y = np.asarray(y, dtype=float).ravel()
-        return float(np.sqrt(np.mean((self.predict(X) - y) ** 2)))
+        return rmse(self.predict(X), y)
 
     def constraint_rmse(self, cs: ConstraintSamples) -> float:
         """e_c of the fitted model on constraint samples ``cs`` (e.g. the held-out test draw)."""
@@ -547,16 +549,6 @@ def _validation_rows(n: int, fraction: float):
     held = set(np.round(np.linspace(1, n_blocks - 1, n_val_blocks, endpoint=False)).astype(int).tolist())
     return np.isin(block, sorted(held))
 
-
-def _lstsq(A: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Least squares on column-normalised A (SVD, tiny singular values cut): never raises."""
-    norms = np.sqrt((A * A).sum(axis=0))
-    norms[norms == 0] = 1.0
-    try:
-        beta, *_ = np.linalg.lstsq(A / norms, y, rcond=1e-12)
-    except np.linalg.LinAlgError:
-        return np.zeros(A.shape[1])
-    return beta / norms
 
 
 class _Timeout(Exception):

@@ -1,0 +1,28 @@
+"""Small numerical helpers shared by the engine, identification, prediction and diagnosis."""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["rmse", "lstsq"]
+
+
+def rmse(a, b) -> float:
+    """Root-mean-square of ``a - b`` (their units); nan for empty input."""
+    d = np.asarray(a, float) - np.asarray(b, float)
+    return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
+
+
+def lstsq(A: np.ndarray, y: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
+    """Least squares on column-normalised ``A``: singular values below ``rcond`` (relative) are
+    cut, so collinear or duplicate columns get a minimum-norm share instead of an error; zero
+    columns get 0. Never raises (an SVD failure returns zeros)."""
+    A = np.asarray(A, float)
+    if A.shape[1] == 0:
+        return np.zeros(0)
+    norms = np.sqrt((A * A).sum(axis=0))
+    norms[norms == 0] = 1.0
+    try:
+        beta, *_ = np.linalg.lstsq(A / norms, y, rcond=rcond)
+    except np.linalg.LinAlgError:
+        return np.zeros(A.shape[1])
+    return beta / norms
