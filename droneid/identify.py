@@ -1051,7 +1051,7 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
     conf = cfg.to_dict()
-    conf.update(prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
+    conf.update(validation=next(iter(problems.values())).validation, prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
                 delays_s=dict(plan.delays_s), delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
                 diagnosis=plan.diagnosis)
     return IdentificationResult(targets, conf, prov, versions(), outcome.interrupted,
