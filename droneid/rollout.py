@@ -387,7 +387,7 @@ def horizon_figures(section: Mapping) -> dict[str, bytes]:
         axes_ = [a for a in AXES if a in segs[0]["measured"]]
         fig = new_figure(7.0, 1.9 * len(axes_) + 0.6)
         axs = fig.subplots(len(axes_), 1, squeeze=False, sharex=True)[:, 0]
-        colors = {m: f"C{i + 1}" for i, m in enumerate(models)}
+        colors = {m: f"C{i}" for i, m in enumerate(models)}   # as in the error plot
         for ax, a in zip(axs, axes_):
             for si, s in enumerate(segs):   # one line per trace: gaps between traces are not bridged
                 ax.plot(s["t"], s["measured"][a], color="k", lw=1.4, label="log" if si == 0 else None)
