@@ -90,7 +90,8 @@ def test_header_states_inputs_units_conventions_delays_and_source(tmp_path):
 
 def test_exported_python_and_c_match_evaluate_on_random_inputs(tmp_path):
     x, vx = sp.symbols("roll vx")
-    odd = IdentifiedModel("vy_dot", sp.tanh(x) * sp.Abs(vx) ** 1.5 - sp.exp(-vx ** 2) / (2 + sp.cos(x)) + sp.sqrt(sp.Abs(x)))
+    odd = IdentifiedModel("vy_dot", sp.tanh(x) * sp.Abs(vx) ** 1.5 - sp.exp(-vx ** 2) / (2 + sp.cos(x))
+                          + sp.sqrt(sp.Abs(x)))
     models = [_rotor_thrust("vx_dot"), _rotor_thrust("vz_dot"), odd]
     result = _result(tmp_path, models)
     py = _python_module(_export(tmp_path, result, "python", "models.py"))
