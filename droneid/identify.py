@@ -458,8 +458,16 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
         undelayed = (tr0, b0.build(list(test_flights), target=target, inputs=inputs,
                                    extras=[s for s in empirical_inputs if s not in inputs])) \
             if test_flights else split_time_block(tr0, test_fraction=cfg.test_fraction)
+        # every rung is measured on the same rows: those the delayed inputs exist for
+        undelayed = tuple(_same_rows(u, d) for u, d in zip(undelayed, (train, test)))
     _empirical_baselines(p, cfg, undelayed)
     return p
+
+
+def _same_rows(ds: Dataset, like: Dataset) -> Dataset:
+    """The rows of ``ds`` (same grid, more rows) that ``like`` has: same flight and time."""
+    key = lambda d: d.flight.astype(np.int64) * 10**9 + np.round(d.t * 1e4).astype(np.int64)  # noqa: E731
+    return ds.subset(np.isin(key(ds), key(like)))
 
 
 def _empirical_inputs(cfg: IdentifyConfig, target: str) -> tuple:

@@ -84,7 +84,7 @@ def test_predict_round_trip_reproduces_the_test_error(identified, logs, capsys):
         assert e["n"] == doc["targets"][t]["n_test"]
         assert e["rmse_identified"] == pytest.approx(doc["targets"][t]["identified"]["rmse_test"], rel=1e-6)
         assert e["rmse_empirical"] == pytest.approx(doc["targets"][t]["empirical"]["rmse_test"], rel=1e-6)
-        assert e["rmse_empirical_refit"] == pytest.approx(doc["targets"][t]["empirical_refit"]["rmse_test"],
+        assert e["rmse_refit"] == pytest.approx(doc["targets"][t]["empirical_refit"]["rmse_test"],
                                                           rel=1e-6)
     code, out, _ = run_cli(capsys, "predict", identified / "result.json", test, "--target", "vx_dot")
     assert code == 0 and "e_d identified" in out and "vy_dot" not in out
