@@ -258,9 +258,20 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
         if getattr(prior, "constraints", "paper") == "rotor-thrust":
             thrust = _thrust_signals(prior, target)
             cols = train.columns()
-            return pc.rotor_thrust(target, {s: float(np.max(cols[s])) for s in thrust},
-                                   g=float(prior.params.get("g", 9.81)))
-        return pc.get_constraints("paper", target=target, prior=name)
+            span = {s: float(np.max(cols[s])) for s in thrust}
+            cs = pc.rotor_thrust(target, span, g=float(prior.params.get("g", 9.81)))
+            return _extend(cs, {s: (0.0, v) for s, v in span.items()})
+        cs = pc.get_constraints("paper", target=target, prior=name)
+        return cs if cfg.effects == "none" and cfg.delays == "none" else _extend(cs, {})
+
+    def _extend(cs, level):
+        """+ drag-sign constraints up to 1.5 x the training speed along the axis (not in the
+        paper's protocol, which ``--effects none --delays none`` keeps)."""
+        v = f"v{target[1]}"
+        if train is None or target not in ("vx_dot", "vy_dot") or v not in train.input_names:
+            return cs
+        vmax = 1.5 * float(np.max(np.abs(train.columns()[v])))
+        return pc.extended(cs, vmax, level) if vmax > 0 else cs
 
     def with_medians(cs):
         if cs is None or train is None:
@@ -818,7 +829,8 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     features; near-duplicate columns (cancelling pairs) are merged and evolved terms that do not
     lower the blocked-CV error by 1 % are dropped (:func:`droneid.ladder.trim_terms`); the
     model must stay within ±(2·max|y_train| + g) on a grid spanning the training inputs ± 20 %
-    (:func:`droneid.ladder.plausible`). The survivor with the lowest CV error replaces the
+    (:func:`droneid.ladder.plausible`); its constraint error on a training draw of the constraint
+    samples must stay below max(γ, 1.1 x the physical rung's). The survivor with the lowest CV error replaces the
     physical rung only if its CV error is ``cfg.margin`` lower."""
     from .ladder import TermModel, plausible, trim_terms
     from .sngp.model import SymbolicModel, round_expr, to_text
@@ -830,7 +842,17 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     bound = 2.0 * float(np.max(np.abs(y))) + 9.81
     ranges = {n: (float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i])))
               for i, n in enumerate(p.train.input_names)}
-    guards = {"bound": bound, "implausible": 0, "no_evolved_term_left": 0, "dropped": [], "candidates": 0}
+    guards = {"bound": bound, "implausible": 0, "no_evolved_term_left": 0, "constraints_broken": 0,
+              "dropped": [], "candidates": 0}
+    cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
+    cs_sel, ec_limit = None, math.inf
+    if cset is not None:  # a training draw of constraint samples (not the e_c^test draw)
+        cs_sel = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
+                             seed=run_seeds(cfg.seed + 1, 0)[0])
+        phys_tm = TermModel(base, labels).fit(cols, y)
+        ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
+        ec_limit = max(cfg.gamma, 1.1 * ec_phys)
+        guards["constraint_limit"] = ec_limit
     best = None
     for i, r in enumerate(done):
         try:
@@ -857,6 +879,12 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
             guards["implausible"] += 1
             guards["dropped"].append(f"run {i + 1}: rejected, {pl.note}")
             continue
+        if cs_sel is not None:
+            ec = _ec(trimmed.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
+            if not ec <= ec_limit:
+                guards["constraints_broken"] += 1
+                guards["dropped"].append(f"run {i + 1}: rejected, constraint error {ec:.3g} > {ec_limit:.3g}")
+                continue
         cv = trimmed.cv_rmse(cols, y, p.blocks)
         guards["candidates"] += 1
         if best is None or cv < best[0]:
@@ -985,6 +1013,7 @@ class IdentificationResult:
     wall_s: float = 0.0
     backend: str = ""
     notes: list = field(default_factory=list)
+    horizons: dict = field(default_factory=dict)   # multi-step prediction on the test flights
 
     def to_dict(self) -> dict:
         from .io_util import to_jsonable
@@ -993,7 +1022,7 @@ class IdentificationResult:
             "targets": {k: asdict(v) if isinstance(v, TargetResult) else v for k, v in self.targets.items()},
             "config": self.config, "provenance": self.provenance, "versions": self.versions,
             "interrupted": self.interrupted, "wall_s": self.wall_s, "backend": self.backend,
-            "notes": self.notes})
+            "notes": self.notes, "horizons": self.horizons})
 
     @classmethod
     def from_dict(cls, d: dict) -> "IdentificationResult":
@@ -1003,7 +1032,7 @@ class IdentificationResult:
         targets = {k: TargetResult(**{n: v.get(n) for n in names}) for k, v in d["targets"].items()}
         return cls(targets, d.get("config", {}), d.get("provenance", {}), d.get("versions", {}),
                    bool(d.get("interrupted", False)), float(d.get("wall_s") or 0.0),
-                   d.get("backend", ""), list(d.get("notes", [])))
+                   d.get("backend", ""), list(d.get("notes", [])), dict(d.get("horizons") or {}))
 
 
 def versions() -> dict:
@@ -1062,5 +1091,23 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     conf.update(validation=next(iter(problems.values())).validation, prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
                 delays_s=dict(plan.delays_s), delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
                 diagnosis=plan.diagnosis)
+    horizons = _horizons(targets, test_flights, notes) if test_flights else {}
     return IdentificationResult(targets, conf, prov, versions(), outcome.interrupted,
-                                time.perf_counter() - t0, outcome.backend, notes)
+                                time.perf_counter() - t0, outcome.backend, notes, horizons)
+
+
+def _horizons(targets: dict, flights, notes: list, steps=(1, 10, 50)) -> dict:
+    """Multi-step prediction of the final, empirical and refit models on the test flights
+    (:func:`droneid.rollout.horizon_section`); {} with a note when it cannot be done."""
+    from .identified import IdentifiedModel
+    from .rollout import horizon_section
+
+    def models(key):
+        return {t: IdentifiedModel.from_dict(getattr(tr, key)) for t, tr in targets.items()
+                if isinstance(tr, TargetResult) and getattr(tr, key)}
+    try:
+        return horizon_section(models("final"), models("empirical_model"), models("refit_model"),
+                               list(flights), horizons=steps)
+    except (ConfigError, DataError) as exc:
+        notes.append(f"no multi-step prediction on the test flights: {exc}")
+        return {}

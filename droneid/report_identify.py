@@ -106,7 +106,8 @@ def format_text(result: dict) -> str:
             out.append(method_line(cfg))
             g = tr.get("guards") or {}
             out.append(f"SNGP runs: {len(tr.get('runs') or [])}; rejected as implausible: {g.get('implausible', 0)}; "
-                       f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}")
+                       f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}; "
+                       f"breaking the constraints: {g.get('constraints_broken', 0)}")
             for note in tr.get("notes") or []:
                 if note != tr["test_data"]:
                     out.append(f"NOTE: {note}")
@@ -127,7 +128,33 @@ def format_text(result: dict) -> str:
         for note in tr.get("notes") or []:
             if note != tr["test_data"]:
                 out.append(f"NOTE: {note}")
+    out += horizon_lines(result.get("horizons") or {})
     return "\n".join(out)
+
+
+def horizon_rows(h: dict) -> tuple[list, list]:
+    """(header, rows) of the multi-step table: velocity RMSE (m/s) per model and horizon."""
+    if not h.get("rmse"):
+        return [], []
+    axes = [a for a in ("vx", "vy", "vz", "position")
+            if any(a in e for per in h["rmse"].values() for e in per.values())]
+    header = ["model", "horizon"] + [f"{a} ({'m' if a == 'position' else 'm/s'})" for a in axes]
+    rows = []
+    for m, per in h["rmse"].items():
+        for step, sec in zip(h["steps"], h["seconds"]):
+            e = per.get(str(step), {})
+            rows.append([m, f"{step} ({sec:.3g} s)"] + [efmt(e.get(a)) if a in e else "—" for a in axes])
+    return header, rows
+
+
+def horizon_lines(h: dict) -> list[str]:
+    header, rows = horizon_rows(h)
+    if not rows:
+        return []
+    return ["", "== multi-step prediction on the test flights (velocity integrated from each sample, "
+                "inputs from the log; RMSE against the logged velocity)", _text_table(header, rows),
+            f"steps of {h['dt_s']:.3g} s; starts per horizon: "
+            + ", ".join(f"{k}: {v}" for k, v in (h.get("n_starts") or {}).items())]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -288,6 +315,18 @@ def build_document(result: dict) -> Document:
             fig = fig_pareto(name, tr, cfg.get("gamma"))
             if fig is not None:
                 doc.figure(fig, f"{name}_pareto", "Pareto front of e_d^train vs e_c^train over the runs' archives")
+    header, rows = horizon_rows(result.get("horizons") or {})
+    if rows:
+        from .rollout import horizon_figures
+        h = result["horizons"]
+        doc.heading("Multi-step prediction on the test flights")
+        doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
+                      f"{h['dt_s']:.3g} s) with every other input read from the log; RMSE against the "
+                      f"logged velocity per horizon (see docs/use-the-model.md for the exact metric).")
+        doc.table(header, rows)
+        for name, png in horizon_figures(h).items():
+            doc.png(png, name, "multi-step prediction: error against horizon" if "error" in name
+                    else "predicted velocity traces over the measured one")
     vers = result.get("versions") or {}
     doc.paragraph("Versions: " + ", ".join(f"{k} {v}" for k, v in vers.items()))
     return doc

@@ -66,6 +66,11 @@ class Document:
         self.blocks.append(("table", [str(h) for h in header], [[str(c) for c in r] for r in rows]))
         return self
 
+    def png(self, data: bytes, name: str, caption: str = "") -> "Document":
+        """Add an already rendered PNG; ``name`` becomes ``name.png`` beside the report."""
+        self.blocks.append(("fig", _Figure(name, bytes(data), caption)))
+        return self
+
     def figure(self, fig, name: str, caption: str = "") -> "Document":
         """Add a matplotlib figure; ``name`` becomes ``name.png`` beside the report."""
         buf = io.BytesIO()

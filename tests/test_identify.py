@@ -70,7 +70,8 @@ def test_identify_writes_the_documented_schema_and_files(identified):
     assert doc["config"]["prior_features"] == 3 and doc["config"]["constraints"] == "paper"
     assert doc["provenance"]["train"][0]["files"][0].endswith("eight.tlog")
     html = (identified / "report.html").read_text()
-    assert html.count("data:image/png;base64,") == 8
+    # 4 figures per target + the multi-step error and trace figures
+    assert html.count("data:image/png;base64,") == 10
 
 
 def test_predict_round_trip_reproduces_the_test_error(identified, logs, capsys):
