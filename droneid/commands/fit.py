@@ -27,7 +27,8 @@ def register(sub) -> None:
                         "every term of a prior model for --target: a built-in name (tilt-drag) or "
                         "FILE.toml:NAME (repeatable; each feature counts toward --features; default: none)")
     p.add_argument("--constraints", metavar="FILE",
-                   help="TOML constraint file (see priors/constraints.py); enables the constrained variant")
+                   help="TOML constraint file (see priors/constraints.py); enables the constrained variant "
+                        "(default: none, unconstrained)")
     p.add_argument("--constraint-samples", type=int, default=50, metavar="N",
                    help="samples per constraint for training and for test (default 50)")
     p.add_argument("--generations", type=int, default=60000, metavar="G",
