@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import logging
 import os
 import pkgutil
@@ -73,9 +74,16 @@ def main(argv: list[str] | None = None) -> int:
     except UnicodeDecodeError as exc:  # a binary file (e.g. a log) given where text/JSON is read
         if args.debug:
             raise
-        print(f"droneid {args.command}: error: {_text_file_hint(args, exc)}is not UTF-8 text "
+        print(f"droneid {args.command}: error: {_text_file_hint(args, exc.object)}is not UTF-8 text "
               f"(byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); check which file goes "
               f"where in `droneid {args.command} --help`", file=sys.stderr)
+        return EXIT_USAGE
+    except json.JSONDecodeError as exc:  # a non-JSON file given where JSON is read
+        if args.debug:
+            raise
+        print(f"droneid {args.command}: error: {_text_file_hint(args, exc.doc.encode('utf-8', 'replace'))}"
+              f"is not valid JSON ({exc.msg} at line {exc.lineno}); check which file goes where in "
+              f"`droneid {args.command} --help`", file=sys.stderr)
         return EXIT_USAGE
     except BrokenPipeError:  # e.g. `droneid inspect LOG | head`: the reader went away
         try:
@@ -94,9 +102,10 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
-def _text_file_hint(args, exc: UnicodeDecodeError) -> str:
-    """'FILE: ' for the file argument whose bytes failed to decode, or a generic subject."""
-    head = bytes(exc.object[:4096]) if isinstance(exc.object, (bytes, bytearray)) else b""
+def _text_file_hint(args, content) -> str:
+    """'FILE: ' for the file argument whose bytes begin as ``content`` (what failed to decode or
+    parse), or a generic subject when no argument is that file."""
+    head = bytes(content[:4096]) if isinstance(content, (bytes, bytearray)) else b""
     for value in vars(args).values():
         for v in value if isinstance(value, list) else [value]:
             if head and isinstance(v, str) and os.path.isfile(v):

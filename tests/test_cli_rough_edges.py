@@ -187,3 +187,13 @@ def test_license_is_an_spdx_string_with_a_setuptools_that_reads_it():
     assert doc["project"]["license"] == "MIT"
     req = next(r for r in doc["build-system"]["requires"] if r.startswith("setuptools"))
     assert int(re.search(r">=(\d+)", req).group(1)) >= 77
+
+
+def test_a_text_file_that_is_not_json_is_one_line_naming_it(tmp_path, capsys, monkeypatch):
+    import droneid.commands.predict as predict_cmd
+    monkeypatch.setattr(predict_cmd, "run", lambda args: json.loads(Path(args.model).read_text()))
+    bad = tmp_path / "notes.txt"
+    bad.write_text("hello, not json\n")
+    rc = main(["predict", str(bad), str(bad)])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and f"{bad}: is not valid JSON" in err

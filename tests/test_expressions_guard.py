@@ -203,3 +203,20 @@ def test_safe_format_rejects(template, problem):
     with pytest.raises(ConfigError, match=problem):
         safe_format(template, {"k": 1.5}, what="effect 'drag' meaning")
     assert time.perf_counter() - t0 < 0.5
+
+
+def test_effects_toml_rejects_power_tower(tmp_path):
+    from priors.effects import load_effects
+    p = tmp_path / "fx.toml"
+    p.write_text('[[effect]]\nid = "tower"\n[effect.features.vx_dot]\nk = "9**9**9*vx"\n')
+    t0 = time.perf_counter()
+    with pytest.raises(ConfigError, match=r"9\*\*9\*\*9"):
+        load_effects(p)
+    assert time.perf_counter() - t0 < 2.0
+
+
+def test_safe_format_is_a_drop_in_for_effect_meanings():
+    # the templates priors/effects.py documents and ships format the same as str.format
+    for template in ("rotor drag k = {k:.3g} 1/s", "cubic drag k3 = {k3:.3g}", "k_D {k_D}"):
+        values = {"k": 0.28, "k3": 0.5, "k_D": 0.3}
+        assert safe_format(template, values) == template.format(**values)
