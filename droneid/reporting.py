@@ -199,8 +199,13 @@ def write_report_set(directory, files: Mapping[str, bytes | str]) -> dict[str, P
       sibling folder, which then replaces ``directory`` by rename; the earlier set is deleted;
     - when it holds other files too (e.g. the user's logs), the set is written in place: a
       visible ``REPORT_INCOMPLETE.txt`` marker is written first and the earlier set's files (and
-      any file the new set replaces) are deleted, then every file is written atomically, then the manifest, and the marker is
-      removed last. A killed run leaves the marker beside an incomplete set of the new run.
+      any file the new set replaces) are deleted, then every file is written atomically, then
+      the manifest, and the marker is removed last. A killed run leaves the marker beside an
+      incomplete set of the new run, never a file of the earlier run.
+
+    Between the two renames of a swap the folder is briefly absent; a run killed exactly there
+    leaves the new set in a hidden ``.NAME.*.new`` sibling. The user's other files are never
+    moved or deleted.
 
     Returns {file name: path}. Raises :class:`ConfigError` for a name that is not a plain
     file name, and the ``OSError`` of a folder that cannot be written (naming the folder).

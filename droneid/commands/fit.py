@@ -158,7 +158,8 @@ def run(args) -> int:
     from ._common import ProgressBar, print_json
 
     if args.save and Path(args.save).is_dir():
-        raise ConfigError(f"--save {args.save}: is a folder; give a file name such as {Path(args.save) / 'model.json'}")
+        raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
+                          f"{Path(args.save) / 'model.json'}")
     df = read_table(args.train)
     if args.inputs:
         inputs = [s.strip() for s in args.inputs.split(",") if s.strip()]

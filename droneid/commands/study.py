@@ -19,7 +19,8 @@ def register(sub) -> None:
     add_budget_arguments(p, runs_help="runs per target, scenario and prior variant (default 10; paper: 50)",
                          prune_default="exact")  # the paper's protocol
     p.add_argument("--constraints", default="paper",
-                   help="constraints of the constrained scenario: paper or a constraints TOML file (default paper)")
+                   help="constraints of the constrained scenario: paper or a constraints TOML file "
+                        "(default paper)")
     p.add_argument("--out", default="study", metavar="DIR",
                    help="write study.json, study.md, study.html and figures here (default ./study)")
     p.add_argument("--json", action="store_true",
