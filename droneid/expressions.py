@@ -55,13 +55,24 @@ def symbol(name: str) -> sp.Symbol:
     return sp.Symbol(name, real=True)
 
 
+#: binary operators whose left-leaning chains (``a + b - c + ...``) count as one nesting level
+_CHAIN_OPS = (ast.Add, ast.Sub, ast.Mult, ast.Div)
+
+
+def _chain(node) -> bool:
+    return isinstance(node, ast.BinOp) and isinstance(node.op, _CHAIN_OPS)
+
+
 def _depth(tree: ast.AST) -> int:
-    """Nesting depth of ``tree``, computed without recursion (the tree may be very deep)."""
+    """Nesting depth of ``tree``, computed without recursion (the tree may be very deep); a long
+    sum or product ``a + b + c + ...`` is one level, as :func:`parse_expression` folds it in a loop."""
     deepest, stack = 0, [(tree, 1)]
     while stack:
         node, d = stack.pop()
         deepest = max(deepest, d)
-        stack.extend((child, d + 1) for child in ast.iter_child_nodes(node))
+        for child in ast.iter_child_nodes(node):
+            flat = _chain(node) and child is node.left and _chain(child)
+            stack.append((child, d if flat else d + 1))
     return deepest
 
 
@@ -83,7 +94,7 @@ def parse_expression(text: str, signals: Iterable[str], params: Mapping[str, flo
     ``params`` are named numbers substituted as constants (e.g. ``{"g": 9.81, "k_D": 0.28}``).
     Raises :class:`ConfigError` naming ``what`` and the offending part for anything else,
     including expressions that are too long (over 2 000 characters) or too deeply nested
-    (over 200 levels), number literals beyond float64's range, powers whose exponent is larger
+    (over 200 levels; a long sum or product counts as one), number literals beyond float64's range, powers whose exponent is larger
     than 10 000 or whose constant value would exceed 1e308, and any part that evaluates to a
     non-finite or non-real constant (``vx/0``, ``log(0)``, ``sqrt(-1)``, ``exp(1000)``).
     These bounds keep parsing fast: sympy would otherwise compute ``9**9**9`` exactly.
@@ -151,11 +162,17 @@ def parse_expression(text: str, signals: Iterable[str], params: Mapping[str, flo
                 f"{what}: unknown name '{node.id}' in {text!r}"
                 f"{did_you_mean(node.id, [*names, *params, *_CONSTANTS])}; "
                 f"signals available: {', '.join(signals) or 'none'}")
-        if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-            left, right = conv(node.left), conv(node.right)
-            if isinstance(node.op, ast.Pow):
-                return checked(node, power(node, left, right))
-            return checked(node, _BINOPS[type(node.op)](left, right))
+        if _chain(node):  # fold a + b - c * d ... along its left spine in a loop, not recursion
+            spine = []
+            while _chain(node):
+                spine.append(node)
+                node = node.left
+            acc = conv(node)
+            for link in reversed(spine):
+                acc = checked(link, _BINOPS[type(link.op)](acc, conv(link.right)))
+            return acc
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            return checked(node, power(node, conv(node.left), conv(node.right)))
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             v = conv(node.operand)
             return -v if isinstance(node.op, ast.USub) else v
