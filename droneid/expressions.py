@@ -15,7 +15,7 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 import sympy as sp
 
-from .errors import ConfigError, MissingSignalError, did_you_mean
+from .errors import ConfigError, DataError, MissingSignalError, did_you_mean
 
 __all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "symbol", "safe_format"]
 
@@ -223,7 +223,8 @@ def compile_expression(expr: sp.Expr, names: Iterable[str]):
     The function broadcasts constants to the length of the columns and never raises on
     overflow or domain errors (those become inf/nan, which callers check; a complex result
     becomes nan). Anything that cannot be compiled raises :class:`ConfigError`, a column the
-    expression needs and ``columns`` lacks :class:`MissingSignalError`: nothing else escapes.
+    expression needs and ``columns`` lacks :class:`MissingSignalError`, a column that is not
+    numeric :class:`DataError`.
     """
     if not isinstance(expr, sp.Basic):
         raise ConfigError(f"compile_expression needs a sympy expression, got {type(expr).__name__} "
@@ -246,15 +247,21 @@ def compile_expression(expr: sp.Expr, names: Iterable[str]):
         raise MissingSignalError(missing[0], names, where=f"expression {_short(expr)}")
 
     def evaluate(columns: Mapping[str, np.ndarray]) -> np.ndarray:
-        n = len(next(iter(columns.values()))) if columns else 1
         absent = [nm for nm in names if nm in used and nm not in columns]
         if absent:
             raise MissingSignalError(absent[0], list(columns), where=f"expression {_short(expr)}")
-        args = [np.asarray(columns[nm], dtype=float) if nm in used else np.zeros(n) for nm in names]
+        try:
+            cols = {nm: np.asarray(columns[nm], dtype=float) for nm in names if nm in used}
+        except (TypeError, ValueError) as exc:
+            raise DataError(f"expression {_short(expr)}: a column is not numeric ({exc})") from None
+        first = next(iter(cols.values())) if cols else \
+            np.atleast_1d(next(iter(columns.values()))) if columns else np.zeros(1)
+        n = first.shape[0] if first.ndim else 1
+        args = [cols[nm] if nm in cols else np.zeros(n) for nm in names]
         with np.errstate(all="ignore"):
             try:
                 out = np.asarray(fn(*args))
-            except (ArithmeticError, ValueError, TypeError):  # e.g. Python-int overflow
+            except ArithmeticError:  # e.g. a Python-int power overflowing float64
                 out = np.full(n, np.nan)
             if np.iscomplexobj(out):
                 out = np.where(out.imag == 0, out.real, np.nan)

@@ -232,3 +232,12 @@ def test_safe_format_is_a_drop_in_for_effect_meanings():
     for template in ("rotor drag k = {k:.3g} 1/s", "cubic drag k3 = {k3:.3g}", "k_D {k_D}"):
         values = {"k": 0.28, "k3": 0.5, "k_D": 0.3}
         assert safe_format(template, values) == template.format(**values)
+
+
+def test_evaluating_a_non_numeric_column_is_a_data_error():
+    from droneid.errors import DataError
+    f = compile_expression(symbol("vx") * 2, ["vx"])
+    with pytest.raises(DataError, match="not numeric"):
+        f({"vx": np.array(["a", "b"])})
+    assert f({"vx": [1, 2], "flight": np.array(["f1", "f1"])}).tolist() == [2.0, 4.0]
+    assert compile_expression(sp.Integer(3), ["vx"])({"vx": np.zeros(4)}).tolist() == [3.0] * 4
