@@ -82,9 +82,13 @@ def sngp_kernels_cached() -> bool:
         stamp = source.stat().st_mtime
     except OSError:
         return True  # not a source install (e.g. zipped): nothing to say
-    places = [source.parent / "__pycache__"]
+    # numba's order: NUMBA_CACHE_DIR when set, else __pycache__ beside the source, else (a
+    # read-only install) the user-wide cache
     if os.environ.get("NUMBA_CACHE_DIR"):
-        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
+        places = [Path(os.environ["NUMBA_CACHE_DIR"])]
+    else:
+        cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        places = [source.parent / "__pycache__", cache_home / "numba"]
     for place in places:
         pattern = "kernels.*.nbi" if place.name == "__pycache__" else "**/kernels.*.nbi"
         try:

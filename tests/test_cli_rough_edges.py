@@ -197,3 +197,19 @@ def test_a_text_file_that_is_not_json_is_one_line_naming_it(tmp_path, capsys, mo
     rc = main(["predict", str(bad), str(bad)])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and f"{bad}: is not valid JSON" in err
+
+
+def test_time_left_ignores_the_one_off_cost_of_the_first_result(monkeypatch):
+    import io
+
+    import droneid.commands._common as common
+    clock = iter([0.0, 0.0, 40.0, 41.0])  # start, 0/10, 1/10 after compiling, 2/10 one second later
+    monkeypatch.setattr(common.time, "perf_counter", lambda: next(clock))
+    out = io.StringIO()
+    bar = common.ProgressBar("SNGP runs", stream=out)
+    for done in (0, 1, 2):
+        bar._last_decile = -2  # a non-terminal stream prints per decile: print every call here
+        bar(done, 10)
+    lines = out.getvalue().splitlines()
+    assert "left" not in lines[1]          # one result: no pace yet
+    assert "~8 s left" in lines[2]         # 8 runs at 1 s each, not 8 x 20.5 s
