@@ -54,17 +54,20 @@ CANONICAL_SIGNALS: Mapping[str, tuple[str, str]] = MappingProxyType({
 })
 
 _MOTOR_RE = re.compile(r"^motor([1-9]|1[0-6])$")
+_RPM_RE = re.compile(r"^rpm([1-9]|1[0-6])$")
 
 
 def is_canonical(name: str) -> bool:
     """True for a canonical signal name (including ``motor1`` .. ``motor16``)."""
-    return name in CANONICAL_SIGNALS or bool(_MOTOR_RE.match(name))
+    return name in CANONICAL_SIGNALS or bool(_MOTOR_RE.match(name)) or bool(_RPM_RE.match(name))
 
 
 def canonical_unit(name: str) -> str:
     """The unit of a canonical signal (``"1"`` for dimensionless)."""
     if _MOTOR_RE.match(name):
         return "1"
+    if _RPM_RE.match(name):
+        return "rpm"
     try:
         return CANONICAL_SIGNALS[name][0]
     except KeyError:

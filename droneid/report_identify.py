@@ -32,6 +32,23 @@ def efmt(v) -> str:
     return "0" if math.isfinite(x) and abs(x) < 1e-12 else fmt(v)
 
 
+LADDER_HEADER = ("model", "e_d train", "e_d validation", "e_d test", "e_c test")
+
+
+def ladder_rows(tr: dict) -> list[list[str]]:
+    """The ladder of one target: empirical as given -> refit -> + delay -> + effects -> final."""
+    return [[("FINAL: " if r["name"] == "final" else "") + r["description"], efmt(r.get("rmse_train")),
+             efmt(r.get("rmse_validation")), efmt(r.get("rmse_test")), efmt(r.get("constraint_rmse_test"))]
+            for r in tr.get("ladder") or []]
+
+
+def method_line(cfg: dict) -> str:
+    """How the errors were measured (printed with every error table)."""
+    return (f"errors in m/s² (RMSE); targets by {cfg.get('method')} differences at Ts = {cfg.get('ts')} s; "
+            f"validation = least-squares refit of the same terms, {cfg.get('validation') or 'blocked CV'} "
+            f"(training flights only); e_c = constraint RMSE")
+
+
 def error_rows(tr: dict) -> list[list[str]]:
     """The comparison table of one target: empirical, refit, identified best and median."""
     def row(label, d):
@@ -66,7 +83,7 @@ def format_text(result: dict) -> str:
     """The terminal summary: per target the equation, the error table and the improvement."""
     out = []
     cfg = result.get("config", {})
-    out.append(f"droneid identify: prior {cfg.get('prior')} with {cfg.get('prior_features')} prior "
+    out.append(f"droneid identify: prior {cfg.get('prior_used') or cfg.get('prior')} with {cfg.get('prior_features')} prior "
                f"feature(s), constraints {cfg.get('constraints')}, {cfg.get('runs')} run(s) of "
                f"{cfg.get('generations')} generations x population {cfg.get('population')}"
                + (" (quick budget)" if cfg.get("quick") else ""))
@@ -74,6 +91,25 @@ def format_text(result: dict) -> str:
         out.append(f"NOTE: {note}")
     for name, tr in result["targets"].items():
         out += ["", f"== {name}  ({tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']})"]
+        if tr.get("ladder"):
+            out.append(tr.get("verdict") or "")
+            out.append(tr.get("equation") or "")
+            out += _legend(tr)
+            if tr.get("final"):
+                out.append(f"  expanded: {tr['final']['equation']}")
+                if tr["final"].get("delays_s"):
+                    out.append("  delayed inputs: " + ", ".join(f"{k}(t − {1000 * v:.0f} ms)"
+                                                               for k, v in tr["final"]["delays_s"].items()))
+            out.append("")
+            out.append(_text_table(list(LADDER_HEADER), ladder_rows(tr)))
+            out.append(method_line(cfg))
+            g = tr.get("guards") or {}
+            out.append(f"SNGP runs: {len(tr.get('runs') or [])}; rejected as implausible: {g.get('implausible', 0)}; "
+                       f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}")
+            for note in tr.get("notes") or []:
+                if note != tr["test_data"]:
+                    out.append(f"NOTE: {note}")
+            continue
         if tr.get("equation"):
             out.append(tr["equation"])
             out += _legend(tr)
@@ -216,6 +252,11 @@ def build_document(result: dict) -> Document:
         if tr.get("equation"):
             doc.code("\n".join([tr["equation"], *_legend(tr)]
                                + ([f"expanded: {tr['equation_expanded']}"] if tr.get("equation_expanded") else [])))
+        if tr.get("verdict"):
+            doc.paragraph(tr["verdict"])
+        if tr.get("ladder"):
+            doc.table(LADDER_HEADER, ladder_rows(tr))
+            doc.paragraph(method_line(cfg))
         doc.table(ERROR_HEADER, error_rows(tr))
         imp = tr.get("improvement_pct") or {}
         doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "

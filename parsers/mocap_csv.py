@@ -210,8 +210,9 @@ FLAT_ALIASES = {
 }
 for _i in range(1, 17):
     FLAT_ALIASES[f"motor{_i}"] = (f"motor{_i}", f"m{_i}", f"m{_i}_thrust", f"motor_{_i}")
+    FLAT_ALIASES[f"rpm{_i}"] = (f"rpm{_i}", f"m{_i}_erpm")
 _UNITS = {"x": "m", "y": "m", "z": "m", "vx": "m/s", "vy": "m/s", "vz": "m/s", "wx": "rad/s",
-          "wy": "rad/s", "wz": "rad/s", "ax": "m/s^2", "ay": "m/s^2", "az": "m/s^2", "throttle": "1",
+          "wy": "rad/s", "wz": "rad/s", **{f"rpm{_i}": "rpm" for _i in range(1, 17)}, "ax": "m/s^2", "ay": "m/s^2", "az": "m/s^2", "throttle": "1",
           "battery_voltage": "V", "battery_current": "A", "lat": "deg", "lon": "deg", "alt": "m"}
 _TIME_SCALE = {"time_ms": 1e-3, "t_ms": 1e-3, "time_us": 1e-6, "timestamp_us": 1e-6, "t_us": 1e-6,
                "time_ns": 1e-9, "timestamp_ns": 1e-9}
@@ -286,6 +287,8 @@ def read_flat_csv(path, column_map=None) -> Flight:
     for i in range(1, 17):
         if f"motor{i}" in found:
             b.add(f"motor{i}", t, num(f"motor{i}"), "1", found[f"motor{i}"])
+        if f"rpm{i}" in found:
+            b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", found[f"rpm{i}"])
     has_q = all(k in found for k in ("qw", "qx", "qy", "qz"))
     has_e = all(k in found for k in ("roll", "pitch", "yaw"))
     if has_q:

@@ -16,7 +16,7 @@ def register(sub) -> None:
     p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
     p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
                    help="test log(s); without them the last 30%% of the training data are held out")
-    add_budget_arguments(p, runs_help="runs per target, scenario and prior variant (default 10; paper: 50)",
+    add_budget_arguments(p, paper=True, runs_help="runs per target, scenario and prior variant (default 10; paper: 50)",
                          prune_default="exact")  # the paper's protocol
     p.add_argument("--constraints", default="paper",
                    help="constraints of the constrained scenario: paper or a constraints TOML file "
