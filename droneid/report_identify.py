@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .io_util import atomic_write_json
 from .reporting import Document, fmt, new_figure
 
 __all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front", "compact",
@@ -334,10 +333,7 @@ def build_document(result: dict) -> Document:
 
 def write_result(result: dict, directory) -> dict[str, Path]:
     """Write result.json, report.md, report.html and the PNGs into ``directory`` (atomically)."""
-    d = Path(directory)
-    paths = {"json": atomic_write_json(d / "result.json", result)}
-    paths.update(build_document(result).write(d, "report"))
-    return paths
+    return build_document(result).write(directory, "report", data={"result.json": result})
 
 
 def compact(result: dict) -> dict:
