@@ -77,7 +77,9 @@ class IdentifyConfig:
     n_constraint_samples : samples per constraint for training and (separately) for testing
     seed : root of every random number (run seeds are spawned from ``SeedSequence(seed)``)
     ts, method : dataset sampling period (s) and differentiator
-    test_fraction : held-out time block when no test flights are given
+    test_fraction : without test flights: 0 (default) trains on all of the training flights and
+        reports validation only; > 0 holds out that last fraction of each flight as test data
+        (held out before ANY choice: delay, effects, runs)
     quick : whether the quick budget was asked for (informational; the numbers are above)
     simplify_s : sympy simplification budget per run (s); 0 keeps the raw terms (the study does,
         since it reports errors only: simplification is a third of a paper-budget run)
@@ -102,7 +104,7 @@ class IdentifyConfig:
     seed: int = 0
     ts: float = 0.05
     method: str = "central"
-    test_fraction: float = 0.3
+    test_fraction: float = 0.0
     quick: bool = False
     simplify_s: float = 2.0
     prune: str = "validation"
@@ -169,8 +171,8 @@ class IdentifyConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"The '{name}' parameter must be a positive number. Got {v!r} instead.")
-        if not 0.05 <= self.test_fraction <= 0.8:
-            raise ConfigError(f"The 'test_fraction' parameter must be in [0.05, 0.8]. "
+        if not (self.test_fraction == 0 or 0.05 <= self.test_fraction <= 0.8):
+            raise ConfigError(f"The 'test_fraction' parameter must be 0 or in [0.05, 0.8]. "
                               f"Got {self.test_fraction!r} instead.")
         if not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise ConfigError(f"The 'seed' parameter must be a non-negative integer. Got {self.seed!r} instead.")
@@ -347,8 +349,11 @@ def _split_terms(prior, target: str) -> tuple:
     return tuple(f for f in prior.features(target) if f.expr.free_symbols)
 
 
-def plan_identification(train_flights, cfg: IdentifyConfig, progress: Callable | None = None) -> Plan:
-    """Choose the prior, the thrust input delay and the effects from the training flights only."""
+def plan_identification(train_flights, cfg: IdentifyConfig, progress: Callable | None = None,
+                        cuts: dict | None = None) -> Plan:
+    """Choose the prior, the thrust input delay and the effects from the training flights only
+    (``cuts``: {flight index: time s} where a held-out test block starts: rows from there on
+    are never seen here)."""
     from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
     prior, reason = resolve_plan_prior(cfg, train_flights)
     targets = tuple(cfg.targets) if cfg.targets else tuple(t for t in prior.targets if t in TARGETS)
@@ -367,8 +372,8 @@ def plan_identification(train_flights, cfg: IdentifyConfig, progress: Callable |
         def cv_error(d):
             total = 0.0
             for t in targets:
-                ds = _builder(cfg, {s: d for s in thrust}).build(list(train_flights), target=t,
-                                                                 inputs=prior.inputs(t))
+                ds = _train_rows(_builder(cfg, {s: d for s in thrust}).build(
+                    list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
                 tm = TermModel(tuple(f.expr for f in _split_terms(prior, t)), ())
                 blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
                 e = tm.cv_rmse(ds.columns(), ds.y, blocks)
@@ -385,16 +390,35 @@ def plan_identification(train_flights, cfg: IdentifyConfig, progress: Callable |
                          f"than without delay (training flights only)")
     effects, not_folded, diag = (), (), {}
     if cfg.effects == "auto":
-        effects, not_folded, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays)
+        effects, not_folded, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts)
         notes.extend(enotes)
     return Plan(prior, reason, targets, delays, scores, effects, not_folded, diag, tuple(notes))
 
 
-def _diagnosed_effects(train_flights, prior, targets, cfg, delays):
+def _train_rows(ds: Dataset, cuts: dict | None, test: bool = False) -> Dataset:
+    """The rows before each flight's hold-out cut (``test``: from the cut on); all without cuts."""
+    if not cuts:
+        return ds
+    cut = np.array([cuts.get(int(k), np.inf) for k in range(int(ds.flight.max()) + 1)]) if len(ds) else []
+    before = ds.t < cut[ds.flight] if len(ds) else np.zeros(0, bool)
+    return ds.subset(~before if test else before)
+
+
+def holdout_cuts(train_flights, cfg: IdentifyConfig, target: str, prior) -> dict:
+    """{flight index: start time s of its held-out last ``cfg.test_fraction``} (time-block split
+    of the undelayed dataset of ``target``)."""
+    from droneid.dataset import split_time_block
+    ds = _builder(cfg).build(list(train_flights), target=target, inputs=prior.inputs(target))
+    _, test = split_time_block(ds, test_fraction=cfg.test_fraction)
+    return {int(k): float(np.min(test.t[test.flight == k])) for k in np.unique(test.flight)}
+
+
+def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
     """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in."""
     from .diagnose import DiagnoseConfig, diagnose_datasets
     builder = _builder(cfg, delays)
-    train = {t: builder.build(list(train_flights), target=t, inputs=prior.inputs(t)) for t in targets}
+    train = {t: _train_rows(builder.build(list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
+             for t in targets}
     try:
         res = diagnose_datasets(train, None, prior=prior,
                                 config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, open_ended=False))
@@ -420,13 +444,15 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays):
 
 
 def prepare_target(train_flights: Sequence, test_flights: Sequence | None, target: str,
-                   cfg: IdentifyConfig, plan: Plan | None = None) -> TargetProblem:
-    """Build the train/test datasets, priors, constraint samples and empirical baselines."""
-    from droneid.dataset import split_time_block
+                   cfg: IdentifyConfig, plan: Plan | None = None, cuts: dict | None = None) -> TargetProblem:
+    """Build the train/test datasets, priors, constraint samples and empirical baselines
+    (``cuts``: the hold-out starts of :func:`holdout_cuts`, without test flights)."""
     if plan is None:
         from priors.models import resolve_prior
         prior = resolve_prior("tilt-drag" if cfg.prior == "auto" else cfg.prior)
         plan = Plan(prior, "named by the user", (target,))
+    if not test_flights and cfg.test_fraction > 0 and cuts is None:
+        cuts = holdout_cuts(train_flights, cfg, target, plan.prior)
     prior = plan.prior
     effect_feats = tuple(f for e in plan.effects for f in e["features"].get(target, ()))
     base = _split_terms(prior, target)
@@ -436,19 +462,22 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     builder = _builder(cfg, plan.delays_s)
     ds = builder.build(list(train_flights), target=target, inputs=inputs,
                        extras=[s for s in empirical_inputs if s not in inputs])
+    holdout = not test_flights and cfg.test_fraction > 0
     if test_flights:
         train = ds
         test = builder.build(list(test_flights), target=target, inputs=inputs,
                              extras=[s for s in empirical_inputs if s not in inputs])
         desc = f"test flights: {', '.join(test.sources) or len(test_flights)}"
-        holdout = False
-    else:
-        train, test = split_time_block(ds, test_fraction=cfg.test_fraction)
+    elif holdout:
+        train, test = _train_rows(ds, cuts), _train_rows(ds, cuts, test=True)
         desc = (f"no test flights given: the last {100 * cfg.test_fraction:.0f} % (time block) of "
-                f"the training flights is held out as test data")
-        holdout = True
+                f"each training flight is held out as test data, before any choice is made")
+    else:
+        train, test = ds, ds.subset(np.zeros(len(ds), bool))
+        desc = ("no test flights given: all training data are used; the errors out of sample are the "
+                "validation column (give --test LOG for a transfer check, or --holdout 0.3)")
     for name, d in (("training", train), ("test", test)):
-        if len(d) < 10:
+        if len(d) < 10 and (name == "training" or test_flights or holdout):
             raise DataError(f"the {name} data for {target} have only {len(d)} samples (need >= 10)")
     priors3 = base + effect_feats
     prior1 = tuple(prior.features(target, 1))
@@ -460,7 +489,8 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                                   seed=test_seed)
     p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test,
                       plan=plan, n_base=len(base))
-    p.notes.extend(range_notes(train, test))
+    if len(test):
+        p.notes.extend(range_notes(train, test))
     undelayed = None
     if plan.delays_s:
         b0 = _builder(cfg)
@@ -468,7 +498,8 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                        extras=[s for s in empirical_inputs if s not in inputs])
         undelayed = (tr0, b0.build(list(test_flights), target=target, inputs=inputs,
                                    extras=[s for s in empirical_inputs if s not in inputs])) \
-            if test_flights else split_time_block(tr0, test_fraction=cfg.test_fraction)
+            if test_flights else (_train_rows(tr0, cuts), _train_rows(tr0, cuts, test=True) if holdout
+                                  else tr0.subset(np.zeros(len(tr0), bool)))
         # every rung is measured on the same rows: those the delayed inputs exist for
         undelayed = tuple(_same_rows(u, d) for u, d in zip(undelayed, (train, test)))
     _empirical_baselines(p, cfg, undelayed)
@@ -830,9 +861,11 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     lower the blocked-CV error by 1 % are dropped (:func:`droneid.ladder.trim_terms`); the
     model must stay within ±(2·max|y_train| + g) on a grid spanning the training inputs ± 20 %
     (:func:`droneid.ladder.plausible`); its constraint error on a training draw of the constraint
-    samples must stay below max(γ, 1.1 x the physical rung's). The survivor with the lowest CV error replaces the
+    samples must stay below max(γ, 1.1 x the physical rung's); drag must grow with speed: along
+    its own-axis velocity (±1.2 x the training speed, other inputs at 50 flown states) the
+    model's slope may not exceed the physical rung's (or 0) by more than 0.05 1/s. The survivor with the lowest CV error replaces the
     physical rung only if its CV error is ``cfg.margin`` lower."""
-    from .ladder import TermModel, plausible, trim_terms
+    from .ladder import TermModel, drag_slope, plausible, trim_terms
     from .sngp.model import SymbolicModel, round_expr, to_text
     phys = p.ladder[-1]
     delays = p.plan.delays_s if p.plan else {}
@@ -853,6 +886,16 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
         ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
         ec_limit = max(cfg.gamma, 1.1 * ec_phys)
         guards["constraint_limit"] = ec_limit
+    vel = f"v{p.target[1]}" if p.target in ("vx_dot", "vy_dot", "vz_dot") else None
+    slope_limit, rows, v_max = math.inf, {}, 0.0
+    if vel in p.train.input_names:
+        pick = np.random.default_rng(cfg.seed).choice(len(p.train), size=min(50, len(p.train)), replace=False)
+        rows = {n: p.train.X[pick, j] for j, n in enumerate(p.train.input_names)}
+        v_max = 1.2 * float(np.max(np.abs(cols[vel])))
+        phys_slope = drag_slope(TermModel(base, labels).fit(cols, y).expr(), vel, rows, v_max)
+        slope_limit = max(phys_slope, 0.0) + 0.05
+        guards["drag_slope_limit"] = slope_limit
+    guards["drag_not_monotone"] = 0
     best = None
     for i, r in enumerate(done):
         try:
@@ -885,6 +928,13 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
                 guards["constraints_broken"] += 1
                 guards["dropped"].append(f"run {i + 1}: rejected, constraint error {ec:.3g} > {ec_limit:.3g}")
                 continue
+        if rows:
+            slope = drag_slope(trimmed.expr(), vel, rows, v_max)
+            if not slope <= slope_limit:
+                guards["drag_not_monotone"] += 1
+                guards["dropped"].append(f"run {i + 1}: rejected, ∂{p.target}/∂{vel} reaches {slope:.3g} 1/s "
+                                         f"within ±{v_max:.3g} m/s (drag must grow with speed)")
+                continue
         cv = trimmed.cv_rmse(cols, y, p.blocks)
         guards["candidates"] += 1
         if best is None or cv < best[0]:
@@ -904,23 +954,32 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     return final, guards
 
 
-def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: bool) -> str:
-    """One sentence: how the final model compares with the empirical model as given."""
+def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: bool,
+            y_spread: float = math.inf) -> str:
+    """One sentence: how the final model compares with the empirical model as given, on the test
+    data (or, without any, on the training flights' validation blocks). A target that barely
+    varies, or an error that cannot be measured, gives no verdict (never a "+100 %")."""
     te, ee = final["rmse_test"], empirical["rmse_test"]
     va, ev = final["rmse_validation"], empirical["rmse_validation"]
-    where = "on the held-out block" if holdout else "on the test flights"
-    if not (math.isfinite(te) and math.isfinite(ee)) or ee <= 0:
-        return f"{target}: no verdict: the test error could not be measured"
-    gain, vgain = improvement_pct(ee, te), improvement_pct(ev, va)
+    has_test = math.isfinite(te) and math.isfinite(ee)
+    where = ("on the held-out block" if holdout else "on the test flights") if has_test else \
+        "on validation blocks of the training flights (no test data)"
+    if not y_spread > 1e-3:
+        return (f"{target}: no verdict: the measured {target} barely varies (spread {y_spread:.2g}); "
+                f"these data cannot tell models apart")
+    a, b = (te, ee) if has_test else (va, ev)
+    if not (math.isfinite(a) and math.isfinite(b)) or b <= 0:
+        return f"{target}: no verdict: the errors could not be measured"
+    gain, vgain = improvement_pct(b, a), improvement_pct(ev, va)
     what = "identified model (with evolved terms)" if evolved else \
         "physical model (prior + effects; no evolved term survived validation)"
+    extra = f" (validation {vgain:+.0f} %)" if has_test else ""
     if gain >= 5:
-        return f"{target}: the {what} beats the empirical model by {gain:.0f} % {where} (validation {vgain:+.0f} %)"
+        return f"{target}: the {what} beats the empirical model by {gain:.0f} % {where}{extra}"
     if gain > -5:
-        return (f"{target}: the {what} is no better than the empirical model {where} ({gain:+.0f} %): "
-                f"keep the empirical model")
-    return (f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %, validation "
-            f"{vgain:+.0f} %): the training flights do not represent the test flights; keep the empirical model")
+        return f"{target}: the {what} is no better than the empirical model {where} ({gain:+.0f} %): keep the empirical model"
+    return (f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %){extra}: "
+            f"the training flights do not represent the test flights; keep the empirical model")
 
 
 def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict | None],
@@ -979,7 +1038,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
         ladder=ladder, final=final["model"] if final else None,
         empirical_model=p.ladder[0]["model"] if p.ladder else None,
         refit_model=p.ladder[1]["model"] if len(p.ladder) > 1 else None,
-        verdict=verdict(p.target, final, p.ladder[0], evolved, p.holdout) if final else "",
+        verdict=verdict(p.target, final, p.ladder[0], evolved, p.holdout, float(np.std(p.train.y)))
+        if final else "",
         guards=guards,
         target=p.target, inputs=list(p.train.input_names), n_train=len(p.train), n_test=len(p.test),
         test_data=p.test_description, holdout=p.holdout, prior_features=_feature_dicts(feats),
@@ -1068,9 +1128,14 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     if not train_flights:
         raise DataError("no training flights")
     t0 = time.perf_counter()
-    plan = plan_identification(train_flights, cfg, progress)
+    cuts = None
+    if not test_flights and cfg.test_fraction > 0:
+        prior, _ = resolve_plan_prior(cfg, train_flights)
+        first = (cfg.targets or tuple(t for t in prior.targets if t in TARGETS))[0]
+        cuts = holdout_cuts(train_flights, cfg, first, prior)
+    plan = plan_identification(train_flights, cfg, progress, cuts)
     cfg = replace(cfg, targets=plan.targets)
-    problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan) for t in cfg.targets}
+    problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
     jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
     outcome = run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
                        label="SNGP run")

@@ -28,7 +28,7 @@ import sympy as sp
 from .expressions import compile_expression
 from .numerics import lstsq, rmse
 
-__all__ = ["TermModel", "block_ids", "validation_blocks", "blocked_cv", "choose_delay", "trim_terms", "plausible",
+__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "blocked_cv", "choose_delay", "trim_terms", "plausible",
            "DELAY_GRID_S", "n_blocks_for"]
 
 #: candidate input delays of the thrust signals (s)
@@ -243,3 +243,20 @@ def plausible(expr: sp.Expr, ranges: Mapping[str, tuple[float, float]], bound: f
     note = "" if ok else (f"reaches {m:.3g} (bound {bound:.3g}) on inputs within the training range "
                           f"± {100 * margin:.0f} %")
     return Plausibility(ok, m, float(bound), n_points, note)
+
+
+def drag_slope(expr: sp.Expr, velocity: str, rows: Mapping[str, np.ndarray], v_max: float,
+               n_points: int = 41) -> float:
+    """The largest slope ∂v̇/∂v (1/s) of ``expr`` along its own-axis ``velocity`` from −v_max to
+    v_max, every other input held at each of the given training ``rows`` (states the vehicle
+    really flew). Drag grows with speed, so a physical model's slope is ≤ 0 (−k_D for linear
+    drag); an evolved velocity term that oscillates or turns over shows a positive slope."""
+    if velocity not in {s.name for s in expr.free_symbols}:
+        return -math.inf
+    m = len(next(iter(rows.values())))
+    v = np.linspace(-v_max, v_max, n_points)
+    cols = {k: np.repeat(np.asarray(a, float), n_points) for k, a in rows.items()}
+    cols[velocity] = np.tile(v, m)
+    vals = _eval(expr, cols, m * n_points).reshape(m, n_points)
+    slopes = np.diff(vals, axis=1) / np.diff(v)
+    return float(np.max(slopes)) if np.all(np.isfinite(slopes)) else math.inf

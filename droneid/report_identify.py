@@ -106,7 +106,8 @@ def format_text(result: dict) -> str:
             g = tr.get("guards") or {}
             out.append(f"SNGP runs: {len(tr.get('runs') or [])}; rejected as implausible: {g.get('implausible', 0)}; "
                        f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}; "
-                       f"breaking the constraints: {g.get('constraints_broken', 0)}")
+                       f"breaking the constraints: {g.get('constraints_broken', 0)}; "
+                       f"drag not growing with speed: {g.get('drag_not_monotone', 0)}")
             for note in tr.get("notes") or []:
                 if note != tr["test_data"]:
                     out.append(f"NOTE: {note}")

@@ -94,7 +94,7 @@ def test_predict_round_trip_reproduces_the_test_error(identified, logs, capsys):
 def test_identify_terminal_output_and_holdout_note(logs, capsys):
     train, _ = logs
     code, out, _ = run_cli(capsys, "-q", "identify", train, "--target", "vx_dot", "--runs", "1",
-                           "--prior", "tilt-drag", "--constraints", "none", *TINY)
+                           "--prior", "tilt-drag", "--constraints", "none", "--holdout", "0.3", *TINY)
     assert code == 0
     assert "held out" in out and "time block" in out
     # the verdict comes first, then the equation and the ladder with its method line
@@ -238,3 +238,34 @@ def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
     b = res.targets["vx_dot"]
     assert res.backend.startswith("dask(")
     assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])
+
+
+def test_the_test_flights_never_decide(logs):
+    """The same training flights give the same final model, ladder choices and validation errors
+    with another test flight or none: test data are reported, never used."""
+    from droneid.identify import IdentifyConfig, identify
+    from droneid.simulate import simulate
+    from parsers import read_flight
+    train = read_flight(logs[0])
+    other = simulate(path="circle", duration_s=12, seed=5, k_drag=0.6).flight
+    cfg = IdentifyConfig.make(runs=2, generations=300, population=60, jobs=1, seed=1)
+    results = [identify([train], test, cfg) for test in ([read_flight(logs[1])], [other], None)]
+    for t in results[0].targets:
+        finals = [r.targets[t].final for r in results]
+        assert finals[0]["expr"] == finals[1]["expr"] == finals[2]["expr"]
+        vals = [[rg["rmse_validation"] for rg in r.targets[t].ladder] for r in results]
+        assert vals[0] == vals[1] == vals[2]
+        assert results[0].targets[t].ladder[0]["rmse_test"] != results[1].targets[t].ladder[0]["rmse_test"]
+    assert results[0].config["delays_s"] == results[1].config["delays_s"] == results[2].config["delays_s"]
+
+
+def test_holdout_is_cut_before_any_choice(logs):
+    """With --holdout the held-out block is out of the training rows of every rung and of the
+    delay choice: training data end where the test block begins, per flight."""
+    from droneid.identify import IdentifyConfig, identify
+    from parsers import read_flight
+    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=100, population=60, jobs=1,
+                              test_fraction=0.3)
+    res = identify([read_flight(logs[0])], None, cfg).targets["vx_dot"]
+    assert res.holdout and 0.25 < res.n_test / (res.n_train + res.n_test) < 0.35
+    assert "before any choice" in res.test_data

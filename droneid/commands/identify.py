@@ -31,9 +31,13 @@ def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
     p.add_argument("--generations", type=int, default=None, help="SNGP generations per run (paper: 60000)")
     p.add_argument("--population", type=int, default=None, help="SNGP population size (paper: 500)")
     p.add_argument("--seed", type=int, default=0, help="root seed; run seeds are spawned from it (default 0)")
-    p.add_argument("--ts", type=float, default=0.05, help="sampling period of the data in s (paper: 0.05)")
+    p.add_argument("--ts", type=float, default=0.05, help="sampling period of the data in s (default 0.05, the paper's)")
     p.add_argument("--method", default="forward" if paper else "central",
                    help="differentiator: central (default; no half-step lag), forward (the paper), savgol, spline")
+    p.add_argument("--holdout", type=float, default=0.3 if paper else 0.0, metavar="FRACTION",
+                   help="without --test: hold out the last FRACTION of each training flight as test data "
+                        "(before any choice is made); " + ("default 0.3" if paper else
+                        "default 0: train on everything and report validation (the same model as with --test)"))
     p.add_argument("--quick", action="store_true",
                    help="small budget for a fast look (3000 generations, population 200, 4 runs)")
     p.add_argument("--prune", default=prune_default, choices=("validation", "exact"),
@@ -47,6 +51,7 @@ def config_from_args(args, **extra):
     return IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
                                jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
                                population=args.population, seed=args.seed, ts=args.ts, method=args.method,
+                               test_fraction=args.holdout,
                                prune=args.prune, **extra)
 
 
@@ -59,7 +64,7 @@ def register(sub) -> None:
                     "the paper's constraints, 60000 generations, population 500; 10 runs.")
     p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
     p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
-                   help="test log(s); without them the last 30%% of the training data are held out")
+                   help="test log(s): reported, never used for a choice (without them: see --holdout)")
     add_budget_arguments(p, runs_help="independent SNGP runs per target (default 10; the paper: 50; --quick: 4)")
     p.add_argument("--prior-features", type=int, default=3, choices=(0, 1, 3),
                    help="0: no prior; 1: the empirical model as one feature; 3: its three terms (default)")
