@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-REAL = ROOT.parent / "shared" / "real_logs"
+REAL = Path(os.environ.get("DRONEID_REAL_LOGS") or ROOT.parent / "shared" / "real_logs")
 #: real log -> read_flight keyword arguments
 LOGS = {
     "ardupilot/copter33_quad_log171.bin": {},
