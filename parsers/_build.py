@@ -89,7 +89,8 @@ class FlightBuilder:
             self.skipped[reason] = self.skipped.get(reason, 0) + int(n)
 
     def warn(self, text: str) -> None:
-        log.warning("%s: %s", self.path, text)
+        # kept as data; read_flight logs one summary warning per damaged file (a quiet terminal)
+        log.info("%s: %s", self.path, text)
         self.warnings.append(text)
 
     # -- signals -------------------------------------------------------------------------

@@ -20,8 +20,6 @@ its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages wi
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import logging
 import math
 import os
@@ -72,6 +70,21 @@ _WANT = {
 }
 
 
+#: fields a type must have to be used: a damaged FMT record can rename or drop columns
+_REQUIRED = {
+    "ATT": ("Roll", "Pitch", "Yaw"),
+    "EKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "NKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "XKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "IMU": ("GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"),
+    "CURR": ("Volt",), "BAT": ("Volt",),
+    "GPS": ("Status", "Lat", "Lng", "Alt"),
+    "BARO": ("Alt",),
+    "EV": ("Id",), "ERR": ("Subsys", "ECode"), "MSG": ("Message",), "ARM": ("ArmState",),
+    "PARM": ("Name", "Value"),
+}
+
+
 def _open(path):
     from pymavlink import DFReader  # wrapped here: pymavlink reads globals at import
     try:
@@ -106,16 +119,34 @@ class _TypeRows:
 
 
 def _scan(path, b: FlightBuilder):
-    """One pass over the log: per-type time and field lists (boot seconds)."""
-    noise = io.StringIO()
-    with contextlib.redirect_stderr(noise):   # pymavlink prints "bad header" lines
-        dflog = _open(path)
-        types = _loop(dflog, b)
+    """One pass over the log: per-type time and field lists (boot seconds).
+
+    pymavlink prints one line per damaged byte; read_flight captures that output. The damage is
+    counted here from pymavlink's own index instead: the bytes no indexed record covers."""
+    dflog = _open(path)
+    types = _loop(dflog, b)
     _check_end(dflog, b)
-    bad = sum(1 for line in noise.getvalue().splitlines() if line.startswith(("bad header", "Skipped")))
-    if bad:
-        b.skip("corrupt bytes or unknown records (pymavlink resynchronised)", bad)
+    _count_damage(dflog, b)
     return types
+
+
+def _count_damage(dflog, b: FlightBuilder) -> None:
+    """Bytes before the last record that no record pymavlink indexed covers (garbage, damaged
+    headers); what follows the last record is :func:`_check_end`'s."""
+    try:
+        size = int(dflog.data_len)
+        covered, last_end = 0, 0
+        for mtype, offs in enumerate(dflog.offsets):
+            if offs and mtype in dflog.formats:
+                o = np.asarray(offs, dtype=np.int64)
+                ln = dflog.formats[mtype].len
+                covered += int(np.minimum(ln, size - o).sum())
+                last_end = max(last_end, int(o[-1]) + ln)
+    except (AttributeError, TypeError, ValueError, IndexError):
+        return
+    gap = min(size, last_end) - covered
+    if gap > 0:
+        b.skip("corrupt bytes outside any record (pymavlink resynchronised)", gap)
 
 
 def _loop(dflog, b: FlightBuilder) -> dict:
@@ -124,6 +155,7 @@ def _loop(dflog, b: FlightBuilder) -> dict:
     last_boot = math.nan
     recv = dflog.recv_match
     wanted = list(MESSAGE_TYPES)
+    broken: dict[str, list[str]] = {}
     n_bad = 0
     while True:
         try:
@@ -137,7 +169,16 @@ def _loop(dflog, b: FlightBuilder) -> dict:
         mtype = m.get_type()
         tr = types.get(mtype)
         if tr is None:
-            tr = types[mtype] = _TypeRows(mtype, list(m.get_fieldnames()))
+            cols = list(m.get_fieldnames())
+            lost = [f for f in _REQUIRED.get(mtype, ()) if f not in cols]
+            if lost:
+                tr = types[mtype] = None
+                broken[mtype] = lost
+            else:
+                tr = types[mtype] = _TypeRows(mtype, cols)
+        if tr is None:
+            b.skip(f"{mtype} records whose FMT lacks {', '.join(broken[mtype])} (damaged FMT)")
+            continue
         if tr.time_field is not None:
             raw = getattr(m, tr.time_field)
             boot = last_boot = raw * (1e-6 if tr.time_field == "TimeUS" else 1e-3)
@@ -147,7 +188,7 @@ def _loop(dflog, b: FlightBuilder) -> dict:
         tr.rows.append(tr.get(m))
     if n_bad:
         b.skip("corrupt records", n_bad)
-    return types
+    return {k: v for k, v in types.items() if v is not None}
 
 
 def _check_end(dflog, b: FlightBuilder) -> None:

@@ -28,6 +28,7 @@ from droneid.flight import Flight
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._guard import BoundedReader, ReaderLoopError
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +37,20 @@ __all__ = ["read_ulog", "TOPICS"]
 TOPICS = ("vehicle_attitude", "vehicle_local_position", "vehicle_angular_velocity",
           "sensor_combined", "vehicle_acceleration", "actuator_motors", "actuator_outputs",
           "vehicle_thrust_setpoint", "battery_status", "vehicle_status", "vehicle_land_detected")
+
+#: fields a topic must have to be used (a damaged format definition may lack them)
+_NEEDED = {
+    "vehicle_attitude": tuple(f"q[{i}]" for i in range(4)),
+    "vehicle_local_position": ("x", "y", "z", "vx", "vy", "vz"),
+    "vehicle_angular_velocity": ("xyz[0]", "xyz[1]", "xyz[2]"),
+    "sensor_combined": tuple(f"gyro_rad[{i}]" for i in range(3))
+    + tuple(f"accelerometer_m_s2[{i}]" for i in range(3)),
+    "vehicle_acceleration": ("xyz[0]", "xyz[1]", "xyz[2]"),
+    "vehicle_thrust_setpoint": ("xyz[2]",),
+    "battery_status": ("voltage_v", "current_a"),
+    "vehicle_status": ("arming_state", "nav_state"),
+    "vehicle_land_detected": ("landed",),
+}
 
 _ARMING_STATE_ARMED = 2
 _NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUTO_LOITER",
@@ -48,14 +63,28 @@ def read_ulog(path) -> Flight:
     """Read a PX4 ULog into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     from pyulog import ULog
+    size = os.path.getsize(path)
+    # pyulog can seek back and re-read the same bytes forever on damage: bound what it may read
+    f = BoundedReader(open(path, "rb"), limit_bytes=4 * size + (1 << 20), max_stalled_reads=100_000)
     try:
-        ulog = ULog(path, message_name_filter_list=list(TOPICS), disable_str_exceptions=True)
+        ulog = ULog(f, message_name_filter_list=list(TOPICS), disable_str_exceptions=True)
+    except ReaderLoopError as exc:
+        raise LogFormatError(path, f"damaged ULog: pyulog stopped making progress ({exc})") from None
     except Exception as exc:  # pyulog raises TypeError/IndexError/struct.error on bad files
         raise LogFormatError(path, f"not a readable ULog ({type(exc).__name__}: {exc})") from None
+    finally:
+        f.close()
     b = FlightBuilder(path, "ulog")
     topics = {}
     for d in ulog.data_list:
-        if d.multi_id == 0 and d.name in TOPICS and len(d.data["timestamp"]):
+        if d.multi_id != 0 or d.name not in TOPICS:
+            continue
+        missing = [k for k in _NEEDED.get(d.name, ()) + ("timestamp",) if k not in d.data]
+        if missing:   # a damaged format definition: the topic's fields are not what PX4 writes
+            b.skip(f"{d.name}: topic without field(s) {', '.join(missing)} (damaged format)",
+                   len(next(iter(d.data.values()), ())))
+            continue
+        if len(d.data["timestamp"]):
             topics[d.name] = d.data
     # some topics carry samples stamped just before the header's start time: start at the earliest
     # (within 1 s of it; a zero stamp of an uninitialised message must not move the origin)
