@@ -17,6 +17,9 @@ from droneid.flight import Diagnostics, Event, Flight, Provenance, Signal
 
 log = logging.getLogger(__name__)
 
+#: |time| beyond this many seconds from the log start is damage, not data (~3 years)
+MAX_TIME_S = 1e8
+
 __all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit"]
 
 
@@ -100,6 +103,10 @@ class FlightBuilder:
         values = np.asarray(values, float)
         if t.size == 0:
             return
+        wild = np.abs(t) > MAX_TIME_S        # a damaged or nonsense stamp (1e300) breaks ordering
+        if wild.any():
+            self.skip(f"{name}: time stamps beyond {MAX_TIME_S:.0e} s from the log start", int(wild.sum()))
+            t, values = t[~wild], values[~wild]
         sig, dropped = Signal.clean(name, t, values, unit, source)
         for reason, n in dropped.items():
             self.skip(f"{name}: {reason}", n)

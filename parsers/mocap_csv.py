@@ -267,6 +267,7 @@ def read_flat_csv(path, column_map=None) -> Flight:
         raise LogFormatError(path, f"no recognised signal columns (x y z, qx qy qz qw, roll pitch yaw, "
                                    f"vx vy vz, ...; or column_map=); columns: {shown}")
     b = FlightBuilder(path, "csv")
+    b.skip("rows with more fields than the header (extra fields ignored)", _long_rows(path, len(columns)))
 
     def num(name):
         return pd.to_numeric(df[found[name]], errors="coerce").to_numpy(float)
@@ -312,6 +313,17 @@ def read_flat_csv(path, column_map=None) -> Flight:
             b.segment(label, intervals_from_bool(t[ok], _to_bool(df[found[key]].to_numpy())[ok], end_s=end))
     b.in_flight_from_height()
     return b.build()
+
+
+def _long_rows(path, n_columns: int) -> int:
+    """Data rows with more comma-separated fields than the header (pandas drops the extras)."""
+    n = 0
+    with open(path, "rb") as f:
+        next(f, None)
+        for line in f:
+            if line.count(b",") >= n_columns and b'"' not in line:
+                n += 1
+    return n
 
 
 def _check_euler(q, e) -> str:

@@ -264,3 +264,12 @@ def test_fuzz_real_logs(tmp_path):
             kind, bad = _mutate(data, rng)
             suffix = ".motive.csv" if "motive" in src.name else src.suffix
             _check(_write(tmp_path / f"r{k}{suffix}", bad), f"{src.name} #{k} ({kind})")
+
+
+def test_csv_extra_fields_and_absurd_time_are_counted(tmp_path):
+    p = _write(tmp_path / "x.csv", b"t,x,y\n0,1,2\n0.1,1,2,3,4\n0.2,1,2\n1e300,1,2\n0.3,1,2\n")
+    f = read_flight(p)
+    sk = f.diagnostics.skipped
+    assert sk["rows with more fields than the header (extra fields ignored)"] == 1
+    assert sk["x: time stamps beyond 1e+08 s from the log start"] == 1
+    np.testing.assert_allclose(f["x"].t, [0, 0.1, 0.2, 0.3])
