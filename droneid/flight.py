@@ -18,11 +18,12 @@ import numpy as np
 from .errors import DataError, MissingSignalError
 
 __all__ = [
-    "CANONICAL_SIGNALS", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
     "canonical_unit", "is_canonical",
 ]
 
-#: Canonical signal names -> (unit, meaning). Motor outputs are ``motor1`` .. ``motor16``.
+#: Canonical signal names -> (unit, meaning). Per-motor signals (``motor1`` .. ``motor16``,
+#: ``rpm1`` .. ``rpm16``) are in :data:`ROTOR_SIGNALS`; see docs/signals.md.
 CANONICAL_SIGNALS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "x": ("m", "position east of the local origin (world ENU)"),
     "y": ("m", "position north of the local origin (world ENU)"),
@@ -54,21 +55,39 @@ CANONICAL_SIGNALS: Mapping[str, tuple[str, str]] = MappingProxyType({
 })
 
 _MOTOR_RE = re.compile(r"^motor([1-9]|1[0-6])$")
+_RPM_RE = re.compile(r"^rpm([1-9]|1[0-6])$")
+
+#: Per-motor signal families, N = 1..16 in the vehicle's motor order (ArduPilot / PX4 motor
+#: numbering): prefix -> (regex, unit, meaning).
+ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
+    "motor": (_MOTOR_RE, "1", "motor N command, normalised to 0..1 (source says from which range)"),
+    "rpm": (_RPM_RE, "rpm", "motor N speed in revolutions per minute (electrical rpm where the "
+                            "source says erpm: the pole-pair factor is left to the fitted scale)"),
+})
+
+
+def _rotor(name: str):
+    for prefix, (rx, unit, _) in ROTOR_SIGNALS.items():
+        m = rx.match(name)
+        if m:
+            return prefix, int(m.group(1)), unit
+    return None
 
 
 def is_canonical(name: str) -> bool:
-    """True for a canonical signal name (including ``motor1`` .. ``motor16``)."""
-    return name in CANONICAL_SIGNALS or bool(_MOTOR_RE.match(name))
+    """True for a canonical signal name (including ``motor1..16`` and ``rpm1..16``)."""
+    return name in CANONICAL_SIGNALS or _rotor(name) is not None
 
 
 def canonical_unit(name: str) -> str:
     """The unit of a canonical signal (``"1"`` for dimensionless)."""
-    if _MOTOR_RE.match(name):
-        return "1"
+    r = _rotor(name)
+    if r:
+        return r[2]
     try:
         return CANONICAL_SIGNALS[name][0]
     except KeyError:
-        raise MissingSignalError(name, list(CANONICAL_SIGNALS) + ["motor1"],
+        raise MissingSignalError(name, list(CANONICAL_SIGNALS) + ["motor1", "rpm1"],
                                  where="the canonical signal list") from None
 
 
@@ -333,7 +352,7 @@ _ORDER = {n: i for i, n in enumerate(CANONICAL_SIGNALS)}
 
 
 def _signal_order(s: Signal):
-    m = _MOTOR_RE.match(s.name)
-    if m:
-        return (len(_ORDER), int(m.group(1)), s.name)
-    return (_ORDER.get(s.name, len(_ORDER) + 1), 0, s.name)
+    r = _rotor(s.name)
+    if r:
+        return (len(_ORDER) + list(ROTOR_SIGNALS).index(r[0]), r[1], s.name)
+    return (_ORDER.get(s.name, len(_ORDER) + len(ROTOR_SIGNALS)), 0, s.name)

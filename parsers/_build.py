@@ -20,12 +20,54 @@ log = logging.getLogger(__name__)
 #: |time| beyond this many seconds from the log start is damage, not data (~3 years)
 MAX_TIME_S = 1e8
 
-__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit"]
+__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit",
+           "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS"]
 
 
-def pwm_to_unit(pwm) -> np.ndarray:
-    """Servo PWM in µs (1000..2000) to 0..1 (clipped); 0 µs (output off) becomes 0."""
-    return np.clip((np.asarray(pwm, float) - 1000.0) / 1000.0, 0.0, 1.0)
+def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:
+    """Servo PWM in µs (``lo``..``hi``, default 1000..2000) to 0..1 (clipped); 0 µs (output off)
+    becomes 0."""
+    return np.clip((np.asarray(pwm, float) - lo) / (hi - lo), 0.0, 1.0)
+
+
+#: ArduPilot SERVOn_FUNCTION values of motors: 33..40 = motor1..8, 82..85 = motor9..12
+ARDUPILOT_MOTOR_FUNCTIONS = {**{33 + i: i + 1 for i in range(8)}, **{82 + i: 9 + i for i in range(4)}}
+
+
+def ardupilot_motor_channels(params, channels, n_default: int = 4):
+    """ArduPilot output channels that drive motors: ``[(channel, motor, lo_us, hi_us, how)]``.
+
+    ``params`` are the log's parameters (DataFlash PARM, MAVLink PARAM_VALUE), ``channels`` the
+    1-based output channels present. The motor of a channel is its ``SERVOn_FUNCTION``
+    (:data:`ARDUPILOT_MOTOR_FUNCTIONS`); logs without SERVOn_FUNCTION (before ArduPilot 3.5)
+    take channels 1..``n_default`` as motors 1..``n_default`` (a quad), which ``how`` says.
+    The PWM range is ``MOT_PWM_MIN``/``MOT_PWM_MAX`` when set (non-zero), else the channel's
+    ``SERVOn_MIN``/``SERVOn_MAX``, else ``RC3_MIN``/``RC3_MAX`` (ArduCopter 3.x drives its
+    motors over the throttle channel's range), else 1000-2000 µs.
+    """
+    params = params or {}
+    out = []
+    has_func = any(f"SERVO{c}_FUNCTION" in params for c in channels)
+    mot_lo, mot_hi = params.get("MOT_PWM_MIN", 0) or 0, params.get("MOT_PWM_MAX", 0) or 0
+    for c in sorted(channels):
+        if has_func:
+            motor = ARDUPILOT_MOTOR_FUNCTIONS.get(int(params.get(f"SERVO{c}_FUNCTION", 0) or 0))
+            mapping = f"SERVO{c}_FUNCTION"
+        else:
+            motor = c if c <= n_default else None
+            mapping = f"no SERVOn_FUNCTION in the log: channel {c} taken as motor {c} of a quad"
+        if motor is None:
+            continue
+        if mot_lo > 0 and mot_hi > mot_lo:
+            lo, hi, rng = mot_lo, mot_hi, "MOT_PWM_MIN/MAX"
+        elif params.get(f"SERVO{c}_MAX", 0) > params.get(f"SERVO{c}_MIN", 0) > 0:
+            lo, hi, rng = params[f"SERVO{c}_MIN"], params[f"SERVO{c}_MAX"], f"SERVO{c}_MIN/MAX"
+        elif params.get("RC3_MAX", 0) > params.get("RC3_MIN", 0) > 0:
+            lo, hi, rng = params["RC3_MIN"], params["RC3_MAX"], "RC3_MIN/MAX"
+        else:
+            lo, hi, rng = 1000.0, 2000.0, "default"
+        out.append((c, motor, float(lo), float(hi), f"PWM {lo:.0f}-{hi:.0f} us ({rng}) -> 0..1; {mapping}"))
+    return out
 
 
 def central_difference(t: np.ndarray, x: np.ndarray, max_gap_factor: float = 2.5) -> np.ndarray:

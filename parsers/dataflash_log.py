@@ -6,8 +6,11 @@ What is read (old 3.x names / new 4.x names), converted from NED/FRD to ENU/FLU:
 * ``EKF1`` (3.x) / ``NKF1`` / ``XKF1`` (4.x, core ``C == 0``) VN VE VD, PN PE PD -> vx vy vz, x y z.
   When a log holds both NKF1 and XKF1, the parameter ``AHRS_EKF_TYPE`` picks (else the larger).
 * ``IMU`` (instance 0) GyrX..Z, AccX..Z (FRD) -> wx wy wz, ax ay az (FLU: y and z negated)
-* ``RCOU`` ``Ch1..`` / ``C1..`` PWM -> motor1.. (0..1); channels that are always 0 are dropped.
-  The servo-function mapping is not applied: channel N becomes motorN.
+* ``RCOU`` ``Ch1..`` / ``C1..`` PWM -> motorN (0..1) through the log's ``SERVOn_FUNCTION``
+  parameters (33..40 = motor1..8) and PWM range (``MOT_PWM_MIN/MAX``, else ``SERVOn_MIN/MAX``,
+  else ``RC3_MIN/MAX``, else 1000-2000; see :func:`ardupilot_motor_channels`); logs without
+  SERVOn_FUNCTION: channels 1..4 (or the "Frame:" message's motor count) = motors 1..4
+* ``ESC`` (ESC telemetry) ``Instance``, ``RPM`` -> rpm{Instance+1} (rpm)
 * ``CTUN`` ``ThrOut`` (3.x: 0..1000, detected by its range) / ``ThO`` (4.x: 0..1) -> throttle
 * ``CURR`` (3.x; centivolts / centiamps when the values say so) / ``BAT`` (4.x, instance 0) -> battery
 * ``GPS`` (3D fix only) Lat Lng Alt -> lat lon alt; ``BARO`` Alt -> baro_alt
@@ -32,7 +35,7 @@ from droneid.errors import LogFormatError
 from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
-from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +43,7 @@ __all__ = ["read_dataflash", "MESSAGE_TYPES"]
 
 #: DataFlash message types this reader asks pymavlink for.
 MESSAGE_TYPES = ("ATT", "EKF1", "NKF1", "XKF1", "IMU", "RCOU", "CTUN", "CURR", "BAT", "GPS",
-                 "BARO", "MODE", "EV", "ERR", "MSG", "ARM", "PARM")
+                 "BARO", "MODE", "EV", "ERR", "MSG", "ARM", "PARM", "ESC")
 
 _EV_ARMED, _EV_DISARMED, _EV_LAND_COMPLETE, _EV_NOT_LANDED = 10, 11, 18, 28
 _ERR_CRASH = 12
@@ -67,6 +70,7 @@ _WANT = {
     "MSG": ("Message",),
     "ARM": ("ArmState",),
     "PARM": ("Name", "Value"),
+    "ESC": ("Instance", "RPM"),
 }
 
 
@@ -82,6 +86,7 @@ _REQUIRED = {
     "BARO": ("Alt",),
     "EV": ("Id",), "ERR": ("Subsys", "ECode"), "MSG": ("Message",), "ARM": ("ArmState",),
     "PARM": ("Name", "Value"),
+    "ESC": ("RPM",),
 }
 
 
@@ -280,10 +285,17 @@ def read_dataflash(path) -> Flight:
 
     if "RCOU" in data:
         t, c = data["RCOU"]
-        for f, v in c.items():
-            n = int(re.sub(r"^Ch?", "", f))
-            if np.any(v > 0):
-                b.add(f"motor{n}", t, pwm_to_unit(v), "1", f"RCOU.{f}")
+        field = {int(re.sub(r"^Ch?", "", f)): f for f, v in c.items() if np.any(v > 0)}
+        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, field, _frame_motors(b.vehicle)):
+            b.add(f"motor{motor}", t, pwm_to_unit(c[field[ch]], lo, hi), "1", f"RCOU.{field[ch]} ({how})")
+
+    if "ESC" in data:
+        t, c = data["ESC"]
+        inst = c.get("Instance", np.zeros(t.size))
+        for i in np.unique(inst[np.isfinite(inst)]).astype(int):
+            if 0 <= i < 16:
+                m = inst == i
+                b.add(f"rpm{i + 1}", t[m], c["RPM"][m], "rpm", f"ESC[{i}].RPM (ESC telemetry)")
 
     if "CTUN" in data:
         t, c = data["CTUN"]
@@ -321,6 +333,15 @@ def read_dataflash(path) -> Flight:
     _events(b, data, types)
     b.in_flight_from_height()
     return b.build()
+
+
+_FRAME_MOTORS = {"quad": 4, "hexa": 6, "octa": 8, "octaquad": 8, "y6": 6, "tri": 3, "deca": 10,
+                 "dodecahexa": 12}
+
+
+def _frame_motors(frame: str | None) -> int:
+    """Motors of an ArduCopter frame name from the log's "Frame: QUAD" message (default 4)."""
+    return _FRAME_MOTORS.get((frame or "").lower(), 4)
 
 
 def _pick_ekf(data, params):

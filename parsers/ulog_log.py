@@ -9,8 +9,10 @@ Only the topics below are loaded (pyulog's ``message_name_filter_list``), instan
   v_xy_valid / v_z_valid are skipped and counted) -> ENU
 * vehicle_angular_velocity xyz (FRD) -> wx wy wz (FLU); else sensor_combined gyro_rad
 * sensor_combined accelerometer_m_s2 (FRD) -> ax ay az (FLU); else vehicle_acceleration xyz
-* actuator_motors control[i] (0..1) -> motor{i+1}; else actuator_outputs output[i] (PWM -> 0..1;
-  only the first ``noutputs`` channels that ever leave 0)
+* esc_status esc[i].esc_rpm (i < esc_count, never all 0) -> rpm{i+1} (|rpm|)
+* actuator_motors control[i] (0..1; -1..1 for reversible motors -> 0..1) -> motor{i+1}; else
+  actuator_outputs output[i] (PWM -> 0..1 with PWM_MAIN_MINn/MAXn, else PWM_MAIN_MIN/MAX, else
+  1000-2000; only the first ``noutputs`` channels that ever leave 0)
 * vehicle_thrust_setpoint xyz[2] (FRD, negative up) -> throttle = -xyz[2] (0..1)
 * battery_status voltage_v, current_a
 * vehicle_status arming_state (2 = armed) -> "armed" segments, nav_state -> "mode" events
@@ -34,7 +36,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["read_ulog", "TOPICS"]
 
-TOPICS = ("vehicle_attitude", "vehicle_local_position", "vehicle_angular_velocity",
+TOPICS = ("esc_status", "vehicle_attitude", "vehicle_local_position", "vehicle_angular_velocity",
           "sensor_combined", "vehicle_acceleration", "actuator_motors", "actuator_outputs",
           "vehicle_thrust_setpoint", "battery_status", "vehicle_status", "vehicle_land_detected")
 
@@ -50,6 +52,7 @@ _NEEDED = {
     "battery_status": ("voltage_v", "current_a"),
     "vehicle_status": ("arming_state", "nav_state"),
     "vehicle_land_detected": ("landed",),
+    "esc_status": ("esc[0].esc_rpm",),
 }
 
 _ARMING_STATE_ARMED = 2
@@ -144,7 +147,7 @@ def read_ulog(path) -> Flight:
         d = topics["vehicle_acceleration"]
         b.add_many(tt(d), {"ax": d["xyz[0]"], "ay": -d["xyz[1]"], "az": -d["xyz[2]"]},
                    dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "vehicle_acceleration.xyz")
-    _motors(b, topics, tt)
+    _motors(b, topics, tt, ulog.initial_parameters)
     if "vehicle_thrust_setpoint" in topics:
         d = topics["vehicle_thrust_setpoint"]
         b.add("throttle", tt(d), -np.asarray(d["xyz[2]"], float), "1", "-vehicle_thrust_setpoint.xyz[2]")
@@ -188,13 +191,28 @@ def _vehicle(info, status) -> str | None:
     return kind or hw
 
 
-def _motors(b, topics, tt):
+def _motors(b, topics, tt, params):
+    if "esc_status" in topics:
+        d = topics["esc_status"]
+        n = int(np.max(d["esc_count"])) if "esc_count" in d and len(d["esc_count"]) else 16
+        for i in range(min(max(n, 0), 16)):
+            k = f"esc[{i}].esc_rpm"
+            if k in d and np.any(np.nan_to_num(np.asarray(d[k], float)) != 0):
+                b.add(f"rpm{i + 1}", tt(d), np.abs(np.asarray(d[k], float)), "rpm",
+                      f"esc_status.{k} (|rpm|)")
     if "actuator_motors" in topics:
         d = topics["actuator_motors"]
         for i in range(16):
             k = f"control[{i}]"
-            if k in d and np.any(np.nan_to_num(d[k]) > 0):
-                b.add(f"motor{i + 1}", tt(d), d[k], "1", f"actuator_motors.{k}")
+            if k not in d:
+                continue
+            v = np.asarray(d[k], float)
+            if not np.any(np.nan_to_num(v) != 0):
+                continue
+            if np.nanmin(v) < 0:   # reversible motors: -1..1
+                b.add(f"motor{i + 1}", tt(d), (v + 1) / 2, "1", f"actuator_motors.{k} (-1..1 -> 0..1)")
+            else:
+                b.add(f"motor{i + 1}", tt(d), v, "1", f"actuator_motors.{k} (0..1)")
         return
     if "actuator_outputs" in topics:
         d = topics["actuator_outputs"]
@@ -202,7 +220,24 @@ def _motors(b, topics, tt):
         for i in range(min(n, 16)):
             k = f"output[{i}]"
             if k in d and np.any(d[k] > 0):
-                b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k]), "1", f"actuator_outputs.{k}")
+                lo, hi, how = _pwm_range(params, i + 1)
+                b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k], lo, hi), "1",
+                      f"actuator_outputs.{k} (PWM {lo:.0f}-{hi:.0f} us ({how}) -> 0..1)")
+
+
+def _pwm_range(params, ch: int):
+    """PX4 PWM range of output ``ch``: PWM_MAIN_MINn/MAXn, else PWM_MAIN_MIN/MAX, else 1000-2000."""
+    def get(kind, default):
+        for key in (f"PWM_MAIN_{kind}{ch}", f"PWM_MAIN_{kind}"):
+            v = params.get(key, -1)
+            if v is not None and v > 0:
+                return float(v), key
+        return default, "default"
+    lo, klo = get("MIN", 1000.0)
+    hi, khi = get("MAX", 2000.0)
+    if hi <= lo:
+        return 1000.0, 2000.0, "default"
+    return lo, hi, klo if klo == khi == "default" else f"{klo}/{khi}"
 
 
 def _status(b, topics, tt):
