@@ -21,13 +21,25 @@ log = logging.getLogger(__name__)
 MAX_TIME_S = 1e8
 
 __all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit",
-           "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS"]
+           "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS", "command_to_unit"]
 
 
 def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:
     """Servo PWM in µs (``lo``..``hi``, default 1000..2000) to 0..1 (clipped); 0 µs (output off)
     becomes 0."""
     return np.clip((np.asarray(pwm, float) - lo) / (hi - lo), 0.0, 1.0)
+
+
+def command_to_unit(v) -> tuple[np.ndarray, str]:
+    """A motor command column to 0..1, judged by its range: 0..1 as is, PWM µs (800..2200)
+    with 1000-2000, percent (up to 100) / 100. Returns the values and how they were read."""
+    v = np.asarray(v, float)
+    fin = v[np.isfinite(v)]
+    if not fin.size or (fin.min() >= -1e-9 and fin.max() <= 1 + 1e-9):
+        return v, "0..1"
+    if fin.max() > 100:
+        return pwm_to_unit(v), "PWM 1000-2000 us -> 0..1"
+    return v / 100.0, "0..100 % -> 0..1"
 
 
 #: ArduPilot SERVOn_FUNCTION values of motors: 33..40 = motor1..8, 82..85 = motor9..12

@@ -47,7 +47,7 @@ from droneid.errors import ConfigError, LogFormatError, did_you_mean
 from droneid.flight import Flight, is_canonical
 from droneid.frames import quat_to_euler, wrap_angle
 
-from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, command_to_unit, intervals_from_bool
 
 log = logging.getLogger(__name__)
 
@@ -350,18 +350,6 @@ def _rotor_columns(b: FlightBuilder, t, found, num) -> None:
             col = found[f"rpm{i}"]
             kind = "electrical rpm: erpm" if "erpm" in col.lower() else "rpm"
             b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", f"{col} ({kind})")
-
-
-def command_to_unit(v) -> tuple[np.ndarray, str]:
-    """A motor command column to 0..1, judged by its range: 0..1 as is, PWM µs (800..2200)
-    with 1000-2000, percent (up to 100) / 100. Returns the values and how they were read."""
-    v = np.asarray(v, float)
-    fin = v[np.isfinite(v)]
-    if not fin.size or (fin.min() >= -1e-9 and fin.max() <= 1 + 1e-9):
-        return v, "0..1"
-    if fin.max() > 100:
-        return pwm_to_unit(v), "PWM 1000-2000 us -> 0..1"
-    return v / 100.0, "0..100 % -> 0..1"
 
 
 def _long_rows(path, n_columns: int) -> int:

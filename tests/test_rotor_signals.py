@@ -273,3 +273,14 @@ def test_real_logs_list_rotor_signals(rel, capsys):
             assert "rpm" in sig[name]["unit"]
         if name.startswith("motor"):
             assert "0..1" in sig[name]["source"], sig[name]["source"]
+
+
+def test_mcap_topic_override_maps_a_topic_element_to_a_signal(rotor_flight, tmp_path):
+    from parsers.mcap_writer import write_mcap
+    p = write_mcap(rotor_flight, tmp_path / "r.mcap")
+    g = read_flight(p, topics={"throttle": "/drone/motors[1]", "rpm9": "/drone/rpm2"})
+    np.testing.assert_allclose(g["throttle"].values, rotor_flight["motor2"].values, atol=1e-6)
+    assert g["throttle"].source == "/drone/motors data[1] (0..1)"
+    np.testing.assert_allclose(g["rpm9"].values, rotor_flight["rpm2"].values, rtol=1e-6)
+    with pytest.raises(ConfigError, match="unknown MCAP topic role"):
+        read_flight(p, topics={"thrtle": "/drone/motors[1]"})
