@@ -18,7 +18,7 @@ import numpy as np
 from .errors import DataError, MissingSignalError
 
 __all__ = [
-    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
     "canonical_unit", "is_canonical",
 ]
 
@@ -175,15 +175,45 @@ class Signal:
         return cls(name, t, v, unit, source), dropped
 
 
+#: The vehicle types a flight can declare (:attr:`Provenance.vehicle_type`).
+VEHICLE_TYPES = ("multirotor", "fixed-wing", "vtol", "rover", "unknown")
+
+#: MAVLink MAV_TYPE -> (vehicle type, MAV_TYPE name); types not listed are "unknown".
+MAV_TYPES: Mapping[int, tuple[str, str]] = MappingProxyType({
+    1: ("fixed-wing", "MAV_TYPE_FIXED_WING"), 2: ("multirotor", "MAV_TYPE_QUADROTOR"),
+    3: ("multirotor", "MAV_TYPE_COAXIAL"), 4: ("unknown", "MAV_TYPE_HELICOPTER"),
+    10: ("rover", "MAV_TYPE_GROUND_ROVER"), 11: ("rover", "MAV_TYPE_SURFACE_BOAT"),
+    12: ("unknown", "MAV_TYPE_SUBMARINE"), 13: ("multirotor", "MAV_TYPE_HEXAROTOR"),
+    14: ("multirotor", "MAV_TYPE_OCTOROTOR"), 15: ("multirotor", "MAV_TYPE_TRICOPTER"),
+    16: ("fixed-wing", "MAV_TYPE_FLAPPING_WING"), 19: ("vtol", "MAV_TYPE_VTOL_TAILSITTER_DUOROTOR"),
+    20: ("vtol", "MAV_TYPE_VTOL_TAILSITTER_QUADROTOR"), 21: ("vtol", "MAV_TYPE_VTOL_TILTROTOR"),
+    22: ("vtol", "MAV_TYPE_VTOL_FIXEDROTOR"), 23: ("vtol", "MAV_TYPE_VTOL_TAILSITTER"),
+    24: ("vtol", "MAV_TYPE_VTOL_TILTWING"), 25: ("vtol", "MAV_TYPE_VTOL_RESERVED5"),
+    29: ("multirotor", "MAV_TYPE_DODECAROTOR"), 35: ("multirotor", "MAV_TYPE_DECAROTOR"),
+})
+
+
+def vehicle_from_mav_type(mav_type: int) -> tuple[str, str]:
+    """(vehicle type, declaration text) of a MAVLink MAV_TYPE number."""
+    kind, name = MAV_TYPES.get(int(mav_type), ("unknown", f"MAV_TYPE {int(mav_type)}"))
+    return kind, name
+
+
 @dataclass(frozen=True)
 class Provenance:
     """Where a flight came from: files, format, vehicle and firmware when known, and notes
-    on how signals were obtained (e.g. "vx, vy, vz derived from x, y, z by central differences")."""
+    on how signals were obtained (e.g. "vx, vy, vz derived from x, y, z by central differences").
+
+    ``vehicle`` is free text (frame, board); ``vehicle_type`` is one of :data:`VEHICLE_TYPES`,
+    from the log's own declaration (MAVLink HEARTBEAT type, ArduPilot firmware name, PX4
+    vehicle_status) or the user's ``--vehicle``; ``vehicle_declared`` says which (raw text)."""
     files: tuple[str, ...] = ()
     format: str = "unknown"
     vehicle: str | None = None
     firmware: str | None = None
     notes: tuple[str, ...] = ()
+    vehicle_type: str = "unknown"
+    vehicle_declared: str | None = None
 
     def with_note(self, note: str) -> "Provenance":
         return replace(self, notes=self.notes + (note,))
@@ -330,6 +360,8 @@ class Flight:
             "files": list(self.provenance.files),
             "format": self.provenance.format,
             "vehicle": self.provenance.vehicle,
+            "vehicle_type": self.provenance.vehicle_type,
+            "vehicle_declared": self.provenance.vehicle_declared,
             "firmware": self.provenance.firmware,
             "duration_s": _r(self.duration_s),
             "signals": [

@@ -13,8 +13,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import replace
 from types import MappingProxyType
 
-from droneid.errors import ConfigError, DroneIdError, LogFormatError, did_you_mean
-from droneid.flight import Flight
+from droneid.errors import ConfigError, DroneIdError, LogFormatError, check_choice, did_you_mean
+from droneid.flight import VEHICLE_TYPES, Flight
 
 from ._guard import captured_output
 
@@ -118,7 +118,7 @@ def detect_format(path) -> str:
 
 def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | None = None,
                 body: str | None = None, column_map: Mapping[str, str] | None = None,
-                sysid: int | None = None) -> Flight:
+                sysid: int | None = None, vehicle: str | None = None) -> Flight:
     """Read one flight log into a :class:`Flight` (internal convention: ENU/FLU, SI, seconds).
 
     Parameters
@@ -129,7 +129,12 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     body : the rigid body to read from a Motive CSV with several bodies.
     column_map : CSV canonical name -> column name overrides, e.g. ``{"x": "pos_x"}``.
     sysid : MAVLink system id of the vehicle in a tlog (default: the vehicle's heartbeat).
+    vehicle : the vehicle type (one of :data:`droneid.flight.VEHICLE_TYPES`) when the log does not
+        declare it (mocap CSV, MCAP) or declares it wrongly; the log's declaration is kept in
+        ``vehicle_declared``.
     """
+    if vehicle is not None:
+        check_choice("vehicle", vehicle, VEHICLE_TYPES, "read_flight")
     path = os.fspath(path)
     if not os.path.exists(path):
         raise FileNotFoundError(2, "No such file or directory", path)
@@ -150,7 +155,13 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     bad = [k for k, v in unused.items() if v is not None and k not in opts]
     if bad:
         raise ConfigError(f"option(s) {', '.join(bad)} do not apply to {fmt} logs ({path})")
-    return _guarded(reader, path, fmt, opts)
+    flight = _guarded(reader, path, fmt, opts)
+    if vehicle is not None:
+        prov = flight.provenance
+        said = f"; the log declares {prov.vehicle_declared}" if prov.vehicle_declared else ""
+        flight = replace(flight, provenance=replace(
+            prov, vehicle_type=vehicle, vehicle_declared=f"--vehicle {vehicle}{said}"))
+    return flight
 
 
 def _guarded(reader, path: str, fmt: str, opts: dict) -> Flight:

@@ -139,6 +139,8 @@ class FlightBuilder:
         self.notes: list[str] = []
         self.vehicle: str | None = None
         self.firmware: str | None = None
+        self.vehicle_type: str = "unknown"          # one of droneid.flight.VEHICLE_TYPES
+        self.vehicle_declared: str | None = None    # the raw declaration it came from
 
     # -- diagnostics ---------------------------------------------------------------------
     def skip(self, reason: str, n: int = 1) -> None:
@@ -222,7 +224,8 @@ class FlightBuilder:
             raise LogFormatError(self.path, f"no usable {self.format} signals found{detail}")
         self.derive_velocity()
         prov = Provenance(files=(self.path,), format=self.format, vehicle=self.vehicle,
-                          firmware=self.firmware, notes=tuple(self.notes))
+                          firmware=self.firmware, notes=tuple(self.notes),
+                          vehicle_type=self.vehicle_type, vehicle_declared=self.vehicle_declared)
         diag = Diagnostics(self.skipped, tuple(self.warnings))
         return Flight(self.signals, prov, diag, self.segments, tuple(self.events))
 

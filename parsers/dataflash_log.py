@@ -260,6 +260,7 @@ def read_dataflash(path) -> Flight:
     if b.vehicle is None and b.firmware:
         m = re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)", b.firmware)
         b.vehicle = m.group(1).lower() if m else None
+    b.vehicle_type, b.vehicle_declared = _vehicle_type(b.firmware, b.vehicle, params)
 
     if "ATT" in data:
         t, c = data["ATT"]
@@ -337,6 +338,28 @@ def read_dataflash(path) -> Flight:
 
 _FRAME_MOTORS = {"quad": 4, "hexa": 6, "octa": 8, "octaquad": 8, "y6": 6, "tri": 3, "deca": 10,
                  "dodecahexa": 12}
+
+
+def _vehicle_type(firmware: str | None, frame: str | None, params) -> tuple[str, str | None]:
+    """From the firmware string (MSG "ArduCopter V4.6.2", "APM:Plane V3.9"): Copter ->
+    multirotor (a "Frame: HELI" is not), Plane -> fixed-wing (vtol when Q_ENABLE = 1),
+    Rover -> rover."""
+    if not firmware:
+        return "unknown", None
+    m = re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)", firmware)
+    what = m.group(1) if m else None
+    decl = f"firmware {firmware!r}"
+    if what == "Copter":
+        if (frame or "").lower().startswith("heli"):
+            return "unknown", decl + f", frame {frame}"
+        return "multirotor", decl
+    if what == "Plane":
+        if params.get("Q_ENABLE", 0) >= 1:
+            return "vtol", decl + ", Q_ENABLE = 1 (QuadPlane)"
+        return "fixed-wing", decl
+    if what == "Rover":
+        return "rover", decl
+    return "unknown", decl
 
 
 def _frame_motors(frame: str | None) -> int:

@@ -39,7 +39,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight
+from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
 from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
@@ -351,6 +351,8 @@ def _heartbeat(b: FlightBuilder, tt, hb):
     typ, autopilot = hb["type"][valid].astype(int), hb["autopilot"][valid].astype(int)
     base, custom = hb["base_mode"][valid].astype(int), hb["custom_mode"][valid].astype(int)
     b.vehicle = b.vehicle or _VEHICLE_NAMES.get(typ[0], f"MAV_TYPE {typ[0]}")
+    b.vehicle_type, name = vehicle_from_mav_type(typ[0])
+    b.vehicle_declared = f"HEARTBEAT type {name} ({typ[0]})"
     if b.firmware is None and autopilot[0] in _AUTOPILOT_NAMES:
         b.firmware = _AUTOPILOT_NAMES[autopilot[0]]
     armed = (base & _MAV_MODE_FLAG_SAFETY_ARMED) != 0

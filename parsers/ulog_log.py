@@ -26,7 +26,7 @@ import os
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight
+from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
@@ -98,6 +98,7 @@ def read_ulog(path) -> Flight:
     info = ulog.msg_info_dict
     b.firmware = _firmware(info)
     b.vehicle = _vehicle(info, topics.get("vehicle_status"))
+    b.vehicle_type, b.vehicle_declared = _vehicle_type(topics.get("vehicle_status"), ulog.initial_parameters)
     if getattr(ulog, "file_corruption", False):
         b.skip("corrupt ULog sections (pyulog resynchronised)", 1)
         b.warn("the ULog file is corrupt in places; pyulog skipped the damaged data")
@@ -189,6 +190,25 @@ def _vehicle(info, status) -> str | None:
     if kind and hw:
         return f"{kind} on {hw}"
     return kind or hw
+
+
+def _vehicle_type(status, params) -> tuple[str, str | None]:
+    """From vehicle_status (is_vtol, system_type = MAV_TYPE, vehicle_type), else the MAV_TYPE
+    parameter."""
+    if status is not None and len(status["timestamp"]):
+        if "is_vtol" in status and np.any(status["is_vtol"]):
+            return "vtol", "vehicle_status.is_vtol"
+        if "system_type" in status:
+            kind, name = vehicle_from_mav_type(int(status["system_type"][0]))
+            return kind, f"vehicle_status.system_type {name} ({int(status['system_type'][0])})"
+        if "vehicle_type" in status:
+            v = int(status["vehicle_type"][0])
+            kind = {1: "multirotor", 2: "fixed-wing", 3: "rover"}.get(v, "unknown")
+            return kind, f"vehicle_status.vehicle_type {v} ({_VEHICLE_TYPES.get(v, '?')})"
+    if params.get("MAV_TYPE") is not None:
+        kind, name = vehicle_from_mav_type(int(params["MAV_TYPE"]))
+        return kind, f"parameter MAV_TYPE {name} ({int(params['MAV_TYPE'])})"
+    return "unknown", None
 
 
 def _motors(b, topics, tt, params):

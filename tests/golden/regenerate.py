@@ -45,6 +45,7 @@ def pinned(flight) -> dict:
     s = flight.summary()
     return {
         "format": s["format"], "vehicle": s["vehicle"], "firmware": s["firmware"],
+        "vehicle_type": s["vehicle_type"], "vehicle_declared": s["vehicle_declared"],
         "duration_s": s["duration_s"],
         "signals": {g["name"]: [g["unit"], g["count"], g["start_s"], g["end_s"], g["source"]]
                     for g in s["signals"]},
