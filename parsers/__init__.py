@@ -190,7 +190,6 @@ def _guarded(reader, path: str, fmt: str, opts: dict) -> Flight:
             f"{len(lines)} lines of reader library output suppressed (first: {first!r})"])
         flight = replace(flight, diagnostics=diag)
     if flight.diagnostics.warnings:
-        log.warning("%s: read with damage (%d records/bytes skipped, %d warnings; "
-                    "details: droneid inspect)", path, flight.diagnostics.total_skipped,
-                    len(flight.diagnostics.warnings))
+        log.warning("%s: %d reader warning(s), %d records/samples skipped (details: droneid "
+                    "inspect)", path, len(flight.diagnostics.warnings), flight.diagnostics.total_skipped)
     return flight

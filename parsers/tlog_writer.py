@@ -16,8 +16,8 @@ ATTITUDE                  roll, pitch, yaw (FRD/NED), rollspeed = wx, pitchspeed
 ATTITUDE_QUATERNION       q FRD->NED, same rates
 LOCAL_POSITION_NED        x = y_enu (north), y = x_enu, z = -z; velocities alike
 HIGHRES_IMU               xacc = ax, yacc = -ay, zacc = -az (specific force, FRD), gyro alike
-SERVO_OUTPUT_RAW          servoN_raw = 1000 + 1000 * motorN (µs PWM), with PARAM_VALUE SERVOn_FUNCTION
-                          (motorN), SERVOn_MIN = 1000, SERVOn_MAX = 2000 at the start
+SERVO_OUTPUT_RAW          servoN_raw = 1000 + 1000 * motorN (µs PWM); with more than 4 motors also
+                          PARAM_VALUE SERVOn_FUNCTION (motorN), SERVOn_MIN = 1000, SERVOn_MAX = 2000
 ESC_TELEMETRY_1_TO_4/5_8  rpm = rpm1..rpm8 (integer rpm, 0..65535)
 VFR_HUD                   throttle (integer %), groundspeed, heading, alt = z, climb = vz
 SYS_STATUS                voltage_battery (mV), current_battery (cA, -1 when unknown)
@@ -121,7 +121,9 @@ def write_tlog(flight, path) -> str:
         pwm = np.pad(pwm, ((0, 0), (0, 16 - n_out)))
         for i in range(t.size):
             add(t[i], 5, mav.servo_output_raw_encode(_us(t[i]) & 0xFFFFFFFF, 0, *map(int, pwm[i])))
-        for k in range(1, n_out + 1):        # the motor mapping and range the reader applies
+        # more than 4 outputs: the mapping and range the reader applies (up to 4, the readers'
+        # default for logs without parameters, a quad on channels 1..4 at 1000-2000 µs, holds)
+        for k in range(1, n_out + 1 if n_out > 4 else 1):
             for name, value in ((f"SERVO{k}_FUNCTION", 32 + k if k <= 8 else 73 + k),
                                 (f"SERVO{k}_MIN", 1000.0), (f"SERVO{k}_MAX", 2000.0)):
                 add(t_start, 0, mav.param_value_encode(name.encode(), float(value), 9, 3 * n_out, 0))

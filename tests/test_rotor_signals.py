@@ -284,3 +284,16 @@ def test_mcap_topic_override_maps_a_topic_element_to_a_signal(rotor_flight, tmp_
     np.testing.assert_allclose(g["rpm9"].values, rotor_flight["rpm2"].values, rtol=1e-6)
     with pytest.raises(ConfigError, match="unknown MCAP topic role"):
         read_flight(p, topics={"thrtle": "/drone/motors[1]"})
+
+
+def test_tlog_writer_maps_more_than_four_motors(tmp_path):
+    from parsers.tlog_writer import write_tlog
+    t = np.arange(10) * 0.1
+    sig = {f"motor{k}": Signal(f"motor{k}", t, 0.1 * k + 0 * t, "1") for k in range(1, 7)}
+    sig["roll"] = Signal("roll", t, 0 * t, "rad")
+    sig["pitch"] = Signal("pitch", t, 0 * t, "rad")
+    sig["yaw"] = Signal("yaw", t, 0 * t, "rad")
+    g = read_flight(write_tlog(Flight(sig), tmp_path / "hexa.tlog"))
+    for k in range(1, 7):
+        np.testing.assert_allclose(g[f"motor{k}"].values, 0.1 * k, atol=1e-3)
+        assert f"SERVO{k}_FUNCTION" in g[f"motor{k}"].source
