@@ -22,6 +22,7 @@ Thresholds (module constants, documented with their reason):
 ``MIN_TILT_RANGE_DEG = 3``     tilt, horizontal speed and yaw that hardly vary leave the model's
 ``MIN_SPEED_RANGE_MS = 1``     terms collinear or constant: a warning each
 ``MIN_YAW_SPAN_DEG = 20``
+``MAX_SPAN_S = 172800``        a log spanning more than 2 days has damaged stamps: no airborne data
 =============================  ===============================================================
 
 Vehicle: a multirotor prior on a log that declares a fixed-wing or a rover is refused; a VTOL,
@@ -49,6 +50,8 @@ MIN_SAMPLES = 50
 MIN_TILT_RANGE_DEG = 3.0
 MIN_SPEED_RANGE_MS = 1.0
 MIN_YAW_SPAN_DEG = 20.0
+#: a flight longer than this (2 days) has damaged time stamps: not scanned for airborne time
+MAX_SPAN_S = 172_800.0
 
 #: signals of the tilt-drag prior (vx_dot, vy_dot from tilt and velocity)
 TILT_DRAG_SIGNALS = ("vx", "vy", "roll", "pitch", "yaw")
@@ -236,6 +239,8 @@ def _vehicle_verdict(name, vtype, declared, prior_kind, problems, warnings) -> N
 
 
 def _airborne(f: Flight, ts_s: float, in_flight_intervals):
+    if f.duration_s > MAX_SPAN_S:
+        return [], [f"a time span of {f.duration_s:.3g} s is not a flight (damaged time stamps?)"]
     if "armed" in f.segments and not f.segments["armed"]:
         return [], ["never armed (the log's armed state is false throughout)"]
     ivs, notes = in_flight_intervals(f, ts=ts_s)

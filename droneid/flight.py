@@ -150,7 +150,9 @@ class Signal:
         """Build a signal from raw samples, dropping non-finite values and non-increasing stamps.
 
         Returns the signal and a dict ``{reason: count}`` of what was dropped (empty if nothing).
-        Duplicate stamps keep the first sample; a stamp earlier than the last kept one is dropped.
+        A lone stamp later than the next one (while the one before is earlier) is dropped first;
+        then duplicate stamps keep the first sample and a stamp earlier than the last kept one is
+        dropped.
         """
         t = np.asarray(t, dtype=np.float64).ravel()
         v = np.asarray(values, dtype=np.float64).ravel()
@@ -159,6 +161,15 @@ class Signal:
         if not finite.all():
             dropped["non-finite values"] = int((~finite).sum())
             t, v = t[finite], v[finite]
+        if t.size > 2:
+            # a lone stamp ahead of its successor while its predecessor is not (a damaged stamp,
+            # e.g. one flipped bit) would make every later sample look "backwards": drop it alone
+            spike = np.zeros(t.size, dtype=bool)
+            spike[1:-1] = (t[1:-1] > t[2:]) & (t[:-2] < t[2:])
+            spike[0] = t[0] > t[1] and t[0] > t[2] and t[1] < t[2]
+            if spike.any():
+                dropped["out-of-sequence time stamps"] = int(spike.sum())
+                t, v = t[~spike], v[~spike]
         if t.size > 1:
             keep = np.empty(t.size, dtype=bool)
             keep[0] = True

@@ -170,3 +170,10 @@ def test_inspect_reports_the_declared_vehicle_type(tmp_path, capsys):
     assert main(["inspect", str(p)]) == 0
     out = capsys.readouterr().out
     assert "type:      multirotor (from HEARTBEAT type MAV_TYPE_QUADROTOR (2))" in out
+
+
+def test_a_flight_spanning_days_is_not_scanned():
+    f = _flight()
+    late = Signal("z", np.array([0.0, 1.0, 5e6]), np.array([1.0, 1.0, 1.0]), "m")
+    a = _assess(f.with_signals(late))
+    assert not a.ok and any("not a flight (damaged time stamps?)" in p for p in a.problems)
