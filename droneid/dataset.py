@@ -297,13 +297,17 @@ class DatasetBuilder:
     min_height_m, still_speed, idle_fraction, min_segment_s : ground detection thresholds (m above
         the lowest height, m/s, fraction of the 90th-percentile power, shortest airborne run in s)
     crash_tilt_deg, crash_hold_s, crash_accel, crash_margin_s : crash detection
+    delays_s : {signal: delay in s}: that input (or extra) is read at ``t − delay`` (an input whose
+        effect lags its logged value, e.g. motor speeds logged ahead of the thrust they make);
+        samples whose delayed time falls before the signal starts are dropped
     """
 
     def __init__(self, ts=0.05, method="forward", window_s=None, in_flight="auto",
                  time_windows=None, *, max_gap_s=0.5, min_height_m=0.15, still_speed=0.3,
                  idle_fraction=0.3, min_segment_s=1.0, crash_tilt_deg=60.0, crash_hold_s=0.5,
-                 crash_accel=60.0, crash_margin_s=0.5):
+                 crash_accel=60.0, crash_margin_s=0.5, delays_s=None):
         self.ts = ts
+        self.delays_s = delays_s
         self.method = method
         self.window_s = window_s
         self.in_flight = in_flight
@@ -334,6 +338,10 @@ class DatasetBuilder:
                                   f"{'positive' if name == 'ts' else 'non-negative'} number. "
                                   f"Got {v!r} instead.")
         check_choice("method", self.method, DIFFERENTIATORS, owner="DatasetBuilder")
+        for name, d in dict(self.delays_s or {}).items():
+            if isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or not 0 <= d <= 5:
+                raise ConfigError(f"The delay of '{name}' (DatasetBuilder delays_s) must be a number of "
+                                  f"seconds in [0, 5]. Got {d!r} instead.")
         check_choice("in_flight", self.in_flight, ("auto", "all"), owner="DatasetBuilder")
         if self.window_s is not None and self.method in ("forward", "central"):
             raise ConfigError(f"The 'window_s' parameter of DatasetBuilder applies to the smoothing "
@@ -512,6 +520,9 @@ class DatasetBuilder:
         return cols, np.concatenate(y_parts), np.concatenate(t_parts), notes
 
     def _column(self, f: Flight, name: str, grid, diff, a, b):
+        delay = float(dict(self.delays_s or {}).get(name, 0.0))
+        if delay and f.has(name):
+            return resample_signal(f[name], grid - delay)
         if f.has(name):
             return resample_signal(f[name], grid)
         if name in _QUAT and f.has(*_QUAT):

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .io_util import atomic_write_json
 from .reporting import Document, fmt, new_figure
 
 __all__ = ["summary_text", "build_document", "write_report"]
@@ -224,7 +223,4 @@ def _figures(doc, r):
 
 def write_report(result, directory) -> dict[str, Path]:
     """Write diagnosis.json, diagnosis.md, diagnosis.html and PNGs into ``directory`` (atomic)."""
-    d = Path(directory)
-    paths = {"json": atomic_write_json(d / "diagnosis.json", result.to_dict())}
-    paths.update(build_document(result).write(d, "diagnosis"))
-    return paths
+    return build_document(result).write(directory, "diagnosis", data={"diagnosis.json": result.to_dict()})

@@ -30,9 +30,11 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
+from .expressions import symbol
 from .numerics import lstsq, rmse
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "IdentificationResult",
@@ -54,9 +56,20 @@ METHODS = ("forward", "central", "savgol", "spline")
 class IdentifyConfig:
     """Settings of one identification (all recorded in result.json).
 
-    targets : derivative targets, e.g. ("vx_dot", "vy_dot")
-    prior : name of the empirical model (``priors.models.get_prior``), e.g. "tilt-drag"
-    prior_features : 0 (no prior), 1 (the empirical model as one feature) or 3 (its three terms)
+    targets : derivative targets, e.g. ("vx_dot", "vy_dot"); None: every target the prior models
+    prior : the physical model the search starts from: "auto" (rotor-thrust where the logs have
+        motor speeds, motor commands or thrust, tilt-drag otherwise; the choice and its reason are
+        in the result), a built-in name (``priors.models.PRIORS``) or ``file.toml:name``
+    prior_features : 0 (no prior), 1 (the prior as one feature) or 3 (each of its terms, however
+        many: 3 for tilt-drag)
+    effects : "auto" (diagnose the refit prior on the training flights and fold every effect that
+        passes into the prior features) or "none" (the paper's setting)
+    delays : "auto" (choose the input delay of the thrust signals by blocked CV on the training
+        flights) or "none"
+    empirical, k_D : the user's empirical model every comparison is made against ("tilt-drag" as
+        given with this k_D, 1/s); v̇z's empirical model is v̇z = 0 (hover balance)
+    margin : an evolved model replaces the physical one only if it lowers the blocked-CV error
+        of the training flights by this fraction
     constraints : "paper", "none" or the path of a constraints TOML file
     runs : independent SNGP runs per target; jobs : parallel workers (None: all cores);
     scheduler : a Dask scheduler address (``tcp://host:port``) instead of local workers
@@ -73,8 +86,8 @@ class IdentifyConfig:
         rows; equations stay short and terms fitting noise go) or "exact" (the spec: drop only
         features whose removal changes the training error by < 1e-6; the paper's protocol)
     """
-    targets: tuple[str, ...] = ("vx_dot", "vy_dot")
-    prior: str = "tilt-drag"
+    targets: tuple[str, ...] | None = None
+    prior: str = "auto"
     prior_features: int = 3
     constraints: str = "paper"
     runs: int = PAPER_BUDGET["runs"]
@@ -88,11 +101,16 @@ class IdentifyConfig:
     n_constraint_samples: int = 50
     seed: int = 0
     ts: float = 0.05
-    method: str = "forward"
+    method: str = "central"
     test_fraction: float = 0.3
     quick: bool = False
     simplify_s: float = 2.0
     prune: str = "validation"
+    effects: str = "auto"
+    delays: str = "auto"
+    empirical: str = "tilt-drag"
+    k_D: float = 0.28
+    margin: float = 0.05
 
     @classmethod
     def make(cls, *, quick: bool = False, **given) -> "IdentifyConfig":
@@ -109,14 +127,27 @@ class IdentifyConfig:
         return cls(quick=quick, **given).validated()
 
     def validated(self) -> "IdentifyConfig":
+        if self.targets is None:
+            self._checked()
+            return self
         targets = tuple(self.targets)
         if not targets:
             raise ConfigError("The 'targets' parameter must name at least one target. Got none.")
+        self._checked()
         for t in targets:
             check_choice("target", t, TARGETS)
         if len(set(targets)) != len(targets):
             raise ConfigError(f"The 'targets' parameter names a target twice: {list(targets)}")
+        return replace(self, targets=targets)
+
+    def _checked(self) -> bool:
+        """Validate everything but the targets (raises ConfigError); True."""
         check_choice("prior_features", self.prior_features, (0, 1, 3))
+        check_choice("effects", self.effects, ("auto", "none"))
+        check_choice("delays", self.delays, ("auto", "none"))
+        check_choice("empirical", self.empirical, ("tilt-drag",))
+        if not (isinstance(self.margin, (int, float)) and 0 <= self.margin < 0.5):
+            raise ConfigError(f"The 'margin' parameter must be in [0, 0.5). Got {self.margin!r} instead.")
         check_choice("method", self.method, METHODS)
         check_choice("prune", self.prune, ("validation", "exact"))
         if self.constraints not in ("paper", "none") and not Path(self.constraints).is_file():
@@ -143,7 +174,7 @@ class IdentifyConfig:
                               f"Got {self.test_fraction!r} instead.")
         if not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise ConfigError(f"The 'seed' parameter must be a non-negative integer. Got {self.seed!r} instead.")
-        return replace(self, targets=targets)
+        return True
 
     @property
     def constrained(self) -> bool:
@@ -181,6 +212,11 @@ class TargetProblem:
     empirical_refit: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    plan: object | None = None      # the Plan (prior, delays, effects) the problem was built from
+    n_base: int = 0                 # priors3[:n_base] are the prior's terms, the rest effects
+    ladder: list = field(default_factory=list)   # rungs before SNGP (see ladder_rungs)
+    blocks: np.ndarray | None = None             # CV blocks of the training rows
+    validation: str = ""                         # how the blocks were made
 
 
 def run_seeds(seed: int, runs: int) -> tuple[int, list[tuple[int, int]]]:
@@ -207,44 +243,203 @@ def _cs_columns(cs) -> dict:
     return {n: cs.X[:, i] for i, n in enumerate(cs.input_names)}
 
 
-def _load_constraint_set(spec: str, target: str, prior: str):
-    from priors import constraints as pc
-    if spec == "none":
-        return None
-    if spec == "paper":
-        return pc.get_constraints("paper", target=target, prior=prior)
-    return pc.load_constraints(spec, target=target)
-
-
-def _constraint_set_for(cfg: IdentifyConfig, target: str):
+def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dataset | None = None):
     """(training constraint set or None, evaluation constraint set or None) for a target.
 
-    Unconstrained runs are still measured against the paper's constraints (as in the paper's
-    tables) when the prior defines them for this target.
+    ``paper`` means the prior's own set: the paper's for tilt-drag, the rotor-thrust set (thrust
+    inputs spanning 0 to their training maximum) for rotor-thrust. Inputs no constraint names
+    are held at their training median. Unconstrained runs are still measured against that set.
     """
-    train_set = _load_constraint_set(cfg.constraints, target, cfg.prior)
-    if train_set is not None:
-        return train_set, train_set
+    from dataclasses import replace as _replace
+    from priors import constraints as pc
+    name = getattr(prior, "name", cfg.prior)
+
+    def own():
+        if getattr(prior, "constraints", "paper") == "rotor-thrust":
+            thrust = _thrust_signals(prior, target)
+            cols = train.columns()
+            span = {s: float(np.max(cols[s])) for s in thrust}
+            cs = pc.rotor_thrust(target, span, g=float(prior.params.get("g", 9.81)))
+            return _extend(cs, {s: (0.0, v) for s, v in span.items()})
+        cs = pc.get_constraints("paper", target=target, prior=name)
+        return cs if cfg.effects == "none" and cfg.delays == "none" else _extend(cs, {})
+
+    def _extend(cs, level):
+        """+ drag-sign constraints up to 1.5 x the training speed along the axis (not in the
+        paper's protocol, which ``--effects none --delays none`` keeps)."""
+        v = f"v{target[1]}"
+        if train is None or target not in ("vx_dot", "vy_dot") or v not in train.input_names:
+            return cs
+        vmax = 1.5 * float(np.max(np.abs(train.columns()[v])))
+        return pc.extended(cs, vmax, level) if vmax > 0 else cs
+
+    def with_medians(cs):
+        if cs is None or train is None:
+            return cs
+        med = {n: float(np.median(train.X[:, i])) for i, n in enumerate(train.input_names)}
+        return _replace(cs, defaults={**med, **dict(cs.defaults)})
     try:
-        return None, _load_constraint_set("paper", target, cfg.prior)
+        paper = with_medians(own())
     except ConfigError as exc:
-        log.info("no paper constraints to measure e_c for %s: %s", target, exc)
-        return None, None
+        log.info("no constraints of prior %s to measure e_c for %s: %s", name, target, exc)
+        paper = None
+    if cfg.constraints == "none":
+        return None, paper
+    if cfg.constraints == "paper":
+        if paper is None:
+            raise ConfigError(f"prior '{name}' defines no constraints for {target}: use --constraints "
+                              f"none or a constraints TOML file")
+        return paper, paper
+    cs = with_medians(pc.load_constraints(cfg.constraints, target=target))
+    return cs, cs
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What identify decided from the TRAINING flights before any SNGP run.
+
+    prior : the PriorModel the search starts from; prior_reason : why (for ``auto``)
+    targets : the targets identified; delays_s : {signal: delay s} of the thrust inputs
+    delay_scores : {delay s: joint blocked-CV error of the refit prior} (the evidence)
+    effects : the diagnosis' folded effects: [{"effect", "physical", "features": {target:
+        [PriorFeature]}}]; not_folded : [{"effect", "reason"}]; diagnosis : its summary dict
+    """
+    prior: object
+    prior_reason: str
+    targets: tuple
+    delays_s: dict = field(default_factory=dict)
+    delay_scores: dict = field(default_factory=dict)
+    effects: tuple = ()
+    not_folded: tuple = ()
+    diagnosis: dict = field(default_factory=dict)
+    notes: tuple = ()
+
+
+def _common_signals(flights) -> set:
+    names = None
+    for f in flights:
+        n = set(getattr(f, "names", ()))
+        names = n if names is None else names & n
+    return names or set()
+
+
+def resolve_plan_prior(cfg: IdentifyConfig, flights) -> tuple:
+    """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
+    from priors.models import choose_prior, get_prior, resolve_prior
+    if cfg.prior in ("auto", "rotor-thrust"):
+        name, params, reason = choose_prior(_common_signals(flights), cfg.prior)
+        return get_prior(name, **params), reason
+    return resolve_prior(cfg.prior), "named by the user"
+
+
+def _thrust_signals(prior, target: str) -> list:
+    return sorted({s for f in prior.features(target) if f.role == "thrust" for s in f.signals
+                   if s not in ("roll", "pitch", "yaw")})
+
+
+def _builder(cfg: IdentifyConfig, delays=None):
+    from droneid.dataset import DatasetBuilder
+    return DatasetBuilder(ts=cfg.ts, method=cfg.method, delays_s=dict(delays or {}))
+
+
+def _split_terms(prior, target: str) -> tuple:
+    """The prior's terms as separate features, without constant ones (the intercept holds them)."""
+    return tuple(f for f in prior.features(target) if f.expr.free_symbols)
+
+
+def plan_identification(train_flights, cfg: IdentifyConfig, progress: Callable | None = None) -> Plan:
+    """Choose the prior, the thrust input delay and the effects from the training flights only."""
+    from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
+    prior, reason = resolve_plan_prior(cfg, train_flights)
+    targets = tuple(cfg.targets) if cfg.targets else tuple(t for t in prior.targets if t in TARGETS)
+    if not targets:
+        raise ConfigError(f"prior '{prior.name}' models none of {', '.join(TARGETS)}")
+    for t in targets:
+        if t not in prior.targets:
+            raise ConfigError(f"prior '{prior.name}' has no model of {t}; it models "
+                              f"{', '.join(prior.targets)} (choose another --prior or --target)")
+    notes = []
+    thrust = sorted({s for t in targets for s in _thrust_signals(prior, t)})
+    delays, scores = {}, {}
+    if cfg.delays == "auto" and thrust:
+        cache = {}
+
+        def cv_error(d):
+            total = 0.0
+            for t in targets:
+                ds = _builder(cfg, {s: d for s in thrust}).build(list(train_flights), target=t,
+                                                                 inputs=prior.inputs(t))
+                tm = TermModel(tuple(f.expr for f in _split_terms(prior, t)), ())
+                blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
+                e = tm.cv_rmse(ds.columns(), ds.y, blocks)
+                base = cache.setdefault(t, e)  # d = 0 comes first: errors relative to no delay
+                total += e / base
+            return total / len(targets)
+        if progress:
+            progress(0, 1, "choosing the thrust input delay")
+        best, scores = choose_delay(cv_error)
+        if best:
+            delays = {s: best for s in thrust}
+            notes.append(f"thrust inputs ({', '.join(thrust)}) delayed by {1000 * best:.0f} ms: blocked-CV "
+                         f"error of the refit prior {100 * (1 - scores[best] / scores[0.0]):.1f} % lower "
+                         f"than without delay (training flights only)")
+    effects, not_folded, diag = (), (), {}
+    if cfg.effects == "auto":
+        effects, not_folded, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays)
+        notes.extend(enotes)
+    return Plan(prior, reason, targets, delays, scores, effects, not_folded, diag, tuple(notes))
+
+
+def _diagnosed_effects(train_flights, prior, targets, cfg, delays):
+    """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in."""
+    from .diagnose import DiagnoseConfig, diagnose_datasets
+    builder = _builder(cfg, delays)
+    train = {t: builder.build(list(train_flights), target=t, inputs=prior.inputs(t)) for t in targets}
+    try:
+        res = diagnose_datasets(train, None, prior=prior,
+                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, open_ended=False))
+    except (ConfigError, DataError, TypeError) as exc:
+        return (), (), {}, [f"diagnosis skipped: {exc}"]
+    folded, skipped = [], []
+    for fe in res.final_effects:
+        feats = fe.get("features")
+        if fe.get("foldable") and feats:
+            from priors.models import PriorFeature
+            folded.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
+                           "features": {t: tuple(PriorFeature(d["name"], d["expr"], fe.get("physical", ""),
+                                                              "other") for d in feats.get(t, ()))
+                                        for t in targets}})
+        else:
+            skipped.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
+                            "reason": fe.get("reason") or "not foldable into a model of states and inputs"})
+    summary = {"effects_added": list(res.effects_added), "conclusion": res.conclusion,
+               "untestable": dict(res.untestable), "not_detected": list(res.not_detected)}
+    notes = [f"diagnosis on the training flights: {res.conclusion}"]
+    notes += [f"effect {s['effect']} ({s['physical']}) not folded into the model: {s['reason']}" for s in skipped]
+    return tuple(folded), tuple(skipped), summary, notes
 
 
 def prepare_target(train_flights: Sequence, test_flights: Sequence | None, target: str,
-                   cfg: IdentifyConfig) -> TargetProblem:
+                   cfg: IdentifyConfig, plan: Plan | None = None) -> TargetProblem:
     """Build the train/test datasets, priors, constraint samples and empirical baselines."""
-    from droneid.dataset import DatasetBuilder, split_time_block
-    from priors.models import get_prior
-
-    prior = get_prior(cfg.prior)
-    inputs = tuple(prior.inputs(target))
-    builder = DatasetBuilder(ts=cfg.ts, method=cfg.method)
-    ds = builder.build(list(train_flights), target=target, inputs=inputs)
+    from droneid.dataset import split_time_block
+    if plan is None:
+        from priors.models import resolve_prior
+        prior = resolve_prior("tilt-drag" if cfg.prior == "auto" else cfg.prior)
+        plan = Plan(prior, "named by the user", (target,))
+    prior = plan.prior
+    effect_feats = tuple(f for e in plan.effects for f in e["features"].get(target, ()))
+    base = _split_terms(prior, target)
+    extra_inputs = sorted({s for f in effect_feats for s in f.signals} - set(prior.inputs(target)))
+    inputs = tuple(prior.inputs(target)) + tuple(extra_inputs)
+    empirical_inputs = _empirical_inputs(cfg, target)
+    builder = _builder(cfg, plan.delays_s)
+    ds = builder.build(list(train_flights), target=target, inputs=inputs,
+                       extras=[s for s in empirical_inputs if s not in inputs])
     if test_flights:
         train = ds
-        test = builder.build(list(test_flights), target=target, inputs=inputs)
+        test = builder.build(list(test_flights), target=target, inputs=inputs,
+                             extras=[s for s in empirical_inputs if s not in inputs])
         desc = f"test flights: {', '.join(test.sources) or len(test_flights)}"
         holdout = False
     else:
@@ -255,18 +450,53 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     for name, d in (("training", train), ("test", test)):
         if len(d) < 10:
             raise DataError(f"the {name} data for {target} have only {len(d)} samples (need >= 10)")
-    priors3 = tuple(prior.features(target))  # every term (the tilt-drag model has 3)
+    priors3 = base + effect_feats
     prior1 = tuple(prior.features(target, 1))
-    train_set, eval_set = _constraint_set_for(cfg, target)
+    train_set, eval_set = _constraint_set_for(cfg, target, prior, train)
     test_seed, _ = run_seeds(cfg.seed, 0)
     cs_test = None
     if eval_set is not None:
         cs_test = eval_set.sample(list(train.input_names), n_per_constraint=cfg.n_constraint_samples,
                                   seed=test_seed)
-    p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test)
+    p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test,
+                      plan=plan, n_base=len(base))
     p.notes.extend(range_notes(train, test))
-    _empirical_baselines(p)
+    undelayed = None
+    if plan.delays_s:
+        b0 = _builder(cfg)
+        tr0 = b0.build(list(train_flights), target=target, inputs=inputs,
+                       extras=[s for s in empirical_inputs if s not in inputs])
+        undelayed = (tr0, b0.build(list(test_flights), target=target, inputs=inputs,
+                                   extras=[s for s in empirical_inputs if s not in inputs])) \
+            if test_flights else split_time_block(tr0, test_fraction=cfg.test_fraction)
+        # every rung is measured on the same rows: those the delayed inputs exist for
+        undelayed = tuple(_same_rows(u, d) for u, d in zip(undelayed, (train, test)))
+    _empirical_baselines(p, cfg, undelayed)
     return p
+
+
+def _same_rows(ds: Dataset, like: Dataset) -> Dataset:
+    """The rows of ``ds`` (same grid, more rows) that ``like`` has: same flight and time."""
+    key = lambda d: d.flight.astype(np.int64) * 10**9 + np.round(d.t * 1e4).astype(np.int64)  # noqa: E731
+    return ds.subset(np.isin(key(ds), key(like)))
+
+
+def _empirical_inputs(cfg: IdentifyConfig, target: str) -> tuple:
+    from priors.models import tilt_drag
+    m = tilt_drag(k_D=cfg.k_D)
+    return m.signals(target) if target in m.targets else ()
+
+
+def empirical_model(cfg: IdentifyConfig, target: str):
+    """The user's empirical model as given (an IdentifiedModel): tilt-drag with ``cfg.k_D``;
+    v̇z = 0 (hover balance) for vz_dot."""
+    from priors.models import tilt_drag
+    from .identified import IdentifiedModel
+    m = tilt_drag(k_D=cfg.k_D)
+    if target in m.targets:
+        return IdentifiedModel(target, m.features(target, 1)[0].expr, {},
+                               f"the empirical tilt-drag model as given (k_D = {cfg.k_D:g} 1/s)")
+    return IdentifiedModel(target, sp.Integer(0), {}, "hover balance as given: v̇z = 0")
 
 
 def range_notes(train: Dataset, test: Dataset, margin: float = 0.05) -> list[str]:
@@ -285,38 +515,88 @@ def range_notes(train: Dataset, test: Dataset, margin: float = 0.05) -> list[str
             "of single runs can grow without bound there): " + "; ".join(out)]
 
 
-def _empirical_baselines(p: TargetProblem) -> None:
-    names = p.train.input_names
-    tr_cols, te_cols = p.train.columns(), p.test.columns()
-    # as given: the 1-feature prior with its nominal parameters, no fitting at all
-    e_tr = _eval_features(p.prior1, tr_cols, names)[:, 0]
-    e_te = _eval_features(p.prior1, te_cols, names)[:, 0]
-    ec = float("nan")
-    e_cs = None
-    if p.cs_test is not None:
-        from .constraints import constraint_rmse
-        e_cs = _eval_features(p.prior1, _cs_columns(p.cs_test), names)[:, 0]
-        ec = constraint_rmse(e_cs, p.cs_test)
-    p.empirical = {"rmse_train": rmse(e_tr, p.train.y), "rmse_test": rmse(e_te, p.test.y),
-                   "constraint_rmse_test": ec, "equation": f"{p.target} = {p.prior1[0].expr}",
-                   "expr": str(p.prior1[0].expr)}
-    # refit: least squares on the 3 terms + intercept
-    A_tr = np.column_stack([_eval_features(p.priors3, tr_cols, names), np.ones(len(p.train))])
-    A_te = np.column_stack([_eval_features(p.priors3, te_cols, names), np.ones(len(p.test))])
-    beta = lstsq(A_tr, p.train.y)
-    r_tr, r_te = A_tr @ beta, A_te @ beta
-    ec_refit = float("nan")
-    if p.cs_test is not None:
-        from .constraints import constraint_rmse
-        A_cs = np.column_stack([_eval_features(p.priors3, _cs_columns(p.cs_test), names),
-                                np.ones(len(p.cs_test))])
-        ec_refit = constraint_rmse(A_cs @ beta, p.cs_test)
-    coefs = {f.name: float(b) for f, b in zip(p.priors3, beta[:-1])}
-    p.empirical_refit = {"rmse_train": rmse(r_tr, p.train.y), "rmse_test": rmse(r_te, p.test.y),
-                         "constraint_rmse_test": ec_refit, "coefficients": coefs,
-                         "intercept": float(beta[-1])}
-    p.series = {"t": p.test.t, "flight": p.test.flight, "y": p.test.y, "empirical": e_te,
-                "empirical_refit": r_te}
+def _ec(pred_cs, cs) -> float:
+    from .constraints import constraint_rmse
+    return float(constraint_rmse(pred_cs, cs)) if cs is not None else float("nan")
+
+
+def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, *,
+         blocks=None, fitted: bool = True, terms: dict | None = None, delays=None) -> dict:
+    """One rung of the ladder: a model (IdentifiedModel or fitted TermModel) measured on the
+    training rows (train; validation = blocked CV of the same terms refit without each block, or
+    the training error for a model with nothing fitted), the test rows and the constraints."""
+    from .identified import IdentifiedModel
+    from .ladder import TermModel
+    tr_cols, te_cols = train.columns(), test.columns()
+    if isinstance(model, TermModel):
+        p_tr, p_te = model.predict(tr_cols, len(train)), model.predict(te_cols, len(test))
+        val = model.cv_rmse(tr_cols, train.y, blocks) if fitted and blocks is not None else rmse(p_tr, train.y)
+        p_cs = model.predict(_cs_columns(cs), len(cs)) if cs is not None else None
+        final = IdentifiedModel(train.target_name, model.expr(), dict(delays or {}), description)
+        terms = terms if terms is not None else {lab: c for lab, c in zip(model.labels, model.coefs)}
+        intercept = model.intercept
+    else:
+        final = model
+        p_tr, p_te = model.evaluate(tr_cols), model.evaluate(te_cols)
+        val = rmse(p_tr, train.y)
+        p_cs = model.evaluate(_cs_columns(cs)) if cs is not None else None
+        intercept = None
+    return {"name": name, "description": description, "rmse_train": rmse(p_tr, train.y),
+            "rmse_validation": val, "rmse_test": rmse(p_te, test.y),
+            "constraint_rmse_test": _ec(p_cs, cs) if p_cs is not None else float("nan"),
+            "terms": dict(terms or {}), "intercept": intercept, "model": final.to_dict(),
+            "pred_test": p_te}
+
+
+def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
+                         undelayed: tuple | None = None) -> None:
+    """The ladder's physical rungs: the empirical model as given, the prior refit (without the
+    input delay: on ``undelayed`` = (train, test) when a delay was chosen), + the delay, + each
+    folded effect. Fills p.empirical, p.empirical_refit, p.series and p.ladder."""
+    from .ladder import TermModel, validation_blocks
+    cfg = cfg or IdentifyConfig()
+    plan = p.plan
+    p.blocks, p.validation = validation_blocks(p.train.t, p.train.flight)
+    emp = empirical_model(cfg, p.target)
+    cs = p.cs_test
+    ladder = [rung("empirical", emp.description, emp, p.train, p.test, cs, fitted=False)]
+    base = p.priors3[:p.n_base]
+    prior_name = getattr(plan.prior, "name", "prior") if plan else "prior"
+    tm = TermModel(tuple(f.expr for f in base), tuple(f"⟨{f.name}⟩" for f in base))
+    if plan is not None and plan.delays_s and undelayed is not None:
+        tr0, te0 = undelayed
+        b0, _ = validation_blocks(tr0.t, tr0.flight)
+        ladder.append(rung("refit", f"{prior_name} prior, least-squares refit", tm.fit(tr0.columns(), tr0.y),
+                           tr0, te0, cs, blocks=b0))
+        d = next(iter(plan.delays_s.values()))
+        ladder.append(rung("delay", f"+ thrust inputs delayed by {1000 * d:.0f} ms",
+                           tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
+                           delays=plan.delays_s))
+    else:
+        ladder.append(rung("refit", f"{prior_name} prior, least-squares refit",
+                           tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
+                           delays=plan.delays_s if plan else None))
+    for e in (plan.effects if plan else ()):
+        feats = e["features"].get(p.target, ())
+        if not feats:
+            continue
+        base = base + tuple(feats)
+        tm = TermModel(tuple(f.expr for f in base), tuple(f"⟨{f.name}⟩" for f in base))
+        ladder.append(rung(f"effect:{e['effect']}", f"+ {e['effect']} ({e['physical']})",
+                           tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
+                           delays=plan.delays_s))
+    p.ladder = ladder
+    e0, r1 = ladder[0], ladder[1]
+    p.empirical = {"rmse_train": e0["rmse_train"], "rmse_test": e0["rmse_test"],
+                   "constraint_rmse_test": e0["constraint_rmse_test"],
+                   "equation": e0["model"]["equation"], "expr": e0["model"]["expr"]}
+    p.empirical_refit = {"rmse_train": r1["rmse_train"], "rmse_test": r1["rmse_test"],
+                         "constraint_rmse_test": r1["constraint_rmse_test"],
+                         "coefficients": {k.strip("⟨⟩"): v for k, v in r1["terms"].items()},
+                         "intercept": r1["intercept"]}
+    p.series = {"t": p.test.t, "flight": p.test.flight, "y": p.test.y, "empirical": e0["pred_test"],
+                "empirical_refit": r1["pred_test"] if len(r1["pred_test"]) == len(p.test) else
+                ladder[-1]["pred_test"]}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -477,6 +757,12 @@ class TargetResult:
     model: dict | None              # the best run's SNGPRegressor.to_dict()
     test_series: dict               # t, flight, y, empirical, empirical_refit, identified (test data)
     notes: list = field(default_factory=list)
+    ladder: list = field(default_factory=list)   # rungs: empirical -> refit -> delay -> effects -> final
+    final: dict | None = None       # the final model (IdentifiedModel.to_dict()): what predict applies
+    empirical_model: dict | None = None  # the user's empirical model as given (IdentifiedModel.to_dict())
+    refit_model: dict | None = None      # the prior's least-squares refit (IdentifiedModel.to_dict())
+    verdict: str = ""               # one sentence, first thing a user reads
+    guards: dict = field(default_factory=dict)   # runs rejected as implausible, terms dropped, bound
 
 
 _LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
@@ -535,6 +821,108 @@ def _feature_dicts(feats) -> list:
             for f in feats]
 
 
+def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> tuple[dict, dict]:
+    """(final rung, guard report): the best evolved model that survives the trust guards, or the
+    physical rung (prior + delay + effects) when none beats it on TRAINING validation blocks.
+
+    Guards, in order, per run: the run's evolved terms are added to ALL prior and effect
+    features; near-duplicate columns (cancelling pairs) are merged and evolved terms that do not
+    lower the blocked-CV error by 1 % are dropped (:func:`droneid.ladder.trim_terms`); the
+    model must stay within ±(2·max|y_train| + g) on a grid spanning the training inputs ± 20 %
+    (:func:`droneid.ladder.plausible`); its constraint error on a training draw of the constraint
+    samples must stay below max(γ, 1.1 x the physical rung's). The survivor with the lowest CV error replaces the
+    physical rung only if its CV error is ``cfg.margin`` lower."""
+    from .ladder import TermModel, plausible, trim_terms
+    from .sngp.model import SymbolicModel, round_expr, to_text
+    phys = p.ladder[-1]
+    delays = p.plan.delays_s if p.plan else {}
+    cols, y = p.train.columns(), p.train.y
+    base = tuple(f.expr for f in p.priors3)
+    labels = tuple(f"⟨{f.name}⟩" for f in p.priors3)
+    bound = 2.0 * float(np.max(np.abs(y))) + 9.81
+    ranges = {n: (float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i])))
+              for i, n in enumerate(p.train.input_names)}
+    guards = {"bound": bound, "implausible": 0, "no_evolved_term_left": 0, "constraints_broken": 0,
+              "dropped": [], "candidates": 0}
+    cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
+    cs_sel, ec_limit = None, math.inf
+    if cset is not None:  # a training draw of constraint samples (not the e_c^test draw)
+        cs_sel = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
+                             seed=run_seeds(cfg.seed + 1, 0)[0])
+        phys_tm = TermModel(base, labels).fit(cols, y)
+        ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
+        ec_limit = max(cfg.gamma, 1.1 * ec_phys)
+        guards["constraint_limit"] = ec_limit
+    best = None
+    for i, r in enumerate(done):
+        try:
+            m = SymbolicModel.from_dict(r["model"])
+        except (ConfigError, DataError, KeyError, TypeError):
+            continue
+        prior_syms = {symbol(k) for k in m.priors}
+        subs = {symbol(k): v for k, v in m.priors.items()}
+        evolved = [t.xreplace(subs) for t in m.terms if t not in prior_syms]
+        if not evolved:
+            guards["no_evolved_term_left"] += 1
+            continue
+        shown = [display_term(to_text(round_expr(t, 4)), {k: m.prior_labels.get(k, k) for k in m.priors})
+                 for t in m.terms if t not in prior_syms]
+        tm = TermModel(base + tuple(evolved),
+                       labels + tuple(("-" if neg else "") + txt for txt, neg in shown))
+        trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base))
+        guards["dropped"].extend(f"run {i + 1}: {n}" for n in notes)
+        if len(trimmed.terms) == len(base):
+            guards["no_evolved_term_left"] += 1
+            continue
+        pl = plausible(trimmed.expr(), ranges, bound)
+        if not pl.ok:
+            guards["implausible"] += 1
+            guards["dropped"].append(f"run {i + 1}: rejected, {pl.note}")
+            continue
+        if cs_sel is not None:
+            ec = _ec(trimmed.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
+            if not ec <= ec_limit:
+                guards["constraints_broken"] += 1
+                guards["dropped"].append(f"run {i + 1}: rejected, constraint error {ec:.3g} > {ec_limit:.3g}")
+                continue
+        cv = trimmed.cv_rmse(cols, y, p.blocks)
+        guards["candidates"] += 1
+        if best is None or cv < best[0]:
+            best = (cv, i, trimmed)
+    if best is not None and best[0] <= (1.0 - cfg.margin) * phys["rmse_validation"]:
+        cv, i, tm = best
+        n_ev = len(tm.terms) - len(base)
+        final = rung("final", f"+ {n_ev} evolved term{'s' * (n_ev > 1)} (run {i + 1})", tm, p.train, p.test,
+                     p.cs_test, blocks=p.blocks, delays=delays)
+        guards["chosen_run"] = i
+    else:
+        final = dict(phys, name="final", description=phys["description"] + " (final: no evolved term beat it "
+                     f"by {100 * cfg.margin:.0f} % on the training validation blocks)")
+        guards["chosen_run"] = None
+        if best is not None:
+            guards["best_evolved_validation"] = best[0]
+    return final, guards
+
+
+def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: bool) -> str:
+    """One sentence: how the final model compares with the empirical model as given."""
+    te, ee = final["rmse_test"], empirical["rmse_test"]
+    va, ev = final["rmse_validation"], empirical["rmse_validation"]
+    where = "on the held-out block" if holdout else "on the test flights"
+    if not (math.isfinite(te) and math.isfinite(ee)) or ee <= 0:
+        return f"{target}: no verdict: the test error could not be measured"
+    gain, vgain = improvement_pct(ee, te), improvement_pct(ev, va)
+    what = "identified model (with evolved terms)" if evolved else \
+        "physical model (prior + effects; no evolved term survived validation)"
+    if gain >= 5:
+        return f"{target}: the {what} beats the empirical model by {gain:.0f} % {where} (validation {vgain:+.0f} %)"
+    if gain > -5:
+        return (f"{target}: the {what} is no better than the empirical model {where} ({gain:+.0f} %): "
+                f"keep the empirical model")
+    return (f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %, validation "
+            f"{vgain:+.0f} %): the training flights do not represent the test flights; keep the empirical model")
+
+
 def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict | None],
                      errors: dict | None = None, *, prior_features: int | None = None) -> TargetResult:
     """Turn the finished runs of one target into its result (pure apart from reading ``p``)."""
@@ -561,19 +949,45 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
                      f"the lowest training constraint error is reported instead")
     if errors:
         notes.append(f"{len(errors)} run(s) failed: " + "; ".join(f"run {i + 1}: {e}" for i, e in errors.items()))
+    final, guards = _final_rung(p, cfg, done) if p.ladder else (None, {})
+    if final is not None:
+        identified = {"rmse_train": final["rmse_train"], "rmse_test": final["rmse_test"],
+                      "rmse_validation": final["rmse_validation"],
+                      "constraint_rmse_test": final["constraint_rmse_test"],
+                      "constraint_rmse_train": identified.get("constraint_rmse_train", nan),
+                      "seed": done[guards["chosen_run"]]["seed"] if guards.get("chosen_run") is not None else None,
+                      "qualified": identified.get("qualified", True)}
+        pred = np.asarray(final["pred_test"], float)
+        if guards.get("implausible"):
+            notes.append(f"{guards['implausible']} run(s) rejected: their model leaves ±{guards['bound']:.3g} "
+                         f"{'m/s²' if p.target.startswith('v') else ''} on the training inputs' range ± 20 %")
     imp = {"vs_empirical": improvement_pct(p.empirical["rmse_test"], identified["rmse_test"]),
            "vs_empirical_refit": improvement_pct(p.empirical_refit["rmse_test"], identified["rmse_test"]),
            "median_vs_empirical": improvement_pct(p.empirical["rmse_test"], median["rmse_test"])}
     series = {k: np.asarray(v).tolist() for k, v in p.series.items()}
     series["identified"] = pred.tolist()
     series["sources"] = list(p.test.sources)
+    ladder = [{k: v for k, v in r.items() if k != "pred_test"} for r in [*p.ladder, *([final] if final else [])]]
+    evolved = bool(final and guards.get("chosen_run") is not None)
+    equation = None
+    if final is not None:
+        parts = [f"{c:+.4g}·{lab}" for lab, c in final["terms"].items()]
+        if final.get("intercept") is not None:
+            parts.append(f"{final['intercept']:+.4g}")
+        equation = f"{p.target} = " + " ".join(parts).lstrip("+")
     return TargetResult(
+        ladder=ladder, final=final["model"] if final else None,
+        empirical_model=p.ladder[0]["model"] if p.ladder else None,
+        refit_model=p.ladder[1]["model"] if len(p.ladder) > 1 else None,
+        verdict=verdict(p.target, final, p.ladder[0], evolved, p.holdout) if final else "",
+        guards=guards,
         target=p.target, inputs=list(p.train.input_names), n_train=len(p.train), n_test=len(p.test),
         test_data=p.test_description, holdout=p.holdout, prior_features=_feature_dicts(feats),
         empirical_terms=_feature_dicts(p.priors3),
-        equation=readable_equation(p.target, best["coefficients"], best["prior_coefficients"],
-                                   best["intercept"], best.get("prior_symbols")) if best else None,
-        equation_expanded=f"{p.target} = {best.get('equation_expanded') or best['equation']}" if best else None,
+        equation=equation or (readable_equation(p.target, best["coefficients"], best["prior_coefficients"],
+                                                best["intercept"], best.get("prior_symbols")) if best else None),
+        equation_expanded=(final["model"]["equation"] if final else
+                           f"{p.target} = {best.get('equation_expanded') or best['equation']}" if best else None),
         coefficients=dict(best["coefficients"]) if best else {},
         prior_coefficients=dict(best["prior_coefficients"]) if best else {},
         intercept=best["intercept"] if best else None,
@@ -599,6 +1013,7 @@ class IdentificationResult:
     wall_s: float = 0.0
     backend: str = ""
     notes: list = field(default_factory=list)
+    horizons: dict = field(default_factory=dict)   # multi-step prediction on the test flights
 
     def to_dict(self) -> dict:
         from .io_util import to_jsonable
@@ -607,7 +1022,7 @@ class IdentificationResult:
             "targets": {k: asdict(v) if isinstance(v, TargetResult) else v for k, v in self.targets.items()},
             "config": self.config, "provenance": self.provenance, "versions": self.versions,
             "interrupted": self.interrupted, "wall_s": self.wall_s, "backend": self.backend,
-            "notes": self.notes})
+            "notes": self.notes, "horizons": self.horizons})
 
     @classmethod
     def from_dict(cls, d: dict) -> "IdentificationResult":
@@ -617,7 +1032,7 @@ class IdentificationResult:
         targets = {k: TargetResult(**{n: v.get(n) for n in names}) for k, v in d["targets"].items()}
         return cls(targets, d.get("config", {}), d.get("provenance", {}), d.get("versions", {}),
                    bool(d.get("interrupted", False)), float(d.get("wall_s") or 0.0),
-                   d.get("backend", ""), list(d.get("notes", [])))
+                   d.get("backend", ""), list(d.get("notes", [])), dict(d.get("horizons") or {}))
 
 
 def versions() -> dict:
@@ -653,7 +1068,9 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     if not train_flights:
         raise DataError("no training flights")
     t0 = time.perf_counter()
-    problems = {t: prepare_target(train_flights, test_flights, t, cfg) for t in cfg.targets}
+    plan = plan_identification(train_flights, cfg, progress)
+    cfg = replace(cfg, targets=plan.targets)
+    problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan) for t in cfg.targets}
     jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
     outcome = run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
                        label="SNGP run")
@@ -666,9 +1083,31 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
             first = next(iter(errors.values()), "unknown error")
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         targets[t] = summarise_target(problems[t], cfg, runs, errors)
-    notes = []
+    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
-    return IdentificationResult(targets, cfg.to_dict(), prov, versions(), outcome.interrupted,
-                                time.perf_counter() - t0, outcome.backend, notes)
+    conf = cfg.to_dict()
+    conf.update(validation=next(iter(problems.values())).validation, prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
+                delays_s=dict(plan.delays_s), delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
+                diagnosis=plan.diagnosis)
+    horizons = _horizons(targets, test_flights, notes) if test_flights else {}
+    return IdentificationResult(targets, conf, prov, versions(), outcome.interrupted,
+                                time.perf_counter() - t0, outcome.backend, notes, horizons)
+
+
+def _horizons(targets: dict, flights, notes: list, steps=(1, 10, 50)) -> dict:
+    """Multi-step prediction of the final, empirical and refit models on the test flights
+    (:func:`droneid.rollout.horizon_section`); {} with a note when it cannot be done."""
+    from .identified import IdentifiedModel
+    from .rollout import horizon_section
+
+    def models(key):
+        return {t: IdentifiedModel.from_dict(getattr(tr, key)) for t, tr in targets.items()
+                if isinstance(tr, TargetResult) and getattr(tr, key)}
+    try:
+        return horizon_section(models("final"), models("empirical_model"), models("refit_model"),
+                               list(flights), horizons=steps)
+    except (ConfigError, DataError) as exc:
+        notes.append(f"no multi-step prediction on the test flights: {exc}")
+        return {}

@@ -1,6 +1,7 @@
 """Atomic output: every file droneid writes appears whole or not at all."""
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -9,27 +10,44 @@ from pathlib import Path
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
+    """Write ``data`` to ``path`` via a temporary file in the same folder and ``os.replace``.
+
+    An ``OSError`` names ``path`` (never the temporary file): e.g. ``IsADirectoryError`` when
+    ``path`` is a folder.
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a folder; give a file name", str(path))
     try:
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise _naming(exc, path) from None
+    try:
+        os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600; give the usual permissions
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError):
+            raise _naming(exc, path) from None
         raise
     return path
 
 
-def _umask() -> int:
+def _naming(exc: OSError, path: Path) -> OSError:
+    """The same kind of OSError, naming ``path`` instead of a temporary file."""
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
+
+
+def current_umask() -> int:
+    """The process's file-creation mask (read without changing it for longer than a call)."""
     mask = os.umask(0)
     os.umask(mask)
     return mask
@@ -55,8 +73,13 @@ def to_jsonable(obj):
     return obj
 
 
+def json_text(obj, indent: int = 2) -> str:
+    """``obj`` as strict JSON text (numpy converted, non-finite floats as null), newline-ended."""
+    return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False) + "\n"
+
+
 def atomic_write_json(path, obj, indent: int = 2) -> Path:
-    return atomic_write_text(path, json.dumps(to_jsonable(obj), indent=indent, allow_nan=False) + "\n")
+    return atomic_write_text(path, json_text(obj, indent))
 
 
 def load_toml(path, what: str = "file") -> dict:

@@ -1,9 +1,13 @@
 """Apply saved identified models to other logs and measure their error.
 
-Accepts either an identification result (``result.json`` of ``droneid identify``: every target's
-best model, plus its empirical baselines for comparison) or a bare model file (the engine's
-``to_dict()``, with its target named by the caller). The data are built with the same sampling
-period and differentiator the model was identified with.
+Accepts either an identification result (``result.json`` of ``droneid identify``) or a bare model
+file (the engine's ``to_dict()``, with its target named by the caller). From a result, each
+target's FINAL model (``targets.<t>.final``, an :class:`droneid.identified.IdentifiedModel`) is
+evaluated next to the user's empirical model as given (``empirical_model``) and its least-squares
+refit (``refit_model``); results written before the final model existed fall back to the engine
+model (``model``) and the empirical terms. The data are built with the same sampling period and
+differentiator the model was identified with; inputs with a delay are read at ``t − delay``.
+``horizons`` adds multi-step prediction errors (:mod:`droneid.rollout`).
 """
 from __future__ import annotations
 
@@ -13,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError, DataError, check_choice
+from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .numerics import rmse
 
-__all__ = ["load_models", "predict_flights"]
+__all__ = ["load_models", "predict_flights", "model_sets"]
 
 
 def load_models(path, targets: Sequence[str] | None = None) -> dict:
@@ -29,17 +33,16 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     if not isinstance(doc, dict):
         raise DataError(f"{path}: expected a JSON object (an identify result.json or a model file)")
     if "targets" in doc:
-        available = [t for t, tr in doc["targets"].items() if tr.get("model")]
+        if not isinstance(doc["targets"], dict):
+            raise DataError(f"{path}: 'targets' must map target names to results")
+        available = [t for t, tr in doc["targets"].items()
+                     if isinstance(tr, dict) and (tr.get("final") or tr.get("model"))]
         if not available:
             raise DataError(f"{path}: the result holds no finished model")
         chosen = list(targets) if targets else available
         for t in chosen:
             check_choice("target", t, available, owner=str(path))
-        out = {t: {"model": doc["targets"][t]["model"], "inputs": doc["targets"][t]["inputs"],
-                   "empirical_terms": doc["targets"][t].get("empirical_terms") or [],
-                   "empirical_refit": doc["targets"][t].get("empirical_refit") or {},
-                   "empirical_expr": (doc["targets"][t].get("empirical") or {}).get("expr"),
-                   "equation": doc["targets"][t].get("equation")} for t in chosen}
+        out = {t: _entry(path, t, doc["targets"][t]) for t in chosen}
         out["_config"] = doc.get("config") or {}
         return out
     # a bare model file (SNGPRegressor.to_dict()): its target is saved in it or named by the caller
@@ -55,45 +58,139 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
                          "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {}}
 
 
+def _entry(path, target: str, tr: dict) -> dict:
+    """One target of a result.json: the final / empirical / refit IdentifiedModels when present
+    (errors name the file and the target), the engine model and empirical terms otherwise."""
+    from .identified import IdentifiedModel
+    if tr.get("final"):
+        out = {"equation": tr.get("equation")}
+        for key, name in (("final", "identified"), ("empirical_model", "empirical"), ("refit_model", "refit")):
+            if tr.get(key):
+                try:
+                    out[name] = IdentifiedModel.from_dict(tr[key])
+                except DroneIdError as exc:
+                    raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
+        out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
+        return out
+    return {"model": tr["model"], "inputs": tr["inputs"],
+            "empirical_terms": tr.get("empirical_terms") or [],
+            "empirical_refit": tr.get("empirical_refit") or {},
+            "empirical_expr": (tr.get("empirical") or {}).get("expr"),
+            "equation": tr.get("equation")}
+
+
+def model_sets(models: dict) -> dict:
+    """{"identified"|"empirical"|"refit": {target: IdentifiedModel}} of the translational targets
+    of :func:`load_models` output that hold final models (what multi-step prediction integrates)."""
+    from .rollout import AXES
+    targets = {tgt for tgt, _ in AXES.values()}
+    sets: dict = {}
+    for target, m in models.items():
+        if target in targets and "identified" in m:
+            for name in ("identified", "empirical", "refit"):
+                if name in m:
+                    sets.setdefault(name, {})[target] = m[name]
+    return sets
+
+
 
 
 def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
-                    method: str | None = None) -> dict:
-    """Per target and per flight (and all together): samples, rmse of the identified model and,
-    when the result holds them, of the empirical model as given and as refit."""
-    from droneid.dataset import DatasetBuilder
-    from droneid.sngp import SymbolicModel
+                    method: str | None = None, horizons: Sequence[int] | None = None) -> dict:
+    """Per target and per flight (and all together): samples and the RMSE (m/s²) of the
+    identified model (``rmse_identified``), of the empirical model as given (``rmse_empirical``)
+    and of its refit (``rmse_refit`` for final models, ``rmse_empirical_refit`` for older results).
 
-    from .expressions import compile_expression, parse_expression
+    ``horizons`` (steps): adds ``"horizons"`` = {model: {h: {vx, vy, vz, position}}} (m/s, m) of
+    multi-step prediction (:func:`droneid.rollout.rollout_errors`, at the log's rate) and
+    ``"horizon_info"`` (step, counts, notes); needs final models."""
+    from droneid.dataset import DatasetBuilder
     cfg = models.get("_config", {})
     ts = ts or cfg.get("ts") or 0.05
     method = method or cfg.get("method") or "forward"
     builder = DatasetBuilder(ts=ts, method=method)
+    flights = list(flights)
+    sets = model_sets(models)
+    if horizons and not sets:
+        raise ConfigError("multi-step prediction (--horizons) needs the final models of vx_dot / vy_dot / "
+                          "vz_dot (targets.<t>.final in result.json); this result has none")
     out = {"ts": ts, "method": method, "targets": {}}
     for target, m in models.items():
         if target.startswith("_"):
             continue
-        model = SymbolicModel.from_dict(m["model"])
-        ds = builder.build(list(flights), target=target, inputs=tuple(m["inputs"]))
-        cols = ds.columns()
-        pred = np.asarray(model.predict(cols), float)
-        preds = {"identified": pred}
-        terms, refit = m.get("empirical_terms") or [], m.get("empirical_refit") or {}
-        ev = lambda text: compile_expression(parse_expression(text, ds.input_names, what="empirical model"),  # noqa: E731
-                                             ds.input_names)(cols)
-        if m.get("empirical_expr"):
-            preds["empirical"] = ev(m["empirical_expr"])
-        if terms and refit.get("coefficients"):
-            vals = [ev(tm["expr"]) for tm in terms]
-            coefs = refit["coefficients"]
-            preds["empirical_refit"] = (sum(coefs.get(tm["name"], 0.0) * v for tm, v in zip(terms, vals))
-                                        + float(refit.get("intercept") or 0.0))
+        if "identified" in m:
+            ds, preds, notes = _predict_final(builder, flights, target, m)
+        else:
+            ds, preds = _predict_engine(builder, flights, target, m)
+            notes = []
         per = {}
         groups = [("all", np.ones(len(ds), bool))]
         if len(ds.sources) > 1:
             groups += [(src, ds.flight == i) for i, src in enumerate(ds.sources)]
+        ok = np.logical_and.reduce([np.isfinite(v) for v in preds.values()])
         for name, mask in groups:
+            mask = mask & ok
             per[name] = {"n": int(mask.sum()), **{f"rmse_{k}": rmse(v[mask], ds.y[mask]) for k, v in preds.items()}}
-        out["targets"][target] = {"equation": m.get("equation"), "inputs": list(ds.input_names),
-                                  "sources": list(ds.sources), "errors": per}
+        r = {"equation": m.get("equation"), "inputs": list(ds.input_names), "sources": list(ds.sources),
+             "errors": per}
+        if not ok.all():
+            notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
+                         f"(e.g. a delayed input read before its signal starts)")
+        if notes:
+            r["notes"] = notes
+        out["targets"][target] = r
+    if horizons:
+        from .rollout import rollout_errors
+        res = rollout_errors(sets, flights, horizons)
+        d = res.to_dict(segments=False)
+        out["horizons"] = d.pop("rmse")
+        out["horizon_info"] = d
+        out["_rollout"] = res
     return out
+
+
+def _predict_final(builder, flights, target: str, m: dict):
+    """Dataset and predictions of the IdentifiedModels of one target (delayed inputs re-read at
+    ``t − delay`` from each flight)."""
+    from .rollout import sample_inputs
+    ims = {k: m[k] for k in ("identified", "empirical", "refit") if k in m}
+    signals = sorted({s for im in ims.values() for s in im.signals})
+    ds = builder.build(flights, target=target, inputs=tuple(signals) or (target[:-4],), extras=())
+    cols = ds.columns()
+    preds, notes = {}, []
+    for name, im in ims.items():
+        c = dict(cols)
+        for s, d in im.delays_s.items():
+            if s not in im.signals:
+                continue
+            v = np.empty(len(ds))
+            for i, f in enumerate(flights):
+                sel = ds.flight == i
+                v[sel] = sample_inputs(f, [s], ds.t[sel], {s: d})[s]
+            c[s] = v
+        preds[name] = im.evaluate(c)
+        if im.delays_s:
+            notes.append(f"{name}: " + ", ".join(f"{s} read at t − {d:g} s" for s, d in im.delays_s.items()))
+    return ds, preds, notes
+
+
+def _predict_engine(builder, flights, target: str, m: dict):
+    """Dataset and predictions of an older result (engine model + empirical terms)."""
+    from droneid.sngp import SymbolicModel
+
+    from .expressions import compile_expression, parse_expression
+    model = SymbolicModel.from_dict(m["model"])
+    ds = builder.build(list(flights), target=target, inputs=tuple(m["inputs"]))
+    cols = ds.columns()
+    preds = {"identified": np.asarray(model.predict(cols), float)}
+    terms, refit = m.get("empirical_terms") or [], m.get("empirical_refit") or {}
+    ev = lambda text: compile_expression(parse_expression(text, ds.input_names, what="empirical model"),  # noqa: E731
+                                         ds.input_names)(cols)
+    if m.get("empirical_expr"):
+        preds["empirical"] = ev(m["empirical_expr"])
+    if terms and refit.get("coefficients"):
+        vals = [ev(tm["expr"]) for tm in terms]
+        coefs = refit["coefficients"]
+        preds["empirical_refit"] = (sum(coefs.get(tm["name"], 0.0) * v for tm, v in zip(terms, vals))
+                                    + float(refit.get("intercept") or 0.0))
+    return ds, preds

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .io_util import atomic_write_json
 from .reporting import Document, fmt, new_figure
 
 __all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front", "compact",
@@ -31,6 +30,23 @@ def efmt(v) -> str:
     """An error value, 4 significant figures; float round-off (< 1e-12) shown as 0."""
     x = _f(v)
     return "0" if math.isfinite(x) and abs(x) < 1e-12 else fmt(v)
+
+
+LADDER_HEADER = ("model", "e_d train", "e_d validation", "e_d test", "e_c test")
+
+
+def ladder_rows(tr: dict) -> list[list[str]]:
+    """The ladder of one target: empirical as given -> refit -> + delay -> + effects -> final."""
+    return [[("FINAL: " if r["name"] == "final" else "") + r["description"], efmt(r.get("rmse_train")),
+             efmt(r.get("rmse_validation")), efmt(r.get("rmse_test")), efmt(r.get("constraint_rmse_test"))]
+            for r in tr.get("ladder") or []]
+
+
+def method_line(cfg: dict) -> str:
+    """How the errors were measured (printed with every error table)."""
+    return (f"errors in m/s² (RMSE); targets by {cfg.get('method')} differences at Ts = {cfg.get('ts')} s; "
+            f"validation = least-squares refit of the same terms, {cfg.get('validation') or 'blocked CV'} "
+            f"(training flights only); e_c = constraint RMSE")
 
 
 def error_rows(tr: dict) -> list[list[str]]:
@@ -67,7 +83,7 @@ def format_text(result: dict) -> str:
     """The terminal summary: per target the equation, the error table and the improvement."""
     out = []
     cfg = result.get("config", {})
-    out.append(f"droneid identify: prior {cfg.get('prior')} with {cfg.get('prior_features')} prior "
+    out.append(f"droneid identify: prior {cfg.get('prior_used') or cfg.get('prior')} with {cfg.get('prior_features')} prior "
                f"feature(s), constraints {cfg.get('constraints')}, {cfg.get('runs')} run(s) of "
                f"{cfg.get('generations')} generations x population {cfg.get('population')}"
                + (" (quick budget)" if cfg.get("quick") else ""))
@@ -75,6 +91,26 @@ def format_text(result: dict) -> str:
         out.append(f"NOTE: {note}")
     for name, tr in result["targets"].items():
         out += ["", f"== {name}  ({tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']})"]
+        if tr.get("ladder"):
+            out.append(tr.get("verdict") or "")
+            out.append(tr.get("equation") or "")
+            out += _legend(tr)
+            if tr.get("final"):
+                out.append(f"  expanded: {tr['final']['equation']}")
+                if tr["final"].get("delays_s"):
+                    out.append("  delayed inputs: " + ", ".join(f"{k}(t − {1000 * v:.0f} ms)"
+                                                               for k, v in tr["final"]["delays_s"].items()))
+            out.append("")
+            out.append(_text_table(list(LADDER_HEADER), ladder_rows(tr)))
+            out.append(method_line(cfg))
+            g = tr.get("guards") or {}
+            out.append(f"SNGP runs: {len(tr.get('runs') or [])}; rejected as implausible: {g.get('implausible', 0)}; "
+                       f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}; "
+                       f"breaking the constraints: {g.get('constraints_broken', 0)}")
+            for note in tr.get("notes") or []:
+                if note != tr["test_data"]:
+                    out.append(f"NOTE: {note}")
+            continue
         if tr.get("equation"):
             out.append(tr["equation"])
             out += _legend(tr)
@@ -91,7 +127,33 @@ def format_text(result: dict) -> str:
         for note in tr.get("notes") or []:
             if note != tr["test_data"]:
                 out.append(f"NOTE: {note}")
+    out += horizon_lines(result.get("horizons") or {})
     return "\n".join(out)
+
+
+def horizon_rows(h: dict) -> tuple[list, list]:
+    """(header, rows) of the multi-step table: velocity RMSE (m/s) per model and horizon."""
+    if not h.get("rmse"):
+        return [], []
+    axes = [a for a in ("vx", "vy", "vz", "position")
+            if any(a in e for per in h["rmse"].values() for e in per.values())]
+    header = ["model", "horizon"] + [f"{a} ({'m' if a == 'position' else 'm/s'})" for a in axes]
+    rows = []
+    for m, per in h["rmse"].items():
+        for step, sec in zip(h["steps"], h["seconds"]):
+            e = per.get(str(step), {})
+            rows.append([m, f"{step} ({sec:.3g} s)"] + [efmt(e.get(a)) if a in e else "—" for a in axes])
+    return header, rows
+
+
+def horizon_lines(h: dict) -> list[str]:
+    header, rows = horizon_rows(h)
+    if not rows:
+        return []
+    return ["", "== multi-step prediction on the test flights (velocity integrated from each sample, "
+                "inputs from the log; RMSE against the logged velocity)", _text_table(header, rows),
+            f"steps of {h['dt_s']:.3g} s; starts per horizon: "
+            + ", ".join(f"{k}: {v}" for k, v in (h.get("n_starts") or {}).items())]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -217,6 +279,11 @@ def build_document(result: dict) -> Document:
         if tr.get("equation"):
             doc.code("\n".join([tr["equation"], *_legend(tr)]
                                + ([f"expanded: {tr['equation_expanded']}"] if tr.get("equation_expanded") else [])))
+        if tr.get("verdict"):
+            doc.paragraph(tr["verdict"])
+        if tr.get("ladder"):
+            doc.table(LADDER_HEADER, ladder_rows(tr))
+            doc.paragraph(method_line(cfg))
         doc.table(ERROR_HEADER, error_rows(tr))
         imp = tr.get("improvement_pct") or {}
         doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
@@ -247,6 +314,18 @@ def build_document(result: dict) -> Document:
             fig = fig_pareto(name, tr, cfg.get("gamma"))
             if fig is not None:
                 doc.figure(fig, f"{name}_pareto", "Pareto front of e_d^train vs e_c^train over the runs' archives")
+    header, rows = horizon_rows(result.get("horizons") or {})
+    if rows:
+        from .rollout import horizon_figures
+        h = result["horizons"]
+        doc.heading("Multi-step prediction on the test flights")
+        doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
+                      f"{h['dt_s']:.3g} s) with every other input read from the log; RMSE against the "
+                      f"logged velocity per horizon (see docs/use-the-model.md for the exact metric).")
+        doc.table(header, rows)
+        for name, png in horizon_figures(h).items():
+            doc.png(png, name, "multi-step prediction: error against horizon" if "error" in name
+                    else "predicted velocity traces over the measured one")
     vers = result.get("versions") or {}
     doc.paragraph("Versions: " + ", ".join(f"{k} {v}" for k, v in vers.items()))
     return doc
@@ -254,10 +333,7 @@ def build_document(result: dict) -> Document:
 
 def write_result(result: dict, directory) -> dict[str, Path]:
     """Write result.json, report.md, report.html and the PNGs into ``directory`` (atomically)."""
-    d = Path(directory)
-    paths = {"json": atomic_write_json(d / "result.json", result)}
-    paths.update(build_document(result).write(d, "report"))
-    return paths
+    return build_document(result).write(directory, "report", data={"result.json": result})
 
 
 def compact(result: dict) -> dict:

@@ -1,21 +1,50 @@
 """Building blocks for human reports: one document rendered as Markdown and self-contained HTML.
 
 A :class:`Document` collects headings, paragraphs, tables and matplotlib figures; ``write(dir,
-stem)`` saves each figure as PNG, the Markdown (figures linked) and the HTML (figures embedded
-as base64, so the file opens anywhere), all atomically. Rendering is pure: no printing.
+stem)`` saves each figure as PNG, the Markdown (figures linked, all text escaped) and the HTML
+(figures embedded as base64, so the file opens anywhere) as one report set
+(:func:`write_report_set`): a folder never mixes the files of two runs. Rendering is pure: no
+printing.
 """
 from __future__ import annotations
 
 import base64
+import errno
 import html
 import io
-from collections.abc import Sequence
+import json
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import quote
 
-from .io_util import atomic_write_bytes, atomic_write_text
+from .errors import ConfigError
+from .io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
 
-__all__ = ["Document", "new_figure", "fmt"]
+__all__ = ["Document", "new_figure", "fmt", "md_escape", "write_report_set"]
+
+
+#: characters that Markdown may read as syntax anywhere in a line
+_MD_INLINE = re.compile(r"([\\`*\[\]|!])|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
+#: characters that start a heading, quote, list or rule at the beginning of a line
+_MD_LINE_START = re.compile(r"^(\s*)([#>+=*-]+|\d+[.)])(?=\s|$)", re.MULTILINE)
+
+
+def md_escape(text, line_start: bool = True) -> str:
+    """``text`` as literal Markdown text: HTML's ``& < >`` become entities, Markdown's
+    punctuation (`` ` * [ ] | ! \\ `` and word-edge ``_``) is backslash-escaped, and a line
+    starting like a heading, quote or list is escaped at its start (unless ``line_start`` is
+    false: table cells). Intra-word underscores (``vx_dot``) stay readable."""
+    s = html.escape(str(text), quote=False)
+    s = _MD_INLINE.sub(lambda m: "\\" + m.group(0), s)
+    if not line_start:
+        return s
+    return _MD_LINE_START.sub(lambda m: m.group(1) + m.group(2)[:-1] + "\\" + m.group(2)[-1]
+                              if m.group(2)[0].isdigit() else m.group(1) + "\\" + m.group(2), s)
 
 
 def new_figure(width_in: float = 7.0, height_in: float = 3.6):
@@ -66,6 +95,11 @@ class Document:
         self.blocks.append(("table", [str(h) for h in header], [[str(c) for c in r] for r in rows]))
         return self
 
+    def png(self, data: bytes, name: str, caption: str = "") -> "Document":
+        """Add an already rendered PNG; ``name`` becomes ``name.png`` beside the report."""
+        self.blocks.append(("fig", _Figure(name, bytes(data), caption)))
+        return self
+
     def figure(self, fig, name: str, caption: str = "") -> "Document":
         """Add a matplotlib figure; ``name`` becomes ``name.png`` beside the report."""
         buf = io.BytesIO()
@@ -75,23 +109,28 @@ class Document:
 
     # -- rendering ----------------------------------------------------------------------------
     def markdown(self) -> str:
-        out = [f"# {self.title}", ""]
+        """The document as Markdown; all text is escaped (:func:`md_escape`), so a file name
+        such as ``<img src=x onerror=alert(1)>.csv`` shows as text, never as HTML or a link."""
+        esc = md_escape
+        out = [f"# {esc(self.title)}", ""]
         for b in self.blocks:
             if b[0] == "h":
-                out += ["#" * b[1] + " " + b[2], ""]
+                out += ["#" * b[1] + " " + esc(b[2]), ""]
             elif b[0] == "p":
-                out += [b[1], ""]
+                out += [esc(b[1]), ""]
             elif b[0] == "code":
-                out += ["```", b[1], "```", ""]
+                fence = "`" * max(3, 1 + max((len(r) for r in re.findall(r"`+", b[1])), default=0))
+                out += [fence, b[1], fence, ""]
             elif b[0] == "table":
-                out.append("| " + " | ".join(b[1]) + " |")
+                cell = lambda c: md_escape(" ".join(c.split("\n")), line_start=False)  # noqa: E731
+                out.append("| " + " | ".join(cell(h) for h in b[1]) + " |")
                 out.append("|" + "---|" * len(b[1]))
-                out += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in b[2]]
+                out += ["| " + " | ".join(cell(c) for c in r) + " |" for r in b[2]]
                 out.append("")
             elif b[0] == "fig":
-                out += [f"![{b[1].caption or b[1].name}]({b[1].name}.png)", ""]
+                out += [f"![{esc(b[1].caption or b[1].name)}]({quote(b[1].name)}.png)", ""]
                 if b[1].caption:
-                    out += [f"*{b[1].caption}*", ""]
+                    out += [f"*{esc(b[1].caption)}*", ""]
         return "\n".join(out)
 
     def html(self) -> str:
@@ -120,13 +159,132 @@ class Document:
         out.append("</body></html>")
         return "\n".join(out)
 
-    def write(self, directory, stem: str = "report") -> dict[str, Path]:
-        """Write ``stem.md``, ``stem.html`` and every figure's PNG into ``directory``."""
-        d = Path(directory)
-        paths = {}
-        for b in self.blocks:
-            if b[0] == "fig":
-                paths[b[1].name] = atomic_write_bytes(d / f"{b[1].name}.png", b[1].png)
-        paths["md"] = atomic_write_text(d / f"{stem}.md", self.markdown())
-        paths["html"] = atomic_write_text(d / f"{stem}.html", self.html())
+    def files(self, stem: str = "report") -> dict[str, bytes | str]:
+        """{file name: content}: ``stem.md``, ``stem.html`` and every figure's PNG."""
+        out: dict[str, bytes | str] = {f"{b[1].name}.png": b[1].png for b in self.blocks if b[0] == "fig"}
+        out[f"{stem}.md"] = self.markdown()
+        out[f"{stem}.html"] = self.html()
+        return out
+
+    def write(self, directory, stem: str = "report", data: Mapping[str, object] | None = None
+              ) -> dict[str, Path]:
+        """Write ``stem.md``, ``stem.html``, every figure's PNG and the ``data`` files (JSON file
+        name -> object, e.g. ``{"result.json": result}``) into ``directory`` as one report set
+        (:func:`write_report_set`: the folder never mixes two runs' files).
+
+        Returns paths by key: ``md``, ``html``, each figure's name, each data file's name, and
+        ``json`` when ``data`` holds exactly one file.
+        """
+        data = dict(data or {})
+        files = {name: json_text(obj) for name, obj in data.items()}
+        files.update(self.files(stem))
+        written = write_report_set(directory, files)
+        paths = {b[1].name: written[f"{b[1].name}.png"] for b in self.blocks if b[0] == "fig"}
+        paths.update({name: written[name] for name in data})
+        if len(data) == 1:
+            paths["json"] = written[next(iter(data))]
+        paths["md"] = written[f"{stem}.md"]
+        paths["html"] = written[f"{stem}.html"]
         return paths
+
+
+#: the hidden file listing the files of the report set a folder holds
+MANIFEST = ".droneid-report.json"
+#: the visible marker present while a report set is written in place
+INCOMPLETE = "REPORT_INCOMPLETE.txt"
+
+
+def write_report_set(directory, files: Mapping[str, bytes | str]) -> dict[str, Path]:
+    """Write ``files`` ({plain file name: bytes or text}) into ``directory`` as one run's set.
+
+    The folder holds one run's files at any moment, even when the process is killed:
+
+    - when ``directory`` does not exist, or holds only the files of an earlier report set (as
+      listed in its manifest ``.droneid-report.json``), the new set is written into a fresh
+      sibling folder, which then replaces ``directory`` by rename; the earlier set is deleted;
+    - when it holds other files too (e.g. the user's logs), the set is written in place: a
+      visible ``REPORT_INCOMPLETE.txt`` marker is written first and the earlier set's files (and
+      any file the new set replaces) are deleted, then every file is written atomically, then
+      the manifest, and the marker is removed last. A killed run leaves the marker beside an
+      incomplete set of the new run, never a file of the earlier run.
+
+    Between the two renames of a swap the folder is briefly absent; a run killed exactly there
+    leaves the new set in a hidden ``.NAME.*.new`` sibling. The user's other files are never
+    moved or deleted.
+
+    Returns {file name: path}. Raises :class:`ConfigError` for a name that is not a plain
+    file name, and the ``OSError`` of a folder that cannot be written (naming the folder).
+    """
+    d = Path(directory)
+    for name in files:
+        if not name or name in (".", "..", MANIFEST, INCOMPLETE) or "/" in name or "\\" in name \
+                or "\0" in name:
+            raise ConfigError(f"report file name {name!r} is not a plain file name")
+    blobs = {n: c.encode("utf-8") if isinstance(c, str) else bytes(c) for n, c in files.items()}
+    if d.exists() and not d.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, "exists and is not a folder", str(d))
+    previous = _manifest_files(d)
+    if not d.is_symlink() and (not d.exists() or _only(d, previous)):
+        try:
+            return _swap_in(d, blobs)
+        except OSError as exc:
+            if exc.errno not in (errno.EXDEV, errno.EBUSY, errno.EPERM, errno.EACCES):
+                raise
+            # a mount point or a folder we may fill but not rename: fall back to in place
+    return _write_in_place(d, blobs, previous)
+
+
+def _manifest_files(d: Path) -> set[str]:
+    try:
+        listed = json.loads((d / MANIFEST).read_text(encoding="utf-8")).get("files", [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {n for n in listed if isinstance(n, str) and n and "/" not in n and n not in (".", "..")}
+
+
+def _only(d: Path, names: set[str]) -> bool:
+    """True when every entry of ``d`` is a file of the earlier set (or its bookkeeping)."""
+    allowed = names | {MANIFEST, INCOMPLETE}
+    return all(e.name in allowed and e.is_file() and not e.is_symlink() for e in d.iterdir())
+
+
+def _manifest(names) -> bytes:
+    return (json.dumps({"writer": "droneid", "files": sorted(names)}, indent=1) + "\n").encode()
+
+
+def _swap_in(d: Path, blobs: dict[str, bytes]) -> dict[str, Path]:
+    d.parent.mkdir(parents=True, exist_ok=True)
+    new = Path(tempfile.mkdtemp(prefix=f".{d.name}.", suffix=".new", dir=d.parent))
+    old = None
+    try:
+        os.chmod(new, 0o777 & ~current_umask())
+        for name, blob in blobs.items():
+            atomic_write_bytes(new / name, blob)
+        atomic_write_bytes(new / MANIFEST, _manifest(blobs))
+        if d.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{d.name}.", suffix=".old", dir=d.parent))
+            os.rename(d, old / d.name)
+        os.rename(new, d)
+    except BaseException:
+        if old is not None and not d.exists() and (old / d.name).exists():
+            os.rename(old / d.name, d)  # put the earlier set back
+        shutil.rmtree(new, ignore_errors=True)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return {name: d / name for name in blobs}
+
+
+def _write_in_place(d: Path, blobs: dict[str, bytes], previous: set[str]) -> dict[str, Path]:
+    atomic_write_text(d / INCOMPLETE, "droneid is writing a report here. If this file stays, the run "
+                                      "was stopped and the report files beside it are incomplete.\n")
+    (d / MANIFEST).unlink(missing_ok=True)
+    for name in previous | set(blobs):  # files of the earlier set, and those the new one replaces
+        if (d / name).is_file() and not (d / name).is_symlink():
+            (d / name).unlink()
+    paths = {name: atomic_write_bytes(d / name, blob) for name, blob in blobs.items()}
+    atomic_write_bytes(d / MANIFEST, _manifest(blobs))
+    (d / INCOMPLETE).unlink()
+    return paths

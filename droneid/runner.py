@@ -20,12 +20,13 @@ import os
 import signal
 import time
 import traceback
+from pathlib import Path
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from .errors import ConfigError
 
-__all__ = ["RunOutcome", "run_jobs", "default_jobs"]
+__all__ = ["RunOutcome", "run_jobs", "default_jobs", "startup_message"]
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +60,45 @@ def default_jobs() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+#: how long numba takes to compile the SNGP kernels on a first run, for the message below
+_COMPILE_S = "20-40 s"
+
+
+def startup_message() -> str:
+    """What a progress line says before the first SNGP result arrives.
+
+    numba compiles the SNGP kernels on the first run after an install or an engine change and
+    caches them beside :mod:`droneid.sngp.kernels` (or under ``NUMBA_CACHE_DIR``); until then
+    the line would sit silent for tens of seconds, so it says so. Later runs load the cache.
+    """
+    return "starting" if sngp_kernels_cached() else \
+        f"compiling SNGP kernels (first run only, ~{_COMPILE_S})…"
+
+
+def sngp_kernels_cached() -> bool:
+    """True when a numba cache index of the SNGP kernels exists and is newer than their source."""
+    source = Path(__file__).parent / "sngp" / "kernels.py"
+    try:
+        stamp = source.stat().st_mtime
+    except OSError:
+        return True  # not a source install (e.g. zipped): nothing to say
+    # numba's order: NUMBA_CACHE_DIR when set, else __pycache__ beside the source, else (a
+    # read-only install) the user-wide cache
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        places = [Path(os.environ["NUMBA_CACHE_DIR"])]
+    else:
+        cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        places = [source.parent / "__pycache__", cache_home / "numba"]
+    for place in places:
+        pattern = "kernels.*.nbi" if place.name == "__pycache__" else "**/kernels.*.nbi"
+        try:
+            if any(p.stat().st_mtime >= stamp for p in place.glob(pattern)):
+                return True
+        except OSError:
+            continue
+    return False
+
+
 def _call(fn, index, job):
     """Worker side: run one job; exceptions become data, never kill the pool."""
     try:
@@ -88,7 +128,9 @@ def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, schedul
              connect_timeout_s: float = 20.0) -> RunOutcome:
     """Run ``fn(job)`` for every job; see the module docstring.
 
-    ``progress(done, total, message)`` is called after each finished job (also failed ones).
+    ``progress(done, total, message)`` is called once before the first job (message: what is
+    happening, e.g. the first run compiling the SNGP kernels) and after each finished job, also
+    failed ones (message: the number of failures so far, or empty).
     """
     jobs = list(jobs)
     if n_jobs is None:
@@ -104,19 +146,20 @@ def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, schedul
         done += 1
         if status == "ok":
             outcome.results[index] = payload
-            msg = f"{label} {index + 1} done"
         elif status == "error":
             outcome.errors[index] = payload.splitlines()[0]
             log.warning("%s %d failed: %s", label, index + 1, payload)
-            msg = f"{label} {index + 1} FAILED"
         else:
             outcome.interrupted = True
             return
         if progress is not None:
-            progress(done, len(jobs), msg)
+            # jobs finish out of order on a pool: naming the job that just finished beside the
+            # count ("7/16 ... run 6 done") reads as an off-by-one, so only failures are named
+            failed = len(outcome.errors)
+            progress(done, len(jobs), f"{failed} failed (last: {label} {index + 1})" if failed else "")
 
     if progress is not None:
-        progress(0, len(jobs), "")
+        progress(0, len(jobs), startup_message())
     if not jobs:
         return outcome
     try:

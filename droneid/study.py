@@ -221,9 +221,4 @@ def study_document(result: dict) -> Document:
 
 
 def write_study(result: dict, directory) -> None:
-    from pathlib import Path
-
-    from .io_util import atomic_write_json
-    d = Path(directory)
-    atomic_write_json(d / "study.json", result)
-    study_document(result).write(d, "study")
+    study_document(result).write(directory, "study", data={"study.json": result})

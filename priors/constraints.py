@@ -53,7 +53,7 @@ from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression
 
 __all__ = ["Constraint", "ConstraintSet", "get_constraints", "load_constraints", "paper_drone",
-           "paper_turtlebot", "CONSTRAINT_SETS"]
+           "paper_turtlebot", "rotor_thrust", "drag_sign", "extended", "CONSTRAINT_SETS"]
 
 _RELATIONS = {"eq": "eq", "==": "eq", "=": "eq", "le": "le", "<=": "le", "ge": "ge", ">=": "ge"}
 
@@ -231,6 +231,66 @@ def paper_turtlebot(target: str) -> ConstraintSet:
         cs.append(Constraint(f"{target} = 0 at yaw = {h:.4g}, v_a = 0",
                              {"yaw": h, "v_a": 0.0, "v_f": vf}, "eq", 0.0, target))
     return ConstraintSet(target, tuple(cs), name="paper")
+
+
+def rotor_thrust(target: str, thrust_signals: Mapping[str, float], g: float = 9.81) -> ConstraintSet:
+    """Constraints of the rotor-thrust prior for ``vx_dot``, ``vy_dot`` or ``vz_dot``.
+
+    ``thrust_signals`` maps each thrust input (``rpm1``.., ``motor1``.., ``throttle`` or
+    ``thrust``) to the largest value the vehicle reaches (from the training data). With the
+    vehicle at rest (v = 0):
+
+    * no thrust (every thrust input 0), any tilt up to 30°, any yaw: v̇ = −g e3 (free fall);
+    * level (roll = pitch = 0), any thrust and yaw: no horizontal acceleration;
+    * tilted only across the axis (vx_dot: pitch = 0, yaw = 0, roll within ±30°; vy_dot: roll = 0,
+      yaw = 0, pitch within ±30°), any thrust: none along it (the thrust has no component there).
+    """
+    axis = {"vx_dot": "x", "vy_dot": "y", "vz_dot": "z"}.get(target)
+    if axis is None:
+        raise ConfigError(f"the rotor-thrust constraints are for vx_dot, vy_dot and vz_dot, not {target!r}")
+    if not thrust_signals:
+        raise ConfigError("the rotor-thrust constraints need at least one thrust input")
+    a, v = math.pi / 6, f"v{axis}"
+    zero = {s: 0.0 for s in thrust_signals}
+    span = {s: (0.0, float(hi)) for s, hi in thrust_signals.items()}
+    cs = [Constraint(f"{target} = {'-g' if axis == 'z' else '0'} with no thrust at rest",
+                     {v: 0.0, **zero, "roll": (-a, a), "pitch": (-a, a), "yaw": (-math.pi, math.pi)},
+                     "eq", -g if axis == "z" else 0.0, target)]
+    if axis != "z":
+        cs.append(Constraint(f"{target} = 0 when level at rest",
+                             {v: 0.0, **span, "roll": 0.0, "pitch": 0.0, "yaw": (-math.pi, math.pi)},
+                             "eq", 0.0, target))
+        across = {"roll": (-a, a), "pitch": 0.0} if axis == "x" else {"roll": 0.0, "pitch": (-a, a)}
+        cs.append(Constraint(f"{target} = 0 when tilted across the axis at rest",
+                             {v: 0.0, **span, **across, "yaw": 0.0}, "eq", 0.0, target))
+    return ConstraintSet(target, tuple(cs), name="rotor-thrust")
+
+
+def drag_sign(target: str, v_max: float, level: Mapping[str, float | tuple] | None = None) -> tuple:
+    """Constraints that reach beyond v = 0: level (roll = pitch = 0) and moving along the axis at
+    up to ``v_max`` m/s (1.5 x the training speed, say), the vehicle decelerates:
+    ``v̇ ≤ 0`` for v ∈ [0.1 v_max, v_max] and ``v̇ ≥ 0`` for v ∈ [−v_max, −0.1 v_max]. Drag opposes
+    motion; a model whose evolved terms turn over or blow up outside the data breaks them.
+    ``level`` gives further inputs' domains (e.g. the thrust inputs' span)."""
+    axis = {"vx_dot": "vx", "vy_dot": "vy"}.get(target)
+    if axis is None:
+        raise ConfigError(f"the drag-sign constraints are for vx_dot and vy_dot, not {target!r}")
+    if not (isinstance(v_max, (int, float)) and math.isfinite(v_max) and v_max > 0):
+        raise ConfigError(f"drag_sign: v_max must be a positive number of m/s; got {v_max!r}")
+    dom = {"roll": 0.0, "pitch": 0.0, "yaw": (-math.pi, math.pi), **dict(level or {})}
+    return (Constraint(f"{target} <= 0 when level and moving along +{axis[1]}",
+                       {**dom, axis: (0.1 * v_max, v_max)}, "le", 0.0, target),
+            Constraint(f"{target} >= 0 when level and moving along -{axis[1]}",
+                       {**dom, axis: (-v_max, -0.1 * v_max)}, "ge", 0.0, target))
+
+
+def extended(base: ConstraintSet, v_max: float, level: Mapping[str, float | tuple] | None = None
+             ) -> ConstraintSet:
+    """``base`` plus the drag-sign constraints (:func:`drag_sign`) for its target, if it has them."""
+    if base.target not in ("vx_dot", "vy_dot"):
+        return base
+    return ConstraintSet(base.target, base.constraints + drag_sign(base.target, v_max, level),
+                         base.defaults, name=f"{base.name}+drag-sign")
 
 
 #: set name -> {prior name -> factory(target)}

@@ -22,6 +22,7 @@ class ProgressBar:
         self.stream = stream or sys.stderr
         self.t0 = time.perf_counter()
         self._last_decile = -1
+        self._first = None  # (done, elapsed s) at the first call with done > 0
         self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
 
     def __call__(self, done: int, total: int, message: str = "") -> None:
@@ -29,7 +30,14 @@ class ProgressBar:
             return
         frac = min(max(done / total, 0.0), 1.0)
         elapsed = time.perf_counter() - self.t0
-        eta = elapsed / frac - elapsed if frac > 0 else float("nan")
+        # the time left comes from the pace since the first result, not since the start: the
+        # first result may carry a one-off cost (numba compiling the SNGP kernels, ~40 s)
+        if self._first is None and done > 0:
+            self._first = (done, elapsed)
+        eta = float("nan")
+        if self._first is not None and done > self._first[0] and elapsed > self._first[1]:
+            pace = (done - self._first[0]) / (elapsed - self._first[1])
+            eta = (total - done) / pace
         text = f"{self.label}: {done}/{total} ({100 * frac:5.1f} %) {elapsed:6.1f} s"
         if frac < 1 and eta == eta:
             text += f", ~{eta:.0f} s left"

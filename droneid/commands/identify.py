@@ -15,11 +15,16 @@ def read_logs(paths, args=None) -> list:
 
 
 def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
-                         prune_default: str = "validation") -> None:
-    """Options shared by identify, study and demo: data, prior, budget, parallelism."""
-    p.add_argument("--target", default="vx_dot,vy_dot",
-                   help="target(s), comma separated: vx_dot, vy_dot, vz_dot (default vx_dot,vy_dot)")
-    p.add_argument("--prior", default="tilt-drag", help="empirical model the priors come from (default tilt-drag)")
+                         prune_default: str = "validation", paper: bool = False) -> None:
+    """Options shared by identify, study and demo: data, prior, budget, parallelism. ``paper``:
+    defaults of the paper's protocol (tilt-drag prior, its two targets, forward differences)."""
+    p.add_argument("--target", default="vx_dot,vy_dot" if paper else None,
+                   help="target(s), comma separated: vx_dot, vy_dot, vz_dot (default: every target the "
+                        "prior models: vx_dot,vy_dot for tilt-drag, also vz_dot for rotor-thrust)")
+    p.add_argument("--prior", default="tilt-drag" if paper else "auto",
+                   help="physical model the search starts from: auto (default: rotor-thrust where the logs "
+                        "have motor speeds, motor commands or thrust, tilt-drag otherwise), tilt-drag (the "
+                        "paper), rotor-thrust, or FILE.toml:NAME")
     p.add_argument("--runs", type=int, default=None, help=runs_help)
     p.add_argument("--jobs", type=int, default=None, help="parallel worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None, metavar="URL",
@@ -28,8 +33,8 @@ def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
     p.add_argument("--population", type=int, default=None, help="SNGP population size (paper: 500)")
     p.add_argument("--seed", type=int, default=0, help="root seed; run seeds are spawned from it (default 0)")
     p.add_argument("--ts", type=float, default=0.05, help="sampling period of the data in s (paper: 0.05)")
-    p.add_argument("--method", default="forward",
-                   help="differentiator: forward (paper), central, savgol, spline")
+    p.add_argument("--method", default="forward" if paper else "central",
+                   help="differentiator: central (default; no half-step lag), forward (the paper), savgol, spline")
     p.add_argument("--quick", action="store_true",
                    help="small budget for a fast look (3000 generations, population 200, 4 runs)")
     p.add_argument("--prune", default=prune_default, choices=("validation", "exact"),
@@ -59,7 +64,14 @@ def register(sub) -> None:
     add_budget_arguments(p, runs_help="independent SNGP runs per target (default 10; the paper: 50; --quick: 4)")
     p.add_argument("--prior-features", type=int, default=3, choices=(0, 1, 3),
                    help="0: no prior; 1: the empirical model as one feature; 3: its three terms (default)")
-    p.add_argument("--constraints", default="paper", help="paper (default), none, or a constraints TOML file")
+    p.add_argument("--constraints", default="paper",
+                   help="paper (default: the prior's own set), none, or a constraints TOML file")
+    p.add_argument("--effects", default="auto", choices=("auto", "none"),
+                   help="auto (default): diagnose the refit prior on the training flights and fold every "
+                        "effect that passes into the prior; none: the paper's setting")
+    p.add_argument("--delays", default="auto", choices=("auto", "none"),
+                   help="auto (default): choose the input delay of the thrust signals by cross-validation "
+                        "on the training flights; none: no delay")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="write result.json, report.md, report.html and PNG figures into DIR")
     p.add_argument("--json", action="store_true", help="print the result summary as one JSON line")
@@ -70,7 +82,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..identify import identify
     from ..report_identify import compact, format_text, write_result
-    cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints)
+    cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints,
+                           effects=args.effects, delays=args.delays)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)

@@ -4,41 +4,88 @@ from __future__ import annotations
 from ._common import print_json
 from .identify import read_logs
 
+_LABELS = {"rmse_identified": "e_d identified", "rmse_empirical": "e_d empirical",
+           "rmse_refit": "e_d empirical refit", "rmse_empirical_refit": "e_d empirical refit"}
+
+
+def _horizons(text: str) -> tuple[int, ...]:
+    import argparse
+    try:
+        hs = tuple(int(h) for h in text.split(",") if h.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"horizons must be comma-separated step counts, e.g. 1,10,50; "
+                                         f"got {text!r}") from None
+    if not hs or min(hs) < 1:
+        raise argparse.ArgumentTypeError(f"horizons must be positive step counts; got {text!r}")
+    return hs
+
 
 def register(sub) -> None:
     p = sub.add_parser("predict", help="apply a saved model to other logs and report its error",
                        description="Apply the models of an identify result.json (or a single model file "
                                    "with --target) to other logs and report the RMSE per target and log, "
-                                   "next to the empirical model's.")
+                                   "next to the empirical model's (as given and refit). --horizons adds "
+                                   "multi-step prediction errors (see docs/use-the-model.md).")
     p.add_argument("model", metavar="RESULT_OR_MODEL.json", help="result.json of droneid identify, or a model file")
     p.add_argument("logs", nargs="+", metavar="LOG", help="log(s) to predict")
     p.add_argument("--target", default=None, help="target(s), comma separated (default: every target in the file)")
     p.add_argument("--ts", type=float, default=None, help="sampling period (default: the one identified with)")
     p.add_argument("--method", default=None, help="differentiator (default: the one identified with)")
+    p.add_argument("--horizons", type=_horizons, default=None, metavar="H1,H2,...",
+                   help="multi-step prediction: integrate the velocity models this many steps of the "
+                        "log's rate from every in-flight sample (e.g. 1,10,50) and report the RMSE")
+    p.add_argument("--plot", default=None, metavar="DIR",
+                   help="with --horizons: write error-vs-horizon and predicted-trace PNGs into DIR")
     p.add_argument("--json", action="store_true", help="print the errors as one JSON line")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ..errors import ConfigError
     from ..predict import load_models, predict_flights
     from ..reporting import fmt
     from ..report_identify import _text_table
+    if args.plot and not args.horizons:
+        raise ConfigError("--plot draws the multi-step prediction: give --horizons too (e.g. --horizons 1,10,50)")
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
     models = load_models(args.model, targets)
     flights = read_logs(args.logs)
-    res = predict_flights(models, flights, ts=args.ts, method=args.method)
+    res = predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons)
+    rollout = res.pop("_rollout", None)
+    written = []
+    if args.plot and rollout is not None:
+        from pathlib import Path
+
+        from ..io_util import atomic_write_bytes
+        from ..rollout import horizon_figures
+        for name, png in horizon_figures(rollout.to_dict()).items():
+            written.append(atomic_write_bytes(Path(args.plot) / f"{name}.png", png))
     if args.json:
         from ..io_util import to_jsonable
         print_json(to_jsonable(res))
         return 0
     for t, r in res["targets"].items():
         print(f"== {t}: {r['equation'] or '(model)'}")
-        keys = [k for k in ("rmse_identified", "rmse_empirical", "rmse_empirical_refit")
-                if k in next(iter(r["errors"].values()))]
-        labels = {"rmse_identified": "e_d identified", "rmse_empirical": "e_d empirical",
-                  "rmse_empirical_refit": "e_d empirical refit"}
-        header = ["data", "samples"] + [labels[k] for k in keys]
+        keys = [k for k in _LABELS if k in next(iter(r["errors"].values()))]
+        header = ["data", "samples"] + [_LABELS[k] for k in keys]
         rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
         print(_text_table(header, rows))
+        for note in r.get("notes", ()):
+            print(f"note: {note}")
         print("errors: RMSE in m/s²\n")
+    if rollout is not None:
+        info = res["horizon_info"]
+        print(f"== multi-step prediction: RK4 at dt = {fmt(info['dt_s'])} s; velocities of the modelled axes "
+              f"integrated, every other signal from the log")
+        cols = [k for k in ("vx", "vy", "vz", "position")
+                if any(k in e for per in res["horizons"].values() for e in per.values())]
+        header = ["model", "steps", "s", "starts"] + [f"{k} (m)" if k == "position" else f"{k} (m/s)" for k in cols]
+        rows = [[m, str(h), fmt(h * info["dt_s"]), str(info["n_starts"][str(h)])]
+                + [fmt(e.get(k)) for k in cols]
+                for m, per in res["horizons"].items() for h, e in ((int(h), e) for h, e in per.items())]
+        print(_text_table(header, rows))
+        print("errors: RMSE at the horizon over every start (skipped starts: "
+              + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
+    for p in written:
+        print(f"wrote {p}")
     return 0

@@ -16,17 +16,35 @@ def register(sub) -> None:
     p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
     p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
                    help="test log(s); without them the last 30%% of the training data are held out")
-    add_budget_arguments(p, runs_help="runs per target, scenario and prior variant (default 10; paper: 50)",
+    add_budget_arguments(p, paper=True, runs_help="runs per target, scenario and prior variant (default 10; paper: 50)",
                          prune_default="exact")  # the paper's protocol
-    p.add_argument("--constraints", default="paper", help="constraints of the constrained scenario: paper or FILE")
-    p.add_argument("--out", default="study", metavar="DIR", help="write study.json, study.md, study.html here")
-    p.add_argument("--json", action="store_true", help="print the study result as one JSON line")
+    p.add_argument("--constraints", default="paper",
+                   help="constraints of the constrained scenario: paper or a constraints TOML file "
+                        "(default paper)")
+    p.add_argument("--out", default="study", metavar="DIR",
+                   help="write study.json, study.md, study.html and figures here (default ./study)")
+    p.add_argument("--json", action="store_true",
+                   help="print the study result as one JSON line (no budget line, no progress)")
     p.set_defaults(func=run)
+
+
+def budget_line(cfg) -> str:
+    """The study's whole budget in one line, said before it starts (a full study takes minutes)."""
+    from ..study import PRIOR_VARIANTS, SCENARIOS
+    n = len(cfg.targets) * len(SCENARIOS) * len(PRIOR_VARIANTS) * cfg.runs
+    line = (f"study: {n} SNGP runs ({len(cfg.targets)} target(s) x {len(SCENARIOS)} scenarios x "
+            f"{len(PRIOR_VARIANTS)} prior variants x {cfg.runs} runs), each {cfg.generations} "
+            f"generations x population {cfg.population}")
+    if not cfg.quick:
+        line += " (--runs sets only the run count; --quick: 3000 generations x population 200)"
+    return line
 
 
 def run(args) -> int:
     from ..study import format_study, study, write_study
     cfg = config_from_args(args, constraints=args.constraints)
+    if not (args.quiet or args.json):
+        print(budget_line(cfg), file=sys.stderr)
     train = read_logs(args.train)
     test = read_logs(args.test) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)

@@ -1,0 +1,42 @@
+"""``droneid export``: the final models of an identify result.json as Python, C, MATLAB or LaTeX."""
+from __future__ import annotations
+
+import sys
+
+
+def register(sub) -> None:
+    p = sub.add_parser("export", help="write the final models as self-contained Python, C, MATLAB or LaTeX",
+                       description="Write each target's final model (targets.<t>.final of an identify "
+                                   "result.json: prior terms, effects and evolved terms expanded into one "
+                                   "expression) as self-contained code; the header states the inputs, units, "
+                                   "conventions and delays. See docs/use-the-model.md.")
+    p.add_argument("result", metavar="RESULT.json", help="result.json of droneid identify")
+    p.add_argument("--to", required=True, choices=("python", "c", "matlab", "latex"), help="output language")
+    p.add_argument("-o", "--output", default=None, metavar="FILE",
+                   help="write to FILE (atomically) instead of stdout; for matlab the file name "
+                        "(without .m) is the function name")
+    p.add_argument("--target", default=None, help="target(s), comma separated (default: every final model)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ..export import export_models
+    from ..predict import load_models
+    targets = [t.strip() for t in args.target.split(",")] if args.target else None
+    models = load_models(args.result, targets)
+    finals = [m["identified"] for t, m in models.items() if not t.startswith("_") and "identified" in m]
+    if not finals:
+        from ..errors import DataError
+        raise DataError(f"{args.result}: no final model to export (targets.<t>.final is written by "
+                        f"droneid identify; older results hold only the engine model)")
+    name = Path(args.output).stem if args.output and args.to == "matlab" else "droneid_model"
+    text = export_models(finals, args.to, source=str(args.result), name=name)
+    if args.output:
+        from ..io_util import atomic_write_text
+        atomic_write_text(args.output, text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0

@@ -1,0 +1,160 @@
+"""Export final models (:class:`droneid.identified.IdentifiedModel`) as self-contained code.
+
+``export_models(models, to)`` returns the text of one file, generated through sympy's printers:
+
+``python``
+    a module with one function per target, the signals as keyword arguments (numbers or numpy
+    arrays): ``vx_dot(*, pitch, roll, vx, yaw) -> m/s²``; needs numpy only.
+``c``
+    C99 with ``double vx_dot(double pitch, double roll, double vx, double yaw)`` per target
+    (arguments in alphabetical order; compile with ``-lm``).
+``matlab``
+    one MATLAB / Octave function file: ``m = <name>()`` returns a struct of function handles,
+    ``m.vx_dot(pitch, roll, vx, yaw)`` (element-wise, so vectors work); ``name`` must match the
+    file name.
+``latex``
+    one ``equation`` per target, roll φ, pitch θ, yaw ψ, velocities v_x, ...
+
+Each file starts with a comment that states the inputs with their units, droneid's conventions
+(ENU world, FLU body, Z-Y-X Euler, positive pitch = nose down, seconds), the input delays
+(which input to feed at t − d) and where the models come from (droneid version, source result).
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+import sympy as sp
+
+from . import __version__
+from .errors import ConfigError, MissingSignalError, check_choice
+from .flight import canonical_unit
+from .identified import IdentifiedModel
+
+__all__ = ["FORMATS", "export_models", "CONVENTIONS"]
+
+FORMATS = ("python", "c", "matlab", "latex")
+
+CONVENTIONS = ("world frame ENU (x east, y north, z up); body frame FLU (x forward, y left, z up); "
+               "attitude as Z-Y-X Euler angles in rad: yaw counter-clockwise from east, then pitch "
+               "(positive = nose down), then roll (positive = right side down); velocities in the "
+               "world frame; time in s")
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_LATEX_NAMES = {"roll": r"\phi", "pitch": r"\theta", "yaw": r"\psi", "vx": "v_x", "vy": "v_y", "vz": "v_z",
+                "wx": r"\omega_x", "wy": r"\omega_y", "wz": r"\omega_z"}
+
+
+def _unit(signal: str) -> str:
+    try:
+        return canonical_unit(signal)
+    except MissingSignalError:
+        return "as logged (not a canonical signal)"
+
+
+def _header(models: Sequence[IdentifiedModel], source: str) -> list[str]:
+    """The header lines (without comment markers)."""
+    lines = [f"Identified models exported by droneid {__version__}"
+             + (f" from {source}" if source else "") + ".",
+             "Conventions: " + CONVENTIONS + ".", ""]
+    for m in models:
+        lines.append(f"{m.target} ({m.unit}) = {m.text()}")
+        if m.description:
+            lines.append(f"  what: {m.description}")
+        lines.append("  inputs: " + (", ".join(f"{s} [{_unit(s)}]" for s in m.signals) or "none (a constant)"))
+        if m.delays_s:
+            lines.append("  delays: " + ", ".join(f"feed {s} at t - {d:g} s" for s, d in sorted(m.delays_s.items())))
+        else:
+            lines.append("  delays: none (every input at time t)")
+    return lines
+
+
+def _check(models: Sequence[IdentifiedModel]) -> list[IdentifiedModel]:
+    models = list(models)
+    if not models or not all(isinstance(m, IdentifiedModel) for m in models):
+        raise ConfigError("export needs a non-empty sequence of IdentifiedModel")
+    seen = set()
+    for m in models:
+        for name in (m.target, *m.signals):
+            if not _IDENT.match(name):
+                raise ConfigError(f"cannot export {m.target}: {name!r} is not a valid identifier in code")
+        if m.target in seen:
+            raise ConfigError(f"two models of {m.target}")
+        seen.add(m.target)
+    return models
+
+
+def export_models(models: Sequence[IdentifiedModel], to: str, source: str = "", name: str = "droneid_model") -> str:
+    """The text of one file holding every model, in format ``to`` (one of :data:`FORMATS`).
+
+    ``source`` names where the models come from (e.g. the result.json path) for the header;
+    ``name`` is the MATLAB function name (the file must be called ``<name>.m``)."""
+    check_choice("to", to, FORMATS, owner="export")
+    models = _check(models)
+    header = _header(models, source)
+    if to == "python":
+        return _python(models, header)
+    if to == "c":
+        return _c(models, header)
+    if to == "matlab":
+        if not _IDENT.match(name):
+            raise ConfigError(f"The 'name' parameter of export must be a MATLAB identifier (the file name "
+                              f"without .m). Got {name!r} instead.")
+        return _matlab(models, header, name)
+    return _latex(models, header)
+
+
+def _python(models, header) -> str:
+    from sympy.printing.numpy import NumPyPrinter
+    out = ['"""' + "\n".join(header).replace('"""', "'''").replace("\\", "\\\\") + '\n"""', "import numpy", ""]
+    for m in models:
+        printer = NumPyPrinter({"fully_qualified_modules": True})
+        body = printer.doprint(m.expr)
+        args = ", ".join(m.signals)
+        sig = f"def {m.target}(*, {args}):" if args else f"def {m.target}(**_ignored):"
+        doc = f"{m.target} in {m.unit}; inputs: " + (", ".join(f"{s} [{_unit(s)}]" for s in m.signals) or "none")
+        if m.delays_s:
+            doc += "; delays: " + ", ".join(f"{s} at t - {d:g} s" for s, d in sorted(m.delays_s.items()))
+        out += ["", f"{sig}", f'    """{doc}."""']
+        out += [f"    return {body}", ""]
+    return "\n".join(out).rstrip() + "\n"
+
+
+def _c(models, header) -> str:
+    out = ["/*"] + [(" * " + h).rstrip() for h in header] + [
+        " *", " * C99; compile with -lm. Arguments in alphabetical order of the signal names.", " */",
+        "#include <math.h>", ""]
+    for m in models:
+        args = ", ".join(f"double {s}" for s in m.signals) or "void"
+        out += [f"/* {m.target} in {m.unit} */", f"double {m.target}({args})", "{",
+                f"    return {sp.ccode(m.expr, standard='C99')};", "}", ""]
+    return "\n".join(out)
+
+
+def _matlab(models, header, name) -> str:
+    out = [f"function m = {name}()"] + [("% " + h).rstrip() for h in header] + [
+        "%", f"% Usage: m = {name}(); a = m.{models[0].target}({', '.join(models[0].signals)});",
+        "% (element-wise: vectors of samples work; arguments in alphabetical order)"]
+    out += [f"  m.{mm.target} = @{mm.target};" for mm in models] + ["end", ""]
+    for mm in models:
+        args = ", ".join(mm.signals)
+        out += [f"function out = {mm.target}({args})", f"  % {mm.target} in {mm.unit}",
+                f"  out = {sp.octave_code(mm.expr)};", "end", ""]
+    return "\n".join(out)
+
+
+def _latex(models, header) -> str:
+    out = [("% " + h).rstrip() for h in header] + [""]
+    for m in models:
+        names = {x: _LATEX_NAMES.get(x.name, _latex_name(x.name)) for x in m.expr.free_symbols}
+        lhs = _LATEX_NAMES.get(m.target[:-4], _latex_name(m.target[:-4]))
+        lhs = rf"\dot{{{lhs}}}" if m.target.endswith("_dot") else _latex_name(m.target)
+        out += [r"\begin{equation}", f"  {lhs} = {sp.latex(m.expr, symbol_names=names)}", r"\end{equation}", ""]
+    return "\n".join(out)
+
+
+def _latex_name(s: str) -> str:
+    mt = re.match(r"^([A-Za-z]+)_?(\d+)$", s)
+    if mt:
+        return rf"\mathrm{{{mt.group(1)}}}_{{{mt.group(2)}}}"
+    return r"\mathrm{" + s.replace("_", r"\_") + "}"

@@ -1,0 +1,245 @@
+"""The rungs of one identification, from the empirical model to the final one, and the guards
+that decide which rung a user gets.
+
+Every decision here uses TRAINING data only: blocked cross-validation over contiguous time
+blocks of the training flights (:func:`blocked_cv`). Test flights are evaluated for the report
+and never looked at.
+
+- :class:`TermModel`: ``y = b0 + Σ b_i · term_i`` with sympy terms over canonical signals;
+  :meth:`TermModel.fit` is least squares, :meth:`TermModel.cv_rmse` its blocked-CV error.
+- :func:`choose_delay`: the input delay (s) of the thrust signals that minimises the blocked-CV
+  error of the refit prior over every target; kept only when it gains ``min_gain``.
+- :func:`trim_terms`: merge near-duplicate columns (cancelling pairs) and drop evolved terms that
+  do not improve the CV error by ``margin``.
+- :func:`plausible`: the model on a grid spanning the training inputs' ranges plus a margin
+  stays within physical bounds (no blow-up outside the data).
+
+Errors are in the target's units (m/s² for v̇).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from .expressions import compile_expression
+from .numerics import lstsq, rmse
+
+__all__ = ["TermModel", "block_ids", "validation_blocks", "blocked_cv", "choose_delay", "trim_terms", "plausible",
+           "DELAY_GRID_S", "n_blocks_for"]
+
+#: candidate input delays of the thrust signals (s)
+DELAY_GRID_S = tuple(round(0.01 * k, 2) for k in range(0, 11))
+
+
+def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
+    """Contiguous time blocks 0..n_blocks-1 inside each flight, with equal sample counts
+    (so trimmed ground time or gaps leave no block empty)."""
+    t = np.asarray(t, float)
+    flight = np.asarray(flight, int)
+    out = np.zeros(t.size, dtype=int)
+    for f in np.unique(flight):
+        idx = np.flatnonzero(flight == f)
+        order = idx[np.argsort(t[idx], kind="stable")]
+        out[order] = np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1), n_blocks - 1)
+    return out
+
+
+def validation_blocks(t: np.ndarray, flight: np.ndarray) -> tuple[np.ndarray, str]:
+    """(block ids, description) for validation on training data: whole flights (leave one
+    flight out) when there are at least 3 training flights, so that a term must transfer to a
+    flight it was not fitted on; contiguous time blocks inside the flights otherwise."""
+    flights = np.unique(flight)
+    if flights.size >= 3:
+        return np.searchsorted(flights, flight), f"leave-one-flight-out over {flights.size} training flights"
+    k = n_blocks_for(t.size)
+    return block_ids(t, flight, k), f"{k} contiguous time blocks per training flight"
+
+
+def n_blocks_for(n: int) -> int:
+    """Blocks per flight for ``n`` training samples: ~150 samples a block, 8 to 20 blocks."""
+    return int(np.clip(n // 150, 8, 20))
+
+
+def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    """Held-out predictions of least squares on ``A`` (an intercept column included by the
+    caller): every block is predicted by the fit on all other blocks."""
+    pred = np.empty_like(y)
+    for b in np.unique(blocks):
+        hold = blocks == b
+        pred[hold] = A[hold] @ lstsq(A[~hold], y[~hold])
+    return pred
+
+
+def _eval(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+    names = sorted(s.name for s in expr.free_symbols)
+    if not names:
+        return np.full(n, float(expr))
+    with np.errstate(all="ignore"):
+        v = compile_expression(expr, names)({k: np.asarray(columns[k], float) for k in names})
+    return np.broadcast_to(np.asarray(v, float), (n,)).astype(float)
+
+
+@dataclass(frozen=True)
+class TermModel:
+    """``y = intercept + Σ coefs[i] · terms[i]``; ``labels`` name the terms (for the report)."""
+    terms: tuple
+    labels: tuple
+    coefs: tuple = ()
+    intercept: float = 0.0
+
+    def design(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+        """(n, k+1): one column per term, then ones."""
+        cols = [_eval(t, columns, n) for t in self.terms]
+        return np.column_stack([*cols, np.ones(n)]) if cols else np.ones((n, 1))
+
+    def fit(self, columns: Mapping[str, np.ndarray], y: np.ndarray) -> "TermModel":
+        beta = lstsq(self.design(columns, y.size), y)
+        return TermModel(self.terms, self.labels, tuple(float(b) for b in beta[:-1]), float(beta[-1]))
+
+    def predict(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+        return self.design(columns, n) @ np.array([*self.coefs, self.intercept])
+
+    def cv_rmse(self, columns, y, blocks) -> float:
+        return rmse(blocked_cv(self.design(columns, y.size), y, blocks), y)
+
+    def expr(self) -> sp.Expr:
+        """The fitted model as one sympy expression."""
+        return sp.Float(self.intercept) + sp.Add(*[sp.Float(c) * t for c, t in zip(self.coefs, self.terms)])
+
+    def with_terms(self, terms: Sequence, labels: Sequence) -> "TermModel":
+        return TermModel(tuple(terms), tuple(labels))
+
+
+def choose_delay(cv_error: Callable[[float], float], grid: Sequence[float] = DELAY_GRID_S,
+                 min_gain: float = 0.01) -> tuple[float, dict]:
+    """(chosen delay s, {delay: CV error}): the delay with the lowest ``cv_error(delay)`` if it
+    beats no delay by ``min_gain`` (relative), else 0."""
+    scores = {float(d): float(cv_error(float(d))) for d in grid}
+    best = min(scores, key=lambda d: (scores[d], d))
+    base = scores.get(0.0, math.inf)
+    if best != 0.0 and scores[best] <= (1.0 - min_gain) * base:
+        return best, scores
+    return 0.0, scores
+
+
+#: an evolved term with more operations than this is not something a person can read aloud
+MAX_TERM_OPS = 12
+
+
+def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: float = 0.01,
+               corr_limit: float = 0.999, max_ops: int = MAX_TERM_OPS, cancel_limit: float = 3.0
+               ) -> tuple[TermModel, list[str]]:
+    """Drop evolved terms (index ≥ ``keep_first``) that do not earn their place.
+
+    1. A term whose column correlates with an earlier one beyond ``corr_limit`` (a cancelling
+       pair or a near-duplicate) is dropped (least squares refits the survivor).
+    Terms with more than ``max_ops`` sympy operations are dropped first (unreadable). While the
+       terms' contributions Σ|b_i|·std(col_i) exceed ``cancel_limit`` times the spread of their
+       sum, the evolved term contributing most goes (a cancelling pair such as 22.9·cos a − 21.7·cos b
+       fits the training range and explodes outside it).
+    2. Backward elimination on the blocked-CV error: the evolved term whose removal costs least
+       goes while the CV error rises by less than ``margin`` (relative).
+    Returns the refit model and one line per dropped term.
+    """
+    n = y.size
+    cols = [_eval(t, columns, n) for t in model.terms]
+    notes = []
+    keep = []
+    for i, c in enumerate(cols):
+        dup = None
+        if i >= keep_first and np.std(c) > 0 and np.all(np.isfinite(c)):
+            for j in keep:
+                cj = cols[j]
+                if np.std(cj) > 0 and abs(np.corrcoef(c, cj)[0, 1]) > corr_limit:
+                    dup = j
+                    break
+        elif i >= keep_first:
+            dup = -1
+        if dup is None and i >= keep_first and sp.count_ops(model.terms[i]) > max_ops:
+            dup = -2
+        if dup is None:
+            keep.append(i)
+        else:
+            why = {-1: "not finite or constant on the training data",
+                   -2: f"more than {max_ops} operations (unreadable)"}.get(dup)
+            notes.append(f"dropped {model.labels[i]}: " + (why or f"duplicates {model.labels[dup]}"))
+
+    def cv(idx):
+        A = np.column_stack([*(cols[i] for i in idx), np.ones(n)])
+        return rmse(blocked_cv(A, y, blocks), y)
+
+    def cancellation(idx):
+        """Σ|b_i|·std(col_i) over the spread of their sum: ≫ 1 when terms cancel each other."""
+        A = np.column_stack([*(cols[i] for i in idx), np.ones(n)])
+        beta = lstsq(A, y)[:-1]
+        parts = [b * cols[i] for b, i in zip(beta, idx)]
+        spread = float(np.std(np.sum(parts, axis=0)))
+        return {i: abs(b) * float(np.std(cols[i])) for b, i in zip(beta, idx)}, spread
+
+    while True:  # cancelling pairs: big opposite contributions that nearly sum to nothing
+        contrib, spread = cancellation(keep)
+        evolved = [i for i in keep if i >= keep_first]
+        if not evolved or sum(contrib.values()) <= cancel_limit * max(spread, 1e-12):
+            break
+        i = max(evolved, key=lambda k: contrib[k])
+        keep.remove(i)
+        notes.append(f"dropped {model.labels[i]}: it cancels other terms (contributions "
+                     f"{sum(contrib.values()):.3g} for a sum that spreads {spread:.3g})")
+
+    cur = cv(keep)
+    while True:
+        evolved = [i for i in keep if i >= keep_first]
+        if not evolved:
+            break
+        trials = {i: cv([k for k in keep if k != i]) for i in evolved}
+        i = min(trials, key=trials.get)
+        if trials[i] <= cur * (1.0 + margin):
+            keep.remove(i)
+            notes.append(f"dropped {model.labels[i]}: validation error {cur:.4g} -> {trials[i]:.4g} without it")
+            cur = min(cur, trials[i]) if trials[i] < cur else trials[i]
+        else:
+            break
+    trimmed = TermModel(tuple(model.terms[i] for i in keep), tuple(model.labels[i] for i in keep))
+    return trimmed.fit(columns, y), notes
+
+
+@dataclass(frozen=True)
+class Plausibility:
+    ok: bool
+    max_abs: float
+    bound: float
+    n_points: int
+    note: str = ""
+
+
+def plausible(expr: sp.Expr, ranges: Mapping[str, tuple[float, float]], bound: float,
+              margin: float = 0.2, n_points: int = 4000, seed: int = 0,
+              fixed: Mapping[str, float] | None = None) -> Plausibility:
+    """Whether ``expr`` stays within ±``bound`` on random points spanning every input's training
+    range widened by ``margin`` of its span on each side (angles kept within ±80° for roll and
+    pitch, where the thrust still holds the vehicle up)."""
+    rng = np.random.default_rng(seed)
+    names = sorted(s.name for s in expr.free_symbols)
+    cols = {}
+    for n in names:
+        if n in (fixed or {}):
+            cols[n] = np.full(n_points, float(fixed[n]))
+            continue
+        lo, hi = ranges.get(n, (0.0, 0.0))
+        pad = margin * (hi - lo)
+        lo, hi = lo - pad, hi + pad
+        if n in ("roll", "pitch"):
+            lo, hi = max(lo, -math.radians(80)), min(hi, math.radians(80))
+        if n.startswith(("rpm", "motor")) or n in ("throttle", "thrust", "battery_voltage"):
+            lo = max(lo, 0.0)
+        cols[n] = rng.uniform(lo, hi, n_points)
+    v = _eval(expr, cols, n_points)
+    m = float(np.max(np.abs(v))) if np.all(np.isfinite(v)) else math.inf
+    ok = m <= bound
+    note = "" if ok else (f"reaches {m:.3g} (bound {bound:.3g}) on inputs within the training range "
+                          f"± {100 * margin:.0f} %")
+    return Plausibility(ok, m, float(bound), n_points, note)
