@@ -18,11 +18,12 @@ import numpy as np
 from .errors import DataError, MissingSignalError
 
 __all__ = [
-    "CANONICAL_SIGNALS", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
     "canonical_unit", "is_canonical",
 ]
 
-#: Canonical signal names -> (unit, meaning). Motor outputs are ``motor1`` .. ``motor16``.
+#: Canonical signal names -> (unit, meaning). Per-motor signals (``motor1`` .. ``motor16``,
+#: ``rpm1`` .. ``rpm16``) are in :data:`ROTOR_SIGNALS`; see docs/signals.md.
 CANONICAL_SIGNALS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "x": ("m", "position east of the local origin (world ENU)"),
     "y": ("m", "position north of the local origin (world ENU)"),
@@ -56,22 +57,37 @@ CANONICAL_SIGNALS: Mapping[str, tuple[str, str]] = MappingProxyType({
 _MOTOR_RE = re.compile(r"^motor([1-9]|1[0-6])$")
 _RPM_RE = re.compile(r"^rpm([1-9]|1[0-6])$")
 
+#: Per-motor signal families, N = 1..16 in the vehicle's motor order (ArduPilot / PX4 motor
+#: numbering): prefix -> (regex, unit, meaning).
+ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
+    "motor": (_MOTOR_RE, "1", "motor N command, normalised to 0..1 (source says from which range)"),
+    "rpm": (_RPM_RE, "rpm", "motor N speed in revolutions per minute (electrical rpm where the "
+                            "source says erpm: the pole-pair factor is left to the fitted scale)"),
+})
+
+
+def _rotor(name: str):
+    for prefix, (rx, unit, _) in ROTOR_SIGNALS.items():
+        m = rx.match(name)
+        if m:
+            return prefix, int(m.group(1)), unit
+    return None
+
 
 def is_canonical(name: str) -> bool:
-    """True for a canonical signal name (including ``motor1`` .. ``motor16``)."""
-    return name in CANONICAL_SIGNALS or bool(_MOTOR_RE.match(name)) or bool(_RPM_RE.match(name))
+    """True for a canonical signal name (including ``motor1..16`` and ``rpm1..16``)."""
+    return name in CANONICAL_SIGNALS or _rotor(name) is not None
 
 
 def canonical_unit(name: str) -> str:
     """The unit of a canonical signal (``"1"`` for dimensionless)."""
-    if _MOTOR_RE.match(name):
-        return "1"
-    if _RPM_RE.match(name):
-        return "rpm"
+    r = _rotor(name)
+    if r:
+        return r[2]
     try:
         return CANONICAL_SIGNALS[name][0]
     except KeyError:
-        raise MissingSignalError(name, list(CANONICAL_SIGNALS) + ["motor1"],
+        raise MissingSignalError(name, list(CANONICAL_SIGNALS) + ["motor1", "rpm1"],
                                  where="the canonical signal list") from None
 
 
@@ -134,7 +150,9 @@ class Signal:
         """Build a signal from raw samples, dropping non-finite values and non-increasing stamps.
 
         Returns the signal and a dict ``{reason: count}`` of what was dropped (empty if nothing).
-        Duplicate stamps keep the first sample; a stamp earlier than the last kept one is dropped.
+        A lone stamp later than the next one (while the one before is earlier) is dropped first;
+        then duplicate stamps keep the first sample and a stamp earlier than the last kept one is
+        dropped.
         """
         t = np.asarray(t, dtype=np.float64).ravel()
         v = np.asarray(values, dtype=np.float64).ravel()
@@ -143,6 +161,15 @@ class Signal:
         if not finite.all():
             dropped["non-finite values"] = int((~finite).sum())
             t, v = t[finite], v[finite]
+        if t.size > 2:
+            # a lone stamp ahead of its successor while its predecessor is not (a damaged stamp,
+            # e.g. one flipped bit) would make every later sample look "backwards": drop it alone
+            spike = np.zeros(t.size, dtype=bool)
+            spike[1:-1] = (t[1:-1] > t[2:]) & (t[:-2] < t[2:])
+            spike[0] = t[0] > t[1] and t[0] > t[2] and t[1] < t[2]
+            if spike.any():
+                dropped["out-of-sequence time stamps"] = int(spike.sum())
+                t, v = t[~spike], v[~spike]
         if t.size > 1:
             keep = np.empty(t.size, dtype=bool)
             keep[0] = True
@@ -159,15 +186,45 @@ class Signal:
         return cls(name, t, v, unit, source), dropped
 
 
+#: The vehicle types a flight can declare (:attr:`Provenance.vehicle_type`).
+VEHICLE_TYPES = ("multirotor", "fixed-wing", "vtol", "rover", "unknown")
+
+#: MAVLink MAV_TYPE -> (vehicle type, MAV_TYPE name); types not listed are "unknown".
+MAV_TYPES: Mapping[int, tuple[str, str]] = MappingProxyType({
+    1: ("fixed-wing", "MAV_TYPE_FIXED_WING"), 2: ("multirotor", "MAV_TYPE_QUADROTOR"),
+    3: ("multirotor", "MAV_TYPE_COAXIAL"), 4: ("unknown", "MAV_TYPE_HELICOPTER"),
+    10: ("rover", "MAV_TYPE_GROUND_ROVER"), 11: ("rover", "MAV_TYPE_SURFACE_BOAT"),
+    12: ("unknown", "MAV_TYPE_SUBMARINE"), 13: ("multirotor", "MAV_TYPE_HEXAROTOR"),
+    14: ("multirotor", "MAV_TYPE_OCTOROTOR"), 15: ("multirotor", "MAV_TYPE_TRICOPTER"),
+    16: ("fixed-wing", "MAV_TYPE_FLAPPING_WING"), 19: ("vtol", "MAV_TYPE_VTOL_TAILSITTER_DUOROTOR"),
+    20: ("vtol", "MAV_TYPE_VTOL_TAILSITTER_QUADROTOR"), 21: ("vtol", "MAV_TYPE_VTOL_TILTROTOR"),
+    22: ("vtol", "MAV_TYPE_VTOL_FIXEDROTOR"), 23: ("vtol", "MAV_TYPE_VTOL_TAILSITTER"),
+    24: ("vtol", "MAV_TYPE_VTOL_TILTWING"), 25: ("vtol", "MAV_TYPE_VTOL_RESERVED5"),
+    29: ("multirotor", "MAV_TYPE_DODECAROTOR"), 35: ("multirotor", "MAV_TYPE_DECAROTOR"),
+})
+
+
+def vehicle_from_mav_type(mav_type: int) -> tuple[str, str]:
+    """(vehicle type, declaration text) of a MAVLink MAV_TYPE number."""
+    kind, name = MAV_TYPES.get(int(mav_type), ("unknown", f"MAV_TYPE {int(mav_type)}"))
+    return kind, name
+
+
 @dataclass(frozen=True)
 class Provenance:
     """Where a flight came from: files, format, vehicle and firmware when known, and notes
-    on how signals were obtained (e.g. "vx, vy, vz derived from x, y, z by central differences")."""
+    on how signals were obtained (e.g. "vx, vy, vz derived from x, y, z by central differences").
+
+    ``vehicle`` is free text (frame, board); ``vehicle_type`` is one of :data:`VEHICLE_TYPES`,
+    from the log's own declaration (MAVLink HEARTBEAT type, ArduPilot firmware name, PX4
+    vehicle_status) or the user's ``--vehicle``; ``vehicle_declared`` says which (raw text)."""
     files: tuple[str, ...] = ()
     format: str = "unknown"
     vehicle: str | None = None
     firmware: str | None = None
     notes: tuple[str, ...] = ()
+    vehicle_type: str = "unknown"
+    vehicle_declared: str | None = None
 
     def with_note(self, note: str) -> "Provenance":
         return replace(self, notes=self.notes + (note,))
@@ -314,6 +371,8 @@ class Flight:
             "files": list(self.provenance.files),
             "format": self.provenance.format,
             "vehicle": self.provenance.vehicle,
+            "vehicle_type": self.provenance.vehicle_type,
+            "vehicle_declared": self.provenance.vehicle_declared,
             "firmware": self.provenance.firmware,
             "duration_s": _r(self.duration_s),
             "signals": [
@@ -336,7 +395,7 @@ _ORDER = {n: i for i, n in enumerate(CANONICAL_SIGNALS)}
 
 
 def _signal_order(s: Signal):
-    m = _MOTOR_RE.match(s.name)
-    if m:
-        return (len(_ORDER), int(m.group(1)), s.name)
-    return (_ORDER.get(s.name, len(_ORDER) + 1), 0, s.name)
+    r = _rotor(s.name)
+    if r:
+        return (len(_ORDER) + list(ROTOR_SIGNALS).index(r[0]), r[1], s.name)
+    return (_ORDER.get(s.name, len(_ORDER) + len(ROTOR_SIGNALS)), 0, s.name)

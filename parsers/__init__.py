@@ -7,12 +7,18 @@ the extension only breaks ties. Readers are registered by format name in :data:`
 from __future__ import annotations
 
 import importlib
+import logging
 import os
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from types import MappingProxyType
 
-from droneid.errors import ConfigError, LogFormatError, did_you_mean
-from droneid.flight import Flight
+from droneid.errors import ConfigError, DroneIdError, LogFormatError, check_choice, did_you_mean
+from droneid.flight import VEHICLE_TYPES, Flight
+
+from ._guard import captured_output
+
+log = logging.getLogger(__name__)
 
 __all__ = ["read_flight", "detect_format", "get_reader", "READERS", "FORMATS"]
 
@@ -112,7 +118,7 @@ def detect_format(path) -> str:
 
 def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | None = None,
                 body: str | None = None, column_map: Mapping[str, str] | None = None,
-                sysid: int | None = None) -> Flight:
+                sysid: int | None = None, vehicle: str | None = None) -> Flight:
     """Read one flight log into a :class:`Flight` (internal convention: ENU/FLU, SI, seconds).
 
     Parameters
@@ -123,7 +129,12 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     body : the rigid body to read from a Motive CSV with several bodies.
     column_map : CSV canonical name -> column name overrides, e.g. ``{"x": "pos_x"}``.
     sysid : MAVLink system id of the vehicle in a tlog (default: the vehicle's heartbeat).
+    vehicle : the vehicle type (one of :data:`droneid.flight.VEHICLE_TYPES`) when the log does not
+        declare it (mocap CSV, MCAP) or declares it wrongly; the log's declaration is kept in
+        ``vehicle_declared``.
     """
+    if vehicle is not None:
+        check_choice("vehicle", vehicle, VEHICLE_TYPES, "read_flight")
     path = os.fspath(path)
     if not os.path.exists(path):
         raise FileNotFoundError(2, "No such file or directory", path)
@@ -144,4 +155,41 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     bad = [k for k, v in unused.items() if v is not None and k not in opts]
     if bad:
         raise ConfigError(f"option(s) {', '.join(bad)} do not apply to {fmt} logs ({path})")
-    return reader(path, **opts)
+    flight = _guarded(reader, path, fmt, opts)
+    if vehicle is not None:
+        prov = flight.provenance
+        said = f"; the log declares {prov.vehicle_declared}" if prov.vehicle_declared else ""
+        flight = replace(flight, provenance=replace(
+            prov, vehicle_type=vehicle, vehicle_declared=f"--vehicle {vehicle}{said}"))
+    return flight
+
+
+def _guarded(reader, path: str, fmt: str, opts: dict) -> Flight:
+    """Run a reader so that nothing escapes but a Flight or a DroneIdError (the one wrapper).
+
+    * whatever the third-party libraries print (pymavlink's "bad header" lines, pyulog's
+      "File corruption detected") is captured and counted into the Flight's diagnostics;
+    * any other exception (a bug on a damaged file: KeyError, struct.error, a loop guard, ...)
+      becomes a LogFormatError naming the file, the problem, and the output captured so far;
+    * one warning line is logged when the reader met damage (the details are in the Flight).
+    """
+    try:
+        with captured_output() as cap:
+            flight = reader(path, **opts)
+    except (DroneIdError, FileNotFoundError, PermissionError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - the boundary: a damaged file must not traceback
+        msg = str(exc).splitlines()[0][:200] if str(exc) else ""
+        extra = f"; the {fmt} library reported {len(cap.lines)} problems first" if cap.lines else ""
+        raise LogFormatError(path, f"unreadable {fmt} log, damaged beyond what the reader "
+                                   f"skips ({type(exc).__name__}: {msg}){extra}") from exc
+    lines = cap.lines
+    if lines:
+        first = lines[0].strip()[:100]
+        diag = flight.diagnostics.add(warnings=[
+            f"{len(lines)} lines of reader library output suppressed (first: {first!r})"])
+        flight = replace(flight, diagnostics=diag)
+    if flight.diagnostics.warnings:
+        log.warning("%s: %d reader warning(s), %d records/samples skipped (details: droneid "
+                    "inspect)", path, len(flight.diagnostics.warnings), flight.diagnostics.total_skipped)
+    return flight

@@ -17,12 +17,69 @@ from droneid.flight import Diagnostics, Event, Flight, Provenance, Signal
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit"]
+#: |time| beyond this many seconds from the log start is damage, not data (~3 years)
+MAX_TIME_S = 1e8
+
+__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit",
+           "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS", "command_to_unit"]
 
 
-def pwm_to_unit(pwm) -> np.ndarray:
-    """Servo PWM in µs (1000..2000) to 0..1 (clipped); 0 µs (output off) becomes 0."""
-    return np.clip((np.asarray(pwm, float) - 1000.0) / 1000.0, 0.0, 1.0)
+def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:
+    """Servo PWM in µs (``lo``..``hi``, default 1000..2000) to 0..1 (clipped); 0 µs (output off)
+    becomes 0."""
+    return np.clip((np.asarray(pwm, float) - lo) / (hi - lo), 0.0, 1.0)
+
+
+def command_to_unit(v) -> tuple[np.ndarray, str]:
+    """A motor command column to 0..1, judged by its range: 0..1 as is, PWM µs (800..2200)
+    with 1000-2000, percent (up to 100) / 100. Returns the values and how they were read."""
+    v = np.asarray(v, float)
+    fin = v[np.isfinite(v)]
+    if not fin.size or (fin.min() >= -1e-9 and fin.max() <= 1 + 1e-9):
+        return v, "0..1"
+    if fin.max() > 100:
+        return pwm_to_unit(v), "PWM 1000-2000 us -> 0..1"
+    return v / 100.0, "0..100 % -> 0..1"
+
+
+#: ArduPilot SERVOn_FUNCTION values of motors: 33..40 = motor1..8, 82..85 = motor9..12
+ARDUPILOT_MOTOR_FUNCTIONS = {**{33 + i: i + 1 for i in range(8)}, **{82 + i: 9 + i for i in range(4)}}
+
+
+def ardupilot_motor_channels(params, channels, n_default: int = 4):
+    """ArduPilot output channels that drive motors: ``[(channel, motor, lo_us, hi_us, how)]``.
+
+    ``params`` are the log's parameters (DataFlash PARM, MAVLink PARAM_VALUE), ``channels`` the
+    1-based output channels present. The motor of a channel is its ``SERVOn_FUNCTION``
+    (:data:`ARDUPILOT_MOTOR_FUNCTIONS`); logs without SERVOn_FUNCTION (before ArduPilot 3.5)
+    take channels 1..``n_default`` as motors 1..``n_default`` (a quad), which ``how`` says.
+    The PWM range is ``MOT_PWM_MIN``/``MOT_PWM_MAX`` when set (non-zero), else the channel's
+    ``SERVOn_MIN``/``SERVOn_MAX``, else ``RC3_MIN``/``RC3_MAX`` (ArduCopter 3.x drives its
+    motors over the throttle channel's range), else 1000-2000 µs.
+    """
+    params = params or {}
+    out = []
+    has_func = any(f"SERVO{c}_FUNCTION" in params for c in channels)
+    mot_lo, mot_hi = params.get("MOT_PWM_MIN", 0) or 0, params.get("MOT_PWM_MAX", 0) or 0
+    for c in sorted(channels):
+        if has_func:
+            motor = ARDUPILOT_MOTOR_FUNCTIONS.get(int(params.get(f"SERVO{c}_FUNCTION", 0) or 0))
+            mapping = f"SERVO{c}_FUNCTION"
+        else:
+            motor = c if c <= n_default else None
+            mapping = f"no SERVOn_FUNCTION in the log: channel {c} taken as motor {c} of a quad"
+        if motor is None:
+            continue
+        if mot_lo > 0 and mot_hi > mot_lo:
+            lo, hi, rng = mot_lo, mot_hi, "MOT_PWM_MIN/MAX"
+        elif params.get(f"SERVO{c}_MAX", 0) > params.get(f"SERVO{c}_MIN", 0) > 0:
+            lo, hi, rng = params[f"SERVO{c}_MIN"], params[f"SERVO{c}_MAX"], f"SERVO{c}_MIN/MAX"
+        elif params.get("RC3_MAX", 0) > params.get("RC3_MIN", 0) > 0:
+            lo, hi, rng = params["RC3_MIN"], params["RC3_MAX"], "RC3_MIN/MAX"
+        else:
+            lo, hi, rng = 1000.0, 2000.0, "default"
+        out.append((c, motor, float(lo), float(hi), f"PWM {lo:.0f}-{hi:.0f} us ({rng}) -> 0..1; {mapping}"))
+    return out
 
 
 def central_difference(t: np.ndarray, x: np.ndarray, max_gap_factor: float = 2.5) -> np.ndarray:
@@ -82,6 +139,8 @@ class FlightBuilder:
         self.notes: list[str] = []
         self.vehicle: str | None = None
         self.firmware: str | None = None
+        self.vehicle_type: str = "unknown"          # one of droneid.flight.VEHICLE_TYPES
+        self.vehicle_declared: str | None = None    # the raw declaration it came from
 
     # -- diagnostics ---------------------------------------------------------------------
     def skip(self, reason: str, n: int = 1) -> None:
@@ -89,7 +148,8 @@ class FlightBuilder:
             self.skipped[reason] = self.skipped.get(reason, 0) + int(n)
 
     def warn(self, text: str) -> None:
-        log.warning("%s: %s", self.path, text)
+        # kept as data; read_flight logs one summary warning per damaged file (a quiet terminal)
+        log.info("%s: %s", self.path, text)
         self.warnings.append(text)
 
     # -- signals -------------------------------------------------------------------------
@@ -99,6 +159,10 @@ class FlightBuilder:
         values = np.asarray(values, float)
         if t.size == 0:
             return
+        wild = np.abs(t) > MAX_TIME_S        # a damaged or nonsense stamp (1e300) breaks ordering
+        if wild.any():
+            self.skip(f"{name}: time stamps beyond {MAX_TIME_S:.0e} s from the log start", int(wild.sum()))
+            t, values = t[~wild], values[~wild]
         sig, dropped = Signal.clean(name, t, values, unit, source)
         for reason, n in dropped.items():
             self.skip(f"{name}: {reason}", n)
@@ -160,7 +224,8 @@ class FlightBuilder:
             raise LogFormatError(self.path, f"no usable {self.format} signals found{detail}")
         self.derive_velocity()
         prov = Provenance(files=(self.path,), format=self.format, vehicle=self.vehicle,
-                          firmware=self.firmware, notes=tuple(self.notes))
+                          firmware=self.firmware, notes=tuple(self.notes),
+                          vehicle_type=self.vehicle_type, vehicle_declared=self.vehicle_declared)
         diag = Diagnostics(self.skipped, tuple(self.warnings))
         return Flight(self.signals, prov, diag, self.segments, tuple(self.events))
 

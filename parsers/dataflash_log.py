@@ -6,8 +6,11 @@ What is read (old 3.x names / new 4.x names), converted from NED/FRD to ENU/FLU:
 * ``EKF1`` (3.x) / ``NKF1`` / ``XKF1`` (4.x, core ``C == 0``) VN VE VD, PN PE PD -> vx vy vz, x y z.
   When a log holds both NKF1 and XKF1, the parameter ``AHRS_EKF_TYPE`` picks (else the larger).
 * ``IMU`` (instance 0) GyrX..Z, AccX..Z (FRD) -> wx wy wz, ax ay az (FLU: y and z negated)
-* ``RCOU`` ``Ch1..`` / ``C1..`` PWM -> motor1.. (0..1); channels that are always 0 are dropped.
-  The servo-function mapping is not applied: channel N becomes motorN.
+* ``RCOU`` ``Ch1..`` / ``C1..`` PWM -> motorN (0..1) through the log's ``SERVOn_FUNCTION``
+  parameters (33..40 = motor1..8) and PWM range (``MOT_PWM_MIN/MAX``, else ``SERVOn_MIN/MAX``,
+  else ``RC3_MIN/MAX``, else 1000-2000; see :func:`ardupilot_motor_channels`); logs without
+  SERVOn_FUNCTION: channels 1..4 (or the "Frame:" message's motor count) = motors 1..4
+* ``ESC`` (ESC telemetry) ``Instance``, ``RPM`` -> rpm{Instance+1} (rpm)
 * ``CTUN`` ``ThrOut`` (3.x: 0..1000, detected by its range) / ``ThO`` (4.x: 0..1) -> throttle
 * ``CURR`` (3.x; centivolts / centiamps when the values say so) / ``BAT`` (4.x, instance 0) -> battery
 * ``GPS`` (3D fix only) Lat Lng Alt -> lat lon alt; ``BARO`` Alt -> baro_alt
@@ -20,8 +23,6 @@ its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages wi
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import logging
 import math
 import os
@@ -34,7 +35,7 @@ from droneid.errors import LogFormatError
 from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
-from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +43,7 @@ __all__ = ["read_dataflash", "MESSAGE_TYPES"]
 
 #: DataFlash message types this reader asks pymavlink for.
 MESSAGE_TYPES = ("ATT", "EKF1", "NKF1", "XKF1", "IMU", "RCOU", "CTUN", "CURR", "BAT", "GPS",
-                 "BARO", "MODE", "EV", "ERR", "MSG", "ARM", "PARM")
+                 "BARO", "MODE", "EV", "ERR", "MSG", "ARM", "PARM", "ESC")
 
 _EV_ARMED, _EV_DISARMED, _EV_LAND_COMPLETE, _EV_NOT_LANDED = 10, 11, 18, 28
 _ERR_CRASH = 12
@@ -69,6 +70,23 @@ _WANT = {
     "MSG": ("Message",),
     "ARM": ("ArmState",),
     "PARM": ("Name", "Value"),
+    "ESC": ("Instance", "RPM"),
+}
+
+
+#: fields a type must have to be used: a damaged FMT record can rename or drop columns
+_REQUIRED = {
+    "ATT": ("Roll", "Pitch", "Yaw"),
+    "EKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "NKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "XKF1": ("VN", "VE", "VD", "PN", "PE", "PD"),
+    "IMU": ("GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"),
+    "CURR": ("Volt",), "BAT": ("Volt",),
+    "GPS": ("Status", "Lat", "Lng", "Alt"),
+    "BARO": ("Alt",),
+    "EV": ("Id",), "ERR": ("Subsys", "ECode"), "MSG": ("Message",), "ARM": ("ArmState",),
+    "PARM": ("Name", "Value"),
+    "ESC": ("RPM",),
 }
 
 
@@ -106,16 +124,34 @@ class _TypeRows:
 
 
 def _scan(path, b: FlightBuilder):
-    """One pass over the log: per-type time and field lists (boot seconds)."""
-    noise = io.StringIO()
-    with contextlib.redirect_stderr(noise):   # pymavlink prints "bad header" lines
-        dflog = _open(path)
-        types = _loop(dflog, b)
+    """One pass over the log: per-type time and field lists (boot seconds).
+
+    pymavlink prints one line per damaged byte; read_flight captures that output. The damage is
+    counted here from pymavlink's own index instead: the bytes no indexed record covers."""
+    dflog = _open(path)
+    types = _loop(dflog, b)
     _check_end(dflog, b)
-    bad = sum(1 for line in noise.getvalue().splitlines() if line.startswith(("bad header", "Skipped")))
-    if bad:
-        b.skip("corrupt bytes or unknown records (pymavlink resynchronised)", bad)
+    _count_damage(dflog, b)
     return types
+
+
+def _count_damage(dflog, b: FlightBuilder) -> None:
+    """Bytes before the last record that no record pymavlink indexed covers (garbage, damaged
+    headers); what follows the last record is :func:`_check_end`'s."""
+    try:
+        size = int(dflog.data_len)
+        covered, last_end = 0, 0
+        for mtype, offs in enumerate(dflog.offsets):
+            if offs and mtype in dflog.formats:
+                o = np.asarray(offs, dtype=np.int64)
+                ln = dflog.formats[mtype].len
+                covered += int(np.minimum(ln, size - o).sum())
+                last_end = max(last_end, int(o[-1]) + ln)
+    except (AttributeError, TypeError, ValueError, IndexError):
+        return
+    gap = min(size, last_end) - covered
+    if gap > 0:
+        b.skip("corrupt bytes outside any record (pymavlink resynchronised)", gap)
 
 
 def _loop(dflog, b: FlightBuilder) -> dict:
@@ -124,6 +160,7 @@ def _loop(dflog, b: FlightBuilder) -> dict:
     last_boot = math.nan
     recv = dflog.recv_match
     wanted = list(MESSAGE_TYPES)
+    broken: dict[str, list[str]] = {}
     n_bad = 0
     while True:
         try:
@@ -137,7 +174,16 @@ def _loop(dflog, b: FlightBuilder) -> dict:
         mtype = m.get_type()
         tr = types.get(mtype)
         if tr is None:
-            tr = types[mtype] = _TypeRows(mtype, list(m.get_fieldnames()))
+            cols = list(m.get_fieldnames())
+            lost = [f for f in _REQUIRED.get(mtype, ()) if f not in cols]
+            if lost:
+                tr = types[mtype] = None
+                broken[mtype] = lost
+            else:
+                tr = types[mtype] = _TypeRows(mtype, cols)
+        if tr is None:
+            b.skip(f"{mtype} records whose FMT lacks {', '.join(broken[mtype])} (damaged FMT)")
+            continue
         if tr.time_field is not None:
             raw = getattr(m, tr.time_field)
             boot = last_boot = raw * (1e-6 if tr.time_field == "TimeUS" else 1e-3)
@@ -147,7 +193,7 @@ def _loop(dflog, b: FlightBuilder) -> dict:
         tr.rows.append(tr.get(m))
     if n_bad:
         b.skip("corrupt records", n_bad)
-    return types
+    return {k: v for k, v in types.items() if v is not None}
 
 
 def _check_end(dflog, b: FlightBuilder) -> None:
@@ -214,6 +260,7 @@ def read_dataflash(path) -> Flight:
     if b.vehicle is None and b.firmware:
         m = re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)", b.firmware)
         b.vehicle = m.group(1).lower() if m else None
+    b.vehicle_type, b.vehicle_declared = _vehicle_type(b.firmware, b.vehicle, params)
 
     if "ATT" in data:
         t, c = data["ATT"]
@@ -239,10 +286,17 @@ def read_dataflash(path) -> Flight:
 
     if "RCOU" in data:
         t, c = data["RCOU"]
-        for f, v in c.items():
-            n = int(re.sub(r"^Ch?", "", f))
-            if np.any(v > 0):
-                b.add(f"motor{n}", t, pwm_to_unit(v), "1", f"RCOU.{f}")
+        field = {int(re.sub(r"^Ch?", "", f)): f for f, v in c.items() if np.any(v > 0)}
+        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, field, _frame_motors(b.vehicle)):
+            b.add(f"motor{motor}", t, pwm_to_unit(c[field[ch]], lo, hi), "1", f"RCOU.{field[ch]} ({how})")
+
+    if "ESC" in data:
+        t, c = data["ESC"]
+        inst = c.get("Instance", np.zeros(t.size))
+        for i in np.unique(inst[np.isfinite(inst)]).astype(int):
+            if 0 <= i < 16:
+                m = inst == i
+                b.add(f"rpm{i + 1}", t[m], c["RPM"][m], "rpm", f"ESC[{i}].RPM (ESC telemetry)")
 
     if "CTUN" in data:
         t, c = data["CTUN"]
@@ -280,6 +334,37 @@ def read_dataflash(path) -> Flight:
     _events(b, data, types)
     b.in_flight_from_height()
     return b.build()
+
+
+_FRAME_MOTORS = {"quad": 4, "hexa": 6, "octa": 8, "octaquad": 8, "y6": 6, "tri": 3, "deca": 10,
+                 "dodecahexa": 12}
+
+
+def _vehicle_type(firmware: str | None, frame: str | None, params) -> tuple[str, str | None]:
+    """From the firmware string (MSG "ArduCopter V4.6.2", "APM:Plane V3.9"): Copter ->
+    multirotor (a "Frame: HELI" is not), Plane -> fixed-wing (vtol when Q_ENABLE = 1),
+    Rover -> rover."""
+    if not firmware:
+        return "unknown", None
+    m = re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)", firmware)
+    what = m.group(1) if m else None
+    decl = f"firmware {firmware!r}"
+    if what == "Copter":
+        if (frame or "").lower().startswith("heli"):
+            return "unknown", decl + f", frame {frame}"
+        return "multirotor", decl
+    if what == "Plane":
+        if params.get("Q_ENABLE", 0) >= 1:
+            return "vtol", decl + ", Q_ENABLE = 1 (QuadPlane)"
+        return "fixed-wing", decl
+    if what == "Rover":
+        return "rover", decl
+    return "unknown", decl
+
+
+def _frame_motors(frame: str | None) -> int:
+    """Motors of an ArduCopter frame name from the log's "Frame: QUAD" message (default 4)."""
+    return _FRAME_MOTORS.get((frame or "").lower(), 4)
 
 
 def _pick_ekf(data, params):

@@ -20,7 +20,10 @@ ATTITUDE (roll pitch yaw, body rates), ATTITUDE_QUATERNION (qw..qz), LOCAL_POSIT
 vx vy vz), GLOBAL_POSITION_INT (lat lon alt; its NED cm/s velocity only when LOCAL_POSITION_NED is
 absent), HIGHRES_IMU > SCALED_IMU > RAW_IMU (first present; RAW_IMU is assumed to use ArduPilot's
 scaling, milli-g and milli-rad/s, as ArduPilot sends it; PX4 never sends RAW_IMU in that form),
-SERVO_OUTPUT_RAW (port 0, PWM -> motorN 0..1), VFR_HUD throttle (% -> 0..1), SYS_STATUS battery
+SERVO_OUTPUT_RAW (port 0, PWM -> motorN 0..1 through SERVOn_FUNCTION and the PWM range from the
+PARAM_VALUE messages when the GCS fetched them, see :func:`ardupilot_motor_channels`),
+ESC_TELEMETRY_1_TO_4 / _5_TO_8 rpm -> rpm1..8, ATTITUDE_TARGET thrust (0..1) -> throttle, else VFR_HUD
+throttle (% -> 0..1), SYS_STATUS battery
 (mV, cA; the "unknown" values 0/65535 and -1 are skipped) else BATTERY_STATUS, HEARTBEAT (armed
 flag -> "armed" segments, custom mode -> "mode" events), EXTENDED_SYS_STATE landed_state ->
 "in_flight", STATUSTEXT -> firmware string.
@@ -36,10 +39,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight
+from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
-from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
+from .dataflash_log import _frame_motors
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +51,8 @@ __all__ = ["read_tlog", "MESSAGE_NAMES", "FIELDS", "iter_frames"]
 
 MESSAGE_NAMES = ("HEARTBEAT", "ATTITUDE", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED",
                  "GLOBAL_POSITION_INT", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU", "SERVO_OUTPUT_RAW",
-                 "VFR_HUD", "SYS_STATUS", "BATTERY_STATUS", "EXTENDED_SYS_STATE", "STATUSTEXT")
+                 "VFR_HUD", "SYS_STATUS", "BATTERY_STATUS", "EXTENDED_SYS_STATE", "STATUSTEXT",
+                 "ESC_TELEMETRY_1_TO_4", "ESC_TELEMETRY_5_TO_8", "ATTITUDE_TARGET", "PARAM_VALUE")
 
 _IMU_FIELDS = ("xacc", "yacc", "zacc", "xgyro", "ygyro", "zgyro")
 #: message -> fields kept (as numbers) when the frame is decoded; nothing else is stored
@@ -64,12 +69,19 @@ FIELDS = {
     "BATTERY_STATUS": ("voltage0", "current_battery"),
     "EXTENDED_SYS_STATE": ("landed_state",),
     "STATUSTEXT": ("text",),
+    "ESC_TELEMETRY_1_TO_4": tuple(f"rpm[{i}]" for i in range(4)),
+    "ESC_TELEMETRY_5_TO_8": tuple(f"rpm[{i}]" for i in range(4)),
+    "ATTITUDE_TARGET": ("thrust",),
+    "PARAM_VALUE": ("param_id", "param_value"),
 }
+_TEXT_MESSAGES = ("STATUSTEXT", "PARAM_VALUE")
 
 
 def _getter(name):
     if name == "BATTERY_STATUS":
         return lambda m: (m.voltages[0], m.current_battery)
+    if name.startswith("ESC_TELEMETRY_"):
+        return lambda m: tuple(m.rpm)
     fields = FIELDS[name]
     return attrgetter(*fields) if len(fields) > 1 else (lambda m, f=fields[0]: (getattr(m, f),))
 
@@ -204,7 +216,7 @@ def _table(name: str, rows: list) -> dict:
     """Field tuples of one message type -> {field: column} (numbers as float arrays)."""
     cols = {}
     for f, col in zip(FIELDS[name], zip(*rows)):
-        cols[f] = np.asarray(col, dtype=object if name == "STATUSTEXT" else float)
+        cols[f] = np.asarray(col, dtype=object if name in _TEXT_MESSAGES and f != "param_value" else float)
     return cols
 
 
@@ -254,15 +266,28 @@ def _convert(b: FlightBuilder, t, get):
             b.add_many(tt, {"vx": vx, "vy": vy, "vz": vz}, dict.fromkeys(("vx", "vy", "vz"), "m/s"),
                        "GLOBAL_POSITION_INT.vx/vy/vz")
     _imu(b, t, get)
+    params = {}
+    if "PARAM_VALUE" in get:
+        for pid, val in zip(get["PARAM_VALUE"]["param_id"], get["PARAM_VALUE"]["param_value"]):
+            params[str(pid).rstrip("\x00")] = float(val)
     if "SERVO_OUTPUT_RAW" in get:
         ms, tt = get["SERVO_OUTPUT_RAW"], t["SERVO_OUTPUT_RAW"]
         port0 = ms["port"] == 0
-        for i in range(1, 17):
-            attr = f"servo{i}_raw"
-            v = ms[attr][port0]
-            if np.any(v > 0):
-                b.add(f"motor{i}", tt[port0], pwm_to_unit(v), "1", f"SERVO_OUTPUT_RAW.{attr}")
-    if "VFR_HUD" in get:
+        present = [i for i in range(1, 17) if np.any(ms[f"servo{i}_raw"][port0] > 0)]
+        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, present, _frame_motors(b.vehicle)):
+            attr = f"servo{ch}_raw"
+            b.add(f"motor{motor}", tt[port0], pwm_to_unit(ms[attr][port0], lo, hi), "1",
+                  f"SERVO_OUTPUT_RAW.{attr} ({how})")
+    for name, first in (("ESC_TELEMETRY_1_TO_4", 1), ("ESC_TELEMETRY_5_TO_8", 5)):
+        if name in get:
+            for i in range(4):
+                v = get[name][f"rpm[{i}]"]
+                if np.any(v > 0):
+                    b.add(f"rpm{first + i}", t[name], v, "rpm", f"{name}.rpm[{i}]")
+    thrust = get.get("ATTITUDE_TARGET", {}).get("thrust")
+    if thrust is not None and np.any(np.nan_to_num(thrust) > 0):
+        b.add("throttle", t["ATTITUDE_TARGET"], thrust, "1", "ATTITUDE_TARGET.thrust (0..1)")
+    elif "VFR_HUD" in get:
         b.add("throttle", t["VFR_HUD"], _col(get["VFR_HUD"], "throttle", 0.01), "1", "VFR_HUD.throttle / 100")
     _battery(b, t, get)
     if "EXTENDED_SYS_STATE" in get:
@@ -326,6 +351,8 @@ def _heartbeat(b: FlightBuilder, tt, hb):
     typ, autopilot = hb["type"][valid].astype(int), hb["autopilot"][valid].astype(int)
     base, custom = hb["base_mode"][valid].astype(int), hb["custom_mode"][valid].astype(int)
     b.vehicle = b.vehicle or _VEHICLE_NAMES.get(typ[0], f"MAV_TYPE {typ[0]}")
+    b.vehicle_type, name = vehicle_from_mav_type(typ[0])
+    b.vehicle_declared = f"HEARTBEAT type {name} ({typ[0]})"
     if b.firmware is None and autopilot[0] in _AUTOPILOT_NAMES:
         b.firmware = _AUTOPILOT_NAMES[autopilot[0]]
     armed = (base & _MAV_MODE_FLAG_SAFETY_ARMED) != 0

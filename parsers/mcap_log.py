@@ -19,6 +19,11 @@ motors     std_msgs/msg/Float32MultiArray / Float64MultiArray on a     motor1..m
            topic whose last name is ``motors``
 =========  =========================================================  =========================
 
+``topics=`` also maps a canonical signal to a std_msgs topic: ``{"rpm1": "/esc/rpm1"}`` (a
+Float32/Float64), or to one element of an array topic: ``{"throttle": "/cub1/joy_serial_status[2]"}``
+(``--topic throttle=/cub1/joy_serial_status[2]``). Dimensionless commands (throttle, motorN) in
+PWM µs or percent are normalised to 0..1 by their range (:func:`parsers._build.command_to_unit`).
+
 Frames: ROS data follow REP-103 (world ENU, body FLU), the internal convention, so nothing is
 rotated, except a ``frame_id`` ending in ``ned`` or ``frd`` (REP-105 ``*_ned`` world and ``*_frd``
 body frames: converted NED->ENU, FRD->FLU). The frame_ids seen are listed in the provenance notes. With several candidate topics
@@ -43,7 +48,7 @@ from droneid.errors import ConfigError, LogFormatError, did_you_mean
 from droneid.flight import Flight, canonical_unit, is_canonical
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler, quat_to_matrix
 
-from ._build import FlightBuilder
+from ._build import FlightBuilder, command_to_unit
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +62,7 @@ ROLES = {
     "battery": ("sensor_msgs/msg/BatteryState",),
     "rc": ("std_msgs/msg/UInt16MultiArray",),
 }
+_ELEMENT = re.compile(r"(.+)\[(\d+)\]")      # "/cub1/joy_serial_status[2]": element 2 of data
 _RC_TOPIC = re.compile(r"joy|(^|[/_])rc|pwm|servo", re.I)
 _SCALAR_SCHEMAS = ("std_msgs/msg/Float32", "std_msgs/msg/Float64")
 _ARRAY_SCHEMAS = ("std_msgs/msg/Float32MultiArray", "std_msgs/msg/Float64MultiArray")
@@ -81,8 +87,12 @@ def _pick_topics(path, channels, schemas, counts, overrides, b):
         by_topic.setdefault(ch.topic, []).append(cid)
     chosen = {}
     for role, topic in (overrides or {}).items():
-        if role not in ROLES:
-            raise ConfigError(f"unknown MCAP topic role {role!r}; roles: {', '.join(ROLES)}"
+        if is_canonical(role) and role not in ROLES:    # a signal from a topic (and array element)
+            m = _ELEMENT.fullmatch(topic)
+            topic, role = (m.group(1), f"scalar:{role}[{m.group(2)}]") if m else (topic, f"scalar:{role}")
+        elif role not in ROLES:
+            raise ConfigError(f"unknown MCAP topic role {role!r}; roles: {', '.join(ROLES)}, or a "
+                              f"canonical signal (throttle=/rc[2], rpm1=/esc/rpm1)"
                               + did_you_mean(role, ROLES))
         if topic not in by_topic:
             raise ConfigError(f"topic {topic!r} for role {role!r} is not in {path}; topics: "
@@ -91,7 +101,8 @@ def _pick_topics(path, channels, schemas, counts, overrides, b):
     for cid, ch in channels.items():  # plain std_msgs numbers named after a canonical signal
         sname = _norm_schema(schemas[ch.schema_id].name) if ch.schema_id in schemas else ""
         base = ch.topic.rstrip("/").rsplit("/", 1)[-1]
-        if sname in _SCALAR_SCHEMAS and is_canonical(base) and f"scalar:{base}" not in chosen:
+        if sname in _SCALAR_SCHEMAS and is_canonical(base) and not any(
+                k == f"scalar:{base}" or k.startswith(f"scalar:{base}[") for k in chosen):
             chosen[f"scalar:{base}"] = ch.topic
         elif sname in _ARRAY_SCHEMAS and base == "motors" and "motors" not in chosen:
             chosen["motors"] = ch.topic
@@ -279,13 +290,13 @@ def _generic(obj, schema_name):
 
 def _read_messages(path, f, factories, chosen, b, fast: bool = True):
     """role -> {"t": log/stamp ns, "vec": float vectors, "frame": frame_ids} (numbers only)."""
-    topic_role = {tp: role for role, tp in chosen.items()}
+    topic_roles: dict[str, list[str]] = {}
+    for role, tp in chosen.items():
+        topic_roles.setdefault(tp, []).append(role)
     rows = {role: {"t": [], "vec": [], "frame": set(), "schema": None} for role in chosen}
     cache: dict = {}
-    for ch, schema, rec in _iter_records(f, list(topic_role), b):
-        r = rows[topic_role[ch.topic]]
+    for ch, schema, rec in _iter_records(f, list(topic_roles), b):
         name = _norm_schema(schema.name) if schema else ""
-        r["schema"] = name
         try:
             spec = _FAST_CDR.get(name) if fast and ch.message_encoding == "cdr" else None
             try:
@@ -300,10 +311,13 @@ def _read_messages(path, f, factories, chosen, b, fast: bool = True):
         except Exception:  # noqa: BLE001 - one bad message: skip and count
             b.skip(f"{ch.topic}: undecodable messages", 1)
             continue
-        if frame is not None:
-            r["frame"].add(frame)
-        r["t"].append(stamp if stamp > 0 else rec.log_time)
-        r["vec"].append(vec)
+        for role in topic_roles[ch.topic]:
+            r = rows[role]
+            r["schema"] = name
+            if frame is not None:
+                r["frame"].add(frame)
+            r["t"].append(stamp if stamp > 0 else rec.log_time)
+            r["vec"].append(vec)
     return rows
 
 
@@ -332,8 +346,16 @@ def _convert(b: FlightBuilder, rows, chosen):
                     b.add(f"motor{i + 1}", t, arr[:, i], "1", f"{topic} data[{i}]")
             continue
         if role.startswith("scalar:"):
-            name = role.split(":", 1)[1]
-            b.add(name, t, np.concatenate(r["vec"]), canonical_unit(name), f"{topic} data")
+            m = _ELEMENT.fullmatch(role.split(":", 1)[1])
+            name, k = (m.group(1), int(m.group(2))) if m else (role.split(":", 1)[1], 0)
+            ok = np.array([v.size > k for v in r["vec"]])
+            b.skip(f"{topic}: messages without element {k}", int((~ok).sum()))
+            v = np.array([v[k] for v in r["vec"] if v.size > k], float)
+            src = f"{topic} data" + (f"[{k}]" if m else "")
+            if canonical_unit(name) == "1" and name != "qw" and not name.startswith("q"):
+                v, how = command_to_unit(v)          # throttle / motorN given as PWM or %
+                src += f" ({how})"
+            b.add(name, t[ok], v, canonical_unit(name), src)
             continue
         V = np.vstack(r["vec"])
         if role in ("pose", "odom"):

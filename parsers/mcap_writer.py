@@ -15,6 +15,7 @@ topic                       type                          content
 ``/drone/throttle``         std_msgs/msg/Float32          throttle 0..1
 ``/drone/thrust``           std_msgs/msg/Float32          collective thrust (N)
 ``/drone/motors``           std_msgs/msg/Float32MultiArray motor1..motorN (0..1), dim label ``motors``
+``/drone/rpm1`` .. ``16``   std_msgs/msg/Float32          motor speeds rpm1..rpmN (rpm)
 ==========================  ============================  ===================================================
 
 Log and header times are ``EPOCH (2024-01-01 UTC) + t`` in ns, never the wall clock (readers
@@ -112,6 +113,7 @@ TOPICS = {
     "/drone/throttle": "std_msgs/msg/Float32",
     "/drone/thrust": "std_msgs/msg/Float32",
     "/drone/motors": "std_msgs/msg/Float32MultiArray",
+    **{f"/drone/rpm{i}": "std_msgs/msg/Float32" for i in range(1, 17)},
 }
 
 _COV_UNKNOWN = [0.0] * 9         # REP-145: all zero = covariance unknown
@@ -186,6 +188,11 @@ def write_mcap(flight, path) -> str:
             s = flight[name]
             for ti, vi in zip(s.t, s.values):
                 msgs.append((stamp(ti)[0], order, topic, {"data": float(vi)}))
+    for i in range(1, 17):
+        if flight.has(f"rpm{i}"):
+            s = flight[f"rpm{i}"]
+            for ti, vi in zip(s.t, s.values):
+                msgs.append((stamp(ti)[0], 7, f"/drone/rpm{i}", {"data": float(vi)}))
     motors = [f"motor{i}" for i in range(1, 17) if flight.has(f"motor{i}")]
     if motors:
         n_out = max(int(m[5:]) for m in motors)

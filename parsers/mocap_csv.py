@@ -21,8 +21,10 @@ is an assumption, not checked against a Motive Euler export; quaternion exports 
 **Flat CSV** (``read_flat_csv``): one header row; columns are recognised by name (case-insensitive)::
 
     t / time / time_s / timestamp, x y z, qx qy qz qw, roll pitch yaw, vx vy vz, wx wy wz,
-    ax ay az, throttle / thrust (0..1), m1..m16 / motor1.. / m1_thrust.., vbat / battery_voltage,
-    battery_current, lat lon alt, is_armed, is_flying
+    ax ay az, vbat / battery_voltage, battery_current, lat lon alt, is_armed, is_flying,
+    throttle (0..1) / throttle_pct (0..100), thrust (0..1: a throttle command; else N) / thrust_N,
+    motor1.. / m1 / m1_thrust (0..1, PWM or % by range), rpm1 / rpm_1 / motor_rpm_1 / esc_rpm1 /
+    m1_erpm (erpm: electrical rpm, said in the source) -- the full list: FLAT_ALIASES, docs/signals.md
 
 plus ``column_map={"x": "pos_e", ...}`` (canonical name -> column) for anything else. Values are
 taken as already in droneid's convention (ENU, FLU, SI). When both a quaternion and Euler
@@ -42,10 +44,10 @@ import re
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
-from droneid.flight import Flight
+from droneid.flight import Flight, is_canonical
 from droneid.frames import quat_to_euler, wrap_angle
 
-from ._build import FlightBuilder, intervals_from_bool
+from ._build import FlightBuilder, command_to_unit, intervals_from_bool
 
 log = logging.getLogger(__name__)
 
@@ -202,17 +204,26 @@ FLAT_ALIASES = {
     "roll": ("roll", "phi"), "pitch": ("pitch", "theta"), "yaw": ("yaw", "psi"),
     "wx": ("wx", "omega_x", "gyro_x"), "wy": ("wy", "omega_y", "gyro_y"), "wz": ("wz", "omega_z", "gyro_z"),
     "ax": ("ax", "acc_x"), "ay": ("ay", "acc_y"), "az": ("az", "acc_z"),
-    "throttle": ("throttle", "thrust"),
-    "battery_voltage": ("battery_voltage", "vbat", "voltage"),
-    "battery_current": ("battery_current", "current"),
+    "throttle": ("throttle", "throttle_cmd", "throttle_norm"),
+    "throttle_pct": ("throttle_pct", "throttle_percent", "throttle_%", "throttle (%)"),
+    # "thrust" without a unit is a normalised command when its values stay within 0..1
+    # (the Crazyflie logs), else newtons; "thrust_cmd_n" is a command in N: a thrust
+    "thrust": ("thrust_n", "thrust_cmd_n", "collective_thrust_n", "collective_thrust", "thrust",
+               "thrust_cmd"),
+    "battery_voltage": ("battery_voltage", "vbat", "voltage", "battery_v", "bat_v", "vbat_v",
+                        "battery_voltage_v"),
+    "battery_current": ("battery_current", "current", "battery_a", "battery_current_a"),
     "lat": ("lat", "latitude"), "lon": ("lon", "lng", "longitude"), "alt": ("alt", "altitude"),
     "armed": ("is_armed", "armed"), "flying": ("is_flying", "flying", "in_air"),
 }
 for _i in range(1, 17):
-    FLAT_ALIASES[f"motor{_i}"] = (f"motor{_i}", f"m{_i}", f"m{_i}_thrust", f"motor_{_i}")
-    FLAT_ALIASES[f"rpm{_i}"] = (f"rpm{_i}", f"m{_i}_erpm")
+    FLAT_ALIASES[f"motor{_i}"] = (f"motor{_i}", f"m{_i}", f"m{_i}_thrust", f"motor_{_i}",
+                                  f"motor{_i}_cmd", f"m{_i}_cmd", f"motor_cmd_{_i}")
+    FLAT_ALIASES[f"rpm{_i}"] = (f"rpm{_i}", f"rpm_{_i}", f"motor_rpm_{_i}", f"motor{_i}_rpm",
+                                f"m{_i}_rpm", f"esc_rpm{_i}", f"esc{_i}_rpm", f"esc_rpm_{_i}",
+                                f"m{_i}_erpm", f"erpm{_i}", f"erpm_{_i}", f"esc{_i}_erpm")
 _UNITS = {"x": "m", "y": "m", "z": "m", "vx": "m/s", "vy": "m/s", "vz": "m/s", "wx": "rad/s",
-          "wy": "rad/s", "wz": "rad/s", **{f"rpm{_i}": "rpm" for _i in range(1, 17)}, "ax": "m/s^2", "ay": "m/s^2", "az": "m/s^2", "throttle": "1",
+          "wy": "rad/s", "wz": "rad/s", "ax": "m/s^2", "ay": "m/s^2", "az": "m/s^2", "throttle": "1",
           "battery_voltage": "V", "battery_current": "A", "lat": "deg", "lon": "deg", "alt": "m"}
 _TIME_SCALE = {"time_ms": 1e-3, "t_ms": 1e-3, "time_us": 1e-6, "timestamp_us": 1e-6, "t_us": 1e-6,
                "time_ns": 1e-9, "timestamp_ns": 1e-9}
@@ -264,10 +275,16 @@ def read_flat_csv(path, column_map=None) -> Flight:
         raise LogFormatError(path, f"no time column (t, time, timestamp, ...; or column_map={{'t': ...}}); "
                                    f"columns: {shown}")
     signals = [k for k in found if k not in ("t", "armed", "flying")]
+    unknown = [k for k in (column_map or {}) if k not in FLAT_ALIASES or k in ("armed", "flying", "t")]
+    bad = [k for k in unknown if k not in ("t", "armed", "flying") and not is_canonical(k)]
+    if bad:
+        raise ConfigError(f"column_map: {bad[0]!r} is not a canonical signal name (x, vx, roll, "
+                          f"throttle, thrust, motor1, rpm1, ...)" + did_you_mean(bad[0], FLAT_ALIASES))
     if not signals:
         raise LogFormatError(path, f"no recognised signal columns (x y z, qx qy qz qw, roll pitch yaw, "
                                    f"vx vy vz, ...; or column_map=); columns: {shown}")
     b = FlightBuilder(path, "csv")
+    b.skip("rows with more fields than the header (extra fields ignored)", _long_rows(path, len(columns)))
 
     def num(name):
         return pd.to_numeric(df[found[name]], errors="coerce").to_numpy(float)
@@ -284,11 +301,7 @@ def read_flat_csv(path, column_map=None) -> Flight:
                  "battery_voltage", "battery_current", "lat", "lon", "alt"):
         if name in found:
             b.add(name, t, num(name), _UNITS[name], found[name])
-    for i in range(1, 17):
-        if f"motor{i}" in found:
-            b.add(f"motor{i}", t, num(f"motor{i}"), "1", found[f"motor{i}"])
-        if f"rpm{i}" in found:
-            b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", found[f"rpm{i}"])
+    _rotor_columns(b, t, found, num)
     has_q = all(k in found for k in ("qw", "qx", "qy", "qz"))
     has_e = all(k in found for k in ("roll", "pitch", "yaw"))
     if has_q:
@@ -315,6 +328,39 @@ def read_flat_csv(path, column_map=None) -> Flight:
             b.segment(label, intervals_from_bool(t[ok], _to_bool(df[found[key]].to_numpy())[ok], end_s=end))
     b.in_flight_from_height()
     return b.build()
+
+
+def _rotor_columns(b: FlightBuilder, t, found, num) -> None:
+    """throttle / thrust / motorN / rpmN columns, normalised at this boundary (docs/signals.md)."""
+    if "throttle_pct" in found and "throttle" not in found:
+        b.add("throttle", t, num("throttle_pct") / 100.0, "1", f"{found['throttle_pct']} (% -> 0..1)")
+    if "thrust" in found:
+        col, v = found["thrust"], num("thrust")
+        fin = v[np.isfinite(v)]
+        unitless = col.strip().lower() in ("thrust", "thrust_cmd", "collective_thrust")
+        if unitless and fin.size and fin.min() >= 0 and fin.max() <= 1 and "throttle" not in b.signals:
+            b.add("throttle", t, v, "1", f"{col} (values within 0..1: a normalised command)")
+        elif not (unitless and fin.size and fin.max() <= 1):
+            b.add("thrust", t, v, "N", col + ("" if not unitless else " (values beyond 1: newtons)"))
+    for i in range(1, 17):
+        if f"motor{i}" in found:
+            v, how = command_to_unit(num(f"motor{i}"))
+            b.add(f"motor{i}", t, v, "1", f"{found[f'motor{i}']} ({how})")
+        if f"rpm{i}" in found:
+            col = found[f"rpm{i}"]
+            kind = "electrical rpm: erpm" if "erpm" in col.lower() else "rpm"
+            b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", f"{col} ({kind})")
+
+
+def _long_rows(path, n_columns: int) -> int:
+    """Data rows with more comma-separated fields than the header (pandas drops the extras)."""
+    n = 0
+    with open(path, "rb") as f:
+        next(f, None)
+        for line in f:
+            if line.count(b",") >= n_columns and b'"' not in line:
+                n += 1
+    return n
 
 
 def _check_euler(q, e) -> str:

@@ -16,14 +16,16 @@ ATTITUDE                  roll, pitch, yaw (FRD/NED), rollspeed = wx, pitchspeed
 ATTITUDE_QUATERNION       q FRD->NED, same rates
 LOCAL_POSITION_NED        x = y_enu (north), y = x_enu, z = -z; velocities alike
 HIGHRES_IMU               xacc = ax, yacc = -ay, zacc = -az (specific force, FRD), gyro alike
-SERVO_OUTPUT_RAW          servoN_raw = 1000 + 1000 * motorN (µs PWM)
+SERVO_OUTPUT_RAW          servoN_raw = 1000 + 1000 * motorN (µs PWM); with more than 4 motors also
+                          PARAM_VALUE SERVOn_FUNCTION (motorN), SERVOn_MIN = 1000, SERVOn_MAX = 2000
+ESC_TELEMETRY_1_TO_4/5_8  rpm = rpm1..rpm8 (integer rpm, 0..65535)
 VFR_HUD                   throttle (integer %), groundspeed, heading, alt = z, climb = vz
 SYS_STATUS                voltage_battery (mV), current_battery (cA, -1 when unknown)
 EXTENDED_SYS_STATE        landed_state IN_AIR inside the "in_flight" segments, else ON_GROUND
                           (on the position/attitude time base; only when the flight has segments)
 ========================  =========================================================================
 
-Precision: float32 fields (~1e-7 relative), PWM 1e-3, throttle 1 %, voltage 1 mV, heading 1 deg.
+Precision: float32 fields (~1e-7 relative), PWM 1e-3, rpm 1, throttle 1 %, voltage 1 mV, heading 1 deg.
 Collective ``thrust`` (N) has no MAVLink field and is not written.
 """
 from __future__ import annotations
@@ -119,6 +121,23 @@ def write_tlog(flight, path) -> str:
         pwm = np.pad(pwm, ((0, 0), (0, 16 - n_out)))
         for i in range(t.size):
             add(t[i], 5, mav.servo_output_raw_encode(_us(t[i]) & 0xFFFFFFFF, 0, *map(int, pwm[i])))
+        # more than 4 outputs: the mapping and range the reader applies (up to 4, the readers'
+        # default for logs without parameters, a quad on channels 1..4 at 1000-2000 µs, holds)
+        for k in range(1, n_out + 1 if n_out > 4 else 1):
+            for name, value in ((f"SERVO{k}_FUNCTION", 32 + k if k <= 8 else 73 + k),
+                                (f"SERVO{k}_MIN", 1000.0), (f"SERVO{k}_MAX", 2000.0)):
+                add(t_start, 0, mav.param_value_encode(name.encode(), float(value), 9, 3 * n_out, 0))
+    for first, encode in ((1, mav.esc_telemetry_1_to_4_encode), (5, mav.esc_telemetry_5_to_8_encode)):
+        names = tuple(f"rpm{first + k}" for k in range(4))
+        present = [n for n in names if flight.has(n)]
+        if not present:
+            continue
+        t, v = group(flight, names, required=(present[0],))
+        rpm = np.column_stack([np.clip(np.round(np.nan_to_num(v[n])), 0, 65535) for n in names]).astype(int)
+        zeros = [0] * 4
+        for i in range(t.size):
+            add(t[i], 9, encode(temperature=zeros, voltage=zeros, current=zeros, totalcurrent=zeros,
+                                rpm=[int(r) for r in rpm[i]], count=zeros))
     g = group(flight, ("throttle", "vx", "vy", "vz", "z", "yaw"), required=("throttle",))
     if g:
         t, v = g

@@ -9,8 +9,10 @@ Only the topics below are loaded (pyulog's ``message_name_filter_list``), instan
   v_xy_valid / v_z_valid are skipped and counted) -> ENU
 * vehicle_angular_velocity xyz (FRD) -> wx wy wz (FLU); else sensor_combined gyro_rad
 * sensor_combined accelerometer_m_s2 (FRD) -> ax ay az (FLU); else vehicle_acceleration xyz
-* actuator_motors control[i] (0..1) -> motor{i+1}; else actuator_outputs output[i] (PWM -> 0..1;
-  only the first ``noutputs`` channels that ever leave 0)
+* esc_status esc[i].esc_rpm (i < esc_count, never all 0) -> rpm{i+1} (|rpm|)
+* actuator_motors control[i] (0..1; -1..1 for reversible motors -> 0..1) -> motor{i+1}; else
+  actuator_outputs output[i] (PWM -> 0..1 with PWM_MAIN_MINn/MAXn, else PWM_MAIN_MIN/MAX, else
+  1000-2000; only the first ``noutputs`` channels that ever leave 0)
 * vehicle_thrust_setpoint xyz[2] (FRD, negative up) -> throttle = -xyz[2] (0..1)
 * battery_status voltage_v, current_a
 * vehicle_status arming_state (2 = armed) -> "armed" segments, nav_state -> "mode" events
@@ -24,18 +26,34 @@ import os
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight
+from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._guard import BoundedReader, ReaderLoopError
 
 log = logging.getLogger(__name__)
 
 __all__ = ["read_ulog", "TOPICS"]
 
-TOPICS = ("vehicle_attitude", "vehicle_local_position", "vehicle_angular_velocity",
+TOPICS = ("esc_status", "vehicle_attitude", "vehicle_local_position", "vehicle_angular_velocity",
           "sensor_combined", "vehicle_acceleration", "actuator_motors", "actuator_outputs",
           "vehicle_thrust_setpoint", "battery_status", "vehicle_status", "vehicle_land_detected")
+
+#: fields a topic must have to be used (a damaged format definition may lack them)
+_NEEDED = {
+    "vehicle_attitude": tuple(f"q[{i}]" for i in range(4)),
+    "vehicle_local_position": ("x", "y", "z", "vx", "vy", "vz"),
+    "vehicle_angular_velocity": ("xyz[0]", "xyz[1]", "xyz[2]"),
+    "sensor_combined": tuple(f"gyro_rad[{i}]" for i in range(3))
+    + tuple(f"accelerometer_m_s2[{i}]" for i in range(3)),
+    "vehicle_acceleration": ("xyz[0]", "xyz[1]", "xyz[2]"),
+    "vehicle_thrust_setpoint": ("xyz[2]",),
+    "battery_status": ("voltage_v", "current_a"),
+    "vehicle_status": ("arming_state", "nav_state"),
+    "vehicle_land_detected": ("landed",),
+    "esc_status": ("esc[0].esc_rpm",),
+}
 
 _ARMING_STATE_ARMED = 2
 _NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUTO_LOITER",
@@ -48,14 +66,28 @@ def read_ulog(path) -> Flight:
     """Read a PX4 ULog into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     from pyulog import ULog
+    size = os.path.getsize(path)
+    # pyulog can seek back and re-read the same bytes forever on damage: bound what it may read
+    f = BoundedReader(open(path, "rb"), limit_bytes=4 * size + (1 << 20), max_stalled_reads=100_000)
     try:
-        ulog = ULog(path, message_name_filter_list=list(TOPICS), disable_str_exceptions=True)
+        ulog = ULog(f, message_name_filter_list=list(TOPICS), disable_str_exceptions=True)
+    except ReaderLoopError as exc:
+        raise LogFormatError(path, f"damaged ULog: pyulog stopped making progress ({exc})") from None
     except Exception as exc:  # pyulog raises TypeError/IndexError/struct.error on bad files
         raise LogFormatError(path, f"not a readable ULog ({type(exc).__name__}: {exc})") from None
+    finally:
+        f.close()
     b = FlightBuilder(path, "ulog")
     topics = {}
     for d in ulog.data_list:
-        if d.multi_id == 0 and d.name in TOPICS and len(d.data["timestamp"]):
+        if d.multi_id != 0 or d.name not in TOPICS:
+            continue
+        missing = [k for k in _NEEDED.get(d.name, ()) + ("timestamp",) if k not in d.data]
+        if missing:   # a damaged format definition: the topic's fields are not what PX4 writes
+            b.skip(f"{d.name}: topic without field(s) {', '.join(missing)} (damaged format)",
+                   len(next(iter(d.data.values()), ())))
+            continue
+        if len(d.data["timestamp"]):
             topics[d.name] = d.data
     # some topics carry samples stamped just before the header's start time: start at the earliest
     # (within 1 s of it; a zero stamp of an uninitialised message must not move the origin)
@@ -66,6 +98,7 @@ def read_ulog(path) -> Flight:
     info = ulog.msg_info_dict
     b.firmware = _firmware(info)
     b.vehicle = _vehicle(info, topics.get("vehicle_status"))
+    b.vehicle_type, b.vehicle_declared = _vehicle_type(topics.get("vehicle_status"), ulog.initial_parameters)
     if getattr(ulog, "file_corruption", False):
         b.skip("corrupt ULog sections (pyulog resynchronised)", 1)
         b.warn("the ULog file is corrupt in places; pyulog skipped the damaged data")
@@ -115,7 +148,7 @@ def read_ulog(path) -> Flight:
         d = topics["vehicle_acceleration"]
         b.add_many(tt(d), {"ax": d["xyz[0]"], "ay": -d["xyz[1]"], "az": -d["xyz[2]"]},
                    dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "vehicle_acceleration.xyz")
-    _motors(b, topics, tt)
+    _motors(b, topics, tt, ulog.initial_parameters)
     if "vehicle_thrust_setpoint" in topics:
         d = topics["vehicle_thrust_setpoint"]
         b.add("throttle", tt(d), -np.asarray(d["xyz[2]"], float), "1", "-vehicle_thrust_setpoint.xyz[2]")
@@ -159,13 +192,47 @@ def _vehicle(info, status) -> str | None:
     return kind or hw
 
 
-def _motors(b, topics, tt):
+def _vehicle_type(status, params) -> tuple[str, str | None]:
+    """From vehicle_status (is_vtol, system_type = MAV_TYPE, vehicle_type), else the MAV_TYPE
+    parameter."""
+    if status is not None and len(status["timestamp"]):
+        if "is_vtol" in status and np.any(status["is_vtol"]):
+            return "vtol", "vehicle_status.is_vtol"
+        if "system_type" in status:
+            kind, name = vehicle_from_mav_type(int(status["system_type"][0]))
+            return kind, f"vehicle_status.system_type {name} ({int(status['system_type'][0])})"
+        if "vehicle_type" in status:
+            v = int(status["vehicle_type"][0])
+            kind = {1: "multirotor", 2: "fixed-wing", 3: "rover"}.get(v, "unknown")
+            return kind, f"vehicle_status.vehicle_type {v} ({_VEHICLE_TYPES.get(v, '?')})"
+    if params.get("MAV_TYPE") is not None:
+        kind, name = vehicle_from_mav_type(int(params["MAV_TYPE"]))
+        return kind, f"parameter MAV_TYPE {name} ({int(params['MAV_TYPE'])})"
+    return "unknown", None
+
+
+def _motors(b, topics, tt, params):
+    if "esc_status" in topics:
+        d = topics["esc_status"]
+        n = int(np.max(d["esc_count"])) if "esc_count" in d and len(d["esc_count"]) else 16
+        for i in range(min(max(n, 0), 16)):
+            k = f"esc[{i}].esc_rpm"
+            if k in d and np.any(np.nan_to_num(np.asarray(d[k], float)) != 0):
+                b.add(f"rpm{i + 1}", tt(d), np.abs(np.asarray(d[k], float)), "rpm",
+                      f"esc_status.{k} (|rpm|)")
     if "actuator_motors" in topics:
         d = topics["actuator_motors"]
         for i in range(16):
             k = f"control[{i}]"
-            if k in d and np.any(np.nan_to_num(d[k]) > 0):
-                b.add(f"motor{i + 1}", tt(d), d[k], "1", f"actuator_motors.{k}")
+            if k not in d:
+                continue
+            v = np.asarray(d[k], float)
+            if not np.any(np.nan_to_num(v) != 0):
+                continue
+            if np.nanmin(v) < 0:   # reversible motors: -1..1
+                b.add(f"motor{i + 1}", tt(d), (v + 1) / 2, "1", f"actuator_motors.{k} (-1..1 -> 0..1)")
+            else:
+                b.add(f"motor{i + 1}", tt(d), v, "1", f"actuator_motors.{k} (0..1)")
         return
     if "actuator_outputs" in topics:
         d = topics["actuator_outputs"]
@@ -173,7 +240,24 @@ def _motors(b, topics, tt):
         for i in range(min(n, 16)):
             k = f"output[{i}]"
             if k in d and np.any(d[k] > 0):
-                b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k]), "1", f"actuator_outputs.{k}")
+                lo, hi, how = _pwm_range(params, i + 1)
+                b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k], lo, hi), "1",
+                      f"actuator_outputs.{k} (PWM {lo:.0f}-{hi:.0f} us ({how}) -> 0..1)")
+
+
+def _pwm_range(params, ch: int):
+    """PX4 PWM range of output ``ch``: PWM_MAIN_MINn/MAXn, else PWM_MAIN_MIN/MAX, else 1000-2000."""
+    def get(kind, default):
+        for key in (f"PWM_MAIN_{kind}{ch}", f"PWM_MAIN_{kind}"):
+            v = params.get(key, -1)
+            if v is not None and v > 0:
+                return float(v), key
+        return default, "default"
+    lo, klo = get("MIN", 1000.0)
+    hi, khi = get("MAX", 2000.0)
+    if hi <= lo:
+        return 1000.0, 2000.0, "default"
+    return lo, hi, klo if klo == khi == "default" else f"{klo}/{khi}"
 
 
 def _status(b, topics, tt):

@@ -1,12 +1,13 @@
 """Shared test fixtures. Real logs are read from ../shared/real_logs and never copied here."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-REAL_LOGS = ROOT.parent / "shared" / "real_logs"
+REAL_LOGS = Path(os.environ.get("DRONEID_REAL_LOGS") or ROOT.parent / "shared" / "real_logs")
 SAMPLE_LOGS = ROOT / "sample_logs"
 
 

@@ -67,3 +67,18 @@ def test_canonical_names():
     assert canonical_unit("vz") == "m/s" and canonical_unit("motor2") == "1"
     with pytest.raises(MissingSignalError):
         canonical_unit("speed")
+
+
+def test_clean_drops_a_lone_damaged_stamp_not_everything_after_it():
+    """One flipped bit in a stamp (2**25 s ahead) once made every later sample 'backwards'."""
+    import numpy as np
+    from droneid.flight import Signal
+    t = np.arange(100) * 0.01
+    t[40] += 2.0 ** 25
+    s, dropped = Signal.clean("x", t, np.arange(100.0), "m")
+    assert dropped == {"out-of-sequence time stamps": 1}
+    assert len(s) == 99 and s.end_s == 0.99 and 40.0 not in s.values
+    t2 = np.arange(10) * 0.1
+    t2[5] = t2[4]                                    # a duplicate is still a duplicate
+    _, d2 = Signal.clean("x", t2, np.zeros(10), "m")
+    assert d2 == {"duplicate time stamps": 1}

@@ -104,7 +104,7 @@ def test_old_3x_names_and_scalings(tmp_path):
     f = read_flight(p)
     assert np.allclose(f["yaw"].values, 0.0, atol=1e-7) and np.allclose(f["roll"].values, math.radians(-5))
     assert np.allclose(f["vx"].values, 2.0) and np.allclose(f["vy"].values, 0.0)
-    assert f["vx"].source == "EKF1.VN/VE/VD" and f["motor1"].source == "RCOU.Ch1"
+    assert f["vx"].source == "EKF1.VN/VE/VD" and f["motor1"].source.startswith("RCOU.Ch1 (PWM 1000-2000 us")
     assert np.allclose(f["throttle"].values, 0.6) and f["throttle"].source == "CTUN.ThrOut / 1000"
     assert np.allclose(f["battery_voltage"].values, 16.5) and np.allclose(f["battery_current"].values, 12.34)
     assert np.allclose(f["lat"].values, -35.363262) and np.allclose(f["alt"].values, 584.0)

@@ -79,7 +79,7 @@ def test_copter462_prefix_uses_new_names():
     f = read_flight(real_log("ardupilot/copter462_quad_first80k.bin"))
     assert "V4.6.2" in f.provenance.firmware
     assert f["vx"].source.startswith("XKF1") and f["battery_voltage"].source == "BAT.Volt"
-    assert f["motor1"].source == "RCOU.C1" and f["throttle"].source == "CTUN.ThO"
+    assert f["motor1"].source.startswith("RCOU.C1 (PWM 1120-1920 us (MOT_PWM_MIN/MAX)") and f["throttle"].source == "CTUN.ThO"
     assert f.duration_s == pytest.approx(0.4, abs=0.05)
     assert 9.3 < np.median(f["az"].values) < 10.3
 

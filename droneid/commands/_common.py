@@ -5,6 +5,8 @@ import json
 import sys
 import time
 
+from ..errors import ConfigError
+
 
 class ProgressBar:
     """A text progress bar on stderr; call it as ``bar(done, total, message="")``.
@@ -67,3 +69,51 @@ def _json_default(o):
     if isinstance(o, np.ndarray):
         return o.tolist()
     raise TypeError(f"cannot serialise {type(o).__name__}")
+
+
+# -- reading logs: the options every command that reads flight logs shares -------------------
+def add_log_options(p, *, with_format: bool = True) -> None:
+    """Add the reader options (``--format`` unless the command has its own, ``--topic``,
+    ``--body``, ``--column``, ``--sysid``, ``--vehicle``) to a subcommand parser."""
+    if with_format:
+        p.add_argument("--format", dest="log_format", default=None,
+                       help="skip format detection (dataflash, tlog, ulog, mcap, motive_csv, csv)")
+    p.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
+                   help="MCAP: use TOPIC for ROLE (pose, twist, odom, imu, battery, rc) or for a "
+                        "canonical signal (throttle=/rc[2], rpm1=/esc/rpm1); repeatable")
+    p.add_argument("--body", default=None, help="Motive CSV: the rigid body to read")
+    p.add_argument("--column", action="append", default=[], metavar="CANON=COLUMN",
+                   help="flat CSV: read canonical signal CANON (x, vx, throttle, rpm1, motor1, ...) "
+                        "from COLUMN; repeatable")
+    p.add_argument("--sysid", type=int, default=None, help="tlog: the vehicle's MAVLink system id")
+    p.add_argument("--vehicle", default=None,
+                   choices=("multirotor", "fixed-wing", "vtol", "rover", "unknown"),
+                   help="the vehicle type, when the log does not declare it (mocap CSV, MCAP) or "
+                        "to override its declaration")
+
+
+def _pairs(items, what) -> dict | None:
+    out = {}
+    for item in items or ():
+        if "=" not in item:
+            raise ConfigError(f"--{what} expects NAME=VALUE, got {item!r}")
+        k, v = item.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out or None
+
+
+def log_options(args) -> dict:
+    """read_flight keyword arguments from the options of :func:`add_log_options`."""
+    return {"format": getattr(args, "log_format", None),
+            "topics": _pairs(getattr(args, "topic", None), "topic"),
+            "body": getattr(args, "body", None),
+            "column_map": _pairs(getattr(args, "column", None), "column"),
+            "sysid": getattr(args, "sysid", None),
+            "vehicle": getattr(args, "vehicle", None)}
+
+
+def read_logs(paths, args=None) -> list:
+    """Read every log (format from its content unless ``--format``), with the reader options."""
+    from parsers import read_flight
+    opts = log_options(args) if args is not None else {}
+    return [read_flight(p, **opts) for p in paths]

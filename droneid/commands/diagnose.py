@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import ProgressBar, print_json
+from ._common import ProgressBar, add_log_options, print_json, read_logs
 
 
 def register(sub) -> None:
@@ -36,11 +36,11 @@ def register(sub) -> None:
                         "(default 5000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the open-ended search")
     p.add_argument("--format", dest="log_format", default=None, help="force the log format")
+    add_log_options(p, with_format=False)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    import parsers
     from droneid.diagnose import DiagnoseConfig, diagnose
     from droneid.diagnose_report import summary_text, write_report
     from droneid.errors import ConfigError
@@ -56,8 +56,8 @@ def run(args: argparse.Namespace) -> int:
     cfg = DiagnoseConfig(ts_s=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
                          min_rel_improvement=args.min_improvement, max_steps=args.max_steps,
                          sngp_generations=args.sngp_generations, sngp_seed=args.seed, effects=only)
-    train = [parsers.read_flight(p, format=args.log_format) for p in args.train]
-    test = [parsers.read_flight(p, format=args.log_format) for p in args.test] if args.test else None
+    train = read_logs(args.train, args)
+    test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("diagnose", quiet=args.quiet or args.json)
     result = diagnose(train, test, prior=args.prior, targets=targets, config=cfg, user_effects=user,
                       progress=bar)

@@ -4,13 +4,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._common import ProgressBar, print_json
+from ._common import ProgressBar, add_log_options, print_json
 
 
-def read_logs(paths) -> list:
-    """Read every log with the format detected from its content (errors name the file)."""
-    from parsers import read_flight
-    return [read_flight(p) for p in paths]
+def read_logs(paths, args=None) -> list:
+    """Read every log with the format detected from its content (errors name the file), with
+    the reader options of ``args`` (see :func:`._common.add_log_options`) when given."""
+    from ._common import read_logs as _read
+    return _read(paths, args)
 
 
 def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
@@ -79,6 +80,7 @@ def register(sub) -> None:
     p.add_argument("--report", default=None, metavar="DIR",
                    help="write result.json, report.md, report.html and PNG figures into DIR")
     p.add_argument("--json", action="store_true", help="print the result summary as one JSON line")
+    add_log_options(p)
     p.set_defaults(func=run)
 
 
@@ -87,8 +89,8 @@ def run(args) -> int:
     from ..report_identify import compact, format_text, write_result
     cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints,
                            effects=args.effects, delays=args.delays)
-    train = read_logs(args.train)
-    test = read_logs(args.test) if args.test else None
+    train = read_logs(args.train, args)
+    test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
     result = identify(train, test, cfg, progress=bar).to_dict()
     if args.report:

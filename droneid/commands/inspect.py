@@ -1,10 +1,10 @@
-"""``droneid inspect PATH``: what a log holds, after conversion to droneid's convention."""
+"""``droneid inspect PATH``: what a log holds, after conversion to droneid's convention, and
+whether it is fit for identification."""
 from __future__ import annotations
 
 import math
 
-from ..errors import ConfigError
-from ._common import print_json
+from ._common import add_log_options, print_json, read_logs
 
 
 def register(sub):
@@ -13,40 +13,35 @@ def register(sub):
         description="Read a flight log (DataFlash .bin, MAVLink .tlog, PX4 .ulg, ROS 2 .mcap, "
                     "Motive or flat CSV) and show what droneid sees: format, vehicle, duration, each "
                     "signal with unit, rate, count, span and source, armed / in-flight intervals, "
-                    "events and the damage that was skipped.")
+                    "events, the damage that was skipped, and the log's fitness for the tilt-drag "
+                    "and rotor-thrust models.")
     p.add_argument("path", help="the log file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    p.add_argument("--format", dest="log_format", default=None,
-                   help="skip format detection (dataflash, tlog, ulog, mcap, motive_csv, csv)")
-    p.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
-                   help="MCAP: use TOPIC for ROLE (pose, twist, odom, imu, battery, rc); repeatable")
-    p.add_argument("--body", default=None, help="Motive CSV: the rigid body to read")
-    p.add_argument("--column", action="append", default=[], metavar="NAME=COLUMN",
-                   help="flat CSV: read canonical signal NAME from COLUMN; repeatable")
-    p.add_argument("--sysid", type=int, default=None, help="tlog: the vehicle's MAVLink system id")
+    p.add_argument("--ts", type=float, default=0.05,
+                   help="sampling period the fitness is judged for, in s (default 0.05)")
+    add_log_options(p)
     p.set_defaults(func=run)
 
 
-def _pairs(items, what) -> dict | None:
-    out = {}
-    for item in items:
-        if "=" not in item:
-            raise ConfigError(f"--{what} expects NAME=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        out[k.strip()] = v.strip()
-    return out or None
-
-
 def run(args) -> int:
-    from parsers import read_flight
-    flight = read_flight(args.path, format=args.log_format, topics=_pairs(args.topic, "topic"),
-                         body=args.body, column_map=_pairs(args.column, "column"), sysid=args.sysid)
+    (flight,) = read_logs([args.path], args)
     summary = flight.summary()
+    summary["fitness"] = fitness_summary(flight, args.ts)
     if args.json:
         print_json(summary)
     else:
         print(render_text(summary))
     return 0
+
+
+def fitness_summary(flight, ts_s: float) -> dict:
+    """The fitness of one flight for the tilt-drag model and for a rotor-thrust model (the
+    latter with the first rotor signal present: rpm1, motor1 or throttle)."""
+    from ..fitness import ROTOR_THRUST_SIGNALS, TILT_DRAG_SIGNALS, assess
+    out = {"tilt-drag": assess(flight, needed_signals=TILT_DRAG_SIGNALS, ts_s=ts_s).to_dict()}
+    rotor = next((n for n in ("rpm1", "motor1", "throttle") if flight.has(n)), "rpm1")
+    out["rotor-thrust"] = assess(flight, needed_signals=ROTOR_THRUST_SIGNALS + (rotor,), ts_s=ts_s).to_dict()
+    return out
 
 
 def _fmt(x, nd=2) -> str:
@@ -57,9 +52,12 @@ def _fmt(x, nd=2) -> str:
 
 def render_text(s: dict) -> str:
     """A readable report of :meth:`Flight.summary` (pure: the summary in, text out)."""
+    vtype = s.get("vehicle_type") or "unknown"
+    decl = s.get("vehicle_declared")
     lines = [f"file:      {', '.join(s['files'])}",
              f"format:    {s['format']}",
              f"vehicle:   {s.get('vehicle') or '-'}",
+             f"type:      {vtype}" + (f" (from {decl})" if decl else " (not declared by the log; --vehicle)"),
              f"firmware:  {s.get('firmware') or '-'}",
              f"duration:  {_fmt(s['duration_s'], 1)} s", ""]
     head = ("signal", "unit", "rate Hz", "count", "start s", "end s", "source")
@@ -107,4 +105,25 @@ def render_text(s: dict) -> str:
             lines.append(f"  warning: {w}")
     else:
         lines.append("diagnostics: nothing skipped")
+    if s.get("fitness"):
+        lines.append("")
+        lines.extend(render_fitness(s["fitness"]))
     return "\n".join(lines)
+
+
+def render_fitness(fit: dict) -> list[str]:
+    """The "fitness for the tilt-drag/rotor-thrust models" block (pure)."""
+    any_fit = next(iter(fit.values()))
+    ts = any_fit["ts_s"]
+    fl = any_fit["flights"][0]
+    tilt, speed = fl["tilt_deg"], fl["speed_ms"]
+    out = [f"fitness for the tilt-drag/rotor-thrust models (Ts = {ts:g} s):",
+           f"  airborne {_fmt(fl['airborne_s'], 1)} s, {fl['samples']} samples; tilt "
+           f"{_fmt(tilt[0], 1)}..{_fmt(tilt[1], 1)} deg, horizontal speed {_fmt(speed[0])}.."
+           f"{_fmt(speed[1])} m/s, yaw span {_fmt(fl['yaw_span_deg'], 0)} deg"]
+    for model, f in fit.items():
+        rates = ", ".join(f"{k} {_fmt(v, 1)} Hz" for k, v in f["flights"][0]["rates_hz"].items())
+        out.append(f"  {model}: {'REFUSED' if f['problems'] else 'ok'} ({rates})")
+        out.extend(f"    problem: {p}" for p in f["problems"])
+        out.extend(f"    warning: {w}" for w in f["warnings"])
+    return out

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-REAL = ROOT.parent / "shared" / "real_logs"
+REAL = Path(os.environ.get("DRONEID_REAL_LOGS") or ROOT.parent / "shared" / "real_logs")
 #: real log -> read_flight keyword arguments
 LOGS = {
     "ardupilot/copter33_quad_log171.bin": {},
@@ -44,6 +45,7 @@ def pinned(flight) -> dict:
     s = flight.summary()
     return {
         "format": s["format"], "vehicle": s["vehicle"], "firmware": s["firmware"],
+        "vehicle_type": s["vehicle_type"], "vehicle_declared": s["vehicle_declared"],
         "duration_s": s["duration_s"],
         "signals": {g["name"]: [g["unit"], g["count"], g["start_s"], g["end_s"], g["source"]]
                     for g in s["signals"]},
