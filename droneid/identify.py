@@ -317,6 +317,23 @@ class Plan:
     notes: tuple = ()
 
 
+def check_fitness(flights, prior, cfg: IdentifyConfig, role: str):
+    """:func:`droneid.fitness.assess` of the flights for this prior and its targets; refuses
+    (DataError naming the problem and how to override) or returns the Fitness (warnings inside).
+    None for priors of vehicles the check does not know (e.g. the unicycle)."""
+    from .fitness import assess
+    if prior.vehicle not in ("multirotor", "fixed-wing"):
+        return None
+    targets = cfg.targets or tuple(t for t in prior.targets if t in TARGETS)
+    needed = sorted({s for t in targets if t in prior.targets for s in prior.signals(t)}
+                    | {t[:-4] for t in targets})
+    fit = assess(list(flights), needed_signals=needed, ts_s=cfg.ts, prior_kind=prior.vehicle)
+    if fit.problems:
+        raise DataError(f"the {role} data cannot identify the {prior.name} model: {fit.problems[0]}"
+                        + (f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""))
+    return fit
+
+
 def _common_signals(flights) -> set:
     names = None
     for f in flights:
@@ -946,8 +963,8 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
                      p.cs_test, blocks=p.blocks, delays=delays)
         guards["chosen_run"] = i
     else:
-        final = dict(phys, name="final", description=phys["description"] + " (final: no evolved term beat it "
-                     f"by {100 * cfg.margin:.0f} % on the training validation blocks)")
+        final = dict(phys, name="final", description=f"= the rung above (no evolved term beat it by "
+                     f"{100 * cfg.margin:.0f} % in validation)")
         guards["chosen_run"] = None
         if best is not None:
             guards["best_evolved_validation"] = best[0]
@@ -1128,9 +1145,12 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     if not train_flights:
         raise DataError("no training flights")
     t0 = time.perf_counter()
+    prior, _ = resolve_plan_prior(cfg, train_flights)
+    fitness = {"train": check_fitness(train_flights, prior, cfg, "training")}
+    if test_flights:
+        fitness["test"] = check_fitness(test_flights, prior, cfg, "test")
     cuts = None
     if not test_flights and cfg.test_fraction > 0:
-        prior, _ = resolve_plan_prior(cfg, train_flights)
         first = (cfg.targets or tuple(t for t in prior.targets if t in TARGETS))[0]
         cuts = holdout_cuts(train_flights, cfg, first, prior)
     plan = plan_identification(train_flights, cfg, progress, cuts)
@@ -1148,14 +1168,16 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
             first = next(iter(errors.values()), "unknown error")
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         targets[t] = summarise_target(problems[t], cfg, runs, errors)
-    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes]
+    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes,
+             *(f"data ({role}): {w}" for role, f in fitness.items() if f is not None for w in f.warnings)]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
     conf = cfg.to_dict()
     conf.update(validation=next(iter(problems.values())).validation, prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
                 delays_s=dict(plan.delays_s), delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
-                diagnosis=plan.diagnosis)
+                diagnosis=plan.diagnosis,
+                fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     horizons = _horizons(targets, test_flights, notes) if test_flights else {}
     return IdentificationResult(targets, conf, prov, versions(), outcome.interrupted,
                                 time.perf_counter() - t0, outcome.backend, notes, horizons)
