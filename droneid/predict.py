@@ -115,6 +115,10 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         raise ConfigError("multi-step prediction (--horizons) needs the final models of vx_dot / vy_dot / "
                           "vz_dot (targets.<t>.final in result.json); this result has none")
     out = {"ts": ts, "method": method, "targets": {}}
+    fit = _fitness(models, flights, ts)
+    if fit is not None:
+        out["fitness"] = fit.to_dict()
+        out["warnings"] = list(fit.warnings)
     for target, m in models.items():
         if target.startswith("_"):
             continue
@@ -147,6 +151,28 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         out["horizon_info"] = d
         out["_rollout"] = res
     return out
+
+
+def _fitness(models: dict, flights, ts: float):
+    """:func:`droneid.fitness.assess` of the flights for the signals the models read: refuses
+    (DataError) data they cannot be scored on (no airborne data, signals far too slow, a
+    multirotor model on a fixed-wing log); None when the models name no signals."""
+    from .fitness import assess
+    needed = set()
+    for target, m in models.items():
+        if target.startswith("_"):
+            continue
+        needed.add(target[:-4])
+        for k in ("identified", "empirical", "refit"):
+            if k in m:
+                needed |= set(m[k].signals)
+        needed |= set(m.get("inputs") or ())
+    if not needed:
+        return None
+    fit = assess(list(flights), needed_signals=sorted(needed), ts_s=ts, prior_kind="multirotor")
+    if fit.problems:
+        raise DataError(f"these logs cannot score the model: {fit.problems[0]}")
+    return fit
 
 
 def _predict_final(builder, flights, target: str, m: dict):

@@ -64,6 +64,8 @@ def run(args) -> int:
         from ..io_util import to_jsonable
         print_json(to_jsonable(res))
         return 0
+    for w in res.get("warnings", ()):
+        print(f"warning: {w}")
     for t, r in res["targets"].items():
         print(f"== {t}: {r['equation'] or '(model)'}")
         keys = [k for k in _LABELS if k in next(iter(r["errors"].values()))]
