@@ -68,7 +68,7 @@ def test_flight_contents(control):
     f = control.flight
     expected = {"x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "qw", "qx", "qy", "qz",
                 "wx", "wy", "wz", "ax", "ay", "az", "throttle", "thrust", "motor1", "motor2",
-                "motor3", "motor4", "battery_voltage"}
+                "motor3", "motor4", "rpm1", "rpm2", "rpm3", "rpm4", "battery_voltage"}
     assert set(f.names) == expected
     assert f.provenance.format == "simulated"
     assert len(f["x"]) == int(DUR * RATE) + 1
@@ -269,3 +269,47 @@ def test_internal_rate_at_least_200hz_and_rate_independence():
     b = simulate(path="circle", duration_s=4, rate_hz=100, seed=0, noise=False)
     np.testing.assert_allclose(a.flight["x"].values, b.flight["x"].values[::5], atol=1e-9)
     assert math.isclose(a.truth["model"]["max_tilt_rad"], b.truth["model"]["max_tilt_rad"], rel_tol=1e-2)
+
+
+def _rotor_cols(flight, prefix):
+    return np.column_stack([flight[f"{prefix}{i}"].values for i in range(1, 5)])
+
+
+def test_rotor_speeds_lag_their_commands_and_the_vehicle_follows_the_speeds():
+    tau = 0.05
+    eff = {"thrust_variation": {"amp_m": 0.3, "period_s": 2.5}}
+    res = simulate(path="eight", duration_s=8, rate_hz=100, seed=3, noise=False, effects=eff, motor_tau_s=tau)
+    rot = res.truth["rotors"]
+    assert rot["motor_tau_s"] == tau
+    w, u = _rotor_cols(res.flight, "rpm"), _rotor_cols(res.flight, "motor")
+    t = res.flight["rpm1"].t
+    gap = rot["rpm_max"] * u - w                       # command's settled speed minus the speed
+    lhs = tau * np.gradient(w, t, axis=0)              # first-order lag: tau w' = gap
+    assert np.max(np.abs(gap)) > 100.0                 # the lag is visible
+    assert np.sqrt(np.mean((lhs - gap)[1:-1] ** 2)) < 0.02 * np.sqrt(np.mean(gap ** 2))
+    # the acceleration follows the lagged speeds exactly, not the commands
+    m = res.truth["model"]
+    assert max(m["rotor_rmse_x"], m["rotor_rmse_y"], m["rotor_rmse_z"]) < 1e-9
+    no_lag = simulate(path="eight", duration_s=8, rate_hz=100, seed=3, noise=False, effects=eff)
+    np.testing.assert_allclose(_rotor_cols(no_lag.flight, "rpm"), rot["rpm_max"] * _rotor_cols(no_lag.flight, "motor"),
+                               rtol=1e-12)
+
+
+def test_rpm_logging_delay_shifts_only_the_logged_speeds():
+    d = 0.04
+    a = simulate(path="eight", duration_s=6, rate_hz=100, seed=3, noise=False)
+    b = simulate(path="eight", duration_s=6, rate_hz=100, seed=3, noise=False, rpm_delay_s=d)
+    assert b.truth["rotors"]["rpm_delay_s"] == d
+    for n in ("x", "vx", "roll", "motor1", "throttle"):
+        np.testing.assert_array_equal(a.flight[n].values, b.flight[n].values)
+    k = int(round(d * 100))
+    wa, wb = _rotor_cols(a.flight, "rpm"), _rotor_cols(b.flight, "rpm")
+    np.testing.assert_allclose(wb[:-k], wa[k:], rtol=1e-9)     # logged at t = acting at t + d
+    assert np.max(np.abs(wb[:-k] - wa[:-k])) > 5.0
+
+
+def test_rotor_parameter_errors():
+    with pytest.raises(ConfigError, match="'motor_tau_s' parameter of simulate must be >= 0"):
+        simulate(duration_s=1, motor_tau_s=-0.01)
+    with pytest.raises(ConfigError, match="'k_f' parameter of simulate must be > 0"):
+        simulate(duration_s=1, k_f=0)
