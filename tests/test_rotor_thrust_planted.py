@@ -83,3 +83,39 @@ def test_least_squares_recovers_a_different_planted_kf():
     assert k_T == pytest.approx(7e-9 * 1e8 / 0.8)
     for target in ("vx_dot", "vz_dot"):
         assert _ls(res.flight, target)[f"sum_rpm_sq_{target[1]}"] == pytest.approx(k_T, rel=0.03)
+
+
+# -- the input delay identify chooses ----------------------------------------------------------
+#: two vertical rhythms: with one sinusoid the delay error (∝ jerk) is collinear with the drag
+#: term (∝ v̇z's integral) and least squares hides it in k_D
+RHYTHMS = ((21, 0.2, 1.2), (22, 0.3, 2.5))
+
+
+def _delay_flights(delay_s):
+    train = [simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=delay_s,
+                      effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight
+             for s, a, p in RHYTHMS]
+    test = [simulate(path="eight", duration_s=20.0, rate_hz=100.0, seed=23, rpm_delay_s=delay_s,
+                     effects={"thrust_variation": {"amp_m": 0.25, "period_s": 1.8}}).flight]
+    return train, test
+
+
+def _identify_delays(delay_s):
+    from droneid.identify import IdentifyConfig, identify
+    train, test = _delay_flights(delay_s)
+    cfg = IdentifyConfig.make(runs=1, generations=200, population=60, jobs=1, effects="none", delays="auto")
+    res = identify(train, test, cfg)
+    assert res.config["prior_used"] == "rotor-thrust"
+    return res.config["delays_s"], res.config["delay_scores"]
+
+
+def test_identify_finds_the_planted_rpm_logging_delay():
+    delays, scores = _identify_delays(0.04)
+    assert set(delays) == {"rpm1", "rpm2", "rpm3", "rpm4"}, (delays, scores)
+    for d in delays.values():
+        assert d == pytest.approx(0.04, abs=0.01), (delays, scores)
+
+
+def test_identify_chooses_no_delay_where_none_is_planted():
+    delays, scores = _identify_delays(0.0)
+    assert all(d <= 0.01 for d in delays.values()), (delays, scores)
