@@ -12,6 +12,18 @@ yaw) and the collective thrust ``T = m f_z / (cos roll cos pitch)`` (altitude pr
 as a throttle ``T / T_max``. The state is integrated with RK4 at ``sim_rate_hz`` (>= 200 Hz) and
 logged at ``rate_hz``.
 
+Rotors (:class:`_Rotors`): four in an X layout (ArduPilot QUAD/X order), rotor ``i`` pushing
+``T_i = k_f ω_i²`` along body +z (ω in rpm; ``k_f`` = 5.45e-9 N/rpm² puts the 0.5 kg vehicle's
+hover at 15 000 rpm). The collective ``T`` above and the torque ``J ẇ + w × J w`` of the flown
+attitude are split over the rotors (torque part scaled down where a command would leave 0..1);
+command ``u_i`` in 0..1 gives ``T_i = (t_max_n/4) u_i²`` at the nominal voltage. Each speed lags
+its command by ``motor_tau_s`` (default 0; with a lag the flight is integrated again with the
+speeds in the state). Either way the acceleration is ``Σ T_i R e3 / m − g e3 + D``, so the
+rotor-thrust prior ``v̇ = k_T Σ(ω_i/10⁴)² R e3 − g e3 − k_D v`` is exact on the true speeds with
+``k_T = k_f·10⁸/m`` (1.09 m/s² per (10⁴ rpm)² by default; ``truth["rotors"]``). Logged:
+``motor1..4`` (the commands) and ``rpm1..4``, the speeds ``rpm_delay_s`` before they act (a
+logging delay, default 0) plus ``rpm_noise`` (30 rpm) white noise.
+
 Nominal flights are at constant altitude, so vertical force balance holds and the paper's
 tilt-drag model ``v'x = g cosψ tanθ/cosφ + g sinψ tanφ − k_D vx`` (and v'y) holds up to its
 second-order geometric error with Z-Y-X angles; ``truth["model"]`` records that error.

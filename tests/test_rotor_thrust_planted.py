@@ -119,3 +119,19 @@ def test_identify_finds_the_planted_rpm_logging_delay():
 def test_identify_chooses_no_delay_where_none_is_planted():
     delays, scores = _identify_delays(0.0)
     assert all(d <= 0.01 for d in delays.values()), (delays, scores)
+
+
+def test_the_rotor_sample_log_shows_its_planted_delay():
+    """sample_logs/rotor_climb_eight (droneid/samples.py) is there to show the rotor-thrust prior
+    and its delay: identify's plan on the simulated sample picks both."""
+    from droneid.identify import IdentifyConfig, plan_identification
+    from droneid.samples import SAMPLES
+    spec = next(s for s in SAMPLES if s.name == "rotor_climb_eight")
+    res = simulate(**spec.sim)
+    plan = plan_identification([res.flight], IdentifyConfig.make(runs=1, effects="none", delays="auto"))
+    assert plan.prior.name == "rotor-thrust"
+    planted = res.truth["rotors"]["rpm_delay_s"]
+    assert planted == 0.04
+    assert len(plan.delays_s) == 4, plan.delay_scores
+    for d in plan.delays_s.values():
+        assert d == pytest.approx(planted, abs=0.01), plan.delay_scores
