@@ -301,14 +301,24 @@ class _Rotors:
         tau = wdot * self.inertia + np.cross(w, jw)
         return tau @ self.torque_mix.T
 
+    def command(self, collective, dT):
+        """The 4 motor commands in 0..1 for the collective thrust (N) and the per-rotor thrust
+        differences ``dT`` (4 N, scaled down where a command would leave 0..1). Scalar: the
+        integrator calls it at every stage."""
+        base = collective / 4.0
+        scale = 1.0
+        for d in dT:
+            if d > 0:
+                scale = min(scale, (self.t_max - base) / d)
+            elif d < 0:
+                scale = min(scale, base / -d)
+        scale = max(scale, 0.0)
+        return [math.sqrt(min(max((base + scale * d) / self.t_max, 0.0), 1.0)) for d in dT]
+
     def commands(self, collective, dT):
-        """Motor commands u (n, 4) in 0..1 for the collective thrust (n,) N and the per-rotor
-        differences ``dT`` (n, 4) N (scaled down where a command would leave 0..1)."""
-        base = (np.asarray(collective, float) / 4.0)[:, None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(dT > 0, (self.t_max - base) / dT, np.where(dT < 0, base / -dT, np.inf))
-        scale = np.clip(np.min(room, axis=1), 0.0, 1.0)[:, None]
-        return np.sqrt(np.clip((base + scale * dT) / self.t_max, 0.0, 1.0))
+        """:meth:`command` on arrays: collective (n,) N, dT (n, 4) N -> u (n, 4)."""
+        return np.array([self.command(c, d) for c, d in zip(np.asarray(collective, float).tolist(),
+                                                            np.asarray(dT, float).tolist())]).reshape(-1, 4)
 
     def speeds(self, u, gain):
         """Rotor speeds (rpm) the commands ``u`` (n, 4) settle to at battery gain ``gain`` (n,)."""
@@ -389,10 +399,9 @@ class _Dyn:
             thrust = throttle * self.tmax * gain
         else:
             rot = self.rotors
-            w_cmd = rot.speeds(rot.commands(np.array([throttle * self.tmax]), np.array([dT])),
-                               np.array([gain_batt]))[0]
+            k = rot.w_max * math.sqrt(gain_batt)        # settled speed per unit command (rpm)
             w = s[12:16]
-            dw = [(c - v) / self.motor_tau for c, v in zip(w_cmd.tolist(), w)]
+            dw = [(k * c - v) / self.motor_tau for c, v in zip(rot.command(throttle * self.tmax, dT), w)]
             thrust = ge * rot.k_f * sum(v * v for v in w)
         # --- attitude lag ---
         dr = (r_d - r) / self.tau
