@@ -313,3 +313,24 @@ def test_rotor_parameter_errors():
         simulate(duration_s=1, motor_tau_s=-0.01)
     with pytest.raises(ConfigError, match="'k_f' parameter of simulate must be > 0"):
         simulate(duration_s=1, k_f=0)
+
+
+def test_battery_sag_slows_the_rotors_and_ground_effect_adds_thrust_at_the_same_speed():
+    """Sag lowers the speed a command gives (the rpm law still holds exactly); ground effect
+    raises the thrust a speed gives (the rpm law misses it by the gain)."""
+    sag = simulate(path="hover", duration_s=20, rate_hz=RATE, seed=3, noise=False, effects={"battery_sag": None})
+    m = sag.truth["model"]
+    assert max(m["rotor_rmse_x"], m["rotor_rmse_y"], m["rotor_rmse_z"]) < 1e-9
+    rot = sag.truth["rotors"]
+    w, u = _rotor_cols(sag.flight, "rpm"), _rotor_cols(sag.flight, "motor")
+    volt = sag.flight["battery_voltage"].values
+    np.testing.assert_allclose(w, rot["rpm_max"] * u * (volt / 12.6)[:, None], rtol=1e-9)
+    # same thrust, same speeds (the rotors differ only by the yaw-sweep torque)
+    assert np.sqrt(np.mean(w[-1] ** 2)) == pytest.approx(rot["hover_rpm"], rel=1e-4)
+    radius, alt = 0.12, 0.15
+    ge = simulate(path="hover", duration_s=5, rate_hz=RATE, seed=0, noise=False,
+                  effects={"ground_effect": {"rotor_radius_m": radius, "altitude_m": alt}})
+    gain = 1.0 / (1.0 - (radius / (4 * alt)) ** 2)
+    w_rms = np.sqrt(np.mean(_rotor_cols(ge.flight, "rpm") ** 2, axis=1))
+    np.testing.assert_allclose(w_rms, ge.truth["rotors"]["hover_rpm"] / np.sqrt(gain), rtol=2e-3)
+    assert ge.truth["model"]["rotor_rmse_z"] == pytest.approx(G * (1 - 1 / gain), rel=0.01)
