@@ -334,3 +334,22 @@ def test_battery_sag_slows_the_rotors_and_ground_effect_adds_thrust_at_the_same_
     w_rms = np.sqrt(np.mean(_rotor_cols(ge.flight, "rpm") ** 2, axis=1))
     np.testing.assert_allclose(w_rms, ge.truth["rotors"]["hover_rpm"] / np.sqrt(gain), rtol=2e-3)
     assert ge.truth["model"]["rotor_rmse_z"] == pytest.approx(G * (1 - 1 / gain), rel=0.01)
+
+
+def test_x_mix_signs_follow_the_ardupilot_quad_x_layout():
+    """Motor 1 front-right CCW, 2 back-left CCW, 3 front-left CW, 4 back-right CW (FLU body)."""
+    from droneid.simulate import DEFAULT_PARAMS, _Rotors
+    rot = _Rotors(dict(DEFAULT_PARAMS))
+    zero = np.zeros((1, 3))
+    roll_left_up, nose_down, yaw_ccw = np.eye(3)[:, None, :]     # +x, +y, +z angular accelerations
+
+    def sign(wdot):
+        return np.sign(rot.torque_thrusts(zero, wdot)[0]).tolist()
+    assert sign(roll_left_up) == [-1, 1, 1, -1]       # left rotors (2, 3) push harder
+    assert sign(nose_down) == [-1, 1, -1, 1]          # rear rotors (2, 4) push harder
+    assert sign(yaw_ccw) == [-1, -1, 1, 1]            # CW rotors (3, 4): their drag turns the body CCW
+    dT = rot.torque_thrusts(np.array([[0.3, -0.2, 0.5]]), np.array([[2.0, -3.0, 1.0]]))
+    assert abs(dT.sum()) < 1e-12                       # torques never change the collective
+    # a command that would leave 0..1 keeps the collective and scales the torque part down
+    u = rot.commands(np.array([4 * rot.t_max * 0.98]), np.array([[1.0, -1.0, 1.0, -1.0]]))
+    assert np.all(u <= 1.0) and np.sum(u ** 2) * rot.t_max == pytest.approx(4 * rot.t_max * 0.98)
