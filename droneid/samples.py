@@ -17,8 +17,9 @@ from .io_util import atomic_write_json, atomic_write_text
 
 __all__ = ["SampleSpec", "SAMPLES", "FORMATS", "save", "generate", "sample_command", "residual_rmse"]
 
-#: output format -> file extension
-FORMATS = {"tlog": ".tlog", "mcap": ".mcap", "csv": ".csv"}
+#: output format -> file extension: MAVLink telemetry log, ROS 2 MCAP, OptiTrack Motive CSV (the
+#: pose only, as a mocap system records it), flat CSV of every canonical signal (rotors included)
+FORMATS = {"tlog": ".tlog", "mcap": ".mcap", "csv": ".csv", "flatcsv": ".flat.csv"}
 
 
 @dataclass(frozen=True)
@@ -26,7 +27,7 @@ class SampleSpec:
     name: str
     description: str
     sim: dict = field(default_factory=dict)
-    formats: tuple[str, ...] = ("tlog", "mcap", "csv")
+    formats: tuple[str, ...] = ("tlog", "mcap", "csv", "flatcsv")
 
 
 SAMPLES: tuple[SampleSpec, ...] = (
@@ -50,6 +51,16 @@ SAMPLES: tuple[SampleSpec, ...] = (
         "the residual gains +k_D w) and quadratic drag -0.15 |v_air| v_air.",
         dict(path="eight", duration_s=18.0, rate_hz=20.0, seed=3,
              effects={"wind": {"wx": 1.5, "wy": -1.0}, "quadratic_drag": {"c": 0.15}})),
+    SampleSpec(
+        "rotor_climb_eight",
+        "Figure-eight with a vertical rhythm (altitude +-0.2 m every 1.2 s: thrust swings -40 % .. "
+        "+60 % of hover) for the rotor-thrust prior. Its rotors lag their commands by 20 ms and "
+        "its logged motor speeds lead the speeds that act by 40 ms (as a Crazyflie log does), so "
+        "the rotor-thrust prior is exact with the speeds read 40 ms late (planted k_T and k_f in "
+        "the truth JSON's `rotors`) and k_D = 0.28.",
+        dict(path="eight", duration_s=18.0, rate_hz=20.0, seed=4,
+             effects={"thrust_variation": {"amp_m": 0.2, "period_s": 1.2}},
+             rpm_delay_s=0.04, motor_tau_s=0.02)),
 )
 
 
@@ -76,19 +87,15 @@ def _num(v) -> str:
 def save(result, out_dir, name: str, formats=("tlog", "mcap", "csv")) -> list[Path]:
     """Write a :class:`~droneid.simulate.SimResult` as ``out_dir/name.<ext>`` for each format plus
     ``name.truth.json``; returns the written paths."""
-    from parsers.mcap_writer import write_mcap
-    from parsers.motive_writer import write_motive_csv
-    from parsers.tlog_writer import write_tlog
-
     for f in formats:
         if f not in FORMATS:
             raise ConfigError(f"unknown output format '{f}'{did_you_mean(f, FORMATS)}; "
                               f"formats: {', '.join(FORMATS)}")
     if not name or any(c in name for c in "/\\") or name.startswith("."):
         raise ConfigError(f"The 'name' of the output must be a plain file stem. Got {name!r} instead.")
+    writers = {f: _writer(f) for f in formats}
     out = Path(out_dir)
     written = []
-    writers = {"tlog": write_tlog, "mcap": write_mcap, "csv": write_motive_csv}
     for f in formats:
         p = out / f"{name}{FORMATS[f]}"
         writers[f](result.flight, p)
@@ -97,6 +104,25 @@ def save(result, out_dir, name: str, formats=("tlog", "mcap", "csv")) -> list[Pa
     atomic_write_json(p, result.truth, indent=1)
     written.append(p)
     return written
+
+
+def _writer(fmt: str):
+    """The writer function of an output format (imported when asked for)."""
+    if fmt == "tlog":
+        from parsers.tlog_writer import write_tlog
+        return write_tlog
+    if fmt == "mcap":
+        from parsers.mcap_writer import write_mcap
+        return write_mcap
+    if fmt == "csv":
+        from parsers.motive_writer import write_motive_csv
+        return write_motive_csv
+    try:
+        from parsers.csv_writer import write_flat_csv
+    except ImportError:   # the flat CSV writer lives in parsers/csv_writer.py (branch parsers)
+        raise ConfigError("output format 'flatcsv' needs parsers/csv_writer.py, which this "
+                          "installation lacks") from None
+    return write_flat_csv
 
 
 def residual_rmse(flight, k_drag: float = 0.28, g: float = 9.81) -> tuple[float, float, int]:
@@ -146,6 +172,7 @@ def _spec(name: str) -> SampleSpec:
 
 
 def _readme(rows, out_dir) -> str:
+    rot, par = rows[0][1].truth["rotors"], rows[0][1].truth["params"]   # every sample: default rotors
     lines = [
         "# Sample logs",
         "",
@@ -155,12 +182,21 @@ def _readme(rows, out_dir) -> str:
         "definitions are in `droneid/samples.py`. Each flight is written as",
         "",
         "* `NAME.tlog`: MAVLink 2 telemetry log (ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED,",
-        "  HIGHRES_IMU, SERVO_OUTPUT_RAW, VFR_HUD, SYS_STATUS, HEARTBEAT; NED/FRD),",
+        "  HIGHRES_IMU, SERVO_OUTPUT_RAW (motor commands), ESC_TELEMETRY_1_TO_4 (motor speeds),",
+        "  VFR_HUD, SYS_STATUS, HEARTBEAT; NED/FRD),",
         "* `NAME.mcap`: ROS 2 MCAP (/drone/pose, /drone/twist, /drone/imu, /drone/battery,",
-        "  /drone/throttle, /drone/thrust, /drone/motors; ENU/FLU),",
+        "  /drone/throttle, /drone/thrust, /drone/motors, /drone/rpm1..4; ENU/FLU),",
         "* `NAME.csv`: OptiTrack Motive 1.23 CSV of the pose (Y-up: Motive X = east, Y = up, Z = south),",
+        "* `NAME.flat.csv`: flat CSV of every signal under its canonical name (rpm1..4, motor1..4 too),",
         "* `NAME.truth.json`: the ground truth: simulator parameters, effects with their values, the",
-        "  true world accelerations `t, ax, ay, az` at the logged times and the true noise-free states.",
+        "  true world accelerations `t, ax, ay, az` at the logged times, the true noise-free states",
+        "  and the rotor model (`rotors`: k_f, k_T, motor lag, rpm logging delay).",
+        "",
+        f"Rotors: X layout (ArduPilot order), thrust k_f rpm² each (k_f = {rot['k_f']:g} N/rpm²: the",
+        f"{par['mass_kg']:g} kg vehicle hovers at {rot['hover_rpm']:.0f} rpm), commands u in 0..1 with thrust",
+        "(t_max_n/4) u²; the vehicle accelerates with the rotors' thrust, so the rotor-thrust prior",
+        f"holds with k_T = k_f 1e8 / m = {rot['k_T']:.3g} m/s² per (10⁴ rpm)². Logged speeds carry",
+        f"{rot['rpm_noise']:g} rpm white noise.",
         "",
         "Time stamps in every file start at 2024-01-01 00:00:00 UTC (a fixed epoch, not the clock).",
         "Mocap-like noise: position 1 mm, attitude 0.2 deg, velocity from a 0.1 s least-squares",

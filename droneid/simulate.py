@@ -12,6 +12,18 @@ yaw) and the collective thrust ``T = m f_z / (cos roll cos pitch)`` (altitude pr
 as a throttle ``T / T_max``. The state is integrated with RK4 at ``sim_rate_hz`` (>= 200 Hz) and
 logged at ``rate_hz``.
 
+Rotors (:class:`_Rotors`): four in an X layout (ArduPilot QUAD/X order), rotor ``i`` pushing
+``T_i = k_f ω_i²`` along body +z (ω in rpm; ``k_f`` = 5.45e-9 N/rpm² puts the 0.5 kg vehicle's
+hover at 15 000 rpm). The collective ``T`` above and the torque ``J ẇ + w × J w`` of the flown
+attitude are split over the rotors (torque part scaled down where a command would leave 0..1);
+command ``u_i`` in 0..1 gives ``T_i = (t_max_n/4) u_i²`` at the nominal voltage. Each speed lags
+its command by ``motor_tau_s`` (default 0; with a lag the flight is integrated again with the
+speeds in the state). Either way the acceleration is ``Σ T_i R e3 / m − g e3 + D``, so the
+rotor-thrust prior ``v̇ = k_T Σ(ω_i/10⁴)² R e3 − g e3 − k_D v`` is exact on the true speeds with
+``k_T = k_f·10⁸/m`` (1.09 m/s² per (10⁴ rpm)² by default; ``truth["rotors"]``). Logged:
+``motor1..4`` (the commands) and ``rpm1..4``, the speeds ``rpm_delay_s`` before they act (a
+logging delay, default 0) plus ``rpm_noise`` (30 rpm) white noise.
+
 Nominal flights are at constant altitude, so vertical force balance holds and the paper's
 tilt-drag model ``v'x = g cosψ tanθ/cosφ + g sinψ tanφ − k_D vx`` (and v'y) holds up to its
 second-order geometric error with Z-Y-X angles; ``truth["model"]`` records that error.
@@ -102,6 +114,14 @@ DEFAULT_PARAMS = MappingProxyType({
     "volt_noise": 0.01,        # V
     "battery_v": 12.0,         # nominal (constant) battery voltage
     "n_waypoints": 12,         # random path
+    # rotors (X layout, see _Rotors): T_i = k_f w_i^2 with w in rpm
+    "k_f": 5.45e-9,            # N/rpm^2: hover of the 0.5 kg vehicle at 15 000 rpm (0.5*9.81/4/15000^2)
+    "arm_m": 0.17,             # motor distance from the centre of mass (m)
+    "yaw_moment_m": 0.016,     # rotor drag torque per unit thrust (m)
+    "inertia_xx": 0.0022, "inertia_yy": 0.0029, "inertia_zz": 0.0048,   # kg m^2, Bebop 2 class
+    "motor_tau_s": 0.0,        # first-order lag of each rotor speed behind its command (s)
+    "rpm_delay_s": 0.0,        # logged motor speeds lead the speeds that act by this (s)
+    "rpm_noise": 30.0,         # white noise on the logged rpm (rpm std, with noise=True)
 })
 
 _PATH_DEFAULTS = {  # size_m, period_s
@@ -245,6 +265,76 @@ def _reference(path, t, P, rng, total_s):
 
 
 # ---------------------------------------------------------------------------------------
+# rotors
+# ---------------------------------------------------------------------------------------
+class _Rotors:
+    """Four rotors in an X layout, ArduPilot QUAD/X order: motor 1 front-right and motor 2
+    back-left spin counter-clockwise seen from above, motor 3 front-left and motor 4 back-right
+    clockwise; each at ``arm_m`` from the centre of mass on the body diagonals (FLU).
+
+    Rotor ``i`` pushes ``T_i = k_f ω_i²`` (N, ω in rpm) along body +z. Its command ``u_i`` in 0..1
+    sets the speed ``ω_i = ω_max u_i sqrt(gain)`` (``ω_max = sqrt(T_max / k_f)``,
+    ``T_max = t_max_n / 4``, ``gain`` the battery gain of ``battery_sag``, 1 otherwise), so at the
+    nominal voltage ``T_i = T_max u_i²``. The collective thrust ``T`` and the body torque
+    ``τ = J ẇ + w × J w`` are allocated by the (pseudo-)inverse of
+    ``[Σ T_i, Σ y_i T_i, −Σ x_i T_i, Σ c_i T_i] = [T, τx, τy, τz]`` (``c_i = −yaw_moment_m`` for
+    counter-clockwise rotors, ``+yaw_moment_m`` for clockwise ones); where a command would
+    leave 0..1 the torque part is scaled down, never the collective.
+    """
+
+    def __init__(self, P):
+        a = P["arm_m"] / math.sqrt(2.0)
+        x = np.array([a, -a, a, -a])
+        y = np.array([-a, a, a, -a])
+        ccw = np.array([1.0, 1.0, -1.0, -1.0])
+        A = np.vstack([np.ones(4), y, -x, -P["yaw_moment_m"] * ccw])
+        self.torque_mix = np.linalg.pinv(A)[:, 1:]     # (4, 3): rotor thrust (N) per torque (N m)
+        self.k_f = P["k_f"]
+        self.t_max = P["t_max_n"] / 4.0
+        self.w_max = math.sqrt(self.t_max / self.k_f)
+        self.inertia = np.array([P["inertia_xx"], P["inertia_yy"], P["inertia_zz"]])
+
+    def torque_thrusts(self, w, wdot):
+        """Per-rotor thrust differences (n, 4) in N (summing to zero) giving the torque that makes
+        the body rates ``w`` (n, 3, rad/s, FLU) change at ``wdot`` (rad/s²)."""
+        jw = w * self.inertia
+        tau = wdot * self.inertia + np.cross(w, jw)
+        return tau @ self.torque_mix.T
+
+    def command(self, collective, dT):
+        """The 4 motor commands in 0..1 for the collective thrust (N) and the per-rotor thrust
+        differences ``dT`` (4 N, scaled down where a command would leave 0..1). Scalar: the
+        integrator calls it at every stage."""
+        base = collective / 4.0
+        scale = 1.0
+        for d in dT:
+            if d > 0:
+                scale = min(scale, (self.t_max - base) / d)
+            elif d < 0:
+                scale = min(scale, base / -d)
+        scale = max(scale, 0.0)
+        return [math.sqrt(min(max((base + scale * d) / self.t_max, 0.0), 1.0)) for d in dT]
+
+    def commands(self, collective, dT):
+        """:meth:`command` on arrays: collective (n,) N, dT (n, 4) N -> u (n, 4)."""
+        return np.array([self.command(c, d) for c, d in zip(np.asarray(collective, float).tolist(),
+                                                            np.asarray(dT, float).tolist())]).reshape(-1, 4)
+
+    def speeds(self, u, gain):
+        """Rotor speeds (rpm) the commands ``u`` (n, 4) settle to at battery gain ``gain`` (n,)."""
+        return self.w_max * u * np.sqrt(np.asarray(gain, float))[:, None]
+
+
+def _body_rates(euler, euler_rates):
+    """Body rates (n, 3) rad/s (FLU) from Z-Y-X Euler angles and their rates (each (n, 3))."""
+    r, p = euler[:, 0], euler[:, 1]
+    dr, dp, dy = euler_rates[:, 0], euler_rates[:, 1], euler_rates[:, 2]
+    return np.column_stack([dr - np.sin(p) * dy,
+                            np.cos(r) * dp + np.sin(r) * np.cos(p) * dy,
+                            -np.sin(r) * dp + np.cos(r) * np.cos(p) * dy])
+
+
+# ---------------------------------------------------------------------------------------
 # dynamics (scalar, math module: called ~4 x sim_rate_hz x duration times)
 # ---------------------------------------------------------------------------------------
 class _Dyn:
@@ -261,11 +351,13 @@ class _Dyn:
         self.aniso = (an["kx"], an["ky"], an["kz"]) if an else None
         ge = eff.get("ground_effect")
         self.ge_r = ge["rotor_radius_m"] if ge else 0.0
+        self.rotors = _Rotors(P)
+        self.motor_tau = P["motor_tau_s"]
 
     def command(self, s, ref):
         """The controller (it knows the nominal drag only, no wind): roll and pitch set-points
         and the vertical thrust per unit mass ``fz``."""
-        (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s
+        (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s[:12]
         (rpx, rpy, rpz, rvx, rvy, rvz, rax, ray, raz, _, _) = ref
         P, g, kd = self.P, self.g, self.kd
         fx = rax + P["kp"] * (rpx - px) + P["kd"] * (rvx - vx) + P["ki"] * ix + kd * vx
@@ -281,9 +373,14 @@ class _Dyn:
         p_d = max(-mt, min(mt, math.atan2(fxb, fz)))
         return r_d, p_d, fz
 
-    def rhs(self, s, ref, wind, gain_batt):
-        """Derivative of the state and auxiliaries (world accel, thrust, throttle, ...)."""
-        (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s
+    def rhs(self, s, ref, wind, gain_batt, dT=None):
+        """Derivative of the state and auxiliaries (world accel, thrust, throttle, ...).
+
+        Without ``dT`` the thrust is the commanded collective at once (rotor speeds follow it
+        without lag). With ``dT`` (the 4 rotor-thrust differences of the torque demand, N) the
+        state carries the 4 rotor speeds (rpm), each lagging its command by ``motor_tau_s``,
+        and the thrust is Σ k_f ω_i²."""
+        (px, py, pz, vx, vy, vz, r, p, y, ix, iy, iz) = s[:12]
         (rpx, rpy, rpz, rvx, rvy, rvz, rax, ray, raz, ryaw, ryawd) = ref
         g, kd = self.g, self.kd
         ex, ey, ez = rpx - px, rpy - py, rpz - pz
@@ -293,10 +390,19 @@ class _Dyn:
         t_cmd = self.m * fz / (cr * cp)
         throttle = max(0.0, min(1.0, t_cmd / self.tmax))
         gain = gain_batt
+        ge = 1.0
         if self.ge_r:
             q = self.ge_r / (4.0 * max(pz, self.ge_r / 2.0))
-            gain *= 1.0 / (1.0 - q * q)
-        thrust = throttle * self.tmax * gain
+            ge = 1.0 / (1.0 - q * q)
+            gain *= ge
+        if dT is None:
+            thrust = throttle * self.tmax * gain
+        else:
+            rot = self.rotors
+            k = rot.w_max * math.sqrt(gain_batt)        # settled speed per unit command (rpm)
+            w = s[12:16]
+            dw = [(k * c - v) / self.motor_tau for c, v in zip(rot.command(throttle * self.tmax, dT), w)]
+            thrust = ge * rot.k_f * sum(v * v for v in w)
         # --- attitude lag ---
         dr = (r_d - r) / self.tau
         dp = (p_d - p) / self.tau
@@ -331,12 +437,17 @@ class _Dyn:
         diy = ey if abs(iy) < lim or ey * iy < 0 else 0.0
         diz = ez if abs(iz) < lim or ez * iz < 0 else 0.0
         deriv = (vx, vy, vz, ax, ay, az, dr, dp, dy, dix, diy, diz)
+        if dT is not None:
+            deriv = deriv + tuple(dw)
         aux = (ax, ay, az, thrust, throttle, dx_, dy_, dz_)
         return deriv, aux
 
 
-def _rk4(dyn, state0, refs, winds, gains, n_steps, dt):
-    """Integrate; refs/winds/gains are given on the half-step grid (2 n_steps + 1 points)."""
+def _rk4(dyn, state0, refs, winds, gains, n_steps, dt, dTs=None):
+    """Integrate; refs/winds/gains (and the rotor-thrust differences ``dTs`` of the lagged-rotor
+    model) are given on the half-step grid (2 n_steps + 1 points)."""
+    if dTs is None:
+        dTs = [None] * len(refs)
     nstate = len(state0)
     states = np.empty((n_steps + 1, nstate))
     auxs = np.empty((n_steps + 1, 8))
@@ -345,18 +456,18 @@ def _rk4(dyn, state0, refs, winds, gains, n_steps, dt):
     h2 = dt / 2.0
     for i in range(n_steps + 1):
         j = 2 * i
-        k1, aux = dyn.rhs(s, refs[j], winds[j], gains[j])
+        k1, aux = dyn.rhs(s, refs[j], winds[j], gains[j], dTs[j])
         states[i] = s
         auxs[i] = aux
         derivs[i] = k1
         if i == n_steps:
             break
         s2 = [a + h2 * b for a, b in zip(s, k1)]
-        k2, _ = dyn.rhs(s2, refs[j + 1], winds[j + 1], gains[j + 1])
+        k2, _ = dyn.rhs(s2, refs[j + 1], winds[j + 1], gains[j + 1], dTs[j + 1])
         s3 = [a + h2 * b for a, b in zip(s, k2)]
-        k3, _ = dyn.rhs(s3, refs[j + 1], winds[j + 1], gains[j + 1])
+        k3, _ = dyn.rhs(s3, refs[j + 1], winds[j + 1], gains[j + 1], dTs[j + 1])
         s4 = [a + dt * b for a, b in zip(s, k3)]
-        k4, _ = dyn.rhs(s4, refs[j + 2], winds[j + 2], gains[j + 2])
+        k4, _ = dyn.rhs(s4, refs[j + 2], winds[j + 2], gains[j + 2], dTs[j + 2])
         s = [a + dt / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4)]
     return states, derivs, auxs
 
@@ -378,9 +489,13 @@ def _check_params(params, path):
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
             raise ConfigError(f"The '{k}' parameter of simulate must be a finite number. Got {v!r} instead.")
         P[k] = float(v)
-    for k in ("mass_kg", "t_max_n", "att_tau_s", "sim_rate_hz", "period_s", "max_tilt_rad", "vel_window_s"):
+    for k in ("mass_kg", "t_max_n", "att_tau_s", "sim_rate_hz", "period_s", "max_tilt_rad", "vel_window_s",
+              "k_f", "arm_m", "inertia_xx", "inertia_yy", "inertia_zz"):
         if P[k] <= 0:
             raise ConfigError(f"The '{k}' parameter of simulate must be > 0. Got {P[k]} instead.")
+    for k in ("yaw_moment_m", "motor_tau_s", "rpm_delay_s", "rpm_noise"):
+        if P[k] < 0:
+            raise ConfigError(f"The '{k}' parameter of simulate must be >= 0. Got {P[k]} instead.")
     if P["sim_rate_hz"] < 200:
         raise ConfigError(f"The 'sim_rate_hz' parameter of simulate must be >= 200. Got {P['sim_rate_hz']} instead.")
     return P
@@ -440,7 +555,8 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     dt = ts / n_sub
     n_log = int(round(duration_s * rate_hz)) + 1
     delay = eff.get("attitude_delay", {}).get("tau_s", 0.0)
-    margin_s = max(0.5, P["vel_window_s"] + abs(delay) + 0.1)
+    rpm_delay = P["rpm_delay_s"]
+    margin_s = max(0.5, P["vel_window_s"] + abs(delay) + rpm_delay + 0.1)
     n_margin = int(math.ceil(margin_s / ts))
     t0 = -n_margin * ts
     n_steps = (n_log - 1 + 2 * n_margin) * n_sub
@@ -490,19 +606,30 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
         s0[6], s0[7], _ = dyn.command(s0, refs[0])
     states, derivs, auxs = _rk4(dyn, s0, refs, wind.tolist(), gains.tolist(), n_steps, dt)
 
-    # ---- sample at log times ----
+    # ---- rotors: torque demand of the flown attitude, commands, speeds ----
     t_int = t0 + np.arange(n_steps + 1) * dt
+    rot = dyn.rotors
+    w_int = _body_rates(states[:, 6:9], derivs[:, 6:9])
+    dT_int = rot.torque_thrusts(w_int, np.gradient(w_int, dt, axis=0))
+    if P["motor_tau_s"] > 0:
+        # lagging rotors: fly again with the 4 speeds in the state (the torque demand of the
+        # lag-free flight as an input), so the acceleration follows the lagged Σ k_f ω_i²
+        dT_half = np.column_stack([np.interp(th, t_int, dT_int[:, k]) for k in range(4)])
+        u0 = rot.commands(auxs[:1, 4] * P["t_max_n"], dT_int[:1])
+        s0 = s0 + rot.speeds(u0, gains[:1])[0].tolist()
+        states, derivs, auxs = _rk4(dyn, s0, refs, wind.tolist(), gains.tolist(), n_steps, dt,
+                                    dT_half.tolist())
+        w_int = _body_rates(states[:, 6:9], derivs[:, 6:9])
+    u_int = rot.commands(auxs[:, 4] * P["t_max_n"], dT_int)
+    rpm_int = states[:, 12:16] if P["motor_tau_s"] > 0 else rot.speeds(u_int, gains[::2])
+
+    # ---- sample at log times ----
     i_log = (n_margin + np.arange(n_log)) * n_sub
     t_log = np.arange(n_log) * ts
     S = states[i_log]
-    D = derivs[i_log]
     A = auxs[i_log]
     roll_t, pitch_t, yaw_t = S[:, 6], S[:, 7], S[:, 8]
-    droll, dpitch, dyaw = D[:, 6], D[:, 7], D[:, 8]
-    # body rates from Z-Y-X Euler rates
-    wx_t = droll - np.sin(pitch_t) * dyaw
-    wy_t = np.cos(roll_t) * dpitch + np.sin(roll_t) * np.cos(pitch_t) * dyaw
-    wz_t = -np.sin(roll_t) * dpitch + np.cos(roll_t) * np.cos(pitch_t) * dyaw
+    wx_t, wy_t, wz_t = w_int[i_log].T
     R = euler_to_matrix(roll_t, pitch_t, yaw_t)
     a_world = A[:, :3]
     spec_world = a_world + np.array([0.0, 0.0, P["g"]])
@@ -543,10 +670,13 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
 
     throttle = A[:, 4]
     thrust_cmd = throttle * P["t_max_n"]     # what the flight controller believes it commands
-    # motor outputs: collective plus a small mix of the attitude-rate changes (X layout)
-    wdot = np.gradient(np.column_stack([wx_t, wy_t, wz_t]), t_log, axis=0) if n_log > 1 else np.zeros((n_log, 3))
-    mix = np.array([[-1, 1, 1], [1, -1, 1], [1, 1, -1], [-1, -1, -1]], float) * 0.004
-    motors = np.clip(throttle[:, None] + wdot @ mix.T, 0.0, 1.0)
+    motors = u_int[i_log]
+    # logged speeds: rpm_delay_s ahead of the speeds that act, plus white noise
+    rpm_true = rpm_int[i_log]
+    rpm_log = (np.column_stack([np.interp(t_log + rpm_delay, t_int, rpm_int[:, k]) for k in range(4)])
+               if rpm_delay > 0 else rpm_true.copy())
+    if noise:
+        rpm_log = rpm_log + rng_noise.normal(0.0, P["rpm_noise"], rpm_log.shape)
 
     cols = {
         "x": pos_log[:, 0], "y": pos_log[:, 1], "z": pos_log[:, 2],
@@ -557,6 +687,7 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
         "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
         "throttle": throttle, "thrust": thrust_cmd,
         "motor1": motors[:, 0], "motor2": motors[:, 1], "motor3": motors[:, 2], "motor4": motors[:, 3],
+        "rpm1": rpm_log[:, 0], "rpm2": rpm_log[:, 1], "rpm3": rpm_log[:, 2], "rpm4": rpm_log[:, 3],
         "battery_voltage": volt_log,
     }
     signals = {k: Signal(k, t_log, v, canonical_unit(k), source="simulate") for k, v in cols.items()}
@@ -580,6 +711,14 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     def rms(x):
         return float(np.sqrt(np.mean(np.square(x))))
 
+    from priors.models import RPM_SCALE
+    m = P["mass_kg"]
+    k_T = P["k_f"] * RPM_SCALE ** 2 / m
+    # the rotor-thrust prior with the planted k_T, k_D on the true states and true speeds
+    rotor_model = (k_T * np.sum(np.square(rpm_true / RPM_SCALE), axis=1)[:, None] * R[:, :, 2]
+                   - np.array([0.0, 0.0, P["g"]]) - P["k_drag"] * S[:, 3:6])
+    rotor_err = a_world - rotor_model
+
     truth = {
         "path": path, "duration_s": float(duration_s), "rate_hz": float(rate_hz), "seed": int(seed),
         "noise": bool(noise), "params": note_params, "effects": eff,
@@ -595,8 +734,25 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
             "geometry_max_abs": float(max(np.max(np.abs(mx - ex_)), np.max(np.abs(my - ey_)))),
             "truth_rmse_x": rms(a_world[:, 0] - mx), "truth_rmse_y": rms(a_world[:, 1] - my),
             "max_tilt_rad": float(np.max(np.abs(np.concatenate([roll_t, pitch_t])))),
+            "rotor_rmse_x": rms(rotor_err[:, 0]), "rotor_rmse_y": rms(rotor_err[:, 1]),
+            "rotor_rmse_z": rms(rotor_err[:, 2]),
             "note": "paper tilt-drag model on the TRUE states vs the exact Z-Y-X hover-balance "
-                    "geometry (geometry_*) and vs the true accelerations (truth_*), m/s^2",
+                    "geometry (geometry_*) and vs the true accelerations (truth_*); rotor_*: the "
+                    "rotor-thrust prior with rotors.k_T and k_drag on the true states and the "
+                    "true (undelayed, noise-free) rotor speeds vs the true accelerations; m/s^2",
+        },
+        "rotors": {
+            "k_f": P["k_f"], "k_f_unit": "N/rpm^2 (T_i = k_f rpm_i^2)",
+            "k_T": k_T,
+            "k_T_unit": "m/s^2 per (10^4 rpm)^2 = k_f 1e8 / mass_kg: the coefficient of "
+                        "sum_i (rpm_i/1e4)^2 in the rotor-thrust prior",
+            "hover_rpm": math.sqrt(m * P["g"] / 4.0 / P["k_f"]), "rpm_max": rot.w_max,
+            "motor_tau_s": P["motor_tau_s"], "rpm_delay_s": rpm_delay,
+            "rpm_noise": P["rpm_noise"] if noise else 0.0,
+            "command_map": "T_i = (t_max_n/4) u_i^2 at the nominal voltage; rpm_i = rpm_max u_i "
+                           "sqrt(battery gain) once settled (lag motor_tau_s)",
+            "layout": "X, ArduPilot QUAD/X order: 1 front-right CCW, 2 back-left CCW, "
+                      "3 front-left CW, 4 back-right CW",
         },
     }
     return SimResult(flight, truth)

@@ -68,7 +68,7 @@ def test_flight_contents(control):
     f = control.flight
     expected = {"x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "qw", "qx", "qy", "qz",
                 "wx", "wy", "wz", "ax", "ay", "az", "throttle", "thrust", "motor1", "motor2",
-                "motor3", "motor4", "battery_voltage"}
+                "motor3", "motor4", "rpm1", "rpm2", "rpm3", "rpm4", "battery_voltage"}
     assert set(f.names) == expected
     assert f.provenance.format == "simulated"
     assert len(f["x"]) == int(DUR * RATE) + 1
@@ -269,3 +269,87 @@ def test_internal_rate_at_least_200hz_and_rate_independence():
     b = simulate(path="circle", duration_s=4, rate_hz=100, seed=0, noise=False)
     np.testing.assert_allclose(a.flight["x"].values, b.flight["x"].values[::5], atol=1e-9)
     assert math.isclose(a.truth["model"]["max_tilt_rad"], b.truth["model"]["max_tilt_rad"], rel_tol=1e-2)
+
+
+def _rotor_cols(flight, prefix):
+    return np.column_stack([flight[f"{prefix}{i}"].values for i in range(1, 5)])
+
+
+def test_rotor_speeds_lag_their_commands_and_the_vehicle_follows_the_speeds():
+    tau = 0.05
+    eff = {"thrust_variation": {"amp_m": 0.3, "period_s": 2.5}}
+    res = simulate(path="eight", duration_s=8, rate_hz=100, seed=3, noise=False, effects=eff, motor_tau_s=tau)
+    rot = res.truth["rotors"]
+    assert rot["motor_tau_s"] == tau
+    w, u = _rotor_cols(res.flight, "rpm"), _rotor_cols(res.flight, "motor")
+    t = res.flight["rpm1"].t
+    gap = rot["rpm_max"] * u - w                       # command's settled speed minus the speed
+    lhs = tau * np.gradient(w, t, axis=0)              # first-order lag: tau w' = gap
+    assert np.max(np.abs(gap)) > 100.0                 # the lag is visible
+    assert np.sqrt(np.mean((lhs - gap)[1:-1] ** 2)) < 0.02 * np.sqrt(np.mean(gap ** 2))
+    # the acceleration follows the lagged speeds exactly, not the commands
+    m = res.truth["model"]
+    assert max(m["rotor_rmse_x"], m["rotor_rmse_y"], m["rotor_rmse_z"]) < 1e-9
+    no_lag = simulate(path="eight", duration_s=8, rate_hz=100, seed=3, noise=False, effects=eff)
+    np.testing.assert_allclose(_rotor_cols(no_lag.flight, "rpm"), rot["rpm_max"] * _rotor_cols(no_lag.flight, "motor"),
+                               rtol=1e-12)
+
+
+def test_rpm_logging_delay_shifts_only_the_logged_speeds():
+    d = 0.04
+    a = simulate(path="eight", duration_s=6, rate_hz=100, seed=3, noise=False)
+    b = simulate(path="eight", duration_s=6, rate_hz=100, seed=3, noise=False, rpm_delay_s=d)
+    assert b.truth["rotors"]["rpm_delay_s"] == d
+    for n in ("x", "vx", "roll", "motor1", "throttle"):
+        np.testing.assert_array_equal(a.flight[n].values, b.flight[n].values)
+    k = int(round(d * 100))
+    wa, wb = _rotor_cols(a.flight, "rpm"), _rotor_cols(b.flight, "rpm")
+    np.testing.assert_allclose(wb[:-k], wa[k:], rtol=1e-9)     # logged at t = acting at t + d
+    assert np.max(np.abs(wb[:-k] - wa[:-k])) > 5.0
+
+
+def test_rotor_parameter_errors():
+    with pytest.raises(ConfigError, match="'motor_tau_s' parameter of simulate must be >= 0"):
+        simulate(duration_s=1, motor_tau_s=-0.01)
+    with pytest.raises(ConfigError, match="'k_f' parameter of simulate must be > 0"):
+        simulate(duration_s=1, k_f=0)
+
+
+def test_battery_sag_slows_the_rotors_and_ground_effect_adds_thrust_at_the_same_speed():
+    """Sag lowers the speed a command gives (the rpm law still holds exactly); ground effect
+    raises the thrust a speed gives (the rpm law misses it by the gain)."""
+    sag = simulate(path="hover", duration_s=20, rate_hz=RATE, seed=3, noise=False, effects={"battery_sag": None})
+    m = sag.truth["model"]
+    assert max(m["rotor_rmse_x"], m["rotor_rmse_y"], m["rotor_rmse_z"]) < 1e-9
+    rot = sag.truth["rotors"]
+    w, u = _rotor_cols(sag.flight, "rpm"), _rotor_cols(sag.flight, "motor")
+    volt = sag.flight["battery_voltage"].values
+    np.testing.assert_allclose(w, rot["rpm_max"] * u * (volt / 12.6)[:, None], rtol=1e-9)
+    # same thrust, same speeds (the rotors differ only by the yaw-sweep torque)
+    assert np.sqrt(np.mean(w[-1] ** 2)) == pytest.approx(rot["hover_rpm"], rel=1e-4)
+    radius, alt = 0.12, 0.15
+    ge = simulate(path="hover", duration_s=5, rate_hz=RATE, seed=0, noise=False,
+                  effects={"ground_effect": {"rotor_radius_m": radius, "altitude_m": alt}})
+    gain = 1.0 / (1.0 - (radius / (4 * alt)) ** 2)
+    w_rms = np.sqrt(np.mean(_rotor_cols(ge.flight, "rpm") ** 2, axis=1))
+    np.testing.assert_allclose(w_rms, ge.truth["rotors"]["hover_rpm"] / np.sqrt(gain), rtol=2e-3)
+    assert ge.truth["model"]["rotor_rmse_z"] == pytest.approx(G * (1 - 1 / gain), rel=0.01)
+
+
+def test_x_mix_signs_follow_the_ardupilot_quad_x_layout():
+    """Motor 1 front-right CCW, 2 back-left CCW, 3 front-left CW, 4 back-right CW (FLU body)."""
+    from droneid.simulate import DEFAULT_PARAMS, _Rotors
+    rot = _Rotors(dict(DEFAULT_PARAMS))
+    zero = np.zeros((1, 3))
+    roll_left_up, nose_down, yaw_ccw = np.eye(3)[:, None, :]     # +x, +y, +z angular accelerations
+
+    def sign(wdot):
+        return np.sign(rot.torque_thrusts(zero, wdot)[0]).tolist()
+    assert sign(roll_left_up) == [-1, 1, 1, -1]       # left rotors (2, 3) push harder
+    assert sign(nose_down) == [-1, 1, -1, 1]          # rear rotors (2, 4) push harder
+    assert sign(yaw_ccw) == [-1, -1, 1, 1]            # CW rotors (3, 4): their drag turns the body CCW
+    dT = rot.torque_thrusts(np.array([[0.3, -0.2, 0.5]]), np.array([[2.0, -3.0, 1.0]]))
+    assert abs(dT.sum()) < 1e-12                       # torques never change the collective
+    # a command that would leave 0..1 keeps the collective and scales the torque part down
+    u = rot.commands(np.array([4 * rot.t_max * 0.98]), np.array([[1.0, -1.0, 1.0, -1.0]]))
+    assert np.all(u <= 1.0) and np.sum(u ** 2) * rot.t_max == pytest.approx(4 * rot.t_max * 0.98)

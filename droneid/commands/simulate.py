@@ -8,8 +8,10 @@ def register(sub):
     from ..simulate import DEFAULT_PARAMS, EFFECTS, PATHS
     p = sub.add_parser(
         "simulate", help="simulate a quadrotor flight and write .tlog/.mcap/Motive CSV + truth JSON",
-        description="Simulate a quadrotor flight (tilt-drag dynamics, PID tracking, mocap-like noise) "
-                    "and write it as logs plus NAME.truth.json (parameters, effects, true accelerations). "
+        description="Simulate a quadrotor flight (tilt-drag dynamics, PID tracking, mocap-like noise; "
+                    "four rotors with thrust k_f rpm^2 logged as rpm1..4 and motor1..4, optional motor "
+                    "lag motor_tau_s and rpm logging delay rpm_delay_s) and write it as logs plus "
+                    "NAME.truth.json (parameters, effects, true accelerations, rotor constants). "
                     "Effects: " + "; ".join(f"{k} ({', '.join(f'{n}={v:g}' for n, v in d.items())})"
                                              for k, d in EFFECTS.items()) + ".")
     p.add_argument("--path", default="eight", choices=PATHS, help="reference path (default: eight)")
@@ -22,7 +24,8 @@ def register(sub):
                    help="simulator parameter, e.g. k_drag=0.3 (one of: " + ", ".join(DEFAULT_PARAMS) + ")")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="log the true states without measurement noise")
-    p.add_argument("--format", default="tlog,mcap,csv", help="comma-separated: tlog, mcap, csv (default all)")
+    p.add_argument("--format", default="tlog,mcap,csv", help="comma-separated: tlog, mcap, csv (Motive, pose "
+                   "only), flatcsv (every signal) (default tlog,mcap,csv)")
     p.add_argument("-o", "--out", default=".", metavar="DIR", help="output folder (default .)")
     p.add_argument("--name", default=None, help="file stem (default sim_PATH_sSEED)")
     p.set_defaults(func=run)

@@ -1,0 +1,137 @@
+"""The rotor-thrust prior against the simulator's planted rotor model (issue 11 item 5).
+
+The simulator's acceleration is Σ k_f ω_i² along body z, minus gravity and linear drag, so the
+prior v̇ = k_T Σ(ω_i/10⁴)² R e3 − g e3 − k_D v is exact on it with k_T = k_f·10⁸/m: least squares
+of its split terms on central differences of the logged (noisy) velocity must recover the planted
+k_T and k_D; and identify's delay choice must find a planted rpm logging delay, and no delay
+where none is planted.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from droneid.dataset import DatasetBuilder
+from droneid.simulate import simulate
+from priors.models import RPM_SCALE, get_prior
+
+KD = 0.28
+#: vertical motion (thrust ±30 %) so the thrust term does not collapse onto gravity in v̇z
+VERTICAL = {"thrust_variation": {"amp_m": 0.3, "period_s": 2.5}}
+
+
+def _flight(seed, path="random", **params):
+    return simulate(path=path, duration_s=30.0, rate_hz=100.0, seed=seed, effects=VERTICAL, **params)
+
+
+@pytest.fixture(scope="module")
+def planted():
+    return _flight(11)
+
+
+def test_truth_records_the_rotor_model_and_it_is_exact(planted):
+    rot = planted.truth["rotors"]
+    p = planted.truth["params"]
+    # T_i = k_f ω² with ω in rpm  ->  k_T (per (10⁴ rpm)²) = k_f 10⁸ / m
+    assert rot["k_T"] == pytest.approx(p["k_f"] * RPM_SCALE ** 2 / p["mass_kg"], rel=1e-12)
+    assert rot["hover_rpm"] == pytest.approx(15000.0, rel=1e-3)      # the documented default
+    m = planted.truth["model"]
+    assert max(m["rotor_rmse_x"], m["rotor_rmse_y"], m["rotor_rmse_z"]) < 1e-9
+    f = planted.flight
+    for i in range(1, 5):
+        assert f[f"rpm{i}"].unit == "rpm" and f[f"motor{i}"].unit == "1"
+        u = f[f"motor{i}"].values
+        assert np.all((u >= 0) & (u <= 1))
+    # commands and speeds agree: rpm = rpm_max u (nominal battery, no lag; up to the rpm noise)
+    u = np.column_stack([f[f"motor{i}"].values for i in range(1, 5)])
+    w = np.column_stack([f[f"rpm{i}"].values for i in range(1, 5)])
+    assert np.std(w - rot["rpm_max"] * u) == pytest.approx(rot["rpm_noise"], rel=0.1)
+    # the attitude mix makes the rotors differ: roll/pitch/yaw torques, not one collective
+    clean = simulate(path="random", duration_s=10.0, rate_hz=100.0, seed=11, effects=VERTICAL, noise=False)
+    w = np.column_stack([clean.flight[f"rpm{i}"].values for i in range(1, 5)])
+    assert np.max(np.ptp(w - w.mean(axis=1, keepdims=True), axis=0)) > 50.0
+
+
+def _ls(flight, target):
+    prior = get_prior("rotor-thrust", source="rpm", motors=4)
+    ds = DatasetBuilder(ts=0.05, method="central").build(flight, target=target, inputs=prior.inputs(target))
+    feats = prior.features(target)
+    X = prior.evaluate(ds.columns(), target)
+    const = [f.name for f in feats if not f.expr.free_symbols]
+    # the gravity term is a known constant: move it to the left side, fit the others
+    y = ds.y - X[:, [f.name in const for f in feats]].sum(axis=1)
+    keep = [f.name not in const for f in feats]
+    coef, *_ = np.linalg.lstsq(X[:, keep], y, rcond=None)
+    names = [f.name for f in feats if f.name not in const]
+    # features carry the prior's nominal scales: k_T and k_D are those times the fitted factors
+    return {n: c * s for n, c, s in zip(names, coef, (prior.params["k_T"], prior.params["k_D"]))}
+
+
+@pytest.mark.parametrize("target", ["vx_dot", "vy_dot", "vz_dot"])
+def test_least_squares_recovers_planted_kT_and_kD(planted, target):
+    axis = target[1]
+    est = _ls(planted.flight, target)
+    k_T = planted.truth["rotors"]["k_T"]
+    assert est[f"sum_rpm_sq_{axis}"] == pytest.approx(k_T, rel=0.03)
+    assert est[f"minus_kD_v{axis}"] == pytest.approx(KD, rel=0.10)
+
+
+def test_least_squares_recovers_a_different_planted_kf():
+    """Control: a heavier vehicle with stiffer rotors gives its own k_T, not the default's."""
+    res = _flight(12, mass_kg=0.8, k_f=7e-9, t_max_n=2 * 0.8 * 9.81)
+    k_T = res.truth["rotors"]["k_T"]
+    assert k_T == pytest.approx(7e-9 * 1e8 / 0.8)
+    for target in ("vx_dot", "vz_dot"):
+        assert _ls(res.flight, target)[f"sum_rpm_sq_{target[1]}"] == pytest.approx(k_T, rel=0.03)
+
+
+# -- the input delay identify chooses ----------------------------------------------------------
+#: two vertical rhythms: with one sinusoid the delay error (∝ jerk) is collinear with the drag
+#: term (∝ v̇z's integral) and least squares hides it in k_D
+RHYTHMS = ((21, 0.2, 1.2), (22, 0.3, 2.5))
+
+
+def _delay_flights(delay_s):
+    train = [simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=delay_s,
+                      effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight
+             for s, a, p in RHYTHMS]
+    test = [simulate(path="eight", duration_s=20.0, rate_hz=100.0, seed=23, rpm_delay_s=delay_s,
+                     effects={"thrust_variation": {"amp_m": 0.25, "period_s": 1.8}}).flight]
+    return train, test
+
+
+def _identify_delays(delay_s):
+    from droneid.identify import IdentifyConfig, identify
+    train, test = _delay_flights(delay_s)
+    cfg = IdentifyConfig.make(runs=1, generations=200, population=60, jobs=1, effects="none", delays="auto")
+    res = identify(train, test, cfg)
+    assert res.config["prior_used"] == "rotor-thrust"
+    return res.config["delays_s"], res.config["delay_scores"]
+
+
+def test_identify_finds_the_planted_rpm_logging_delay():
+    delays, scores = _identify_delays(0.04)
+    assert set(delays) == {"rpm1", "rpm2", "rpm3", "rpm4"}, (delays, scores)
+    for d in delays.values():
+        assert d == pytest.approx(0.04, abs=0.01), (delays, scores)
+
+
+def test_identify_chooses_no_delay_where_none_is_planted():
+    delays, scores = _identify_delays(0.0)
+    assert all(d <= 0.01 for d in delays.values()), (delays, scores)
+
+
+def test_the_rotor_sample_log_shows_its_planted_delay():
+    """sample_logs/rotor_climb_eight (droneid/samples.py) is there to show the rotor-thrust prior
+    and its delay: identify's plan on the simulated sample picks both."""
+    from droneid.identify import IdentifyConfig, plan_identification
+    from droneid.samples import SAMPLES
+    spec = next(s for s in SAMPLES if s.name == "rotor_climb_eight")
+    res = simulate(**spec.sim)
+    plan = plan_identification([res.flight], IdentifyConfig.make(runs=1, effects="none", delays="auto"))
+    assert plan.prior.name == "rotor-thrust"
+    planted = res.truth["rotors"]["rpm_delay_s"]
+    assert planted == 0.04
+    assert len(plan.delays_s) == 4, plan.delay_scores
+    for d in plan.delays_s.values():
+        assert d == pytest.approx(planted, abs=0.01), plan.delay_scores
