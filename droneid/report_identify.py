@@ -308,7 +308,7 @@ def build_document(result: dict) -> Document:
             doc.figure(fig_measured_vs_predicted(name, tr), f"{name}_test_prediction",
                        "measured vs predicted on the test data (identified best run and empirical model)")
             doc.figure(fig_residuals(name, tr), f"{name}_residuals", "residual over time on the test data")
-        if tr.get("runs"):
+        if any(math.isfinite(_f(r.get("rmse_test"))) for r in tr.get("runs") or []):
             doc.figure(fig_runs(name, tr), f"{name}_runs",
                        "runs sorted by test error; dashed: the empirical model's test error (cf. the paper's Figs. 2-3)")
         if cfg.get("constraints") != "none" and tr.get("runs"):

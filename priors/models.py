@@ -71,7 +71,7 @@ class PriorModel:
 
     terms : mapping target -> tuple of :class:`PriorFeature` (the equation's terms, summed)
     input_names : mapping target -> the inputs a model of that target is given (paper's choice)
-    params : the numeric parameters the terms were built with
+    params : the parameters the terms were built with (numbers; a rotor-thrust source name)
     vehicle : the kind of vehicle the model describes ("multirotor", "ground", "any")
     constraints : name of its built-in constraint set (:func:`priors.constraints.get_constraints`)
     """
@@ -299,7 +299,8 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         "rotor-thrust",
         f"Rotor-thrust model: {THRUST_SOURCES[source][2]}, along the body z axis rotated by the "
         f"full attitude, minus gravity, minus linear drag k_D v.",
-        terms, inputs, {"k_T": k_T, "k_D": k_D, "g": g, "motors": motors},
+        terms, inputs, {"source": source, "motors": motors, "k_T": k_T, "k_D": k_D, "g": g,
+                        "rotor_drag": rotor_drag},
         vehicle="multirotor", constraints="rotor-thrust")
 
 
