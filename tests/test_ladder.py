@@ -1,0 +1,98 @@
+"""The trust guards of identify (droneid.ladder) on data with a planted law."""
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from droneid.expressions import symbol
+from droneid.ladder import (TermModel, blocked_cv, choose_delay, drag_slope, plausible, trim_terms,
+                            validation_blocks)
+
+v, a = symbol("vx"), symbol("pitch")
+
+
+@pytest.fixture
+def data():
+    """vx_dot = 9.81 pitch − 0.3 vx + noise, five 'flights' of 200 samples."""
+    rng = np.random.default_rng(0)
+    n = 1000
+    cols = {"vx": rng.uniform(-2, 2, n), "pitch": rng.uniform(-0.3, 0.3, n)}
+    y = 9.81 * cols["pitch"] - 0.3 * cols["vx"] + rng.normal(0, 0.1, n)
+    flight = np.repeat(np.arange(5), 200)
+    t = np.tile(np.arange(200) * 0.05, 5)
+    return cols, y, flight, t
+
+
+def test_term_model_recovers_the_planted_law(data):
+    cols, y, flight, t = data
+    m = TermModel((a, v), ("pitch", "vx")).fit(cols, y)
+    assert m.coefs == pytest.approx((9.81, -0.3), rel=0.02)
+    blocks, how = validation_blocks(t, flight)
+    assert "leave-one-flight-out over 5" in how and set(blocks) == set(range(5))
+    assert m.cv_rmse(cols, y, blocks) == pytest.approx(0.1, rel=0.1)
+
+
+def test_validation_blocks_within_flights_when_there_are_few():
+    t = np.arange(400) * 0.05
+    blocks, how = validation_blocks(t, np.zeros(400, int))
+    assert "contiguous time blocks" in how and len(set(blocks)) == 8
+    assert np.all(np.diff(blocks) >= 0)  # contiguous in time
+
+
+def test_blocked_cv_predicts_each_block_without_it():
+    y = np.r_[np.zeros(50), np.ones(50)]
+    A = np.ones((100, 1))
+    pred = blocked_cv(A, y, np.r_[np.zeros(50, int), np.ones(50, int)])
+    assert np.allclose(pred[:50], 1.0) and np.allclose(pred[50:], 0.0)  # the other block's mean
+
+
+def test_trim_drops_a_cancelling_pair_a_duplicate_and_a_useless_term(data):
+    cols, y, flight, t = data
+    blocks, _ = validation_blocks(t, flight)
+    # a cancelling pair: 20·sin(vx) − 20·vx·(1 − vx²/6) is ~0 in range and huge outside;
+    # a duplicate of pitch (scaled); a term that only fits noise
+    evolved = (sp.sin(v), v * (1 - v ** 2 / 6), 2.0 * a, sp.cos(37 * v))
+    m = TermModel((a, v) + evolved, ("pitch", "vx", "sin", "cubic", "2pitch", "cos37"))
+    trimmed, notes = trim_terms(m, cols, y, blocks, keep_first=2)
+    assert trimmed.labels == ("pitch", "vx")
+    text = " ".join(notes)
+    assert "duplicates pitch" in text and "validation error" in text
+    assert trimmed.coefs == pytest.approx((9.81, -0.3), rel=0.02)
+
+
+def test_trim_keeps_a_real_missing_term():
+    rng = np.random.default_rng(1)
+    n = 1000
+    cols = {"vx": rng.uniform(-2, 2, n), "pitch": rng.uniform(-0.3, 0.3, n)}
+    y = 9.81 * cols["pitch"] - 0.3 * cols["vx"] - 0.2 * np.abs(cols["vx"]) * cols["vx"] + rng.normal(0, 0.05, n)
+    blocks, _ = validation_blocks(np.tile(np.arange(200) * 0.05, 5), np.repeat(np.arange(5), 200))
+    m = TermModel((a, v, sp.Abs(v) * v), ("pitch", "vx", "quadratic drag"))
+    trimmed, notes = trim_terms(m, cols, y, blocks, keep_first=2)
+    assert "quadratic drag" in trimmed.labels and not notes
+    assert trimmed.coefs[2] == pytest.approx(-0.2, rel=0.1)
+
+
+def test_plausible_rejects_a_term_that_blows_up_just_outside_the_range():
+    ranges = {"vx": (-1.5, 1.5)}
+    assert plausible(-0.3 * v, ranges, bound=20).ok
+    blow = plausible(-0.3 * v + 0.01 * v ** 9, ranges, bound=20)  # 0.38 at 1.5, 1.6 at 1.8 ... 14 at 2.1
+    assert plausible(-0.3 * v + 0.01 * v ** 9, ranges, bound=20, margin=0.0).ok
+    assert blow.max_abs > plausible(-0.3 * v + 0.01 * v ** 9, ranges, bound=20, margin=0.0).max_abs
+    assert not plausible(-0.3 * v + 0.01 * v ** 15, ranges, bound=20).ok
+    assert not plausible(1 / (v - 1.6), ranges, bound=20).ok
+
+
+def test_drag_slope_flags_a_velocity_term_that_turns_over():
+    rows = {"pitch": np.linspace(-0.2, 0.2, 5)}
+    assert drag_slope(9.81 * a - 0.3 * v, "vx", rows, 2.0) == pytest.approx(-0.3)
+    assert drag_slope(9.81 * a - 0.3 * v - 0.2 * sp.Abs(v) * v, "vx", rows, 2.0) <= -0.3 + 1e-9
+    wavy = -0.528 * v + 0.52 * v * sp.cos(v ** 2) ** 3  # found by SNGP on the Crazyflie squares
+    assert drag_slope(wavy, "vx", rows, 2.0) > 0.5
+    assert drag_slope(9.81 * a, "vx", rows, 2.0) == -math.inf  # no velocity: nothing to check
+
+
+def test_choose_delay_keeps_zero_unless_a_delay_gains_enough():
+    assert choose_delay(lambda d: 1.0 - 0.001 * d)[0] == 0.0
+    best, scores = choose_delay(lambda d: 1.0 + 40 * (d - 0.04) ** 2 - 0.064)
+    assert best == pytest.approx(0.04) and set(scores) == {round(0.01 * k, 2) for k in range(11)}

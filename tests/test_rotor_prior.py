@@ -1,0 +1,85 @@
+"""The rotor-thrust prior, its constraints and the automatic prior choice."""
+import numpy as np
+import pytest
+
+from droneid.errors import ConfigError
+from droneid.frames import euler_to_matrix
+from droneid.identified import IdentifiedModel
+from priors.constraints import rotor_thrust as rotor_constraints
+from priors.models import choose_prior, get_prior
+
+
+def _columns(n=200, seed=0):
+    rng = np.random.default_rng(seed)
+    cols = {"roll": rng.uniform(-0.6, 0.6, n), "pitch": rng.uniform(-0.6, 0.6, n),
+            "yaw": rng.uniform(-3, 3, n), "vx": rng.normal(0, 1, n), "vy": rng.normal(0, 1, n),
+            "vz": rng.normal(0, 0.5, n)}
+    for i in range(1, 5):
+        cols[f"rpm{i}"] = rng.uniform(8000, 20000, n)
+    return cols
+
+
+def test_rotor_thrust_is_thrust_along_the_rotated_body_z_minus_gravity_and_drag():
+    """Checked against droneid.frames' own rotation matrix (independent code)."""
+    k_T, k_D, g = 1.09, 0.28, 9.81
+    prior = get_prior("rotor-thrust", source="rpm", motors=4, k_T=k_T, k_D=k_D)
+    cols = _columns()
+    R = np.array([euler_to_matrix(r, p, y) for r, p, y in zip(cols["roll"], cols["pitch"], cols["yaw"])])
+    thrust = k_T * sum((cols[f"rpm{i}"] / 1e4) ** 2 for i in range(1, 5))
+    expected = thrust[:, None] * R[:, :, 2] - np.array([0, 0, g]) - k_D * np.column_stack(
+        [cols["vx"], cols["vy"], cols["vz"]])
+    for j, t in enumerate(("vx_dot", "vy_dot", "vz_dot")):
+        got = prior.evaluate(cols, t, 1)[:, 0]
+        assert np.allclose(got, expected[:, j], rtol=1e-10, atol=1e-9), t
+        split = prior.evaluate(cols, t)
+        assert np.allclose(split.sum(axis=1), got)
+        assert [f.role for f in prior.features(t)][0] == "thrust"
+
+
+def test_rotor_thrust_as_given_meets_its_own_constraints():
+    prior = get_prior("rotor-thrust", source="rpm", motors=4)
+    for t in ("vx_dot", "vy_dot", "vz_dot"):
+        cs = rotor_constraints(t, {f"rpm{i}": 20000.0 for i in range(1, 5)})
+        samples = cs.sample(list(prior.inputs(t)), n_per_constraint=40, seed=3)
+        cols = {n: samples.X[:, i] for i, n in enumerate(samples.input_names)}
+        pred = prior.evaluate(cols, t, 1)[:, 0]
+        from droneid.constraints import constraint_rmse
+        assert constraint_rmse(pred, samples) < 1e-9, t
+
+
+def test_rotor_thrust_sources_and_errors():
+    for source, signals in (("motor", {"motor1", "motor2", "motor3", "motor4"}), ("throttle", {"throttle"}),
+                            ("thrust", {"thrust"})):
+        p = get_prior("rotor-thrust", source=source)
+        assert signals <= set(p.inputs("vx_dot"))
+        assert p.params["source"] == source
+    with pytest.raises(ConfigError, match="unknown thrust source 'rpms'.*rpm"):
+        get_prior("rotor-thrust", source="rpms")
+    with pytest.raises(ConfigError, match="motors"):
+        get_prior("rotor-thrust", motors=0)
+
+
+def test_auto_prefers_the_most_direct_thrust_signal():
+    rpm = [f"rpm{i}" for i in range(1, 5)]
+    cmd = [f"motor{i}" for i in range(1, 5)]
+    assert choose_prior([*rpm, *cmd, "throttle"])[:2] == ("rotor-thrust", {"source": "rpm", "motors": 4})
+    assert choose_prior([*cmd, "throttle"])[:2] == ("rotor-thrust", {"source": "motor", "motors": 4})
+    assert choose_prior(["thrust", "throttle"])[:2] == ("rotor-thrust", {"source": "thrust"})
+    assert choose_prior(["rpm1", "rpm2", "throttle"])[:2] == ("rotor-thrust", {"source": "throttle"})
+    name, params, reason = choose_prior(["vx", "roll"])
+    assert name == "tilt-drag" and "no motor speeds" in reason
+    assert choose_prior(["vx"], "tilt-drag")[0] == "tilt-drag"
+    with pytest.raises(ConfigError, match="rotor-thrust.*needs motor speeds"):
+        choose_prior(["vx"], "rotor-thrust")
+
+
+def test_identified_model_round_trips_through_its_dict():
+    prior = get_prior("rotor-thrust")
+    expr = sum(f.expr for f in prior.features("vz_dot"))
+    m = IdentifiedModel("vz_dot", expr, {"rpm1": 0.04, "rpm2": 0.0}, "test")
+    d = m.to_dict()
+    assert d["delays_s"] == {"rpm1": 0.04}  # zero delays are dropped
+    back = IdentifiedModel.from_dict(d)
+    cols = _columns(50)
+    assert np.allclose(back.evaluate(cols), m.evaluate(cols), rtol=1e-12)
+    assert back.signals == m.signals
