@@ -948,7 +948,8 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
                  for t in m.terms if t not in prior_syms]
         tm = TermModel(base + tuple(evolved),
                        labels + tuple(("-" if neg else "") + txt for txt, neg in shown))
-        trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base))
+        sizes = [0] * len(base) + [int(sp.count_ops(t)) for t in m.terms if t not in prior_syms]
+        trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base), sizes=sizes)
         guards["dropped"].extend(f"run {i + 1}: {n}" for n in notes)
         if len(trimmed.terms) == len(base):
             guards["no_evolved_term_left"] += 1

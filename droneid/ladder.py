@@ -28,7 +28,7 @@ import sympy as sp
 from .expressions import compile_expression
 from .numerics import lstsq, rmse
 
-__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "blocked_cv", "choose_delay", "trim_terms", "plausible",
+__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "blocked_cv", "choose_delay", "trim_terms", "plausible",
            "DELAY_GRID_S", "n_blocks_for"]
 
 #: candidate input delays of the thrust signals (s)
@@ -127,17 +127,28 @@ def choose_delay(cv_error: Callable[[float], float], grid: Sequence[float] = DEL
 
 
 #: an evolved term with more operations than this is not something a person can read aloud
-MAX_TERM_OPS = 12
+MAX_TERM_OPS = 10
+
+
+def nested_functions(expr: sp.Expr) -> int:
+    """How deeply non-polynomial functions (sin, cos, exp, tanh, |.|, ...) nest in ``expr``:
+    sin(vx) is 1, sin(cos(vx)) is 2 (a person can read the first aloud, not the second)."""
+    def depth(e):
+        inner = max((depth(a) for a in e.args), default=0)
+        return inner + 1 if isinstance(e, sp.Function) else inner
+    return depth(expr)
 
 
 def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: float = 0.01,
-               corr_limit: float = 0.999, max_ops: int = MAX_TERM_OPS, cancel_limit: float = 3.0
-               ) -> tuple[TermModel, list[str]]:
+               corr_limit: float = 0.999, max_ops: int = MAX_TERM_OPS, cancel_limit: float = 3.0,
+               sizes: Sequence[int] | None = None) -> tuple[TermModel, list[str]]:
     """Drop evolved terms (index ≥ ``keep_first``) that do not earn their place.
 
     1. A term whose column correlates with an earlier one beyond ``corr_limit`` (a cancelling
        pair or a near-duplicate) is dropped (least squares refits the survivor).
-    Terms with more than ``max_ops`` sympy operations are dropped first (unreadable). While the
+    Terms with more than ``max_ops`` sympy operations (``sizes``: counted on the form a person
+       reads, e.g. with a named prior feature as one symbol) or with a function inside a function
+       (sin(cos(.)), :func:`nested_functions`) are dropped first (unreadable). While the
        terms' contributions Σ|b_i|·std(col_i) exceed ``cancel_limit`` times the spread of their
        sum, the evolved term contributing most goes (a cancelling pair such as 22.9·cos a − 21.7·cos b
        fits the training range and explodes outside it).
@@ -159,13 +170,14 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
                     break
         elif i >= keep_first:
             dup = -1
-        if dup is None and i >= keep_first and sp.count_ops(model.terms[i]) > max_ops:
+        size = sizes[i] if sizes is not None else sp.count_ops(model.terms[i])
+        if dup is None and i >= keep_first and (size > max_ops or nested_functions(model.terms[i]) > 1):
             dup = -2
         if dup is None:
             keep.append(i)
         else:
             why = {-1: "not finite or constant on the training data",
-                   -2: f"more than {max_ops} operations (unreadable)"}.get(dup)
+                   -2: f"more than {max_ops} operations or functions of functions (unreadable)"}.get(dup)
             notes.append(f"dropped {model.labels[i]}: " + (why or f"duplicates {model.labels[dup]}"))
 
     def cv(idx):

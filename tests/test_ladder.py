@@ -96,3 +96,15 @@ def test_choose_delay_keeps_zero_unless_a_delay_gains_enough():
     assert choose_delay(lambda d: 1.0 - 0.001 * d)[0] == 0.0
     best, scores = choose_delay(lambda d: 1.0 + 40 * (d - 0.04) ** 2 - 0.064)
     assert best == pytest.approx(0.04) and set(scores) == {round(0.01 * k, 2) for k in range(11)}
+
+
+def test_functions_of_functions_are_unreadable(data):
+    from droneid.ladder import nested_functions
+    assert nested_functions(v ** 2 * a) == 0 and nested_functions(sp.sin(v) * sp.cos(a)) == 1
+    assert nested_functions(sp.cos(sp.sin(v) + 1)) == 2
+    cols, y, flight, t = data
+    blocks, _ = validation_blocks(t, flight)
+    y2 = y + 0.5 * np.cos(np.sin(3 * cols["vx"]))  # even if it fits, nobody can read it aloud
+    m = TermModel((a, v, sp.cos(sp.sin(3 * v))), ("pitch", "vx", "cos(sin(3 vx))"))
+    trimmed, notes = trim_terms(m, cols, y2, blocks, keep_first=2)
+    assert trimmed.labels == ("pitch", "vx") and "unreadable" in notes[0]
