@@ -73,7 +73,7 @@ def _expand_braces(word: str) -> list[str]:
             for w in _expand_braces(word[:m.start()] + str(i) + word[m.end():])]
 
 
-def documented_commands(path: Path) -> list[DocCommand]:
+def documented_commands(path: Path, root: Path = ROOT) -> list[DocCommand]:
     """The droneid command lines in the fenced code blocks of one Markdown file."""
     commands: list[DocCommand] = []
     lines = path.read_text(encoding="utf-8").splitlines()
@@ -102,7 +102,7 @@ def documented_commands(path: Path) -> list[DocCommand]:
         words = shlex.split(text, comments=True)
         words = words[3:] if words[:3] == ["python", "-m", "droneid"] else words[1:]
         argv = tuple(w for word in words for w in _expand_braces(word))
-        commands.append(DocCommand(path.relative_to(ROOT).as_posix(), start + 1, text, argv,
+        commands.append(DocCommand(path.relative_to(root).as_posix(), start + 1, text, argv,
                                    int(exit_match.group(1)) if exit_match else 0))
     return commands
 
@@ -200,3 +200,38 @@ def test_documented_commands_run(doc: Path, cmds: list[DocCommand], tmp_path, mo
             assert "Traceback" not in err.getvalue(), str(cmd)
             assert len(err.getvalue().strip().splitlines()) == 1, f"{cmd}: {err.getvalue()}"
     assert not failures, "documented commands that fail:\n" + "\n".join(failures)
+
+
+def test_extraction_rules(tmp_path):
+    """Shell blocks and prompts are commands; synopses, output and other languages are not."""
+    doc = tmp_path / "x.md"
+    doc.write_text("\n".join([
+        "```sh",
+        "droneid identify ../shared/real_logs/a/run{1..3}.csv \\",
+        "    --test sample_logs/b.tlog --quick   # a comment",
+        "droneid inspect broken.bin      # exit 2",
+        "```",
+        "```text",
+        "usage: droneid identify TRAIN_LOG...",
+        "droneid identify: prior tilt-drag",
+        "$ python -m droneid -q diagnose sample_logs/c.tlog",
+        "```",
+        "```python",
+        "droneid = 1",
+        "```",
+        "droneid inspect outside_a_block.tlog",
+    ]), encoding="utf-8")
+    cmds = documented_commands(doc, root=tmp_path)
+    assert [c.argv for c in cmds] == [
+        ("identify", "../shared/real_logs/a/run1.csv", "../shared/real_logs/a/run2.csv",
+         "../shared/real_logs/a/run3.csv", "--test", "sample_logs/b.tlog", "--quick"),
+        ("inspect", "broken.bin"),
+        ("-q", "diagnose", "sample_logs/c.tlog"),
+    ]
+    assert [c.exit_code for c in cmds] == [0, 2, 0]
+    assert [c.line for c in cmds] == [2, 4, 9]
+    assert cmds[0].uses_real_logs and not cmds[1].uses_real_logs
+    argv = runnable_argv(cmds[0])
+    assert "--quick" not in argv and argv[-8:] == BUDGET["identify"]
+    assert argv[0] == "-q" and argv[2] == str(REAL_LOGS / "a" / "run1.csv")
+    assert str(SAMPLE_LOGS / "b.tlog") in argv
