@@ -60,7 +60,14 @@ def test_identify_writes_the_documented_schema_and_files(identified):
         tr = doc["targets"][t]
         assert isinstance(tr["equation"], str) and tr["equation"].startswith(f"{t} = ")
         assert isinstance(tr["coefficients"], dict) and isinstance(tr["prior_coefficients"], dict)
-        assert len(tr["prior_coefficients"]) == 3
+        assert len(tr["prior_coefficients"]) == len(tr["prior_features"]) == 2  # rotor-thrust: thrust, drag
+        # the ladder, its final model and the models predict and export apply
+        assert [r["name"] for r in tr["ladder"]][0] == "empirical" and tr["ladder"][-1]["name"] == "final"
+        for r in tr["ladder"]:
+            assert {"rmse_train", "rmse_validation", "rmse_test", "constraint_rmse_test", "model"} <= set(r)
+        for key in ("final", "empirical_model", "refit_model"):
+            assert {"target", "expr", "signals", "delays_s", "equation"} <= set(tr[key])
+        assert tr["verdict"].startswith(f"{t}: ")
         for part in ("identified", "empirical", "empirical_refit"):
             assert all(isinstance(tr[part][k], float) for k in SCHEMA_METRICS), part
         assert len(tr["runs"]) == 2
@@ -68,6 +75,9 @@ def test_identify_writes_the_documented_schema_and_files(identified):
             assert {"seed", "rmse_train", "rmse_test", "constraint_rmse_test", "wall_s"} <= set(r)
         assert tr["model"] and tr["holdout"] is False
     assert doc["config"]["prior_features"] == 3 and doc["config"]["constraints"] == "paper"
+    # the simulated logs carry motor speeds: auto picks rotor-thrust and says why
+    assert doc["config"]["prior_used"] == "rotor-thrust" and "motor speeds" in doc["config"]["prior_reason"]
+    assert "delays_s" in doc["config"] and doc["config"]["fitness"]["train"]["ok"]
     assert doc["provenance"]["train"][0]["files"][0].endswith("eight.tlog")
     html = (identified / "report.html").read_text()
     # 4 figures per target + the multi-step error and trace figures
