@@ -34,7 +34,7 @@ def test_features_and_needs():
     np.testing.assert_allclose(CATALOGUE["quadratic_drag"].features(ctx)["c"],
                                -np.hypot(c["vx"], c["vy"]) * c["vx"])
     assert CATALOGUE["battery_sag"].missing({TILT, "throttle"}) == ["battery_voltage"]
-    assert CATALOGUE["ground_effect"].missing({"vx"}) == ["tilt terms of the prior", "z"]
+    assert CATALOGUE["ground_effect"].missing({"vx"}) == ["thrust-direction (tilt or thrust) terms of the prior", "z"]
 
 
 def test_attitude_bias_feature_is_the_derivative_of_the_tilt_terms():
