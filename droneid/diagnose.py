@@ -356,10 +356,13 @@ def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig
 
 
 class _Stack:
-    """Rows of several targets stacked; terms are {param: {target: column}}."""
+    """Rows of several targets stacked; terms are {param: {target: column}}. ``w``: row weights
+    of the least squares and of the CV errors (1/σ of each target's base residual, so a noisy
+    target such as v̇z does not dictate a coefficient shared with v̇x, v̇y)."""
 
     def __init__(self, parts: Sequence[_Part]):
         self.parts = list(parts)
+        self.w = np.concatenate([np.ones(p.y.size) for p in parts])
         self.y = np.concatenate([p.y for p in parts])
         self.block = np.concatenate([p.block for p in parts])
         self.tidx = np.concatenate([np.full(p.y.size, i) for i, p in enumerate(parts)])
@@ -386,16 +389,19 @@ def _lstsq(X, y):
     return lstsq(X, y, rcond=1e-10)
 
 def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
-    """Held-out predictions by leave-one-block-out; per-block MSE and sample counts."""
+    """Held-out predictions by leave-one-block-out (weighted least squares); per-block weighted
+    MSE and sample counts."""
     pred = np.zeros_like(stack.y)
+    w = stack.w
     for k in range(n_blocks):
         test = stack.block == k
         if not test.any():
             continue
-        beta = _lstsq(X[~test], stack.y[~test])
+        beta = _lstsq(X[~test] * w[~test, None], stack.y[~test] * w[~test])
         pred[test] = X[test] @ beta
-    mse = np.array([np.mean((stack.y[stack.block == k] - pred[stack.block == k]) ** 2)
-                    if np.any(stack.block == k) else 0.0 for k in range(n_blocks)])
+    r2 = (w * (stack.y - pred)) ** 2
+    mse = np.array([np.mean(r2[stack.block == k]) if np.any(stack.block == k) else 0.0
+                    for k in range(n_blocks)])
     n = np.array([np.sum(stack.block == k) for k in range(n_blocks)])
     return pred, mse, n
 
@@ -560,6 +566,11 @@ class _Model:
         self.base = {name: {p.target: col} for p in tr_parts for name, col in p.base.items()}
         self.te_base = {name: {p.target: col} for p in te_parts or [] for name, col in p.base.items()}
         self._consts: dict = {}
+        if len(tr_parts) > 1:
+            # weights 1/σ_t from the base refit (separable per target: the prior terms are per target)
+            r = self.tr.y - self.tr.design(self.base) @ _lstsq(self.tr.design(self.base), self.tr.y)
+            sig = {i: max(rmse(r[self.tr.tidx == i], 0.0), 1e-12) for i in range(len(tr_parts))}
+            self.tr.w = np.array([1.0 / sig[i] for i in self.tr.tidx])
 
     def constants(self, effect) -> dict:
         """{target: constants} of ``effect`` fixed from the training parts."""
@@ -588,7 +599,7 @@ class _Model:
         the test flights lack a signal of a vehicle term (``test_note`` says which)."""
         tr, te, nb = self.tr, self.te, self.cfg.n_blocks
         X = tr.design(cur_terms)
-        beta = _lstsq(X, tr.y)
+        beta = _lstsq(X * tr.w[:, None], tr.y * tr.w)
         pred = X @ beta
         out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred, "train": tr.rmse_by_target(pred)}
         cvp, mse, n = _cv(tr, X, nb)
