@@ -539,7 +539,8 @@ def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, d
             why = e.not_applicable(p.ctx)
             (why_not if why else applicable).append(why or p)
         if not applicable:
-            not_applicable[eid] = "; ".join(sorted(set(why_not))) or \
+            prior_why = sorted({w for w in why_not if not w.startswith("does not apply to")})
+            not_applicable[eid] = "; ".join(prior_why or sorted(set(why_not))) or \
                 f"does not apply to targets {', '.join(targets)}"
             continue
         miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())})
@@ -566,11 +567,11 @@ class _Model:
         self.base = {name: {p.target: col} for p in tr_parts for name, col in p.base.items()}
         self.te_base = {name: {p.target: col} for p in te_parts or [] for name, col in p.base.items()}
         self._consts: dict = {}
-        if len(tr_parts) > 1:
-            # weights 1/σ_t from the base refit (separable per target: the prior terms are per target)
-            r = self.tr.y - self.tr.design(self.base) @ _lstsq(self.tr.design(self.base), self.tr.y)
-            sig = {i: max(rmse(r[self.tr.tidx == i], 0.0), 1e-12) for i in range(len(tr_parts))}
-            self.tr.w = np.array([1.0 / sig[i] for i in self.tr.tidx])
+        # weights 1/σ_t from the base refit (separable per target: the prior terms are per
+        # target), so pooled CV errors are in units of each target's base residual
+        r = self.tr.y - self.tr.design(self.base) @ _lstsq(self.tr.design(self.base), self.tr.y)
+        sig = {i: max(rmse(r[self.tr.tidx == i], 0.0), 1e-12) for i in range(len(tr_parts))}
+        self.tr.w = np.array([1.0 / sig[i] for i in self.tr.tidx])
 
     def constants(self, effect) -> dict:
         """{target: constants} of ``effect`` fixed from the training parts."""
@@ -640,6 +641,7 @@ class _Model:
         cfg = self.cfg
         ev = significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=n_candidates,
                           min_rel_improvement=cfg.min_rel_improvement)
+        ev["cv_units"] = "pooled over targets, each in units of its base residual σ"
         return _with_test(ev, cur["test_all"], new["test_all"])
 
 
@@ -799,10 +801,11 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                                    for t in targets},
                           "test_note": new.get("test_note"),
                           "evidence": ev})
-        plot_steps.append({p.target: {"effect": "+".join(e.id for e in group),
-                                      "residual": p.y - cur["pred"][tr.tidx == i],
-                                      "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
-                           for i, p in enumerate(tr_parts)})
+        plot = {p.target: {"effect": "+".join(e.id for e in group),
+                           "residual": p.y - cur["pred"][tr.tidx == i],
+                           "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
+                for i, p in enumerate(tr_parts)}
+        plot_steps.extend(plot for _ in group)      # one entry per step (a pair: the joint term)
         added.extend(e.id for e in group)
         cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
         if "wind" in added:

@@ -43,9 +43,10 @@ fitted linear drag coefficient of the base model (from the role ``drag`` terms).
 ==================  ==========================================================================
 id                  feature(s) for v̇x (v̇y analogous), coefficient -> physical meaning
 ==================  ==========================================================================
-quadratic_drag      −sqrt(vx²+vy²)·vx (shared c); v̇z: −|vz|·vz (c_z) -> c_D/m in 1/m; once
-                    wind is in the model, the fit uses the air velocity v − ŵ (also for
-                    anisotropic_drag); the folded expression uses v (wind is per flight)
+quadratic_drag      −sqrt(vx²+vy²)·vx (shared c) -> c_D/m in 1/m; once wind is in the model,
+                    the fit uses the air velocity v − ŵ (also for anisotropic_drag); the
+                    folded expression uses v (wind is a condition of the flight)
+vertical_drag       v̇z only: −|vz|·vz (c_z) -> vertical c_D/m in 1/m
 wind                1 (offset_x) -> wind w_x = offset_x / k_D (drag acts on v − w); per flight
 attitude_bias       ∂G/∂roll, ∂G/∂pitch (shared) -> bias = −coef (logged − true); per flight
 attitude_delay      dG/dt from the logged attitude (shared τ) -> "attitude lags by τ"
@@ -333,21 +334,22 @@ def _sym(name):
 
 
 def _quadratic_drag(ctx, k):
-    v = _sym(f"v{ctx.axis}")
-    if ctx.axis == "z":
-        return {"c_z": -sp.Abs(v) * v}
-    return {"c": -sp.sqrt(_sym("vx") ** 2 + _sym("vy") ** 2) * v}
+    return {"c": -sp.sqrt(_sym("vx") ** 2 + _sym("vy") ** 2) * _sym(f"v{ctx.axis}")}
 
 
 def _quadratic_drag_text(coef, base):
-    vals, parts = {}, []
-    if "c" in coef:
-        vals["c_D_over_m_per_m"] = coef["c"]
-        parts.append(f"quadratic drag c_D/m = {coef['c']:.3g} 1/m")
-    if "c_z" in coef:
-        vals["c_D_z_over_m_per_m"] = coef["c_z"]
-        parts.append(f"vertical quadratic drag c_Dz/m = {coef['c_z']:.3g} 1/m")
-    return Interpretation("; ".join(parts) or "quadratic drag: no coefficient", vals)
+    c = coef.get("c", float("nan"))
+    return Interpretation(f"quadratic drag c_D/m = {c:.3g} 1/m", {"c_D_over_m_per_m": c})
+
+
+def _vertical_drag(ctx, k):
+    vz = _sym("vz")
+    return {"c_z": -sp.Abs(vz) * vz}
+
+
+def _vertical_drag_text(coef, base):
+    c = coef.get("c_z", float("nan"))
+    return Interpretation(f"vertical quadratic drag c_Dz/m = {c:.3g} 1/m", {"c_D_z_over_m_per_m": c})
 
 
 def _wind(ctx, k):
@@ -547,7 +549,10 @@ _PER_FLIGHT = "a condition of one flight (estimated per flight), not of the vehi
 CATALOGUE: dict[str, Effect] = {e.id: e for e in (
     Effect("quadratic_drag", "aerodynamic drag growing with speed squared: −c|v|v",
            (("vx",), ("vy",)), _quadratic_drag_text, expr_fn=_quadratic_drag,
-           targets=_ALL, explain_signal="|v| v_axis"),
+           explain_signal="|v| v_axis"),
+    Effect("vertical_drag", "vertical aerodynamic drag growing with climb rate squared: −c_z|vz|vz",
+           (("vz",),), _vertical_drag_text, expr_fn=_vertical_drag, targets=("vz_dot",),
+           explain_signal="vz"),
     Effect("wind", "constant world-frame wind w: linear drag acts on v − w, a constant k_D·w "
            "per axis (the base refit has no intercept, so the offset is not absorbed)",
            (("vx", "vy"),), _wind_text, column_fn=_wind, explain_signal="yaw", per_flight=True,

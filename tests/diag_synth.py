@@ -125,7 +125,7 @@ def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, no
     t = np.arange(0.0, duration_s, ts)
     vx = 2.5 * np.sin(0.3 * t + phase) + 0.8 * np.sin(1.1 * t)
     vy = 2.5 * np.cos(0.25 * t + 2 * phase) + 0.7 * np.sin(0.9 * t + 1)
-    vz = 0.8 * np.sin(0.5 * t + phase)
+    vz = 1.5 * np.sin(0.5 * t + phase)
     z = 1.0 + 0.8 * np.sin(0.5 * t + phase) + 0.3 * np.sin(0.13 * t)
     roll, pitch, yaw = _attitude(t, phase)
     bx = np.cos(yaw) * np.sin(pitch) * np.cos(roll) + np.sin(yaw) * np.sin(roll)

@@ -174,22 +174,25 @@ def _eval(expr, ds):
 
 
 def test_rotor_thrust_quadratic_drag_with_vertical_term_is_found_and_folds():
-    train = S.make_rotor("quadratic_drag", {"c": 0.1, "c_z": 0.3}, seed=1)
-    test = S.make_rotor("quadratic_drag", {"c": 0.1, "c_z": 0.3}, seed=101, phase=1.0)
+    train = S.make_rotor("quadratic_drag", {"c": 0.1, "c_z": 1.0}, seed=1)
+    test = S.make_rotor("quadratic_drag", {"c": 0.1, "c_z": 1.0}, seed=101, phase=1.0)
     r = diagnose_datasets(train, test, prior=ROTOR, config=CFG)
-    assert r.effects_added == ["quadratic_drag"]
+    assert sorted(r.effects_added) == ["quadratic_drag", "vertical_drag"]
     assert {"thrust_variation", "thrust_direction", "battery_sag"} <= set(r.not_applicable)
-    (fe,) = r.final_effects
+    fin = {f["effect"]: f for f in r.final_effects}
+    fe, fv = fin["quadratic_drag"], fin["vertical_drag"]
     assert abs(fe["physical_values"]["c_D_over_m_per_m"] - 0.1) < 0.01
-    assert abs(fe["physical_values"]["c_D_z_over_m_per_m"] - 0.3) < 0.03
-    assert fe["foldable"] and set(fe["features"]) == {"vx_dot", "vy_dot", "vz_dot"}
-    (fz,) = fe["features"]["vz_dot"]
-    assert fz["name"] == "quadratic_drag_c_z"
+    assert abs(fv["physical_values"]["c_D_z_over_m_per_m"] - 1.0) < 0.1
+    assert fe["foldable"] and set(fe["features"]) == {"vx_dot", "vy_dot"}
+    assert fv["foldable"] and set(fv["features"]) == {"vz_dot"}
+    (fz,) = fv["features"]["vz_dot"]
+    assert fz["name"] == "vertical_drag_c_z"
     vz = train["vz_dot"].columns()["vz"]
     np.testing.assert_allclose(fz["coefficient"] * _eval(fz["expr"], train["vz_dot"]),
-                               -0.3 * np.abs(vz) * vz, atol=0.03 * np.max(vz ** 2))
+                               -1.0 * np.abs(vz) * vz, atol=0.1 * np.max(vz ** 2))
     json.dumps(r.to_dict(), allow_nan=False)
-    assert isinstance(r.to_dict()["final_effects"][0]["features"]["vz_dot"][0]["expr"], str)
+    fj = {f["effect"]: f for f in r.to_dict()["final_effects"]}
+    assert isinstance(fj["vertical_drag"]["features"]["vz_dot"][0]["expr"], str)
 
 
 def test_rotor_thrust_ground_effect_folds_to_the_planted_law():

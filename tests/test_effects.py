@@ -8,7 +8,7 @@ import diag_synth as S
 from droneid.errors import ConfigError
 from priors.effects import CATALOGUE, TILT, EffectContext, load_effects, time_derivative
 
-IDS = {"quadratic_drag", "wind", "attitude_bias", "attitude_delay", "anisotropic_drag",
+IDS = {"quadratic_drag", "vertical_drag", "wind", "attitude_bias", "attitude_delay", "anisotropic_drag",
        "thrust_variation", "thrust_direction", "ground_effect", "battery_sag"}
 
 
@@ -28,6 +28,9 @@ def test_features_and_needs():
     ctx = _ctx()
     assert TILT in ctx.available()
     for e in CATALOGUE.values():
+        if not e.applies_to(ctx.target):
+            assert e.features(ctx) == {} and e.not_applicable(ctx), e.id
+            continue
         cols = e.features(ctx)
         assert cols and all(np.all(np.isfinite(c)) and c.shape == ctx.t.shape for c in cols.values()), e.id
     c = ctx.columns
@@ -114,7 +117,7 @@ from droneid.expressions import compile_expression  # noqa: E402
 from priors.effects import is_measured_derivative, thrust_proxy  # noqa: E402
 from priors.models import get_prior  # noqa: E402
 
-FOLDABLE = {"quadratic_drag", "anisotropic_drag", "thrust_variation", "thrust_direction",
+FOLDABLE = {"quadratic_drag", "vertical_drag", "anisotropic_drag", "thrust_variation", "thrust_direction",
             "ground_effect", "battery_sag"}
 
 
@@ -133,6 +136,9 @@ def test_every_foldable_effect_expression_reproduces_its_feature_column(target):
     for e in CATALOGUE.values():
         consts = e.constants(ctx)
         exprs = e.expressions(ctx, consts)
+        if not e.applies_to(target):
+            assert exprs == {} and e.features(ctx) == {}, e.id
+            continue
         if not e.foldable:
             assert exprs == {} and e.fold_reason, e.id
             continue
@@ -149,14 +155,14 @@ def test_rotor_thrust_vz_expressions_reproduce_columns_and_skip_horizontal_only_
     ds = S.make_rotor(None, seed=0)["vz_dot"]
     g = sum(f.expr for f in pr.features("vz_dot") if f.role == "thrust")
     ctx = EffectContext.build("vz_dot", ds.columns(), ds.t, ds.flight, g, tilt_role="thrust")
-    for eid in ("quadratic_drag", "ground_effect"):
+    for eid in ("vertical_drag", "ground_effect"):
         e = CATALOGUE[eid]
         exprs = e.expressions(ctx)
         assert exprs, eid
         for k, col in e.features(ctx).items():
             assert np.max(np.abs(_eval_on_dataset(exprs[k], ds) - col)) < 1e-9, (eid, k)
-    assert set(CATALOGUE["quadratic_drag"].expressions(ctx)) == {"c_z"}
-    for eid in ("wind", "anisotropic_drag", "thrust_direction", "thrust_variation"):
+    assert set(CATALOGUE["vertical_drag"].expressions(ctx)) == {"c_z"}
+    for eid in ("quadratic_drag", "wind", "anisotropic_drag", "thrust_direction", "thrust_variation"):
         assert CATALOGUE[eid].not_applicable(ctx), eid
     assert "measured rotor speeds" in CATALOGUE["battery_sag"].not_applicable(ctx)
 
