@@ -42,6 +42,14 @@ def _attitude(t, phase):
     return roll, pitch, yaw
 
 
+def _horizontal(duration_s, ts, phase):
+    """Time grid and horizontal velocities (m/s) shared by both generators."""
+    t = np.arange(0.0, duration_s, ts)
+    vx = 2.5 * np.sin(0.3 * t + phase) + 0.8 * np.sin(1.1 * t)
+    vy = 2.5 * np.cos(0.25 * t + 2 * phase) + 0.7 * np.sin(0.9 * t + 1)
+    return t, vx, vy
+
+
 def tilt(roll, pitch, yaw):
     gx = G * (np.cos(yaw) * np.tan(pitch) / np.cos(roll) + np.sin(yaw) * np.tan(roll))
     gy = G * (np.sin(yaw) * np.tan(pitch) / np.cos(roll) - np.cos(yaw) * np.tan(roll))
@@ -53,9 +61,7 @@ def make(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, noise=0.
     """{target: Dataset} for vx_dot and vy_dot with ``effect`` planted (None: control)."""
     p = dict(params or {})
     rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration_s, ts)
-    vx = 2.5 * np.sin(0.3 * t + phase) + 0.8 * np.sin(1.1 * t)
-    vy = 2.5 * np.cos(0.25 * t + 2 * phase) + 0.7 * np.sin(0.9 * t + 1)
+    t, vx, vy = _horizontal(duration_s, ts, phase)
     vz = 0.4 * np.sin(0.5 * t + phase)
     z = 2.0 + 0.8 * np.sin(0.5 * t + phase)
     roll, pitch, yaw_t = _attitude(t, phase)
@@ -122,9 +128,7 @@ def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, no
     z_ground = the lowest height), None: control."""
     p = dict(params or {})
     rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration_s, ts)
-    vx = 2.5 * np.sin(0.3 * t + phase) + 0.8 * np.sin(1.1 * t)
-    vy = 2.5 * np.cos(0.25 * t + 2 * phase) + 0.7 * np.sin(0.9 * t + 1)
+    t, vx, vy = _horizontal(duration_s, ts, phase)
     vz = 1.5 * np.sin(0.5 * t + phase)
     z = 1.0 + 0.8 * np.sin(0.5 * t + phase) + 0.3 * np.sin(0.13 * t)
     roll, pitch, yaw = _attitude(t, phase)
