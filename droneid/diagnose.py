@@ -66,7 +66,7 @@ _OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis"
 
 @dataclass(frozen=True)
 class DiagnoseConfig:
-    """Settings of a diagnosis (all documented in notes/README_diagnose.md).
+    """Settings of a diagnosis (the README's Diagnosis section documents them).
 
     ts_s, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
@@ -503,14 +503,21 @@ def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
 
 
 def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:
-    """One Dataset per target on the configured grid (all other signals in ``extra``)."""
+    """One Dataset per target on the configured grid (all other signals in ``extra``, plus the
+    motor speeds ``rpm1..`` every flight has: the most direct thrust signal for the effects)."""
     from .dataset import DatasetBuilder
     flights = list(flights)
     builder = DatasetBuilder(ts=cfg.ts_s, method=cfg.method)
+    rpm = [f"rpm{i}" for i in range(1, 17)
+           if flights and all(f"rpm{i}" in getattr(fl, "signals", ()) for fl in flights)]
     out = {}
     for tgt in targets:
         inputs = tuple(prior.inputs(tgt)) if hasattr(prior, "inputs") else None
-        out[tgt] = builder.build(flights, target=tgt, inputs=inputs)
+        ds = builder.build(flights, target=tgt, inputs=inputs)
+        more = [n for n in rpm if n not in ds.columns()]
+        if more:
+            ds = builder.build(flights, target=tgt, inputs=inputs, extras=[*ds.extra, *more])
+        out[tgt] = ds
     return out
 
 
@@ -540,8 +547,8 @@ def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, d
             (why_not if why else applicable).append(why or p)
         if not applicable:
             prior_why = sorted({w for w in why_not if not w.startswith("does not apply to")})
-            not_applicable[eid] = "; ".join(prior_why or sorted(set(why_not))) or \
-                f"does not apply to targets {', '.join(targets)}"
+            not_applicable[eid] = "; ".join(prior_why) or \
+                f"applies only to {', '.join(getattr(e, 'targets', ()) or ('other targets',))}"
             continue
         miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())})
         if miss:
@@ -877,7 +884,8 @@ def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dic
             "linear_drag_k_D_after": _k_drag(tp, t, p, cur["beta"]),
             "final_coefficients": {k: v for k, v in cur["beta"].items() if t in cur_terms[k]},
             "steps": [{"effect": s["effect"], "coefficients": s["coefficients"], "physical": s["physical"],
-                       "rmse": s["rmse"][t], "evidence": s["evidence"]} for s in steps],
+                       "rmse": s["rmse"][t], "evidence": s["evidence"],
+                       "tested_jointly": s["tested_jointly"]} for s in steps],
             "open_ended": open_ended.get(t),
             "n_train": int(p.y.size), "n_test": int(q.y.size) if q else 0,
         }
