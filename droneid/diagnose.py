@@ -839,7 +839,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                      for n in _uses_derivative(f["expr"])}
                     | {n for eid in added for n in _uses_derivative(_needs_signals(effects[eid]))}
                     | {n for o in open_ended.values() if o and o.get("passed")
-                       for n in _uses_derivative(o.get("signals", ()))})
+                       for n in _uses_derivative(_equation_names(o))})
     if derivs:
         notes.append(f"the model uses {', '.join(derivs)}, a measured derivative of the output: "
                      "it cannot be simulated or used by a controller")
@@ -862,6 +862,13 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         prior=label, sources=sources, candidates=candidates_log, final_effects=final_effects,
         not_applicable=not_applicable, simulable=not derivs, notes=notes,
         series=_series(model, base_fit, cur, plot_steps))
+
+
+def _equation_names(o: dict) -> list[str]:
+    """The offered signals that the open-ended equation actually uses."""
+    import re
+    words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", str(o.get("equation", ""))))
+    return [n for n in o.get("signals", ()) if n in words]
 
 
 def _needs_signals(effect) -> list[str]:

@@ -215,3 +215,16 @@ def test_rotor_thrust_ground_effect_folds_to_the_planted_law():
 def test_rotor_thrust_control_adds_nothing(seed):
     r = diagnose_datasets(S.make_rotor(None, seed=seed), None, prior=ROTOR, config=CFG)
     assert r.effects_added == []
+
+
+def test_an_open_ended_term_in_a_measured_derivative_makes_the_model_not_simulable():
+    data = S.make(None, seed=10, duration_s=30)
+    data = {t: dataclasses.replace(ds, y=ds.y + 1.5 * np.sin(1.7 * ds.t),
+                                   extra={**ds.extra, "ax": np.sin(1.7 * ds.t)})
+            for t, ds in data.items()}
+    cfg = DiagnoseConfig(sngp_generations=300, sngp_population=100, allow_measured_derivatives=True,
+                         effects=("quadratic_drag",))
+    r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=cfg)
+    o = r.open_ended["vx_dot"]
+    assert o["passed"] and "ax" in o["equation"], o
+    assert not r.simulable and "ax" in r.notes[0] and "NOT simulable" in r.conclusion
