@@ -52,7 +52,7 @@ from .numerics import lstsq, rmse
 log = logging.getLogger(__name__)
 
 __all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "significance",
-           "block_ids", "NO_FURTHER"]
+           "block_ids", "NO_FURTHER", "fold_into_prior", "choose_diagnose_prior", "build_datasets"]
 
 NO_FURTHER = "no further effect is detectable from these signals"
 AXIS_OF = {"vx_dot": "x", "vy_dot": "y", "vz_dot": "z"}
@@ -869,6 +869,37 @@ def _equation_names(o: dict) -> list[str]:
     import re
     words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", str(o.get("equation", ""))))
     return [n for n in o.get("signals", ()) if n in words]
+
+
+def fold_into_prior(result: DiagnosisResult, prior):
+    """A new :class:`priors.models.PriorModel`: ``prior`` plus every foldable final effect's
+    features (each ``coefficient · expr``, role ``"other"``, description naming the effect), with
+    the signals they use added to the prior's inputs. Effects that are not foldable (per-flight
+    conditions, attitude delay, measured derivatives) are left out. Raises ConfigError when the
+    prior is not a PriorModel."""
+    from priors.models import PriorFeature, PriorModel
+    if not isinstance(prior, PriorModel):
+        raise ConfigError(f"fold_into_prior needs a PriorModel, got {type(prior).__name__}")
+    terms = {t: list(prior.features(t)) for t in prior.targets}
+    inputs = {t: list(prior.inputs(t)) for t in prior.targets}
+    for fe in result.final_effects:
+        if not fe.get("foldable"):
+            continue
+        for t, feats in fe["features"].items():
+            if t not in terms:
+                continue
+            for f in feats:
+                expr = sp.Float(f["coefficient"]) * f["expr"]
+                terms[t].append(PriorFeature(f["name"], expr, f"diagnosed effect {fe['effect']}: "
+                                             f"{fe['physical']}", "other"))
+                inputs[t].extend(sorted(s.name for s in expr.free_symbols if s.name not in inputs[t]))
+    added = [fe["effect"] for fe in result.final_effects if fe.get("foldable")]
+    if not added:
+        return prior
+    return PriorModel(f"{prior.name}+{'+'.join(added)}",
+                      f"{prior.description} Plus the diagnosed effects {', '.join(added)}.",
+                      terms, inputs, dict(prior.params), vehicle=prior.vehicle,
+                      constraints=prior.constraints)
 
 
 def _needs_signals(effect) -> list[str]:

@@ -228,3 +228,18 @@ def test_an_open_ended_term_in_a_measured_derivative_makes_the_model_not_simulab
     o = r.open_ended["vx_dot"]
     assert o["passed"] and "ax" in o["equation"], o
     assert not r.simulable and "ax" in r.notes[0] and "NOT simulable" in r.conclusion
+
+
+def test_folding_the_found_effects_into_the_prior_leaves_nothing_to_find():
+    from droneid.diagnose import fold_into_prior
+    train = S.make_rotor("quadratic_drag", {"c": 0.1, "c_z": 1.0}, seed=5)
+    r = diagnose_datasets(train, None, prior=ROTOR, config=CFG)
+    assert sorted(r.effects_added) == ["quadratic_drag", "vertical_drag"]
+    folded = fold_into_prior(r, ROTOR)
+    assert [f.name for f in folded.features("vz_dot")][-1] == "vertical_drag_c_z"
+    assert "quadratic_drag_c" in [f.name for f in folded.features("vx_dot")]
+    assert "vz" in folded.inputs("vz_dot") and "vy" in folded.inputs("vx_dot")
+    r2 = diagnose_datasets(train, None, prior=folded, config=CFG)
+    assert r2.effects_added == []
+    for t in train:
+        assert r2.targets[t]["rmse_before"]["cv"] <= r.targets[t]["rmse_after"]["cv"] * 1.001
