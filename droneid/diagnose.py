@@ -55,7 +55,6 @@ __all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets",
            "block_ids", "NO_FURTHER", "fold_into_prior", "choose_diagnose_prior", "build_datasets"]
 
 NO_FURTHER = "no further effect is detectable from these signals"
-AXIS_OF = {"vx_dot": "x", "vy_dot": "y", "vz_dot": "z"}
 _ANGLES = ("roll", "pitch")
 #: prior term roles whose sum is the effects' G (thrust direction / logged thrust)
 _G_ROLES = ("tilt", "thrust")
@@ -287,11 +286,12 @@ def _prior_terms(prior, target: str) -> _PriorTerms:
     """The prior's terms; G from the terms' roles (``tilt`` or ``thrust``), or for priors
     without roles from the terms containing roll or pitch; drag from the role ``drag`` terms
     (without roles: terms in the target's velocity without angles)."""
+    from priors.effects import AXIS
     feats = _prior_features(prior, target)
     names = tuple(str(f.name) for f in feats)
     exprs = tuple(f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr) for f in feats)
     roles = [getattr(f, "role", "other") for f in feats]
-    axis = AXIS_OF.get(target)
+    axis = AXIS.get(target)
     vsym = symbol(f"v{axis}") if axis else None
     angle_syms = {symbol(a) for a in _ANGLES}
     if any(r in _G_ROLES for r in roles):
@@ -481,7 +481,8 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     train_flights = list(train_flights)
     pr, label = choose_diagnose_prior(prior, train_flights)
     if targets is None:
-        targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS_OF)
+        from priors.effects import AXIS
+        targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS)
     train = build_datasets(train_flights, targets, pr, cfg)
     test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
     return diagnose_datasets(train, test, prior=pr, prior_label=label, config=cfg,
