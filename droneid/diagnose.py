@@ -39,7 +39,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import sympy as sp
@@ -259,6 +259,15 @@ class _PriorTerms:
     velocity: str | None
     tilt_role: str = "tilt"
     drag: tuple[str, ...] = ()
+    g_parts: tuple[tuple[str, sp.Expr], ...] = ()
+
+    def fitted(self, target: str, beta: Mapping[str, float]) -> "_PriorTerms":
+        """These terms with G at the scale of a fit: Σ β_term · (the term's G part), so effect
+        coefficients read relative to the fitted thrust (a nominal k_T can be far off)."""
+        if not self.g_parts:
+            return self
+        g = sp.Add(*[sp.Float(beta.get(f"{target}:{n}", 1.0)) * e for n, e in self.g_parts])
+        return replace(self, tilt=g)
 
 
 def _resolve_prior(prior):
@@ -295,18 +304,19 @@ def _prior_terms(prior, target: str) -> _PriorTerms:
     vsym = symbol(f"v{axis}") if axis else None
     angle_syms = {symbol(a) for a in _ANGLES}
     if any(r in _G_ROLES for r in roles):
-        g_terms = [e for e, r in zip(exprs, roles) if r in _G_ROLES]
+        g_parts = [(n, e) for n, e, r in zip(names, exprs, roles) if r in _G_ROLES]
         role = "thrust" if "thrust" in roles else "tilt"
     else:
-        g_terms = [a for e in exprs for a in sp.Add.make_args(sp.expand(e)) if a.free_symbols & angle_syms]
+        g_parts = [(n, a) for n, e in zip(names, exprs) for a in sp.Add.make_args(sp.expand(e))
+                   if a.free_symbols & angle_syms]
         role = "tilt"
     if "drag" in roles:
         drag = tuple(n for n, e, r in zip(names, exprs, roles) if r == "drag" and vsym in e.free_symbols)
     else:
         drag = tuple(n for n, e in zip(names, exprs)
                      if vsym is not None and vsym in e.free_symbols and not e.free_symbols & angle_syms)
-    return _PriorTerms(names, exprs, sp.Add(*g_terms) if g_terms else None,
-                       f"v{axis}" if drag else None, role, drag)
+    return _PriorTerms(names, exprs, sp.Add(*[e for _, e in g_parts]) if g_parts else None,
+                       f"v{axis}" if drag else None, role, drag, tuple(g_parts))
 
 
 # -- the stacked least-squares problem ------------------------------------------------------------
@@ -552,7 +562,10 @@ def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, d
                 f"applies only to {', '.join(getattr(e, 'targets', ()) or ('other targets',))}"
             continue
         miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())})
-        if miss:
+        weak = sorted({w for p in applicable for w in [e.untestable_data(p.ctx)] if w}) if not miss else []
+        if weak:
+            untestable[eid] = "; ".join(weak)
+        elif miss:
             deriv = [m for m in miss if all(is_measured_derivative(a) for a in m.split("|"))]
             untestable[eid] = "needs " + ", ".join(miss) + (
                 " (a measured derivative of the output: not a causal input; allow with "
@@ -722,15 +735,19 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
     effects = _select_effects(user_effects, cfg.effects)
     if cfg.n_blocks is None:
-        from dataclasses import replace
         cfg = replace(cfg, n_blocks=int(np.clip(min(len(d) for d in train.values()) // 150, 8, 20)))
     terms = {t: _prior_terms(pr, t) for t in targets}
     tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
-    te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
     for p in tr_parts:
         if p.y.size < 5 * cfg.n_blocks:
             raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
                             f"{5 * cfg.n_blocks} for {cfg.n_blocks}-block cross-validation")
+    # G at the scale of the base refit on the training flights (effects read relative to it)
+    base_beta = _Model(tr_parts, None, terms, cfg, targets).fit(
+        {n: {p.target: c} for p in tr_parts for n, c in p.base.items()}, {})["beta"]
+    terms = {t: terms[t].fitted(t, base_beta) for t in targets}
+    tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
+    te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
     testable, untestable, not_applicable = _testability(effects, tr_parts, targets,
                                                         cfg.allow_measured_derivatives)
     model = _Model(tr_parts, te_parts, terms, cfg, targets)

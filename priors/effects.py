@@ -236,7 +236,8 @@ class Effect:
     Exactly one of ``expr_fn(ctx, constants) -> {param: sympy.Expr}`` (foldable effects) and
     ``column_fn(ctx, constants) -> {param: column}`` computes the features;
     ``constants_fn(ctx) -> {name: float}`` fixes numbers from the training data;
-    ``applicable_fn(ctx) -> reason or None`` says when the effect makes no sense for the prior.
+    ``applicable_fn(ctx) -> reason or None`` says when the effect makes no sense for the prior;
+    ``data_fn(ctx) -> reason or None`` when the (training) data cannot identify it.
     """
     id: str
     description: str
@@ -246,6 +247,7 @@ class Effect:
     column_fn: Callable[[EffectContext, dict], dict] | None = None
     constants_fn: Callable[[EffectContext], dict] | None = None
     applicable_fn: Callable[[EffectContext], str | None] | None = None
+    data_fn: Callable[[EffectContext], str | None] | None = None
     targets: tuple[str, ...] = HORIZONTAL
     explain_signal: str = ""
     user: bool = False
@@ -272,6 +274,10 @@ class Effect:
         if not self.applies_to(ctx.target):
             return f"does not apply to {ctx.target}"
         return self.applicable_fn(ctx) if self.applicable_fn else None
+
+    def untestable_data(self, ctx: EffectContext) -> str | None:
+        """Why these (training) data cannot identify the effect although its signals exist."""
+        return self.data_fn(ctx) if self.data_fn else None
 
     def constants(self, ctx: EffectContext) -> dict:
         """Numbers fixed from ``ctx`` (the TRAINING data): {} when the effect has none or when
@@ -502,6 +508,19 @@ def _ground_consts(ctx):
             "h0": float(ctx.options.get("ground_h0_m", 0.5))}
 
 
+def _ground_heights(ctx) -> str | None:
+    """Ground effect is identifiable only when the heights span at least h0 above the lowest
+    one: at a nearly constant height exp(−(z − z_ground)/h0) is G plus a tiny G·Δz term that
+    fits whatever correlates with height-hold errors, not a ground effect."""
+    z = ctx.columns["z"]
+    span = float(np.percentile(z, 98) - np.percentile(z, 2))
+    h0 = float(ctx.options.get("ground_h0_m", 0.5))
+    if span < h0:
+        return (f"the training heights span only {span:.2g} m (< h0 = {h0:g} m): a ground "
+                "effect cannot be told from a constant thrust gain")
+    return None
+
+
 def _ground_effect(ctx, k):
     return {"k_ge": ctx.tilt * sp.exp(-(_sym("z") - sp.Float(k["z_ground"])) / sp.Float(k["h0"]))}
 
@@ -579,6 +598,7 @@ CATALOGUE: dict[str, Effect] = {e.id: e for e in (
            expr_fn=_thrust_direction, applicable_fn=_exact_geometry, explain_signal="pitch"),
     Effect("ground_effect", "thrust gain near the ground (needs height z)", ((TILT,), ("z",)),
            _ground_effect_text, expr_fn=_ground_effect, constants_fn=_ground_consts,
+           data_fn=_ground_heights,
            targets=_ALL, explain_signal="z"),
     Effect("battery_sag", "thrust per command falls with battery voltage (needs a command and "
            "the voltage)", ((TILT,), _CMD, ("battery_voltage",)), _battery_sag_text,
