@@ -35,7 +35,8 @@ differencing, IMU ``ax ay az``). Those columns exist in an :class:`EffectContext
 built with ``allow_measured_derivatives=True``; a model using them cannot be simulated.
 
 Conventions (droneid frames: world ENU, Z-Y-X Euler, positive pitch = nose down). ``G`` below is
-the prior's thrust-direction term for the target: the sum of its terms with role ``tilt``
+the prior's thrust-direction term for the target at the scale of the base refit on the training
+flights (Σ β_term · term): the sum of its terms with role ``tilt``
 (tilt-drag: ``G_x = g cosψ tanθ/cosφ + g sinψ tanφ``) or ``thrust`` (rotor-thrust: logged thrust
 along body z), or for priors without roles the terms containing roll or pitch. ``k_D`` is the
 fitted linear drag coefficient of the base model (from the role ``drag`` terms).
@@ -477,7 +478,7 @@ def _thrust_variation(ctx, k):
 
 def _thrust_variation_text(coef, base):
     s = coef.get("s", float("nan"))
-    return Interpretation(f"thrust departs from hover balance: tilt terms scale with "
+    return Interpretation(f"thrust departs from hover balance: the fitted tilt terms scale with "
                           f"(1 + {s:.2f}·(T/T̄ − 1)), T the logged thrust proxy (1 = thrust "
                           "proportional to it)", {"gain": s})
 
