@@ -457,7 +457,7 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
              for t in targets}
     try:
         res = diagnose_datasets(train, None, prior=prior,
-                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, open_ended=False))
+                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, sngp_generations=0))
     except (ConfigError, DataError, TypeError) as exc:
         return (), (), {}, [f"diagnosis skipped: {exc}"]
     folded, skipped = [], []
