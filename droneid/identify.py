@@ -653,6 +653,12 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
                            tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
                            delays=plan.delays_s))
     p.ladder = ladder
+    thrust = [f"⟨{f.name}⟩" for f in p.priors3[:p.n_base] if f.role == "thrust"]
+    bad = [k for k in thrust if not ladder[-1]["terms"].get(k, 1.0) > 0]
+    if bad:
+        p.notes.append(f"the fitted thrust scale of {', '.join(bad)} is not positive: these data cannot "
+                       f"separate thrust from gravity and drag (e.g. a flight at constant height); this "
+                       f"{p.target} model is not physical")
     e0, r1 = ladder[0], ladder[1]
     p.empirical = {"rmse_train": e0["rmse_train"], "rmse_test": e0["rmse_test"],
                    "constraint_rmse_test": e0["constraint_rmse_test"],

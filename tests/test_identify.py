@@ -131,7 +131,8 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
     from parsers import read_flight
     train = read_flight(logs[0])
     test = simulate(path="eight", duration_s=12, seed=2, k_drag=0.4).flight
-    common = dict(targets=("vx_dot",), runs=2, generations=1500, population=150, jobs=1, seed=3)
+    common = dict(targets=("vx_dot",), runs=2, generations=1500, population=150, jobs=1, seed=3,
+                  prior="tilt-drag", effects="none", delays="none")  # the paper's setting
     guided = identify([train], [test], IdentifyConfig.make(prior_features=3, constraints="paper", **common))
     base = identify([train], [test], IdentifyConfig.make(prior_features=0, constraints="none", **common))
     g, b = guided.targets["vx_dot"], base.targets["vx_dot"]
