@@ -70,7 +70,6 @@ parsed only with :func:`droneid.expressions.parse_expression`.
 from __future__ import annotations
 
 import math
-import string
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,7 +79,7 @@ import sympy as sp
 
 from droneid.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
-from droneid.expressions import compile_expression, parse_expression, symbol
+from droneid.expressions import compile_expression, parse_expression, safe_format, symbol
 from droneid.flight import CANONICAL_SIGNALS
 
 __all__ = [
@@ -696,20 +695,8 @@ def _user_effect(tab, where) -> Effect:
     meaning = tab.get("meaning", "")
     if not isinstance(meaning, str):
         raise ConfigError(f"{where}: 'meaning' must be a format string")
-    if meaning:
-        try:
-            fields = {f for _, f, _, _ in string.Formatter().parse(meaning) if f}
-        except ValueError as exc:
-            raise ConfigError(f"{where}: bad 'meaning' format string: {exc}") from None
-        extra = {f.split(".")[0].split("[")[0] for f in fields} - params - {"k_D"}
-        if extra:
-            k = sorted(extra)[0]
-            raise ConfigError(f"{where}: 'meaning' uses unknown name '{k}'{did_you_mean(k, params)}; "
-                              f"parameters: {sorted(params)}")
-        try:
-            meaning.format(**{k: 1.0 for k in params}, k_D=1.0)
-        except (ValueError, KeyError, IndexError) as exc:
-            raise ConfigError(f"{where}: bad 'meaning' format string: {exc}") from None
+    if meaning:  # checked once with stand-in values: only {name} / {name:.3g}-style fields
+        safe_format(meaning, {**{k: 1.0 for k in params}, "k_D": 1.0}, what=f"{where}: 'meaning'")
     needs = []
     for n in sorted(used):
         needs.extend(_DERIVED_NEEDS.get(n, ((n,),)))
@@ -732,7 +719,7 @@ def _user_effect(tab, where) -> Effect:
     def interpret_fn(coef, base, _meaning=meaning, _params=tuple(sorted(params))):
         vals = {k: coef.get(k, float("nan")) for k in _params}
         if _meaning:
-            text = _meaning.format(**vals, k_D=_k_mean(base))
+            text = safe_format(_meaning, {**vals, "k_D": _k_mean(base)}, what=f"effect {eid}: 'meaning'")
         else:
             text = f"{eid}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items())
         return Interpretation(text, vals)
