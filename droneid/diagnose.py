@@ -271,12 +271,8 @@ class _PriorTerms:
 
 
 def _resolve_prior(prior):
-    if isinstance(prior, str):
-        from priors.models import resolve_prior
-        return resolve_prior(prior)
-    if not hasattr(prior, "features"):
-        raise ConfigError(f"prior must be a name or a PriorModel, got {type(prior).__name__}")
-    return prior
+    from priors.models import resolve_prior
+    return resolve_prior(prior)
 
 
 def _prior_features(prior, target: str) -> tuple:
@@ -503,14 +499,13 @@ def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
     """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``)."""
     if not isinstance(prior, str):
         return _resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
-    if prior not in ("auto", "rotor-thrust"):
-        return _resolve_prior(prior), prior
-    from priors.models import choose_prior, get_prior
+    from priors.models import prior_for
     sets = [set(getattr(f, "signals", ())) for f in flights]
-    common = set.intersection(*sets) if sets else set()
-    name, params, why = choose_prior(common, prior)
-    args = ", ".join(f"{k}={v}" for k, v in params.items())
-    return get_prior(name, **params), f"{name}" + (f" ({args})" if args else "") + f": {why}"
+    pr, why = prior_for(prior, set.intersection(*sets) if sets else set())
+    if prior not in ("auto", "rotor-thrust"):
+        return pr, prior
+    args = ", ".join(f"{k}={pr.params[k]}" for k in ("source", "motors") if k in pr.params)
+    return pr, f"{pr.name}" + (f" ({args})" if args else "") + f": {why}"
 
 
 def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:

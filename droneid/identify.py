@@ -361,11 +361,8 @@ def _common_signals(flights) -> set:
 
 def resolve_plan_prior(cfg: IdentifyConfig, flights) -> tuple:
     """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
-    from priors.models import choose_prior, get_prior, resolve_prior
-    if cfg.prior in ("auto", "rotor-thrust"):
-        name, params, reason = choose_prior(_common_signals(flights), cfg.prior)
-        return get_prior(name, **params), reason
-    return resolve_prior(cfg.prior), "named by the user"
+    from priors.models import prior_for
+    return prior_for(cfg.prior, _common_signals(flights))
 
 
 def _thrust_signals(prior, target: str) -> list:
