@@ -384,8 +384,8 @@ def prior_for(spec: str | PriorModel, signals) -> tuple[PriorModel, str]:
 
 def resolve_prior(spec: str | PriorModel, **params) -> PriorModel:
     """A PriorModel from a built-in name or ``file.toml:name``."""
-    if isinstance(spec, PriorModel):
-        return spec
+    if isinstance(spec, PriorModel) or (not isinstance(spec, str) and hasattr(spec, "features")):
+        return spec  # a PriorModel, or an object that behaves as one (features, inputs, targets)
     if not isinstance(spec, str):
         raise ConfigError(f"a prior must be a name, FILE.toml:NAME or a PriorModel; got {type(spec).__name__}")
     if ":" in spec and spec.split(":", 1)[0].endswith(".toml"):
