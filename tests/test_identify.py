@@ -280,3 +280,27 @@ def test_holdout_is_cut_before_any_choice(logs):
     res = identify([read_flight(logs[0])], None, cfg).targets["vx_dot"]
     assert res.holdout and 0.25 < res.n_test / (res.n_train + res.n_test) < 0.35
     assert "before any choice" in res.test_data
+
+
+@pytest.mark.parametrize("planted", [{"quadratic_drag": {"c": 0.3}}, None])
+def test_identify_folds_the_effect_the_diagnosis_finds(planted):
+    """Planted truth inside identify: a quadratic drag the rotor-thrust prior lacks is found on the
+    training flight, folded into the prior features (a ladder rung with c near the planted value)
+    and kept in the final model; on a control flight no effect is added."""
+    from droneid.identify import IdentifyConfig, identify
+    from droneid.simulate import simulate
+    flight = simulate(path="lissajous", duration_s=60, seed=11, effects=planted).flight
+    cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=1, generations=200, population=60, jobs=1)
+    res = identify([flight], None, cfg)
+    for t, tr in res.targets.items():
+        rungs = [r["name"] for r in tr.ladder]
+        if planted:
+            assert "effect:quadratic_drag" in rungs, (t, rungs, res.notes)
+            rung = tr.ladder[rungs.index("effect:quadratic_drag")]
+            import re
+            c = float(re.search(r"c_D/m = ([0-9.]+)", rung["description"]).group(1))
+            assert c == pytest.approx(0.3, rel=0.1), rung["description"]
+            assert "sqrt(vx**2 + vy**2)" in tr.final["expr"]  # the folded feature is in the final model
+            assert rung["rmse_validation"] < 0.9 * tr.ladder[rungs.index("effect:quadratic_drag") - 1]["rmse_validation"]
+        else:
+            assert not any(r.startswith("effect:") for r in rungs), (t, rungs, res.notes)
