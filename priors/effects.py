@@ -55,7 +55,8 @@ anisotropic_drag    −(cos2ψ vx + sin2ψ vy)/2 (shared Δk) -> k_x = k̄ + Δk
 thrust_variation    G·(T/T̄ − 1), T the logged thrust proxy (thrust N, else Σ(rpm/10⁴)², else
                     mean motor command, else throttle), T̄ its training mean -> gain (1 = thrust
                     proportional to T); not applicable when G is the logged thrust already
-thrust_direction    G_exact − G, G_exact = g(cosψ tanθ + sinψ tanφ/cosθ) -> weight (1 = exact);
+thrust_direction    G_exact − G, G_exact = g(cosψ tanθ + sinψ tanφ/cosθ) -> weight (1 = exact)
+thrust_curve        G·((Σω/S̄)/(Σω²/W̄) − 1) (rotor-thrust from rpm) -> thrust ∝ ω^(2−a);
                     not applicable when G is the logged thrust (exact rotation already)
 ground_effect       G·exp(−(z − z_ground)/h0), z_ground the 2nd percentile of the training
                     heights, h0 = ``ground_h0_m`` (also v̇z) -> thrust gain at the ground
@@ -482,6 +483,44 @@ def _thrust_variation_text(coef, base):
                           "proportional to it)", {"gain": s})
 
 
+def _rpm_sums(available):
+    """(Σ ω_i, Σ ω_i²) over the logged motor speeds rpm1..rpmN, in 10⁴ rpm; None without them."""
+    have, n = set(available), 0
+    while f"rpm{n + 1}" in have:
+        n += 1
+    if not n:
+        return None
+    w = [_sym(f"rpm{i}") / 10_000 for i in range(1, n + 1)]
+    return sp.Add(*w), sp.Add(*[x ** 2 for x in w])
+
+
+def _thrust_curve_applies(ctx) -> str | None:
+    if ctx.tilt_role != "thrust":
+        return "needs a prior whose thrust term comes from motor speeds (rotor-thrust)"
+    if _rpm_sums(ctx.columns) is None:
+        return "needs motor speeds rpm1..rpmN"
+    return None
+
+
+def _thrust_curve_consts(ctx):
+    s, w = _rpm_sums(ctx.columns)
+    return {"S_mean": float(np.mean(ctx.evaluate(s))), "W_mean": float(np.mean(ctx.evaluate(w)))}
+
+
+def _thrust_curve(ctx, k):
+    sums = _rpm_sums(ctx.columns)
+    if sums is None or not (k.get("S_mean", 0.0) > 0 and k.get("W_mean", 0.0) > 0):
+        return {}
+    s, w = sums
+    return {"a": ctx.tilt * ((s / sp.Float(k["S_mean"])) / (w / sp.Float(k["W_mean"])) - 1)}
+
+
+def _thrust_curve_text(coef, base):
+    a = coef.get("a", float("nan"))
+    return Interpretation(f"rotor thrust grows as ω^{2 - a:.2f} rather than ω² (thrust curve; "
+                          f"a = {a:.2f})", {"a": a, "exponent": 2 - a})
+
+
 def _exact_geometry(ctx) -> str | None:
     if ctx.tilt_role == "thrust":
         return "the prior's thrust term uses the exact rotation already (rotor-thrust)"
@@ -592,6 +631,11 @@ CATALOGUE: dict[str, Effect] = {e.id: e for e in (
            "terms scale with the logged thrust relative to its training mean",
            ((TILT,), _THRUST_SIGNALS), _thrust_variation_text, expr_fn=_thrust_variation,
            constants_fn=_thrust_variation_consts, applicable_fn=_needs_measured_thrust,
+           explain_signal="thrust"),
+    Effect("thrust_curve", "rotor thrust is not exactly ∝ ω² (inflow, motor and propeller "
+           "curves): the thrust terms scale with (1 + a·((Σω/S̄)/(Σω²/W̄) − 1)), i.e. T ∝ ω^(2−a) "
+           "near the training mean", ((TILT,), ("rpm1",)), _thrust_curve_text, expr_fn=_thrust_curve,
+           constants_fn=_thrust_curve_consts, applicable_fn=_thrust_curve_applies, targets=_ALL,
            explain_signal="thrust"),
     Effect("thrust_direction", "exact Z-Y-X thrust geometry instead of the paper's small-angle "
            "tilt terms", ((TILT,), ("roll",), ("pitch",), ("yaw",)), _thrust_direction_text,

@@ -9,7 +9,7 @@ from droneid.errors import ConfigError
 from priors.effects import CATALOGUE, TILT, EffectContext, load_effects, time_derivative
 
 IDS = {"quadratic_drag", "vertical_drag", "wind", "attitude_bias", "attitude_delay", "anisotropic_drag",
-       "thrust_variation", "thrust_direction", "ground_effect", "battery_sag"}
+       "thrust_variation", "thrust_direction", "ground_effect", "battery_sag", "thrust_curve"}
 
 
 def _ctx(target="vx_dot", **drop):
@@ -28,7 +28,7 @@ def test_features_and_needs():
     ctx = _ctx()
     assert TILT in ctx.available()
     for e in CATALOGUE.values():
-        if not e.applies_to(ctx.target):
+        if not e.applies_to(ctx.target) or e.not_applicable(ctx):  # thrust_curve: needs rotor-thrust
             assert e.features(ctx) == {} and e.not_applicable(ctx), e.id
             continue
         cols = e.features(ctx)
@@ -118,7 +118,7 @@ from priors.effects import is_measured_derivative, thrust_proxy  # noqa: E402
 from priors.models import get_prior  # noqa: E402
 
 FOLDABLE = {"quadratic_drag", "vertical_drag", "anisotropic_drag", "thrust_variation", "thrust_direction",
-            "ground_effect", "battery_sag"}
+            "ground_effect", "battery_sag", "thrust_curve"}
 
 
 def _eval_on_dataset(expr, ds):
@@ -142,6 +142,9 @@ def test_every_foldable_effect_expression_reproduces_its_feature_column(target):
         if not e.foldable:
             assert exprs == {} and e.fold_reason, e.id
             continue
+        if e.id == "thrust_curve":  # needs rotor-thrust from motor speeds (tested below)
+            assert e.not_applicable(ctx) and exprs == {}, e.id
+            continue
         cols = e.features(ctx, consts)
         assert exprs and set(exprs) == set(cols), e.id
         for k, expr in exprs.items():
@@ -155,7 +158,7 @@ def test_rotor_thrust_vz_expressions_reproduce_columns_and_skip_horizontal_only_
     ds = S.make_rotor(None, seed=0)["vz_dot"]
     g = sum(f.expr for f in pr.features("vz_dot") if f.role == "thrust")
     ctx = EffectContext.build("vz_dot", ds.columns(), ds.t, ds.flight, g, tilt_role="thrust")
-    for eid in ("vertical_drag", "ground_effect"):
+    for eid in ("vertical_drag", "ground_effect", "thrust_curve"):
         e = CATALOGUE[eid]
         exprs = e.expressions(ctx)
         assert exprs, eid
