@@ -35,7 +35,7 @@ import sympy as sp
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
 from .expressions import symbol
-from .numerics import lstsq, rmse
+from .numerics import rmse
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
@@ -802,7 +802,7 @@ RUN_KEYS = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constra
 
 @dataclass
 class TargetResult:
-    """The identification of one target, as plain data (see notes/README_identify.md)."""
+    """The identification of one target, as plain data (the ``result.json`` schema: docs/)."""
     target: str
     inputs: list
     n_train: int
