@@ -75,20 +75,6 @@ class ConstraintSamples:
         return ConstraintSamples(self.X[:, idx], self.kind, self.bound, self.group,
                                  tuple(input_names), self.names)
 
-    @staticmethod
-    def concat(parts: Sequence["ConstraintSamples"]) -> "ConstraintSamples":
-        """Join sample sets over the same inputs; groups are renumbered."""
-        if not parts:
-            raise DataError("no constraint samples to join")
-        names, groups, off = [], [], 0
-        for p in parts:
-            groups.append(p.group + off)
-            names.extend(p.names or [f"c{i + off}" for i in range(int(p.group.max(initial=-1)) + 1)])
-            off = len(names)
-        return ConstraintSamples(np.vstack([p.X for p in parts]), np.concatenate([p.kind for p in parts]),
-                                 np.concatenate([p.bound for p in parts]), np.concatenate(groups),
-                                 parts[0].input_names, tuple(names))
-
 
 def violations(pred: np.ndarray, cs: ConstraintSamples) -> np.ndarray:
     """Per-sample violation of predictions ``pred`` (m,) at ``cs.X``; 0 where satisfied."""

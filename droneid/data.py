@@ -5,7 +5,6 @@ diagnosis. Columns use canonical signal names; the target is e.g. ``vx_dot`` (m/
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,19 +97,6 @@ class Dataset:
         return Dataset(self.X[idx], self.y[idx], self.t[idx], self.input_names, self.target_name,
                        self.flight[idx], self.sources, {k: v[idx] for k, v in self.extra.items()},
                        self.notes)
-
-    def select_inputs(self, names: Sequence[str]) -> "Dataset":
-        """The same samples with only these inputs (others move to ``extra``)."""
-        cols = self.columns()
-        missing = [n for n in names if n not in cols or n in (self.target_name, "t")]
-        if missing:
-            raise MissingSignalError(missing[0], [*self.input_names, *self.extra],
-                                     where=f"the {self.target_name} dataset")
-        X = np.column_stack([cols[n] for n in names]) if names else np.empty((len(self), 0))
-        extra = {k: v for k, v in {**{n: self.X[:, i] for i, n in enumerate(self.input_names)},
-                                   **self.extra}.items() if k not in names}
-        return Dataset(X, self.y, self.t, tuple(names), self.target_name, self.flight,
-                       self.sources, extra, self.notes)
 
     def to_frame(self):
         """A pandas DataFrame: inputs, then extras, then the target, then ``t`` and ``flight``."""

@@ -408,7 +408,8 @@ class DatasetBuilder:
             for f in prepared:
                 names |= {n for n in f.names if is_canonical(n)} | \
                     {v for v, p in _POSITION_OF.items() if f.has(p)}
-            extras = [n for n in (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)))
+            extras = [n for n in (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)),
+                                  *(f"rpm{i}" for i in range(1, 17)))
                       if n in names and n not in inputs]
         elif isinstance(extras, str):
             extras = [s.strip() for s in extras.split(",") if s.strip()]

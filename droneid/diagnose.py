@@ -12,21 +12,34 @@ Pipeline (:func:`diagnose` from flights, :func:`diagnose_datasets` from Datasets
    drag c, attitude biases, delay τ) is one coefficient.
 3. Add the best effect if its held-out improvement is significant (:func:`significance`):
    relative CV-RMSE improvement ≥ ``min_rel_improvement``, AND a one-sided paired t-test on the
-   per-block relative improvements with p < ``alpha`` / (number of candidates scored), AND, when a
-   test flight is given, a lower test RMSE. Refit and repeat; otherwise stop: "no further effect is
-   detectable from these signals".
-4. An open-ended SNGP search on the remaining residual over all available signals catches what
-   the catalogue lacks; its term is reported only if it passes the same held-out rule
-   (interleaved-block 2-fold CV and the test flight).
+   per-block relative improvements with p < ``alpha`` / (number of candidates scored). When no
+   single effect passes but the best one gains at least ``pair_min_gain`` (effects that overlap:
+   each alone explains only part, unevenly across blocks), the pairs of the ``pair_top`` best
+   candidates are tested JOINTLY, with the Bonferroni divisor raised to singles + pairs; a pair
+   is added (one step, ``"tested_jointly"``) only if it passes and beats each of its members alone
+   by ``min_rel_improvement``. Refit and repeat; otherwise stop: "no further effect is detectable
+   from these signals".
+4. An open-ended SNGP search on the remaining residual over the available causal signals catches
+   what the catalogue lacks; its term is reported only if it passes the same held-out rule
+   (interleaved-block 2-fold CV).
 
-Effects whose signals are missing are reported UNTESTABLE, never absent.
+THE TEST FLIGHTS NEVER DECIDE: selection, coefficients and the conclusion use the training
+flights only (the same result with and without test flights); test errors are reported.
+Causal inputs only: measured derivatives (IMU ``ax ay az``, differenced ``vz_dot``) are neither
+effect features nor open-ended signals unless ``allow_measured_derivatives``, and then the
+result says the model cannot be simulated (``simulable`` False when one is used).
+
+Effects whose signals are missing are reported UNTESTABLE, never absent; effects that make no
+sense for the prior or target are NOT APPLICABLE (e.g. thrust_variation with rotor-thrust).
+``final_effects[i]["features"]`` gives each foldable effect's features as sympy expressions over
+canonical signals with constants fixed from training, ready to join the prior's features.
 """
 from __future__ import annotations
 
 import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import sympy as sp
@@ -39,10 +52,12 @@ from .numerics import lstsq, rmse
 log = logging.getLogger(__name__)
 
 __all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "significance",
-           "block_ids", "NO_FURTHER"]
+           "block_ids", "NO_FURTHER", "fold_into_prior", "choose_diagnose_prior", "build_datasets"]
 
 NO_FURTHER = "no further effect is detectable from these signals"
 _ANGLES = ("roll", "pitch")
+#: prior term roles whose sum is the effects' G (thrust direction / logged thrust)
+_G_ROLES = ("tilt", "thrust")
 # signals never offered to the open-ended search (absolute horizontal position, which would let
 # it fit a map of the training flight; redundant attitude parametrisation; derived duplicates)
 _OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis", "t"}
@@ -50,7 +65,7 @@ _OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis"
 
 @dataclass(frozen=True)
 class DiagnoseConfig:
-    """Settings of a diagnosis (all documented in notes/README_diagnose.md).
+    """Settings of a diagnosis (the README's Diagnosis section documents them).
 
     ts_s, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
@@ -60,8 +75,12 @@ class DiagnoseConfig:
     alpha: one-sided significance level of the paired block test (Bonferroni-divided by the
         number of candidates scored in a step).
     min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
-    require_test_improvement: when a test flight is given, the effect must also lower its RMSE.
-    max_steps: most effects added.
+    pair_min_gain: when no single effect passes, the best single's relative CV gain from which
+        pairs of candidates are tested jointly (overlapping effects); pair_top: how many of the
+        best singles form the pairs.
+    allow_measured_derivatives: let effects and the open-ended search use measured derivatives
+        (IMU ax ay az, differenced vz_dot); the result then says the model cannot be simulated.
+    max_steps: most effects added (a joint pair counts as one step).
     effects: restrict the catalogue to these ids (None: all); user_effects: extra Effect objects.
     sngp_generations: budget of the open-ended search per run (0 disables it).
     """
@@ -70,7 +89,9 @@ class DiagnoseConfig:
     n_blocks: int | None = None
     alpha: float = 0.01
     min_rel_improvement: float = 0.01
-    require_test_improvement: bool = True
+    pair_min_gain: float = 0.05
+    pair_top: int = 4
+    allow_measured_derivatives: bool = False
     max_steps: int = 5
     g: float = 9.81
     ground_h0_m: float = 0.5
@@ -97,6 +118,9 @@ class DiagnoseConfig:
         check_choice("method", self.method, DIFFERENTIATORS, owner="DiagnoseConfig")
         if self.max_steps < 0 or self.sngp_generations < 0:
             raise ConfigError("max_steps and sngp_generations must be >= 0")
+        if not (isinstance(self.pair_top, int) and self.pair_top >= 0):
+            raise ConfigError("The 'pair_top' parameter of DiagnoseConfig must be an int >= 0. "
+                              f"Got {self.pair_top!r} instead.")
         return self
 
 
@@ -109,10 +133,16 @@ class DiagnosisResult:
     steps: the joint steps in order: {"effect", "coefficients", "physical", "rmse": {target:
         {train, test, cv}}, "evidence"}
     effects_added: ids in the order they were added; untestable: {id: "needs ..."};
+    not_applicable: {id: why the effect makes no sense for this prior / these targets};
     not_detected: ids tested but not added; conclusion: one sentence.
     final_effects: every added effect in physical terms with the FINAL joint coefficients (a step
         reports the values when it was added; later effects can refine them, e.g. wind after
-        quadratic drag).
+        quadratic drag), plus ``foldable`` (bool), ``reason`` (why not, else "") and
+        ``features``: {target: [{"name": f"{effect}_{param}", "expr": sympy.Expr over canonical
+        signals (constants fixed from training), "coefficient": fitted value}]} ({} when not
+        foldable). ``to_dict()`` writes the expressions as strings.
+    simulable: False when the added effects or a passing open-ended term use a measured
+        derivative (only possible with ``allow_measured_derivatives``); notes: such warnings.
     series: per-target arrays for the plots (not in diagnosis.json).
     """
     targets: dict
@@ -127,6 +157,9 @@ class DiagnosisResult:
     sources: dict
     candidates: list = field(default_factory=list)
     final_effects: list = field(default_factory=list)
+    not_applicable: dict = field(default_factory=dict)
+    simulable: bool = True
+    notes: list = field(default_factory=list)
     series: dict = field(default_factory=dict)
 
     def to_dict(self, include_series: bool = False) -> dict:
@@ -134,12 +167,20 @@ class DiagnosisResult:
         d = {"targets": self.targets, "effects_added": self.effects_added,
              "untestable": sorted(self.untestable), "untestable_reasons": self.untestable,
              "not_detected": self.not_detected, "conclusion": self.conclusion,
-             "steps": self.steps, "final_effects": self.final_effects,
+             "steps": self.steps, "final_effects": [_final_effect_json(fe) for fe in self.final_effects],
              "open_ended": self.open_ended, "candidates": self.candidates,
+             "not_applicable": self.not_applicable, "simulable": self.simulable,
+             "notes": self.notes,
              "prior": self.prior, "config": self.config, "sources": self.sources}
         if include_series:
             d["series"] = self.series
         return to_jsonable(d)
+
+
+def _final_effect_json(fe: dict) -> dict:
+    """A final effect with its feature expressions as strings."""
+    return {**fe, "features": {t: [{**f, "expr": str(f["expr"])} for f in fs]
+                               for t, fs in fe.get("features", {}).items()}}
 
 
 # -- statistics -----------------------------------------------------------------------------------
@@ -165,109 +206,113 @@ def _block_p(mse_before, mse_after) -> tuple[float, np.ndarray]:
     return (0.0 if d.size and np.all(d > 0) else 1.0), d
 
 
-def _block_mse(y, pred, block, n_blocks):
-    r2 = (y - pred) ** 2
-    n = np.bincount(block, minlength=n_blocks)[:n_blocks]
-    s = np.bincount(block, weights=r2, minlength=n_blocks)[:n_blocks]
-    return np.where(n > 0, s / np.maximum(n, 1), 0.0), n
-
-
 def significance(mse_before: np.ndarray, mse_after: np.ndarray, n_before: np.ndarray,
-                 *, alpha: float, n_candidates: int = 1, min_rel_improvement: float = 0.01,
-                 test_before: float | None = None, test_after: float | None = None,
-                 test_mse_before: np.ndarray | None = None, test_mse_after: np.ndarray | None = None,
-                 test_n: np.ndarray | None = None, require_test: bool = True) -> dict:
-    """The held-out decision rule; returns the evidence dict with ``passed`` and ``reasons``.
+                 *, alpha: float, n_candidates: int = 1, min_rel_improvement: float = 0.01) -> dict:
+    """The held-out decision rule on TRAINING blocks; returns the evidence dict with ``passed``
+    and ``reasons``.
 
     ``mse_before/after[k]``: held-out (cross-validated) mean squared error of training block k
-    without/with the effect; ``n_before[k]``: samples in block k. ``test_*``: the test flight's
-    RMSE and per-block MSE (model fitted on all training data), when there is a test flight.
+    without/with the effect; ``n_before[k]``: samples in block k. Test flights play no part
+    (callers add their errors to the evidence for the report only).
 
-    Passes when ALL hold:
+    Passes when BOTH hold:
 
     1. the pooled CV RMSE improves by at least ``min_rel_improvement`` (relative);
     2. the per-block relative improvements ``1 − mse_after/mse_before`` are consistently > 0:
-       one-sided paired t-test p_cv; with a test flight, the same test on its blocks gives p_test
-       and the two independent p-values are combined by Fisher's method; the (combined) p must be
-       below ``alpha / n_candidates`` (Bonferroni over the candidates scored in the step);
-    3. with a test flight (and ``require_test``), its RMSE is lower.
+       one-sided paired t-test p below ``alpha / n_candidates`` (Bonferroni over the candidates
+       scored in the step).
     """
-    from scipy import stats
     ok = n_before > 0
     mb, ma, nb = mse_before[ok], mse_after[ok], n_before[ok]
     cv_b = math.sqrt(float(np.sum(mb * nb) / np.sum(nb)))
     cv_a = math.sqrt(float(np.sum(ma * nb) / np.sum(nb)))
     rel = 1.0 - cv_a / cv_b if cv_b > 0 else 0.0
-    p_cv, d = _block_p(mb, ma)
-    p_test = None
-    d_test = None
-    p = p_cv
-    if test_mse_before is not None and test_mse_after is not None:
-        tk = (test_n > 0) if test_n is not None else np.ones(len(test_mse_before), bool)
-        p_test, d_test = _block_p(np.asarray(test_mse_before)[tk], np.asarray(test_mse_after)[tk])
-        chi = -2.0 * (math.log(max(p_cv, 1e-300)) + math.log(max(p_test, 1e-300)))
-        p = float(stats.chi2.sf(chi, 4))
+    p, d = _block_p(mb, ma)
     thr = alpha / max(n_candidates, 1)
     reasons = []
     if rel < min_rel_improvement:
         reasons.append(f"CV RMSE improvement {100 * rel:.2f} % < {100 * min_rel_improvement:.2f} %")
     if not p < thr:
         reasons.append(f"block test p = {p:.2g} ≥ {thr:.2g}")
-    test_rel = None
-    if test_before is not None and test_after is not None:
-        test_rel = 1.0 - test_after / test_before if test_before > 0 else 0.0
-        if require_test and not test_after < test_before:
-            reasons.append(f"test RMSE does not improve ({test_before:.4g} -> {test_after:.4g})")
     return {"cv_rmse_before": cv_b, "cv_rmse_after": cv_a, "rel_improvement": rel,
-            "p_value": p, "p_cv": p_cv, "p_test": p_test, "p_threshold": thr,
+            "p_value": p, "p_threshold": thr, "n_candidates": int(n_candidates),
             "blocks_improved": f"{int(np.sum(d > 0))}/{d.size}",
-            "test_blocks_improved": None if d_test is None else f"{int(np.sum(d_test > 0))}/{d_test.size}",
-            "block_rel_improvements": d.tolist(),
-            "test_block_rel_improvements": None if d_test is None else d_test.tolist(),
-            "test_rmse_before": test_before, "test_rmse_after": test_after,
-            "test_rel_improvement": test_rel, "passed": not reasons, "reasons": reasons}
+            "block_rel_improvements": d.tolist(), "passed": not reasons, "reasons": reasons}
+
+
+def _with_test(ev: dict, test_before: float | None, test_after: float | None) -> dict:
+    """``ev`` plus the test flights' RMSE before/after, REPORTED only (never part of passing)."""
+    rel = (1.0 - test_after / test_before if test_before else 0.0) \
+        if test_before is not None and test_after is not None else None
+    return {**ev, "test_rmse_before": test_before, "test_rmse_after": test_after,
+            "test_rel_improvement": rel}
 
 
 # -- the prior ------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class _PriorTerms:
+    """One target's prior terms; ``tilt`` = G (sum of role tilt/thrust terms), ``tilt_role``;
+    ``drag`` = names of the linear-drag terms; ``velocity`` = the target's velocity signal."""
     names: tuple[str, ...]
     exprs: tuple[sp.Expr, ...]
     tilt: sp.Expr | None
     velocity: str | None
+    tilt_role: str = "tilt"
+    drag: tuple[str, ...] = ()
+    g_parts: tuple[tuple[str, sp.Expr], ...] = ()
+
+    def fitted(self, target: str, beta: Mapping[str, float]) -> "_PriorTerms":
+        """These terms with G at the scale of a fit: Σ β_term · (the term's G part), so effect
+        coefficients read relative to the fitted thrust (a nominal k_T can be far off)."""
+        if not self.g_parts:
+            return self
+        g = sp.Add(*[sp.Float(beta.get(f"{target}:{n}", 1.0)) * e for n, e in self.g_parts])
+        return replace(self, tilt=g)
 
 
 def _resolve_prior(prior):
-    if isinstance(prior, str):
-        from priors.models import get_prior
-        return get_prior(prior)
-    if not hasattr(prior, "features"):
-        raise ConfigError(f"prior must be a name or a PriorModel, got {type(prior).__name__}")
-    return prior
+    from priors.models import resolve_prior
+    return resolve_prior(prior)
+
+
+def _prior_features(prior, target: str) -> tuple:
+    """All the prior's terms for ``target`` (one feature per term)."""
+    for args in ((), (3,), (1,)):
+        try:
+            feats = tuple(prior.features(target, *args))
+        except (ConfigError, ValueError, TypeError):
+            continue
+        if feats:
+            return feats
+    raise ConfigError(f"the prior has no features for target '{target}'")
 
 
 def _prior_terms(prior, target: str) -> _PriorTerms:
-    feats = None
-    for n in (3, 1):
-        try:
-            feats = tuple(prior.features(target, n_features=n))
-            break
-        except (ConfigError, ValueError, TypeError):
-            continue
-    if not feats:
-        raise ConfigError(f"the prior has no features for target '{target}'")
-    names, exprs = [], []
-    for f in feats:
-        e = f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr)
-        names.append(str(f.name))
-        exprs.append(e)
+    """The prior's terms; G from the terms' roles (``tilt`` or ``thrust``), or for priors
+    without roles from the terms containing roll or pitch; drag from the role ``drag`` terms
+    (without roles: terms in the target's velocity without angles)."""
+    from priors.effects import AXIS
+    feats = _prior_features(prior, target)
+    names = tuple(str(f.name) for f in feats)
+    exprs = tuple(f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr) for f in feats)
+    roles = [getattr(f, "role", "other") for f in feats]
+    axis = AXIS.get(target)
+    vsym = symbol(f"v{axis}") if axis else None
     angle_syms = {symbol(a) for a in _ANGLES}
-    tilt_terms = [a for e in exprs for a in sp.Add.make_args(sp.expand(e))
-                  if a.free_symbols & angle_syms]
-    tilt = sp.Add(*tilt_terms) if tilt_terms else None
-    axis = target[1] if target in ("vx_dot", "vy_dot", "vz_dot") else None
-    vel = f"v{axis}" if axis and any(symbol(f"v{axis}") in e.free_symbols for e in exprs) else None
-    return _PriorTerms(tuple(names), tuple(exprs), tilt, vel)
+    if any(r in _G_ROLES for r in roles):
+        g_parts = [(n, e) for n, e, r in zip(names, exprs, roles) if r in _G_ROLES]
+        role = "thrust" if "thrust" in roles else "tilt"
+    else:
+        g_parts = [(n, a) for n, e in zip(names, exprs) for a in sp.Add.make_args(sp.expand(e))
+                   if a.free_symbols & angle_syms]
+        role = "tilt"
+    if "drag" in roles:
+        drag = tuple(n for n, e, r in zip(names, exprs, roles) if r == "drag" and vsym in e.free_symbols)
+    else:
+        drag = tuple(n for n, e in zip(names, exprs)
+                     if vsym is not None and vsym in e.free_symbols and not e.free_symbols & angle_syms)
+    return _PriorTerms(names, exprs, sp.Add(*[e for _, e in g_parts]) if g_parts else None,
+                       f"v{axis}" if drag else None, role, drag, tuple(g_parts))
 
 
 # -- the stacked least-squares problem ------------------------------------------------------------
@@ -294,7 +339,8 @@ def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig
     from priors.effects import EffectContext
     cols = ds.columns()
     ctx = EffectContext.build(target, cols, ds.t, ds.flight, terms.tilt, cfg.g,
-                              {"ground_h0_m": cfg.ground_h0_m})
+                              {"ground_h0_m": cfg.ground_h0_m}, terms.tilt_role,
+                              cfg.allow_measured_derivatives)
     base = {}
     for name, e in zip(terms.names, terms.exprs):
         missing = [s.name for s in e.free_symbols if s.name not in cols]
@@ -316,10 +362,13 @@ def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig
 
 
 class _Stack:
-    """Rows of several targets stacked; terms are {param: {target: column}}."""
+    """Rows of several targets stacked; terms are {param: {target: column}}. ``w``: row weights
+    of the least squares and of the CV errors (1/σ of each target's base residual, so a noisy
+    target such as v̇z does not dictate a coefficient shared with v̇x, v̇y)."""
 
     def __init__(self, parts: Sequence[_Part]):
         self.parts = list(parts)
+        self.w = np.concatenate([np.ones(p.y.size) for p in parts])
         self.y = np.concatenate([p.y for p in parts])
         self.block = np.concatenate([p.block for p in parts])
         self.tidx = np.concatenate([np.full(p.y.size, i) for i, p in enumerate(parts)])
@@ -346,28 +395,33 @@ def _lstsq(X, y):
     return lstsq(X, y, rcond=1e-10)
 
 def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
-    """Held-out predictions by leave-one-block-out; per-block MSE and sample counts."""
+    """Held-out predictions by leave-one-block-out (weighted least squares); per-block weighted
+    MSE and sample counts."""
     pred = np.zeros_like(stack.y)
+    w = stack.w
     for k in range(n_blocks):
         test = stack.block == k
         if not test.any():
             continue
-        beta = _lstsq(X[~test], stack.y[~test])
+        beta = _lstsq(X[~test] * w[~test, None], stack.y[~test] * w[~test])
         pred[test] = X[test] @ beta
-    mse = np.array([np.mean((stack.y[stack.block == k] - pred[stack.block == k]) ** 2)
-                    if np.any(stack.block == k) else 0.0 for k in range(n_blocks)])
+    r2 = (w * (stack.y - pred)) ** 2
+    mse = np.array([np.mean(r2[stack.block == k]) if np.any(stack.block == k) else 0.0
+                    for k in range(n_blocks)])
     n = np.array([np.sum(stack.block == k) for k in range(n_blocks)])
     return pred, mse, n
 
 
-def _terms_for(effect, parts: Sequence[_Part]) -> dict:
-    """{param: {target: column}} of an effect over parts; a flight-specific effect
-    (``effect.per_flight``) gets one parameter per flight, named ``param@role:source``."""
+def _terms_for(effect, parts: Sequence[_Part], consts: Mapping[str, dict] | None = None) -> dict:
+    """{param: {target: column}} of an effect over parts, with the constants fixed from training
+    (``consts``: {target: {name: value}}); a flight-specific effect (``effect.per_flight``) gets
+    one parameter per flight, named ``param@role:source``."""
     terms: dict = {}
     for p in parts:
         if not effect.applies_to(p.target):
             continue
-        for name, col in effect.features(p.ctx).items():
+        c = (consts or {}).get(p.target)
+        for name, col in effect.features(p.ctx, c).items():
             if getattr(effect, "per_flight", False):
                 for f in np.unique(p.flight):
                     terms.setdefault(f"{effect.id}.{name}@{p.flight_label(int(f))}", {})[p.target] = \
@@ -407,13 +461,13 @@ def _split_flight_params(coef: Mapping[str, float]) -> dict[str | None, dict]:
 
 
 def _k_drag(terms: _PriorTerms, target, part: _Part, coef: Mapping[str, float]) -> float | None:
-    """Effective linear drag −∂model/∂v of the base refit (None without a drag term)."""
+    """Effective linear drag −∂(drag terms)/∂v of a fit (None without a drag term)."""
     if terms.velocity is None:
         return None
     v = symbol(terms.velocity)
     k = 0.0
     for name, e in zip(terms.names, terms.exprs):
-        if v in e.free_symbols and not (e.free_symbols & {symbol(a) for a in _ANGLES}):
+        if name in terms.drag:
             de = sp.diff(e, v)
             val = part.ctx.evaluate(de) if de.free_symbols else np.full(part.y.size, float(de))
             k -= coef.get(f"{target}:{name}", 0.0) * float(np.mean(val))
@@ -421,26 +475,55 @@ def _k_drag(terms: _PriorTerms, target, part: _Part, coef: Mapping[str, float]) 
 
 
 # -- the pipeline ---------------------------------------------------------------------------------
-def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=("vx_dot", "vy_dot"), *,
+def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, *,
              config: DiagnoseConfig | None = None, user_effects=None, progress=None) -> DiagnosisResult:
-    """Diagnose ``prior`` on flights: build the datasets, then :func:`diagnose_datasets`."""
+    """Diagnose ``prior`` on flights: build the datasets, then :func:`diagnose_datasets`.
+
+    ``prior``: a PriorModel, a name (``file.toml:name`` for user priors) or ``"auto"``
+    (:func:`priors.models.choose_prior` on the signals every training flight has). ``targets``
+    None: the prior's targets among vx_dot, vy_dot, vz_dot.
+    """
     cfg = (config or DiagnoseConfig()).validate()
-    pr = _resolve_prior(prior)
+    train_flights = list(train_flights)
+    pr, label = choose_diagnose_prior(prior, train_flights)
+    if targets is None:
+        from priors.effects import AXIS
+        targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS)
     train = build_datasets(train_flights, targets, pr, cfg)
     test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
-    return diagnose_datasets(train, test, prior=prior, config=cfg, user_effects=user_effects,
-                             progress=progress)
+    return diagnose_datasets(train, test, prior=pr, prior_label=label, config=cfg,
+                             user_effects=user_effects, progress=progress)
+
+
+def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
+    """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``)."""
+    if not isinstance(prior, str):
+        return _resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
+    from priors.models import prior_for
+    sets = [set(getattr(f, "signals", ())) for f in flights]
+    pr, why = prior_for(prior, set.intersection(*sets) if sets else set())
+    if prior not in ("auto", "rotor-thrust"):
+        return pr, prior
+    args = ", ".join(f"{k}={pr.params[k]}" for k in ("source", "motors") if k in pr.params)
+    return pr, f"{pr.name}" + (f" ({args})" if args else "") + f": {why}"
 
 
 def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:
-    """One Dataset per target on the configured grid (all other signals in ``extra``)."""
+    """One Dataset per target on the configured grid (all other signals in ``extra``, plus the
+    motor speeds ``rpm1..`` every flight has: the most direct thrust signal for the effects)."""
     from .dataset import DatasetBuilder
     flights = list(flights)
     builder = DatasetBuilder(ts=cfg.ts_s, method=cfg.method)
+    rpm = [f"rpm{i}" for i in range(1, 17)
+           if flights and all(f"rpm{i}" in getattr(fl, "signals", ()) for fl in flights)]
     out = {}
     for tgt in targets:
         inputs = tuple(prior.inputs(tgt)) if hasattr(prior, "inputs") else None
-        out[tgt] = builder.build(flights, target=tgt, inputs=inputs)
+        ds = builder.build(flights, target=tgt, inputs=inputs)
+        more = [n for n in rpm if n not in ds.columns()]
+        if more:
+            ds = builder.build(flights, target=tgt, inputs=inputs, extras=[*ds.extra, *more])
+        out[tgt] = ds
     return out
 
 
@@ -458,25 +541,39 @@ def _select_effects(user_effects, only) -> dict:
     return effects
 
 
-def _testability(effects, tr_parts, te_parts, targets) -> tuple[list, dict]:
-    """(testable effects, {id: why untestable}): every part an effect applies to (train and
-    test) must have its signals."""
-    untestable, testable = {}, []
+def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, dict, dict]:
+    """(testable effects, {id: why untestable}, {id: why not applicable}), from the TRAINING
+    parts only: an effect is testable when every training part it applies to has its signals."""
+    from priors.effects import is_measured_derivative
+    untestable, not_applicable, testable = {}, {}, []
     for eid, e in effects.items():
-        applicable = [p for p in [*tr_parts, *(te_parts or [])] if e.applies_to(p.target)]
+        applicable, why_not = [], []
+        for p in tr_parts:
+            why = e.not_applicable(p.ctx)
+            (why_not if why else applicable).append(why or p)
         if not applicable:
-            untestable[eid] = f"does not apply to targets {', '.join(targets)}"
+            prior_why = sorted({w for w in why_not if not w.startswith("does not apply to")})
+            not_applicable[eid] = "; ".join(prior_why) or \
+                f"applies only to {', '.join(getattr(e, 'targets', ()) or ('other targets',))}"
             continue
         miss = sorted({m for p in applicable for m in e.missing(p.ctx.available())})
-        if miss:
-            untestable[eid] = "needs " + ", ".join(miss)
+        weak = sorted({w for p in applicable for w in [e.untestable_data(p.ctx)] if w}) if not miss else []
+        if weak:
+            untestable[eid] = "; ".join(weak)
+        elif miss:
+            deriv = [m for m in miss if all(is_measured_derivative(a) for a in m.split("|"))]
+            untestable[eid] = "needs " + ", ".join(miss) + (
+                " (a measured derivative of the output: not a causal input; allow with "
+                "allow_measured_derivatives / --allow-measured-derivatives)"
+                if deriv and not allow_derivatives else "")
         else:
             testable.append(e)
-    return testable, untestable
+    return testable, untestable, not_applicable
 
 
 class _Model:
-    """The stacked least-squares problem: base (prior) terms plus added effects, train and test."""
+    """The stacked least-squares problem: base (prior) terms plus added effects, train and test.
+    Coefficients, CV and constants come from training rows only; test rows are predicted."""
 
     def __init__(self, tr_parts, te_parts, terms, cfg, targets):
         self.tr_parts, self.te_parts, self.terms, self.cfg = tr_parts, te_parts, terms, cfg
@@ -485,28 +582,53 @@ class _Model:
         self.te = _Stack(te_parts) if te_parts else None
         self.base = {name: {p.target: col} for p in tr_parts for name, col in p.base.items()}
         self.te_base = {name: {p.target: col} for p in te_parts or [] for name, col in p.base.items()}
+        self._consts: dict = {}
+        # weights 1/σ_t from the base refit (separable per target: the prior terms are per
+        # target), so pooled CV errors are in units of each target's base residual
+        r = self.tr.y - self.tr.design(self.base) @ _lstsq(self.tr.design(self.base), self.tr.y)
+        sig = {i: max(rmse(r[self.tr.tidx == i], 0.0), 1e-12) for i in range(len(tr_parts))}
+        self.tr.w = np.array([1.0 / sig[i] for i in self.tr.tidx])
+
+    def constants(self, effect) -> dict:
+        """{target: constants} of ``effect`` fixed from the training parts."""
+        if effect.id not in self._consts:
+            self._consts[effect.id] = {p.target: effect.constants(p.ctx) for p in self.tr_parts}
+        return self._consts[effect.id]
+
+    def effect_terms(self, effect) -> tuple[dict, dict]:
+        """(train, test) terms of one effect, both with the training constants."""
+        c = self.constants(effect)
+        return (_terms_for(effect, self.tr_parts, c),
+                _terms_for(effect, self.te_parts, c) if self.te_parts else {})
 
     def terms_of(self, effect_ids, effects) -> tuple[dict, dict]:
         """Train and test terms of the base model plus these effects (recomputed from the data)."""
         cur, cur_test = dict(self.base), dict(self.te_base)
         for eid in effect_ids:
-            cur.update(_terms_for(effects[eid], self.tr_parts))
-            if self.te_parts:
-                cur_test.update(_terms_for(effects[eid], self.te_parts))
+            et, ett = self.effect_terms(effects[eid])
+            cur.update(et)
+            cur_test.update(ett)
         return cur, cur_test
 
     def fit(self, cur_terms, cur_test_terms) -> dict:
         """Fit on all training rows; blocked-CV predictions; test predictions (flight-specific
-        parameters of the test flights by blocked CV on that flight)."""
+        parameters of the test flights by blocked CV on that flight). Test errors are None when
+        the test flights lack a signal of a vehicle term (``test_note`` says which)."""
         tr, te, nb = self.tr, self.te, self.cfg.n_blocks
         X = tr.design(cur_terms)
-        beta = _lstsq(X, tr.y)
+        beta = _lstsq(X * tr.w[:, None], tr.y * tr.w)
         pred = X @ beta
         out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred, "train": tr.rmse_by_target(pred)}
         cvp, mse, n = _cv(tr, X, nb)
         out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
+        out.update(test={t: None for t in self.targets}, test_all=None)
         if te is None:
-            out.update(test={t: None for t in self.targets}, test_all=None)
+            return out
+        lacking = [k for k in cur_terms if "@" not in k
+                   and set(cur_test_terms.get(k, {})) != set(cur_terms[k])]
+        if lacking:
+            out["test_note"] = ("the test flights lack signals of " + ", ".join(sorted(lacking))
+                                + ": no test error")
             return out
         shared = [k for k in cur_terms if k in cur_test_terms]
         local = [k for k in cur_test_terms if k not in cur_terms]
@@ -524,7 +646,6 @@ class _Model:
             tp = tp + lp
         out.update(test_pred=tp, test=te.rmse_by_target(tp),
                    test_all=math.sqrt(float(np.mean((te.y - tp) ** 2))))
-        out["test_mse"], out["test_n"] = _block_mse(te.y, tp, te.block, nb)
         return out
 
     def base_info(self, fit) -> dict:
@@ -532,12 +653,12 @@ class _Model:
                         for p in self.tr_parts}}
 
     def evidence(self, cur, new, n_candidates) -> dict:
+        """Training-only significance, with the test errors attached for the report."""
         cfg = self.cfg
-        return significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=n_candidates,
-                            min_rel_improvement=cfg.min_rel_improvement,
-                            test_before=cur["test_all"], test_after=new["test_all"],
-                            test_mse_before=cur.get("test_mse"), test_mse_after=new.get("test_mse"),
-                            test_n=cur.get("test_n"), require_test=cfg.require_test_improvement)
+        ev = significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=n_candidates,
+                          min_rel_improvement=cfg.min_rel_improvement)
+        ev["cv_units"] = "pooled over targets, each in units of its base residual σ"
+        return _with_test(ev, cur["test_all"], new["test_all"])
 
 
 def _physical(effect, coef: Mapping[str, float], info) -> dict:
@@ -553,10 +674,53 @@ def _strip(coef: Mapping[str, float]) -> dict:
     return {k.split(".", 1)[1]: v for k, v in coef.items()}
 
 
+def _fold(effect, model, beta) -> dict:
+    """``foldable``, ``reason`` and ``features`` ({target: [{name, expr, coefficient}]}) of an
+    added effect, the expressions with the training constants."""
+    if not effect.foldable:
+        return {"foldable": False, "reason": effect.fold_reason or "not written as expressions",
+                "features": {}}
+    feats = {}
+    consts = model.constants(effect)
+    for p in model.tr_parts:
+        exprs = effect.expressions(p.ctx, consts.get(p.target))
+        if exprs:
+            feats[p.target] = [{"name": f"{effect.id}_{k}", "expr": e,
+                                "coefficient": beta.get(f"{effect.id}.{k}", float("nan"))}
+                               for k, e in exprs.items()]
+    return {"foldable": True, "reason": "", "features": feats}
+
+
+def _uses_derivative(expr_or_names) -> list[str]:
+    from priors.effects import is_measured_derivative
+    names = ([s.name for s in expr_or_names.free_symbols] if isinstance(expr_or_names, sp.Basic)
+             else list(expr_or_names))
+    return sorted({n for n in names if is_measured_derivative(n)})
+
+
+def _score(model, cur, cur_terms, cur_test, cands, n_candidates):
+    """[(effects, train terms, test terms, fit, evidence)] for candidate groups of effects."""
+    out = []
+    for group in cands:
+        et, ett = {}, {}
+        for e in group:
+            a, b = model.effect_terms(e)
+            et.update(a)
+            ett.update(b)
+        new = model.fit({**cur_terms, **et}, {**cur_test, **ett})
+        out.append((group, et, ett, new, model.evidence(cur, new, n_candidates)))
+    return out
+
+
 def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] | None = None, *,
                       prior="tilt-drag", config: DiagnoseConfig | None = None, user_effects=None,
-                      progress: Callable | None = None) -> DiagnosisResult:
-    """Diagnose ``prior`` on per-target Datasets (see the module docstring)."""
+                      progress: Callable | None = None, prior_label: str | None = None) -> DiagnosisResult:
+    """Diagnose ``prior`` on per-target Datasets (see the module docstring).
+
+    ``train``: {target: Dataset} of the training flights (they alone decide); ``test``: the same
+    targets on test flights (reported only, never used for a choice); ``prior``: a PriorModel or
+    a name. The result's ``final_effects[*]["features"]`` are ready to fold into the prior.
+    """
     cfg = (config or DiagnoseConfig()).validate()
     if not train:
         raise DataError("no training datasets")
@@ -566,16 +730,21 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
     effects = _select_effects(user_effects, cfg.effects)
     if cfg.n_blocks is None:
-        from dataclasses import replace
         cfg = replace(cfg, n_blocks=int(np.clip(min(len(d) for d in train.values()) // 150, 8, 20)))
     terms = {t: _prior_terms(pr, t) for t in targets}
     tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
-    te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
     for p in tr_parts:
         if p.y.size < 5 * cfg.n_blocks:
             raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
                             f"{5 * cfg.n_blocks} for {cfg.n_blocks}-block cross-validation")
-    testable, untestable = _testability(effects, tr_parts, te_parts, targets)
+    # G at the scale of the base refit on the training flights (effects read relative to it)
+    base_beta = _Model(tr_parts, None, terms, cfg, targets).fit(
+        {n: {p.target: c} for p in tr_parts for n, c in p.base.items()}, {})["beta"]
+    terms = {t: terms[t].fitted(t, base_beta) for t in targets}
+    tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
+    te_parts = [_make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
+    testable, untestable, not_applicable = _testability(effects, tr_parts, targets,
+                                                        cfg.allow_measured_derivatives)
     model = _Model(tr_parts, te_parts, terms, cfg, targets)
     tr = model.tr
 
@@ -586,44 +755,78 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     for step in range(cfg.max_steps):
         if progress:
             progress(step, total, "scoring effects")
-        scores = []
+        singles = []
         for e in testable:
             if e.id in added:
                 continue
-            et = _terms_for(e, tr_parts)
+            et = model.effect_terms(e)[0]
             if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
                 continue
-            ett = _terms_for(e, te_parts) if te_parts else {}
-            if te_parts and not e.per_flight and set(ett) != set(et):
-                continue
-            scores.append((e, et, ett, model.fit({**cur_terms, **et}, {**cur_test, **ett})))
-        if not scores:
+            singles.append(e)
+        if not singles:
             break
-        evid = [model.evidence(cur, new, len(scores)) for *_, new in scores]
-        order = sorted(range(len(scores)), key=lambda i: evid[i]["cv_rmse_after"])
-        candidates_log.append({"step": step + 1, "scores": [
-            {"effect": scores[i][0].id, **{k: evid[i][k] for k in (
+        scores = _score(model, cur, cur_terms, cur_test, [(e,) for e in singles], len(singles))
+        scores.sort(key=lambda s: s[4]["cv_rmse_after"])
+        log_entry = {"step": step + 1, "scores": [
+            {"effect": "+".join(e.id for e in g), **{k: ev[k] for k in (
                 "cv_rmse_after", "rel_improvement", "p_value", "blocks_improved",
-                "test_rmse_after", "passed")}} for i in order]})
-        e, et, ett, new = scores[order[0]]
-        ev = evid[order[0]]
+                "test_rmse_after", "passed")}} for g, _, _, _, ev in scores]}
+        candidates_log.append(log_entry)
+        best = scores[0]
+        jointly = False
+        if not best[4]["passed"] and best[4]["rel_improvement"] >= cfg.pair_min_gain and cfg.pair_top >= 2:
+            # overlapping effects: test the best pairs jointly, Bonferroni over singles + pairs
+            top = [g[0] for g, *_ in scores[:cfg.pair_top]]
+            pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]]
+            n_cand = len(singles) + len(pairs)
+            single_cv = {g[0].id: ev["cv_rmse_after"] for g, _, _, _, ev in scores}
+            pscores = _score(model, cur, cur_terms, cur_test, pairs, n_cand)
+            for g, _, _, _, ev in pscores:
+                worst_single = min(single_cv[e.id] for e in g)
+                ev["beats_members"] = ev["cv_rmse_after"] <= (1 - cfg.min_rel_improvement) * worst_single
+                if ev["passed"] and not ev["beats_members"]:
+                    ev["passed"] = False
+                    ev["reasons"].append("the pair does not beat each of its effects alone by "
+                                         f"{100 * cfg.min_rel_improvement:.2f} %")
+            pscores.sort(key=lambda s: s[4]["cv_rmse_after"])
+            log_entry["pairs"] = [{"effects": [e.id for e in g], **{k: ev[k] for k in (
+                "cv_rmse_after", "rel_improvement", "p_value", "p_threshold", "blocks_improved",
+                "passed")}} for g, _, _, _, ev in pscores]
+            log_entry["pairs_reason"] = (
+                f"best single {best[0][0].id} gains {100 * best[4]['rel_improvement']:.1f} % but "
+                f"fails ({'; '.join(best[4]['reasons'])}): pairs of the {len(top)} best tested jointly")
+            if pscores and pscores[0][4]["passed"]:
+                best, jointly = pscores[0], True
+        group, et, ett, new, ev = best
         if not ev["passed"]:
-            log.info("step %d: best candidate %s rejected: %s", step + 1, e.id, "; ".join(ev["reasons"]))
+            log.info("step %d: best candidate %s rejected: %s", step + 1,
+                     "+".join(e.id for e in group), "; ".join(ev["reasons"]))
             break
-        # candidates nearly as good (and significant) that the data cannot tell apart
-        ev["indistinguishable_from"] = [scores[i][0].id for i in order[1:] if evid[i]["passed"]
-                                        and evid[i]["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
+        if not jointly:
+            # candidates nearly as good (and significant) that the data cannot tell apart
+            ev["indistinguishable_from"] = [g[0].id for g, _, _, _, v in scores[1:] if v["passed"]
+                                            and v["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
+        else:
+            ev["indistinguishable_from"] = []
         coef = {k: new["beta"][k] for k in et}
         local = {k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}
-        steps.append({"effect": e.id, "description": e.description, "coefficients": _strip(coef),
-                      **_physical(e, {**coef, **local}, model.base_info(new)), "per_flight": e.per_flight,
-                      "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
-                               for t in targets},
-                      "evidence": ev})
-        plot_steps.append({p.target: {"effect": e.id, "residual": p.y - cur["pred"][tr.tidx == i],
-                                      "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
-                           for i, p in enumerate(tr_parts)})
-        added.append(e.id)
+        info = model.base_info(new)
+        for e in group:
+            ce = {k: v for k, v in {**coef, **local}.items() if k.startswith(e.id + ".")}
+            steps.append({"effect": e.id, "description": e.description,
+                          "coefficients": _strip({k: v for k, v in coef.items() if k.startswith(e.id + ".")}),
+                          **_physical(e, ce, info), "per_flight": e.per_flight,
+                          "tested_jointly": [x.id for x in group] if jointly else None,
+                          "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
+                                   for t in targets},
+                          "test_note": new.get("test_note"),
+                          "evidence": ev})
+        plot = {p.target: {"effect": "+".join(e.id for e in group),
+                           "residual": p.y - cur["pred"][tr.tidx == i],
+                           "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
+                for i, p in enumerate(tr_parts)}
+        plot_steps.extend(plot for _ in group)      # one entry per step (a pair: the joint term)
+        added.extend(e.id for e in group)
         cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
         if "wind" in added:
             # drag acts on the air velocity v − w: refresh it from the wind estimate and refit
@@ -631,17 +834,28 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                 _air_update(tr_parts, te_parts, cur, model.base_info(cur)["k_D"])
                 cur_terms, cur_test = model.terms_of(added, effects)
                 cur = model.fit(cur_terms, cur_test)
+        if len(added) >= cfg.max_steps:
+            break
     if progress:
         progress(cfg.max_steps, total, "open-ended search")
     open_ended = _open_ended_all(model, cur, cfg)
 
     info = model.base_info(cur)
-    final_effects = []
+    final_effects, notes = [], []
     for eid in added:
         coef = {k: v for k, v in {**cur["beta"], **cur.get("test_local_beta", {})}.items()
                 if k.startswith(eid + ".")}
+        train_coef = {k: v for k, v in cur["beta"].items() if k.startswith(eid + ".")}
         final_effects.append({"effect": eid, **_physical(effects[eid], coef, info),
-                              "coefficients": _strip(coef)})
+                              "coefficients": _strip(train_coef), **_fold(effects[eid], model, cur["beta"])})
+    derivs = sorted({n for fe in final_effects for fs in fe["features"].values() for f in fs
+                     for n in _uses_derivative(f["expr"])}
+                    | {n for eid in added for n in _uses_derivative(_needs_signals(effects[eid]))}
+                    | {n for o in open_ended.values() if o and o.get("passed")
+                       for n in _uses_derivative(_equation_names(o))})
+    if derivs:
+        notes.append(f"the model uses {', '.join(derivs)}, a measured derivative of the output: "
+                     "it cannot be simulated or used by a controller")
     not_detected = [e.id for e in testable if e.id not in added]
     conclusion = NO_FURTHER
     if added:
@@ -649,17 +863,61 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                       else f"added {', '.join(added)} (step limit {cfg.max_steps} reached)")
     if any(o and o.get("passed") for o in open_ended.values()):
         conclusion += "; the open-ended search found an unnamed term (see open_ended)"
+    if derivs:
+        conclusion += f" (NOT simulable: uses the measured derivative {', '.join(derivs)})"
     sources = {"train": sorted({s for d in train.values() for s in d.sources}),
                "test": sorted({s for d in test.values() for s in d.sources}) if test else []}
+    label = prior_label or (prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__))
     return DiagnosisResult(
         targets=_target_summaries(model, base_fit, cur, cur_terms, steps, open_ended),
         steps=steps, effects_added=added, untestable=untestable, not_detected=not_detected,
         conclusion=conclusion, open_ended=open_ended, config=asdict(cfg),
-        prior=prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__),
-        sources=sources, candidates=candidates_log, final_effects=final_effects,
+        prior=label, sources=sources, candidates=candidates_log, final_effects=final_effects,
+        not_applicable=not_applicable, simulable=not derivs, notes=notes,
         series=_series(model, base_fit, cur, plot_steps))
 
 
+def _equation_names(o: dict) -> list[str]:
+    """The offered signals that the open-ended equation actually uses."""
+    import re
+    words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", str(o.get("equation", ""))))
+    return [n for n in o.get("signals", ()) if n in words]
+
+
+def fold_into_prior(result: DiagnosisResult, prior):
+    """A new :class:`priors.models.PriorModel`: ``prior`` plus every foldable final effect's
+    features (each ``coefficient · expr``, role ``"other"``, description naming the effect), with
+    the signals they use added to the prior's inputs. Effects that are not foldable (per-flight
+    conditions, attitude delay, measured derivatives) are left out. Raises ConfigError when the
+    prior is not a PriorModel."""
+    from priors.models import PriorFeature, PriorModel
+    if not isinstance(prior, PriorModel):
+        raise ConfigError(f"fold_into_prior needs a PriorModel, got {type(prior).__name__}")
+    terms = {t: list(prior.features(t)) for t in prior.targets}
+    inputs = {t: list(prior.inputs(t)) for t in prior.targets}
+    for fe in result.final_effects:
+        if not fe.get("foldable"):
+            continue
+        for t, feats in fe["features"].items():
+            if t not in terms:
+                continue
+            for f in feats:
+                expr = sp.Float(f["coefficient"]) * f["expr"]
+                terms[t].append(PriorFeature(f["name"], expr, f"diagnosed effect {fe['effect']}: "
+                                             f"{fe['physical']}", "other"))
+                inputs[t].extend(sorted(s.name for s in expr.free_symbols if s.name not in inputs[t]))
+    added = [fe["effect"] for fe in result.final_effects if fe.get("foldable")]
+    if not added:
+        return prior
+    return PriorModel(f"{prior.name}+{'+'.join(added)}",
+                      f"{prior.description} Plus the diagnosed effects {', '.join(added)}.",
+                      terms, inputs, dict(prior.params), vehicle=prior.vehicle,
+                      constraints=prior.constraints)
+
+
+def _needs_signals(effect) -> list[str]:
+    """The signals an effect's needs name (every alternative)."""
+    return [a for grp in effect.needs for a in grp]
 
 
 def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dict:
@@ -677,7 +935,8 @@ def _target_summaries(model, base_fit, cur, cur_terms, steps, open_ended) -> dic
             "linear_drag_k_D_after": _k_drag(tp, t, p, cur["beta"]),
             "final_coefficients": {k: v for k, v in cur["beta"].items() if t in cur_terms[k]},
             "steps": [{"effect": s["effect"], "coefficients": s["coefficients"], "physical": s["physical"],
-                       "rmse": s["rmse"][t], "evidence": s["evidence"]} for s in steps],
+                       "rmse": s["rmse"][t], "evidence": s["evidence"],
+                       "tested_jointly": s["tested_jointly"]} for s in steps],
             "open_ended": open_ended.get(t),
             "n_train": int(p.y.size), "n_test": int(q.y.size) if q else 0,
         }
@@ -690,7 +949,7 @@ def _series(model, base_fit, cur, plot_steps) -> dict:
                        "residual_prior": p.y - p.prior_sum,
                        "residual_before": p.y - base_fit["pred"][tidx == i],
                        "residual_after": p.y - cur["pred"][tidx == i],
-                       "signals": {k: v for k, v in p.ctx.columns.items() if k in ("yaw", "speed", "vz_dot", "z", "G")},
+                       "signals": {k: v for k, v in p.ctx.columns.items() if k in ("yaw", "speed", "vz_dot", "z", "G", "thrust", "throttle")},
                        "steps": [s[p.target] for s in plot_steps]}
             for i, p in enumerate(model.tr_parts)}
 
@@ -703,7 +962,7 @@ def _open_ended_all(model, cur, cfg) -> dict:
     out = {}
     for i, p in enumerate(parts):
         test = None
-        if model.te_parts:
+        if model.te_parts and "test_pred" in cur:
             q = model.te_parts[i]
             test = (q, q.y - cur["test_pred"][model.te.tidx == i])
         out[p.target] = _open_ended(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg)
@@ -733,8 +992,6 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
     names = sorted(n for n, v in part.ctx.columns.items()
                    if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier()
                    and not _clock_like(v, part.t, part.flight))
-    if test is not None:
-        names = [n for n in names if n in test[0].ctx.columns]
     if not names:
         return {"ran": False, "reason": "no signals"}
     X = _signal_matrix(part, names)
@@ -762,19 +1019,16 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
                       for k in range(nb)])
     n = np.array([np.sum(part.block == k) for k in range(nb)])
     final = run(np.ones(resid.size, bool), cfg.sngp_seed + 7)
-    tb = ta = tmb = tma = tn = None
-    if test is not None:
+    tb = ta = None
+    if test is not None and all(nm in test[0].ctx.columns for nm in names):
+        # reported only: the test flights never decide
         q, tres = test
         tp = np.asarray(final.predict(_signal_matrix(q, names)), float)
         tp[~np.isfinite(tp)] = 0.0
         tb = rmse(tres, 0.0)
         ta = rmse(tres, tp)
-        tmb, tn = _block_mse(tres, np.zeros_like(tres), q.block, nb)
-        tma, _ = _block_mse(tres, tp, q.block, nb)
-    ev = significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,
-                      min_rel_improvement=cfg.min_rel_improvement, test_before=tb, test_after=ta,
-                      test_mse_before=tmb, test_mse_after=tma, test_n=tn,
-                      require_test=cfg.require_test_improvement)
+    ev = _with_test(significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,
+                                 min_rel_improvement=cfg.min_rel_improvement), tb, ta)
     return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
             "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),
             "generations": cfg.sngp_generations, "passed": ev["passed"], "evidence": ev}

@@ -22,15 +22,13 @@ def _pair(d, key="train"):
 
 
 def _evidence_text(ev) -> str:
-    parts = [f"CV RMSE {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
+    what = "CV error (σ units)" if ev.get("cv_units") else "CV RMSE"
+    parts = [f"{what} {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
              f"({-100 * ev['rel_improvement']:+.1f} %)",
-             f"block test p = {fmt(ev['p_value'], 2)} (threshold {fmt(ev['p_threshold'], 2)}"
-             + (f"; CV {fmt(ev['p_cv'], 2)} ⊕ test {fmt(ev['p_test'], 2)}, Fisher)"
-                if ev.get("p_test") is not None else ")"),
-             f"{ev['blocks_improved']} CV blocks better"
-             + (f", {ev['test_blocks_improved']} test blocks" if ev.get("test_blocks_improved") else "")]
+             f"block test p = {fmt(ev['p_value'], 2)} (threshold {fmt(ev['p_threshold'], 2)})",
+             f"{ev['blocks_improved']} CV blocks better"]
     if ev.get("test_rel_improvement") is not None:
-        parts.append(f"test {-100 * ev['test_rel_improvement']:+.1f} %")
+        parts.append(f"test {-100 * ev['test_rel_improvement']:+.1f} % (reported, not used)")
     return ", ".join(parts)
 
 
@@ -49,6 +47,9 @@ def summary_text(result) -> str:
         prev = {t: v["rmse_before"] for t, v in r.targets.items()}
         for i, s in enumerate(r.steps, 1):
             lines.append(f"  {i}. {s['effect']}: {s['physical']}")
+            if s.get("tested_jointly"):
+                lines.append(f"       tested jointly: {' + '.join(s['tested_jointly'])} (neither "
+                             "passed alone; overlapping effects)")
             for t, e in s["rmse"].items():
                 lines.append(f"       {t:7s} train {_pair(prev[t])} -> {_pair(e)}, "
                              f"test {_pair(prev[t], 'test')} -> {_pair(e, 'test')}")
@@ -73,12 +74,28 @@ def summary_text(result) -> str:
             b = last["scores"][0]
             lines.append(f"best remaining candidate: {b['effect']} (CV {-100 * b['rel_improvement']:+.2f} %, "
                          f"p = {fmt(b['p_value'], 2)}, {b['blocks_improved']} blocks): not significant")
+            if last.get("pairs"):
+                pb = last["pairs"][0]
+                lines.append(f"  {last['pairs_reason']}; best pair {' + '.join(pb['effects'])}: CV "
+                             f"{-100 * pb['rel_improvement']:+.2f} %, p = {fmt(pb['p_value'], 2)} "
+                             f"(threshold {fmt(pb['p_threshold'], 2)}): not significant")
     lines.append(r.conclusion)
+    for note in getattr(r, "notes", []) or []:
+        lines.append(f"WARNING: {note}")
+    folded = [fe for fe in r.final_effects if fe.get("foldable")]
+    if r.final_effects:
+        lines.append("foldable into the model: " + (", ".join(fe["effect"] for fe in folded) or "none")
+                     + "".join(f"; {fe['effect']} not ({fe['reason']})"
+                               for fe in r.final_effects if not fe.get("foldable")))
     if r.not_detected:
         lines.append(f"tested, not detected: {', '.join(r.not_detected)}")
     if r.untestable:
         lines.append("untestable from these signals (NOT evidence of absence):")
         for eid, why in r.untestable.items():
+            lines.append(f"  {eid}: {why}")
+    if getattr(r, "not_applicable", None):
+        lines.append("not applicable to this prior / these targets:")
+        for eid, why in r.not_applicable.items():
             lines.append(f"  {eid}: {why}")
     for t, o in (r.open_ended or {}).items():
         if not o:
@@ -104,6 +121,10 @@ def build_document(result) -> Document:
     doc.paragraph(f"Prior: {r.prior}. Training flights: {', '.join(r.sources['train'])}. Test flights: "
                   f"{', '.join(r.sources.get('test') or []) or 'none (cross-validation only)'}.")
     doc.paragraph(r.conclusion)
+    doc.paragraph("Effects are chosen on the training flights only (blocked cross-validation); "
+                  "test-flight errors are reported, never used for a choice.")
+    for note in getattr(r, "notes", []) or []:
+        doc.paragraph(f"WARNING: {note}")
     doc.heading("Errors before and after (RMSE, m/s²)")
     rows = []
     for t, v in r.targets.items():
@@ -117,8 +138,17 @@ def build_document(result) -> Document:
     if r.steps:
         doc.heading("Effects added, in order")
         doc.table(["#", "effect", "physical terms", "evidence"],
-                  [[i, s["effect"], s["physical"], _evidence_text(s["evidence"])]
+                  [[i, s["effect"], s["physical"], _evidence_text(s["evidence"])
+                    + (f" (tested jointly: {' + '.join(s['tested_jointly'])})" if s.get("tested_jointly") else "")]
                    for i, s in enumerate(r.steps, 1)])
+        rows = [[fe["effect"], t, f["name"], str(f["expr"]), fmt(f["coefficient"], 4)]
+                for fe in r.final_effects for t, fs in fe.get("features", {}).items() for f in fs]
+        if rows:
+            doc.heading("Foldable features (constants fixed from training)")
+            doc.table(["effect", "target", "feature", "expression", "coefficient"], rows)
+        nf = [[fe["effect"], fe["reason"]] for fe in r.final_effects if not fe.get("foldable", True)]
+        if nf:
+            doc.table(["not foldable", "why"], nf)
         if len(r.steps) > 1:
             doc.paragraph("Final estimates, all effects refitted jointly: "
                           + "; ".join(f"{fe['effect']}: {fe['physical']}" for fe in r.final_effects))
@@ -127,13 +157,23 @@ def build_document(result) -> Document:
         doc.paragraph("These effects could not be tested with the logged signals; this is not evidence "
                       "that they are absent.")
         doc.table(["effect", "why"], [[k, v] for k, v in r.untestable.items()])
+    if getattr(r, "not_applicable", None):
+        doc.heading("Effects not applicable")
+        doc.table(["effect", "why"], [[k, v] for k, v in r.not_applicable.items()])
     if r.candidates:
         doc.heading("Candidate scores per step")
         for c in r.candidates:
-            doc.table([f"step {c['step']}", "CV RMSE", "CV change", "p", "blocks better", "test RMSE", "passed"],
+            doc.table([f"step {c['step']}", "CV error (σ units)", "CV change", "p", "blocks better", "test RMSE", "passed"],
                       [[s["effect"], fmt(s["cv_rmse_after"]), f"{-100 * s['rel_improvement']:+.2f} %",
                         fmt(s["p_value"], 2), s["blocks_improved"], fmt(s["test_rmse_after"]),
                         "yes" if s["passed"] else "no"] for s in c["scores"]])
+            if c.get("pairs"):
+                doc.paragraph(c["pairs_reason"])
+                doc.table(["pair", "CV error (σ units)", "CV change", "p", "threshold", "passed"],
+                          [[" + ".join(s["effects"]), fmt(s["cv_rmse_after"]),
+                            f"{-100 * s['rel_improvement']:+.2f} %", fmt(s["p_value"], 2),
+                            fmt(s["p_threshold"], 2), "yes" if s["passed"] else "no"]
+                           for s in c["pairs"]])
     if r.open_ended:
         doc.heading("Open-ended search on the residual")
         for t, o in r.open_ended.items():

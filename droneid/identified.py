@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from types import MappingProxyType
 
 import numpy as np
@@ -55,9 +56,14 @@ class IdentifiedModel:
         if missing:
             raise MissingSignalError(missing[0], list(columns), where=f"the data for the {self.target} model")
         n = len(next(iter(columns.values()))) if columns else 0
-        f = compile_expression(self.expr, self.signals)
+        f = self._compiled
         return np.broadcast_to(np.asarray(f({s: np.asarray(columns[s], float) for s in self.signals})
                                           if self.signals else float(self.expr), float), (n,)).copy()
+
+    @cached_property
+    def _compiled(self):
+        """The expression compiled once (numpy); evaluate() is called per RK4 stage in rollouts."""
+        return compile_expression(self.expr, self.signals)
 
     def text(self, sig: int = 4) -> str:
         """The expression with numbers to ``sig`` significant figures."""

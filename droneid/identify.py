@@ -35,7 +35,7 @@ import sympy as sp
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
 from .expressions import symbol
-from .numerics import lstsq, rmse
+from .numerics import rmse
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
@@ -361,11 +361,8 @@ def _common_signals(flights) -> set:
 
 def resolve_plan_prior(cfg: IdentifyConfig, flights) -> tuple:
     """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
-    from priors.models import choose_prior, get_prior, resolve_prior
-    if cfg.prior in ("auto", "rotor-thrust"):
-        name, params, reason = choose_prior(_common_signals(flights), cfg.prior)
-        return get_prior(name, **params), reason
-    return resolve_prior(cfg.prior), "named by the user"
+    from priors.models import prior_for
+    return prior_for(cfg.prior, _common_signals(flights))
 
 
 def _thrust_signals(prior, target: str) -> list:
@@ -457,7 +454,7 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
              for t in targets}
     try:
         res = diagnose_datasets(train, None, prior=prior,
-                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, open_ended=False))
+                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, sngp_generations=0))
     except (ConfigError, DataError, TypeError) as exc:
         return (), (), {}, [f"diagnosis skipped: {exc}"]
     folded, skipped = [], []
@@ -653,6 +650,12 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
                            tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
                            delays=plan.delays_s))
     p.ladder = ladder
+    thrust = [f"⟨{f.name}⟩" for f in p.priors3[:p.n_base] if f.role == "thrust"]
+    bad = [k for k in thrust if not ladder[-1]["terms"].get(k, 1.0) > 0]
+    if bad:
+        p.notes.append(f"the fitted thrust scale of {', '.join(bad)} is not positive: these data cannot "
+                       f"separate thrust from gravity and drag (e.g. a flight at constant height); this "
+                       f"{p.target} model is not physical")
     e0, r1 = ladder[0], ladder[1]
     p.empirical = {"rmse_train": e0["rmse_train"], "rmse_test": e0["rmse_test"],
                    "constraint_rmse_test": e0["constraint_rmse_test"],
@@ -799,7 +802,7 @@ RUN_KEYS = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constra
 
 @dataclass
 class TargetResult:
-    """The identification of one target, as plain data (see notes/README_identify.md)."""
+    """The identification of one target, as plain data (the ``result.json`` schema: docs/)."""
     target: str
     inputs: list
     n_train: int

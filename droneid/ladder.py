@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
@@ -68,9 +68,15 @@ def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     """Held-out predictions of least squares on ``A`` (an intercept column included by the
     caller): every block is predicted by the fit on all other blocks."""
     pred = np.empty_like(y)
+    norms = np.sqrt((A * A).sum(axis=0))
+    norms[norms == 0] = 1.0
+    An = A / norms                       # normal equations on scaled columns: one Gram matrix,
+    G, r = An.T @ An, An.T @ y            # minus each block's share, per fold
     for b in np.unique(blocks):
         hold = blocks == b
-        pred[hold] = A[hold] @ lstsq(A[~hold], y[~hold])
+        Ah = An[hold]
+        beta, *_ = np.linalg.lstsq(G - Ah.T @ Ah, r - Ah.T @ y[hold], rcond=1e-10)
+        pred[hold] = Ah @ beta
     return pred
 
 

@@ -96,13 +96,6 @@ class Constraint:
     def inputs(self) -> tuple[str, ...]:
         return tuple(self.domain)
 
-    def describe(self) -> str:
-        """E.g. ``vx_dot = 0 for vx = 0, pitch = 0, roll in [-0.209, 0.209], yaw = 0``."""
-        op = {"eq": "=", "le": "<=", "ge": ">="}[self.relation]
-        parts = [f"{k} in [{v[0]:.4g}, {v[1]:.4g}]" if isinstance(v, tuple) else f"{k} = {v:.4g}"
-                 for k, v in self.domain.items()]
-        return f"{self.target or 'f'} {op} {self.value:g} for " + ", ".join(parts)
-
 
 def _number(x, where: str) -> float:
     if isinstance(x, str):

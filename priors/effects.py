@@ -1,7 +1,7 @@
 """The catalogue of candidate effects the diagnosis tests against a model's residual.
 
-Each :class:`Effect` is a physical effect the tilt-drag prior leaves out, written as columns that
-enter the model LINEARLY in unknown coefficients, so adding an effect is one least-squares refit:
+Each :class:`Effect` is a physical effect the prior leaves out, written as columns that enter the
+model LINEARLY in unknown coefficients, so adding an effect is one least-squares refit:
 
     v̇_axis = prior terms (refit) + Σ_p  coef_p · feature_p(signals)
 
@@ -9,44 +9,68 @@ Every effect states
 
 * ``id`` and ``description``;
 * ``needs``: the signals it needs, as groups of alternatives (each group needs ONE available signal);
-  ``"@tilt"`` means "the prior has tilt (gravity) terms for the target". An effect whose needs are
-  not met is UNTESTABLE (never "absent");
-* ``features(ctx) -> {param: column}`` for one target, from the target's :class:`EffectContext`
-  (the Dataset's columns on the grid plus the prior's tilt terms). A parameter name used for both
-  horizontal targets is ONE coefficient shared by both (e.g. the quadratic-drag ``c`` or the
-  attitude biases); axis-specific names (``offset_x``) are separate coefficients;
+  ``"@tilt"`` means "the prior has thrust-direction terms for the target". An effect whose needs
+  are not met is UNTESTABLE (never "absent");
+* ``targets``: the targets it applies to (horizontal-only effects skip ``vz_dot``) and
+  ``not_applicable(ctx)``: a reason when it makes no sense with this prior (e.g. thrust_variation
+  when the prior's thrust is logged already);
+* ``constants(ctx) -> {name: float}``: numbers fixed from the TRAINING data (mean thrust, mean
+  voltage, ground height); the same numbers are used on test flights and in the folded model;
+* ``expressions(ctx, constants) -> {param: sympy.Expr}`` (foldable effects): the features as
+  sympy expressions over canonical signal symbols with every constant a number; the numeric
+  features ``features(ctx, constants)`` are these expressions evaluated on the data, so folding an
+  effect into a model reproduces the fit exactly. Non-foldable effects (``foldable`` False, with
+  ``fold_reason``) compute columns directly: per-flight conditions (wind, attitude bias) and
+  effects that need a time derivative (attitude delay). A parameter name used for several
+  targets is ONE coefficient shared by them (e.g. the quadratic-drag ``c``); axis-specific names
+  (``offset_x``) are separate coefficients;
 * ``interpret(coef, base) -> Interpretation``: the fitted coefficients in physical terms;
 * ``per_flight``: a condition of the flight rather than of the vehicle (wind, attitude bias): its
   parameters are estimated separately for every flight; on a test flight they are estimated by
   blocked cross-validation on that flight, with everything else fixed from training.
 
+Causal inputs only: effects are built from states and inputs (velocity, attitude, height, logged
+thrust / motor signals, battery voltage), never from a measured derivative (``vz_dot`` from
+differencing, IMU ``ax ay az``). Those columns exist in an :class:`EffectContext` only when it is
+built with ``allow_measured_derivatives=True``; a model using them cannot be simulated.
+
 Conventions (droneid frames: world ENU, Z-Y-X Euler, positive pitch = nose down). ``G`` below is
-the sum of the prior's terms that contain roll or pitch (for tilt-drag:
-``G_x = g cosψ tanθ/cosφ + g sinψ tanφ``, ``G_y = g sinψ tanθ/cosφ − g cosψ tanφ``), and
-``k_D`` is the fitted linear drag coefficient of the base model.
+the prior's thrust-direction term for the target at the scale of the base refit on the training
+flights (Σ β_term · term): the sum of its terms with role ``tilt``
+(tilt-drag: ``G_x = g cosψ tanθ/cosφ + g sinψ tanφ``) or ``thrust`` (rotor-thrust: logged thrust
+along body z), or for priors without roles the terms containing roll or pitch. ``k_D`` is the
+fitted linear drag coefficient of the base model (from the role ``drag`` terms).
 
 ==================  ==========================================================================
 id                  feature(s) for v̇x (v̇y analogous), coefficient -> physical meaning
 ==================  ==========================================================================
-quadratic_drag      −|v_h| vx (shared c) -> "quadratic drag c_D/m = c 1/m"; once wind is in
-                    the model, v is the air velocity v − ŵ (also for anisotropic_drag)
-wind                1 (offset_x) -> wind w_x = offset_x / k_D (drag acts on v − w)
-attitude_bias       ∂G/∂roll, ∂G/∂pitch (shared) -> bias = −coef (logged − true angle)
+quadratic_drag      −sqrt(vx²+vy²)·vx (shared c) -> c_D/m in 1/m; once wind is in the model,
+                    the fit uses the air velocity v − ŵ (also for anisotropic_drag); the
+                    folded expression uses v (wind is a condition of the flight)
+vertical_drag       v̇z only: −|vz|·vz (c_z) -> vertical c_D/m in 1/m
+wind                1 (offset_x) -> wind w_x = offset_x / k_D (drag acts on v − w); per flight
+attitude_bias       ∂G/∂roll, ∂G/∂pitch (shared) -> bias = −coef (logged − true); per flight
 attitude_delay      dG/dt from the logged attitude (shared τ) -> "attitude lags by τ"
 anisotropic_drag    −(cos2ψ vx + sin2ψ vy)/2 (shared Δk) -> k_x = k̄ + Δk/2, k_y = k̄ − Δk/2
-thrust_variation    G · v̇z/g (or G · (a_z cosφ cosθ/g − 1)) -> thrust-balance gain
+thrust_variation    G·(T/T̄ − 1), T the logged thrust proxy (thrust N, else Σ(rpm/10⁴)², else
+                    mean motor command, else throttle), T̄ its training mean -> gain (1 = thrust
+                    proportional to T); not applicable when G is the logged thrust already
 thrust_direction    G_exact − G, G_exact = g(cosψ tanθ + sinψ tanφ/cosθ) -> weight (1 = exact)
-ground_effect       G · exp(−h/h0), h = z − z_ground -> thrust gain at the ground
-battery_sag         G · (u/ū) · (V − V̄)/V̄ -> relative thrust change per relative voltage
+thrust_curve        G·((Σω/S̄)/(Σω²/W̄) − 1) (rotor-thrust from rpm) -> thrust ∝ ω^(2−a);
+                    not applicable when G is the logged thrust (exact rotation already)
+ground_effect       G·exp(−(z − z_ground)/h0), z_ground the 2nd percentile of the training
+                    heights, h0 = ``ground_h0_m`` (also v̇z) -> thrust gain at the ground
+battery_sag         G·(u/ū)·(V − V̄)/V̄, u the command (throttle, else mean motor command), ū and
+                    V̄ training means (also v̇z) -> relative thrust change per relative voltage;
+                    not applicable when G comes from measured rotor speeds or thrust
 ==================  ==========================================================================
 
-User effects: :func:`load_effects` reads TOML (see ``notes/README_diagnose.md``); expressions are
+User effects: :func:`load_effects` reads TOML (see the README's Diagnosis section); expressions are
 parsed only with :func:`droneid.expressions.parse_expression`.
 """
 from __future__ import annotations
 
 import math
-import string
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,25 +80,35 @@ import sympy as sp
 
 from droneid.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
-from droneid.expressions import compile_expression, parse_expression, symbol
+from droneid.expressions import compile_expression, parse_expression, safe_format, symbol
 from droneid.flight import CANONICAL_SIGNALS
 
 __all__ = [
     "Effect", "EffectContext", "Interpretation", "CATALOGUE", "TILT", "get_effect",
-    "load_effects", "time_derivative", "AXIS",
+    "load_effects", "time_derivative", "AXIS", "HORIZONTAL", "MEASURED_DERIVATIVES",
+    "is_measured_derivative", "thrust_proxy",
 ]
 
-#: Pseudo-signal meaning "the prior has tilt terms for this target".
+#: Pseudo-signal meaning "the prior has thrust-direction terms for this target".
 TILT = "@tilt"
-#: Horizontal targets the catalogue knows, and their axis letter.
-AXIS = {"vx_dot": "x", "vy_dot": "y"}
+#: Targets the catalogue knows, and their axis letter.
+AXIS = {"vx_dot": "x", "vy_dot": "y", "vz_dot": "z"}
+HORIZONTAL = ("vx_dot", "vy_dot")
+#: Signals that are a measured derivative of the modelled velocity (never causal inputs).
+MEASURED_DERIVATIVES = ("ax", "ay", "az", "vx_dot", "vy_dot", "vz_dot")
 #: Names user expressions may use besides canonical signals.
 DERIVED = {
-    "G": "the prior's tilt (gravity) terms for the target, m/s²",
-    "vz_dot": "vertical acceleration from vz (central differences), m/s²",
+    "G": "the prior's thrust-direction terms for the target, m/s²",
+    "vz_dot": "vertical acceleration from vz (central differences), m/s² (a measured derivative: "
+              "needs allow_measured_derivatives)",
     "speed": "horizontal speed sqrt(vx² + vy²), m/s",
-    "v_axis": "the target's own velocity (vx for vx_dot, vy for vy_dot), m/s",
+    "v_axis": "the target's own velocity (vx for vx_dot, vy for vy_dot, vz for vz_dot), m/s",
 }
+
+
+def is_measured_derivative(name: str) -> bool:
+    """True for IMU accelerations and differenced velocities (``ax``, ``vz_dot``, ``*_dot``)."""
+    return name in MEASURED_DERIVATIVES or name.endswith("_dot")
 
 
 def time_derivative(x: np.ndarray, t: np.ndarray, flight: np.ndarray,
@@ -111,12 +145,14 @@ def time_derivative(x: np.ndarray, t: np.ndarray, flight: np.ndarray,
 
 @dataclass(frozen=True)
 class EffectContext:
-    """What an effect may read for ONE target: columns on the grid and the prior's tilt terms.
+    """What an effect may read for ONE target: columns on the grid and the prior's G terms.
 
     ``columns`` holds the Dataset's inputs and extras (canonical names) plus derived columns
-    (``vz_dot``, ``speed``, ``v_axis`` and ``G`` where computable). ``tilt`` is the prior's tilt
-    expression (sympy over canonical symbols) or None; ``options`` holds effect options
-    (``ground_h0_m``).
+    (``speed``, ``v_axis``, ``G`` where computable, and ``vz_dot`` only with
+    ``allow_measured_derivatives``; measured derivatives ``ax ay az *_dot`` are dropped otherwise).
+    ``tilt`` is the prior's G expression (sympy over canonical symbols) or None; ``tilt_role`` is
+    ``"tilt"`` (thrust direction at hover balance) or ``"thrust"`` (logged thrust); ``options``
+    holds effect options (``ground_h0_m``, ``derivative_half_window_s``).
     """
     target: str
     columns: Mapping[str, np.ndarray]
@@ -125,22 +161,27 @@ class EffectContext:
     tilt: sp.Expr | None = None
     g: float = 9.81
     options: Mapping[str, float] = field(default_factory=dict)
+    tilt_role: str = "tilt"
+    allow_measured_derivatives: bool = False
 
     @classmethod
     def build(cls, target: str, columns: Mapping[str, np.ndarray], t, flight, tilt=None,
-              g: float = 9.81, options: Mapping[str, float] | None = None) -> "EffectContext":
+              g: float = 9.81, options: Mapping[str, float] | None = None, tilt_role: str = "tilt",
+              allow_measured_derivatives: bool = False) -> "EffectContext":
         cols = {k: np.asarray(v, float) for k, v in columns.items()
-                if k not in (target, "t") and np.all(np.isfinite(np.asarray(v, float)))}
+                if k not in (target, "t") and np.all(np.isfinite(np.asarray(v, float)))
+                and (allow_measured_derivatives or not is_measured_derivative(k))}
         t = np.asarray(t, float)
         flight = np.asarray(flight, int)
-        if "vz" in cols:
+        if "vz" in cols and allow_measured_derivatives:
             cols["vz_dot"] = time_derivative(cols["vz"], t, flight)
         if "vx" in cols and "vy" in cols:
             cols["speed"] = np.hypot(cols["vx"], cols["vy"])
         ax = AXIS.get(target)
         if ax and f"v{ax}" in cols:
             cols["v_axis"] = cols[f"v{ax}"]
-        ctx = cls(target, cols, t, flight, tilt, g, dict(options or {}))
+        ctx = cls(target, cols, t, flight, tilt, g, dict(options or {}), tilt_role,
+                  allow_measured_derivatives)
         if tilt is not None and ctx._can_eval(tilt):
             cols["G"] = ctx.evaluate(tilt)
         return ctx
@@ -150,7 +191,7 @@ class EffectContext:
         return AXIS.get(self.target)
 
     def available(self) -> set[str]:
-        """Names of usable columns, plus ``"@tilt"`` when the prior's tilt terms are computable."""
+        """Names of usable columns, plus ``"@tilt"`` when the prior's G terms are computable."""
         names = set(self.columns)
         if "G" in self.columns:
             names.add(TILT)
@@ -159,11 +200,17 @@ class EffectContext:
     def _can_eval(self, expr) -> bool:
         return all(s.name in self.columns for s in expr.free_symbols)
 
-    def evaluate(self, expr: sp.Expr) -> np.ndarray:
+    def evaluate(self, expr: sp.Expr, air: bool = False) -> np.ndarray:
+        """``expr`` on the columns; ``air``: velocities vx, vy read as the air velocity
+        (``vx_air``, ``vy_air``) where a wind estimate set them."""
         names = sorted(s.name for s in expr.free_symbols)
         f = compile_expression(expr, names)
         n = self.t.size
-        return np.broadcast_to(f({k: self.columns[k] for k in names} or {"_": np.zeros(n)}),
+
+        def col(k):
+            return self.columns.get(f"{k}_air", self.columns[k]) if air and k in ("vx", "vy") \
+                else self.columns[k]
+        return np.broadcast_to(f({k: col(k) for k in names} or {"_": np.zeros(n)}),
                                (n,)).astype(float)
 
     def tilt_partial(self, signal: str) -> np.ndarray:
@@ -185,15 +232,34 @@ class Interpretation:
 
 @dataclass(frozen=True)
 class Effect:
-    """One candidate effect (see the module docstring)."""
+    """One candidate effect (see the module docstring).
+
+    Exactly one of ``expr_fn(ctx, constants) -> {param: sympy.Expr}`` (foldable effects) and
+    ``column_fn(ctx, constants) -> {param: column}`` computes the features;
+    ``constants_fn(ctx) -> {name: float}`` fixes numbers from the training data;
+    ``applicable_fn(ctx) -> reason or None`` says when the effect makes no sense for the prior;
+    ``data_fn(ctx) -> reason or None`` when the (training) data cannot identify it.
+    """
     id: str
     description: str
     needs: tuple[tuple[str, ...], ...]
-    feature_fn: Callable[[EffectContext], dict]
     interpret_fn: Callable[[dict, dict], Interpretation]
+    expr_fn: Callable[[EffectContext, dict], dict] | None = None
+    column_fn: Callable[[EffectContext, dict], dict] | None = None
+    constants_fn: Callable[[EffectContext], dict] | None = None
+    applicable_fn: Callable[[EffectContext], str | None] | None = None
+    data_fn: Callable[[EffectContext], str | None] | None = None
+    targets: tuple[str, ...] = HORIZONTAL
     explain_signal: str = ""
     user: bool = False
     per_flight: bool = False
+    fold_reason: str = ""
+
+    @property
+    def foldable(self) -> bool:
+        """True when the effect is an instantaneous function of states and inputs with constants
+        fixed from training (it can join the model's features); see ``fold_reason`` otherwise."""
+        return self.expr_fn is not None and not self.per_flight and not self.fold_reason
 
     def missing(self, available: Iterable[str]) -> list[str]:
         """Unmet needs, each as 'a|b' alternatives; empty when testable."""
@@ -202,13 +268,47 @@ class Effect:
                 if not any(a in avail for a in grp)]
 
     def applies_to(self, target: str) -> bool:
-        return target in AXIS or self.user
+        return target in self.targets
 
-    def features(self, ctx: EffectContext) -> dict[str, np.ndarray]:
-        """``{param: column}`` for ctx's target, or ``{}`` when it does not apply there."""
-        if self.missing(ctx.available()):
+    def not_applicable(self, ctx: EffectContext) -> str | None:
+        """Why the effect makes no sense for ctx's target and prior (None: it applies)."""
+        if not self.applies_to(ctx.target):
+            return f"does not apply to {ctx.target}"
+        return self.applicable_fn(ctx) if self.applicable_fn else None
+
+    def untestable_data(self, ctx: EffectContext) -> str | None:
+        """Why these (training) data cannot identify the effect although its signals exist."""
+        return self.data_fn(ctx) if self.data_fn else None
+
+    def constants(self, ctx: EffectContext) -> dict:
+        """Numbers fixed from ``ctx`` (the TRAINING data): {} when the effect has none or when
+        it is untestable or not applicable there."""
+        if self.constants_fn is None or self.missing(ctx.available()) or self.not_applicable(ctx):
             return {}
-        cols = self.feature_fn(ctx) or {}
+        return {k: float(v) for k, v in self.constants_fn(ctx).items()}
+
+    def expressions(self, ctx: EffectContext, constants: Mapping[str, float] | None = None
+                    ) -> dict[str, sp.Expr]:
+        """``{param: sympy.Expr}`` over canonical signal symbols for ctx's target (G and the
+        constants substituted by numbers); {} when not foldable, untestable or not applicable.
+        ``constants`` default: :meth:`constants` of ``ctx`` (pass the training ones for test data)."""
+        if self.expr_fn is None or self.missing(ctx.available()) or self.not_applicable(ctx):
+            return {}
+        consts = self.constants(ctx) if constants is None else dict(constants)
+        return dict(self.expr_fn(ctx, consts) or {})
+
+    def features(self, ctx: EffectContext, constants: Mapping[str, float] | None = None
+                 ) -> dict[str, np.ndarray]:
+        """``{param: column}`` for ctx's target, or ``{}`` when it does not apply there.
+        Foldable effects evaluate :meth:`expressions` (drag effects on the air velocity when a
+        wind estimate is set); non-finite values become 0."""
+        if self.missing(ctx.available()) or self.not_applicable(ctx):
+            return {}
+        consts = self.constants(ctx) if constants is None else dict(constants)
+        if self.expr_fn is not None:
+            cols = {k: ctx.evaluate(e, air=True) for k, e in self.expressions(ctx, consts).items()}
+        else:
+            cols = self.column_fn(ctx, consts) or {}
         n = ctx.t.size
         out = {}
         for k, v in cols.items():
@@ -223,24 +323,25 @@ class Effect:
 
 
 def _need_label(name: str) -> str:
-    return "tilt terms of the prior" if name == TILT else name
+    return "thrust-direction (tilt or thrust) terms of the prior" if name == TILT else name
 
 
 # -- the catalogue ------------------------------------------------------------------------------
+_ALL = ("vx_dot", "vy_dot", "vz_dot")
+
+
 def _k_mean(base) -> float:
-    ks = [k for k in (base.get("k_D") or {}).values() if k is not None and math.isfinite(k)]
+    ks = [k for t, k in (base.get("k_D") or {}).items()
+          if t in HORIZONTAL and k is not None and math.isfinite(k)]
     return float(np.mean(ks)) if ks else float("nan")
 
 
-def _air(ctx, name):
-    """The air-relative velocity column when a wind estimate exists, else the ground one."""
-    return ctx.columns.get(f"{name}_air", ctx.columns[name])
+def _sym(name):
+    return symbol(name)
 
 
-def _quadratic_drag(ctx):
-    if not ctx.axis:
-        return {}
-    return {"c": -_air(ctx, "speed") * _air(ctx, f"v{ctx.axis}")}
+def _quadratic_drag(ctx, k):
+    return {"c": -sp.sqrt(_sym("vx") ** 2 + _sym("vy") ** 2) * _sym(f"v{ctx.axis}")}
 
 
 def _quadratic_drag_text(coef, base):
@@ -248,8 +349,18 @@ def _quadratic_drag_text(coef, base):
     return Interpretation(f"quadratic drag c_D/m = {c:.3g} 1/m", {"c_D_over_m_per_m": c})
 
 
-def _wind(ctx):
-    return {f"offset_{ctx.axis}": np.ones(ctx.t.size)} if ctx.axis else {}
+def _vertical_drag(ctx, k):
+    vz = _sym("vz")
+    return {"c_z": -sp.Abs(vz) * vz}
+
+
+def _vertical_drag_text(coef, base):
+    c = coef.get("c_z", float("nan"))
+    return Interpretation(f"vertical quadratic drag c_Dz/m = {c:.3g} 1/m", {"c_D_z_over_m_per_m": c})
+
+
+def _wind(ctx, k):
+    return {f"offset_{ctx.axis}": np.ones(ctx.t.size)}
 
 
 def _wind_text(coef, base):
@@ -274,9 +385,7 @@ def _wind_text(coef, base):
     return Interpretation(txt, w)
 
 
-def _attitude_bias(ctx):
-    if not ctx.axis:
-        return {}
+def _attitude_bias(ctx, k):
     return {"d_roll": ctx.tilt_partial("roll"), "d_pitch": ctx.tilt_partial("pitch")}
 
 
@@ -288,8 +397,8 @@ def _attitude_bias_text(coef, base):
                           {"roll_bias_deg": br, "pitch_bias_deg": bp})
 
 
-def _attitude_delay(ctx):
-    return {"tau": ctx.d_dt(ctx.columns["G"])} if ctx.axis else {}
+def _attitude_delay(ctx, k):
+    return {"tau": ctx.d_dt(ctx.columns["G"])}
 
 
 def _attitude_delay_text(coef, base):
@@ -299,15 +408,12 @@ def _attitude_delay_text(coef, base):
                           {"delay_ms": tau * 1000.0})
 
 
-def _anisotropic_drag(ctx):
-    if not ctx.axis:
-        return {}
-    c = ctx.columns
-    c2, s2 = np.cos(2 * c["yaw"]), np.sin(2 * c["yaw"])
-    vx, vy = _air(ctx, "vx"), _air(ctx, "vy")
+def _anisotropic_drag(ctx, k):
+    psi, vx, vy = _sym("yaw"), _sym("vx"), _sym("vy")
+    c2, s2 = sp.cos(2 * psi), sp.sin(2 * psi)
     if ctx.axis == "x":
-        return {"dk": -0.5 * (c2 * vx + s2 * vy)}
-    return {"dk": -0.5 * (s2 * vx - c2 * vy)}
+        return {"dk": -(c2 * vx + s2 * vy) / 2}
+    return {"dk": -(s2 * vx - c2 * vy) / 2}
 
 
 def _anisotropic_drag_text(coef, base):
@@ -319,33 +425,115 @@ def _anisotropic_drag_text(coef, base):
                           {"k_x_per_s": kx, "k_y_per_s": ky, "dk_per_s": dk})
 
 
-def _thrust_variation(ctx):
-    if not ctx.axis:
+def thrust_proxy(available: Iterable[str]) -> tuple[str, sp.Expr] | None:
+    """(description, sympy expression) of the logged quantity most nearly proportional to the
+    collective thrust, or None: ``thrust`` (N), else Σ(rpm_i/10⁴)² (rotor momentum theory),
+    else the mean motor command, else ``throttle``."""
+    have = set(available)
+    if "thrust" in have:
+        return "thrust", _sym("thrust")
+    for src, label in (("rpm", "Σ(rpm/10⁴)²"), ("motor", "mean motor command")):
+        n = 0
+        while f"{src}{n + 1}" in have:
+            n += 1
+        if n:
+            if src == "rpm":
+                return label, sp.Add(*[(_sym(f"rpm{i}") / 10_000) ** 2 for i in range(1, n + 1)])
+            return label, sp.Add(*[_sym(f"motor{i}") for i in range(1, n + 1)]) / n
+    if "throttle" in have:
+        return "throttle", _sym("throttle")
+    return None
+
+
+def _command(available: Iterable[str]) -> tuple[str, sp.Expr] | None:
+    """The collective COMMAND (what the battery's voltage scales into thrust): throttle, else
+    the mean motor command; None without either."""
+    have = set(available)
+    if "throttle" in have:
+        return "throttle", _sym("throttle")
+    motors = [f"motor{i}" for i in range(1, 17) if f"motor{i}" in have]
+    if motors:
+        return "mean motor command", sp.Add(*[_sym(m) for m in motors]) / len(motors)
+    return None
+
+
+def _needs_measured_thrust(ctx) -> str | None:
+    if ctx.tilt_role == "thrust":
+        return ("the prior's thrust term is the logged thrust already (rotor-thrust): thrust "
+                "variation is in the prior")
+    return None
+
+
+def _thrust_variation_consts(ctx):
+    _, e = thrust_proxy(ctx.columns)
+    return {"T_mean": float(np.mean(ctx.evaluate(e)))}
+
+
+def _thrust_variation(ctx, k):
+    _, e = thrust_proxy(ctx.columns)
+    if not abs(k.get("T_mean", 0.0)) > 1e-12:
         return {}
-    c = ctx.columns
-    if "vz_dot" in c:
-        return {"s": c["G"] * c["vz_dot"] / ctx.g}
-    return {"s": c["G"] * (c["az"] * np.cos(c["roll"]) * np.cos(c["pitch"]) / ctx.g - 1.0)}
+    return {"s": ctx.tilt * (e / sp.Float(k["T_mean"]) - 1)}
 
 
 def _thrust_variation_text(coef, base):
     s = coef.get("s", float("nan"))
-    return Interpretation(f"thrust departs from hover balance: tilt terms scale with "
-                          f"(1 + {s:.2f}·v̇z/g) (1 = thrust follows vertical acceleration)",
-                          {"gain": s})
+    return Interpretation(f"thrust departs from hover balance: the fitted tilt terms scale with "
+                          f"(1 + {s:.2f}·(T/T̄ − 1)), T the logged thrust proxy (1 = thrust "
+                          "proportional to it)", {"gain": s})
 
 
-def _thrust_direction(ctx):
-    if not ctx.axis:
+def _rpm_sums(available):
+    """(Σ ω_i, Σ ω_i²) over the logged motor speeds rpm1..rpmN, in 10⁴ rpm; None without them."""
+    have, n = set(available), 0
+    while f"rpm{n + 1}" in have:
+        n += 1
+    if not n:
+        return None
+    w = [_sym(f"rpm{i}") / 10_000 for i in range(1, n + 1)]
+    return sp.Add(*w), sp.Add(*[x ** 2 for x in w])
+
+
+def _thrust_curve_applies(ctx) -> str | None:
+    if ctx.tilt_role != "thrust":
+        return "needs a prior whose thrust term comes from motor speeds (rotor-thrust)"
+    if _rpm_sums(ctx.columns) is None:
+        return "needs motor speeds rpm1..rpmN"
+    return None
+
+
+def _thrust_curve_consts(ctx):
+    s, w = _rpm_sums(ctx.columns)
+    return {"S_mean": float(np.mean(ctx.evaluate(s))), "W_mean": float(np.mean(ctx.evaluate(w)))}
+
+
+def _thrust_curve(ctx, k):
+    sums = _rpm_sums(ctx.columns)
+    if sums is None or not (k.get("S_mean", 0.0) > 0 and k.get("W_mean", 0.0) > 0):
         return {}
-    c = ctx.columns
-    r, p, y = c["roll"], c["pitch"], c["yaw"]
-    with np.errstate(all="ignore"):
-        if ctx.axis == "x":
-            exact = ctx.g * (np.cos(y) * np.tan(p) + np.sin(y) * np.tan(r) / np.cos(p))
-        else:
-            exact = ctx.g * (np.sin(y) * np.tan(p) - np.cos(y) * np.tan(r) / np.cos(p))
-    return {"w_exact": exact - c["G"]}
+    s, w = sums
+    return {"a": ctx.tilt * ((s / sp.Float(k["S_mean"])) / (w / sp.Float(k["W_mean"])) - 1)}
+
+
+def _thrust_curve_text(coef, base):
+    a = coef.get("a", float("nan"))
+    return Interpretation(f"rotor thrust grows as ω^{2 - a:.2f} rather than ω² (thrust curve; "
+                          f"a = {a:.2f})", {"a": a, "exponent": 2 - a})
+
+
+def _exact_geometry(ctx) -> str | None:
+    if ctx.tilt_role == "thrust":
+        return "the prior's thrust term uses the exact rotation already (rotor-thrust)"
+    return None
+
+
+def _thrust_direction(ctx, k):
+    r, p, y, g = _sym("roll"), _sym("pitch"), _sym("yaw"), sp.Float(ctx.g)
+    if ctx.axis == "x":
+        exact = g * (sp.cos(y) * sp.tan(p) + sp.sin(y) * sp.tan(r) / sp.cos(p))
+    else:
+        exact = g * (sp.sin(y) * sp.tan(p) - sp.cos(y) * sp.tan(r) / sp.cos(p))
+    return {"w_exact": exact - ctx.tilt}
 
 
 def _thrust_direction_text(coef, base):
@@ -354,41 +542,55 @@ def _thrust_direction_text(coef, base):
                           "tilt terms (1 = exact geometry)", {"weight": w})
 
 
-def _ground_effect(ctx):
-    if not ctx.axis:
-        return {}
-    h0 = float(ctx.options.get("ground_h0_m", 0.5))
+def _ground_consts(ctx):
+    return {"z_ground": float(np.percentile(ctx.columns["z"], 2)),
+            "h0": float(ctx.options.get("ground_h0_m", 0.5))}
+
+
+def _ground_heights(ctx) -> str | None:
+    """Ground effect is identifiable only when the heights span at least h0 above the lowest
+    one: at a nearly constant height exp(−(z − z_ground)/h0) is G plus a tiny G·Δz term that
+    fits whatever correlates with height-hold errors, not a ground effect."""
     z = ctx.columns["z"]
-    h = np.empty_like(z)
-    for f in np.unique(ctx.flight):
-        m = ctx.flight == f
-        h[m] = np.maximum(z[m] - np.percentile(z[m], 2), 0.0)
-    return {"k_ge": ctx.columns["G"] * np.exp(-h / h0)}
+    span = float(np.percentile(z, 98) - np.percentile(z, 2))
+    h0 = float(ctx.options.get("ground_h0_m", 0.5))
+    if span < h0:
+        return (f"the training heights span only {span:.2g} m (< h0 = {h0:g} m): a ground "
+                "effect cannot be told from a constant thrust gain")
+    return None
+
+
+def _ground_effect(ctx, k):
+    return {"k_ge": ctx.tilt * sp.exp(-(_sym("z") - sp.Float(k["z_ground"])) / sp.Float(k["h0"]))}
 
 
 def _ground_effect_text(coef, base):
     k = coef.get("k_ge", float("nan"))
-    return Interpretation(f"thrust gain near the ground: {100 * k:+.0f} % at the lowest height "
-                          "(decaying with height)", {"gain_at_ground": k})
+    return Interpretation(f"thrust gain near the ground: {100 * k:+.0f} % at the training flights' "
+                          "ground height (decaying with height)", {"gain_at_ground": k})
 
 
-def _command(c):
-    if "throttle" in c:
-        return c["throttle"]
-    motors = [c[f"motor{i}"] for i in range(1, 17) if f"motor{i}" in c]
-    return np.mean(motors, axis=0) if motors else c["thrust"]
+def _battery_applicable(ctx) -> str | None:
+    if ctx.tilt is not None and ctx.tilt_role == "thrust" and any(
+            s.name == "thrust" or s.name.startswith("rpm") for s in ctx.tilt.free_symbols):
+        return ("the prior's thrust comes from measured rotor speeds or thrust, which already "
+                "include the battery's voltage")
+    return None
 
 
-def _battery_sag(ctx):
-    if not ctx.axis:
-        return {}
-    c = ctx.columns
-    u = _command(c)
-    v = c["battery_voltage"]
-    ub, vb = np.mean(u), np.mean(v)
+def _battery_consts(ctx):
+    _, u = _command(ctx.columns)
+    return {"u_mean": float(np.mean(ctx.evaluate(u))),
+            "V_mean": float(np.mean(ctx.columns["battery_voltage"]))}
+
+
+def _battery_sag(ctx, k):
+    _, u = _command(ctx.columns)
+    ub, vb = k.get("u_mean", 0.0), k.get("V_mean", 0.0)
     if not (abs(ub) > 1e-9 and abs(vb) > 1e-9):
         return {}
-    return {"kappa": c["G"] * (u / ub) * (v - vb) / vb}
+    v = _sym("battery_voltage")
+    return {"kappa": ctx.tilt * (u / sp.Float(ub)) * (v - sp.Float(vb)) / sp.Float(vb)}
 
 
 def _battery_sag_text(coef, base):
@@ -397,34 +599,55 @@ def _battery_sag_text(coef, base):
                           "1 = thrust proportional to voltage)", {"kappa": k})
 
 
-_CMD = ("throttle", "motor1", "thrust")
+_THRUST_SIGNALS = ("thrust", "rpm1", "motor1", "throttle")
+_CMD = ("throttle", "motor1")
+_PER_FLIGHT = "a condition of one flight (estimated per flight), not of the vehicle"
 
 #: The built-in effects, by id.
 CATALOGUE: dict[str, Effect] = {e.id: e for e in (
     Effect("quadratic_drag", "aerodynamic drag growing with speed squared: −c|v|v",
-           (("vx",), ("vy",)), _quadratic_drag, _quadratic_drag_text, "|v| v_axis"),
+           (("vx",), ("vy",)), _quadratic_drag_text, expr_fn=_quadratic_drag,
+           explain_signal="|v| v_axis"),
+    Effect("vertical_drag", "vertical aerodynamic drag growing with climb rate squared: −c_z|vz|vz",
+           (("vz",),), _vertical_drag_text, expr_fn=_vertical_drag, targets=("vz_dot",),
+           explain_signal="vz"),
     Effect("wind", "constant world-frame wind w: linear drag acts on v − w, a constant k_D·w "
            "per axis (the base refit has no intercept, so the offset is not absorbed)",
-           (("vx", "vy"),), _wind, _wind_text, "yaw", per_flight=True),
+           (("vx", "vy"),), _wind_text, column_fn=_wind, explain_signal="yaw", per_flight=True,
+           fold_reason=_PER_FLIGHT),
     Effect("attitude_bias", "constant roll/pitch offsets of the logged attitude (rotate with "
-           "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",)), _attitude_bias,
-           _attitude_bias_text, "yaw", per_flight=True),
+           "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",)), _attitude_bias_text,
+           column_fn=_attitude_bias, targets=_ALL, explain_signal="yaw", per_flight=True,
+           fold_reason=_PER_FLIGHT),
     Effect("attitude_delay", "logged attitude lags the acceleration it causes by τ: "
-           "G(att(t + τ)) ≈ G + τ dG/dt", ((TILT,),), _attitude_delay, _attitude_delay_text,
-           "dG/dt"),
+           "G(att(t + τ)) ≈ G + τ dG/dt", ((TILT,),), _attitude_delay_text,
+           column_fn=_attitude_delay, targets=_ALL, explain_signal="dG/dt",
+           fold_reason="needs dG/dt, a time derivative of the logged attitude (not an "
+                       "instantaneous function of states and inputs)"),
     Effect("anisotropic_drag", "different linear drag along body x and body y",
-           (("vx",), ("vy",), ("yaw",)), _anisotropic_drag, _anisotropic_drag_text, "yaw"),
+           (("vx",), ("vy",), ("yaw",)), _anisotropic_drag_text, expr_fn=_anisotropic_drag,
+           explain_signal="yaw"),
     Effect("thrust_variation", "thrust departs from hover balance (climbs, descents): the tilt "
-           "terms scale with the vertical thrust balance", ((TILT,), ("vz_dot", "az")),
-           _thrust_variation, _thrust_variation_text, "vz_dot"),
+           "terms scale with the logged thrust relative to its training mean",
+           ((TILT,), _THRUST_SIGNALS), _thrust_variation_text, expr_fn=_thrust_variation,
+           constants_fn=_thrust_variation_consts, applicable_fn=_needs_measured_thrust,
+           explain_signal="thrust"),
+    Effect("thrust_curve", "rotor thrust is not exactly ∝ ω² (inflow, motor and propeller "
+           "curves): the thrust terms scale with (1 + a·((Σω/S̄)/(Σω²/W̄) − 1)), i.e. T ∝ ω^(2−a) "
+           "near the training mean", ((TILT,), ("rpm1",)), _thrust_curve_text, expr_fn=_thrust_curve,
+           constants_fn=_thrust_curve_consts, applicable_fn=_thrust_curve_applies, targets=_ALL,
+           explain_signal="thrust"),
     Effect("thrust_direction", "exact Z-Y-X thrust geometry instead of the paper's small-angle "
-           "tilt terms", ((TILT,), ("roll",), ("pitch",), ("yaw",)), _thrust_direction,
-           _thrust_direction_text, "pitch"),
+           "tilt terms", ((TILT,), ("roll",), ("pitch",), ("yaw",)), _thrust_direction_text,
+           expr_fn=_thrust_direction, applicable_fn=_exact_geometry, explain_signal="pitch"),
     Effect("ground_effect", "thrust gain near the ground (needs height z)", ((TILT,), ("z",)),
-           _ground_effect, _ground_effect_text, "z"),
+           _ground_effect_text, expr_fn=_ground_effect, constants_fn=_ground_consts,
+           data_fn=_ground_heights,
+           targets=_ALL, explain_signal="z"),
     Effect("battery_sag", "thrust per command falls with battery voltage (needs a command and "
-           "the voltage)", ((TILT,), _CMD, ("battery_voltage",)), _battery_sag,
-           _battery_sag_text, "battery_voltage"),
+           "the voltage)", ((TILT,), _CMD, ("battery_voltage",)), _battery_sag_text,
+           expr_fn=_battery_sag, constants_fn=_battery_consts, applicable_fn=_battery_applicable,
+           targets=_ALL, explain_signal="battery_voltage"),
 )}
 
 
@@ -439,8 +662,8 @@ def get_effect(effect_id: str, effects: Mapping[str, Effect] | None = None) -> E
 
 # -- user effects from TOML ---------------------------------------------------------------------
 _EXPR_NAMES = (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)), *DERIVED)
-_DERIVED_NEEDS = {"G": ((TILT,),), "vz_dot": (("vz",),), "speed": (("vx",), ("vy",)),
-                  "v_axis": (("vx", "vy"),)}
+_DERIVED_NEEDS = {"G": ((TILT,),), "vz_dot": (("vz_dot",),), "speed": (("vx",), ("vy",)),
+                  "v_axis": (("vx", "vy", "vz"),)}
 
 
 def load_effects(path) -> dict[str, Effect]:
@@ -516,20 +739,8 @@ def _user_effect(tab, where) -> Effect:
     meaning = tab.get("meaning", "")
     if not isinstance(meaning, str):
         raise ConfigError(f"{where}: 'meaning' must be a format string")
-    if meaning:
-        try:
-            fields = {f for _, f, _, _ in string.Formatter().parse(meaning) if f}
-        except ValueError as exc:
-            raise ConfigError(f"{where}: bad 'meaning' format string: {exc}") from None
-        extra = {f.split(".")[0].split("[")[0] for f in fields} - params - {"k_D"}
-        if extra:
-            k = sorted(extra)[0]
-            raise ConfigError(f"{where}: 'meaning' uses unknown name '{k}'{did_you_mean(k, params)}; "
-                              f"parameters: {sorted(params)}")
-        try:
-            meaning.format(**{k: 1.0 for k in params}, k_D=1.0)
-        except (ValueError, KeyError, IndexError) as exc:
-            raise ConfigError(f"{where}: bad 'meaning' format string: {exc}") from None
+    if meaning:  # checked once with stand-in values: only {name} / {name:.3g}-style fields
+        safe_format(meaning, {**{k: 1.0 for k in params}, "k_D": 1.0}, what=f"{where}: 'meaning'")
     needs = []
     for n in sorted(used):
         needs.extend(_DERIVED_NEEDS.get(n, ((n,),)))
@@ -539,16 +750,20 @@ def _user_effect(tab, where) -> Effect:
         needs.append(tuple(n.split("|")))
     desc = tab.get("description", f"user effect {eid}")
 
-    def feature_fn(ctx, _parsed=parsed):
+    def expr_fn(ctx, consts, _parsed=parsed):
         exprs = _parsed.get(ctx.target)
         if not exprs:
             return {}
-        return {k: ctx.evaluate(e) for k, e in exprs.items()}
+        sub = {symbol("speed"): sp.sqrt(symbol("vx") ** 2 + symbol("vy") ** 2),
+               symbol("v_axis"): symbol(f"v{ctx.axis}")}
+        if ctx.tilt is not None:
+            sub[symbol("G")] = ctx.tilt
+        return {k: e.subs(sub) for k, e in exprs.items()}
 
     def interpret_fn(coef, base, _meaning=meaning, _params=tuple(sorted(params))):
         vals = {k: coef.get(k, float("nan")) for k in _params}
         if _meaning:
-            text = _meaning.format(**vals, k_D=_k_mean(base))
+            text = safe_format(_meaning, {**vals, "k_D": _k_mean(base)}, what=f"effect {eid}: 'meaning'")
         else:
             text = f"{eid}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items())
         return Interpretation(text, vals)
@@ -556,5 +771,10 @@ def _user_effect(tab, where) -> Effect:
     per_flight = tab.get("per_flight", False)
     if not isinstance(per_flight, bool):
         raise ConfigError(f"{where}: 'per_flight' must be true or false, got {per_flight!r}")
-    return Effect(eid, str(desc), tuple(needs), feature_fn, interpret_fn, "", user=True,
-                  per_flight=per_flight)
+    derivative = sorted(u for u in used if is_measured_derivative(u))
+    reason = (_PER_FLIGHT if per_flight else
+              f"uses {', '.join(derivative)}, a measured derivative (cannot be simulated)"
+              if derivative else "")
+    return Effect(eid, str(desc), tuple(needs), interpret_fn, expr_fn=expr_fn,
+                  targets=tuple(t for t in _ALL if t in parsed), user=True, per_flight=per_flight,
+                  fold_reason=reason)

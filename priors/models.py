@@ -36,7 +36,7 @@ from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_m
 from droneid.expressions import compile_expression, symbol
 
 __all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "THRUST_SOURCES", "get_prior",
-           "load_priors", "tilt_drag", "rotor_thrust", "unicycle", "resolve_prior", "choose_prior",
+           "load_priors", "tilt_drag", "rotor_thrust", "unicycle", "resolve_prior", "choose_prior", "prior_for",
            "body_z_world", "thrust_columns", "motor_count"]
 
 
@@ -372,10 +372,22 @@ def load_priors(path) -> dict[str, PriorModel]:
     return _load(path)
 
 
+def prior_for(spec: str | PriorModel, signals) -> tuple[PriorModel, str]:
+    """(PriorModel, why) for ``spec`` on data with these ``signals``: ``auto`` (and a bare
+    ``rotor-thrust``) choose with :func:`choose_prior`; anything else is :func:`resolve_prior`.
+    The one place identify, diagnose and the CLI turn ``--prior`` into a model."""
+    if isinstance(spec, str) and spec in ("auto", "rotor-thrust"):
+        name, params, why = choose_prior(signals, spec)
+        return get_prior(name, **params), why
+    return resolve_prior(spec), "named by the user"
+
+
 def resolve_prior(spec: str | PriorModel, **params) -> PriorModel:
     """A PriorModel from a built-in name or ``file.toml:name``."""
-    if isinstance(spec, PriorModel):
-        return spec
+    if isinstance(spec, PriorModel) or (not isinstance(spec, str) and hasattr(spec, "features")):
+        return spec  # a PriorModel, or an object that behaves as one (features, inputs, targets)
+    if not isinstance(spec, str):
+        raise ConfigError(f"a prior must be a name, FILE.toml:NAME or a PriorModel; got {type(spec).__name__}")
     if ":" in spec and spec.split(":", 1)[0].endswith(".toml"):
         path, name = spec.split(":", 1)
         models = load_priors(path)

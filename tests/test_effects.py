@@ -8,8 +8,8 @@ import diag_synth as S
 from droneid.errors import ConfigError
 from priors.effects import CATALOGUE, TILT, EffectContext, load_effects, time_derivative
 
-IDS = {"quadratic_drag", "wind", "attitude_bias", "attitude_delay", "anisotropic_drag",
-       "thrust_variation", "thrust_direction", "ground_effect", "battery_sag"}
+IDS = {"quadratic_drag", "vertical_drag", "wind", "attitude_bias", "attitude_delay", "anisotropic_drag",
+       "thrust_variation", "thrust_direction", "ground_effect", "battery_sag", "thrust_curve"}
 
 
 def _ctx(target="vx_dot", **drop):
@@ -28,13 +28,16 @@ def test_features_and_needs():
     ctx = _ctx()
     assert TILT in ctx.available()
     for e in CATALOGUE.values():
+        if not e.applies_to(ctx.target) or e.not_applicable(ctx):  # thrust_curve: needs rotor-thrust
+            assert e.features(ctx) == {} and e.not_applicable(ctx), e.id
+            continue
         cols = e.features(ctx)
         assert cols and all(np.all(np.isfinite(c)) and c.shape == ctx.t.shape for c in cols.values()), e.id
     c = ctx.columns
     np.testing.assert_allclose(CATALOGUE["quadratic_drag"].features(ctx)["c"],
                                -np.hypot(c["vx"], c["vy"]) * c["vx"])
     assert CATALOGUE["battery_sag"].missing({TILT, "throttle"}) == ["battery_voltage"]
-    assert CATALOGUE["ground_effect"].missing({"vx"}) == ["tilt terms of the prior", "z"]
+    assert CATALOGUE["ground_effect"].missing({"vx"}) == ["thrust-direction (tilt or thrust) terms of the prior", "z"]
 
 
 def test_attitude_bias_feature_is_the_derivative_of_the_tilt_terms():
@@ -107,3 +110,115 @@ def test_user_effect_errors(tmp_path, body, match):
     p.write_text(body)
     with pytest.raises(ConfigError, match=match):
         load_effects(p)
+
+
+# -- foldable effects: expressions over canonical signals reproduce the fitted columns ------------
+from droneid.expressions import compile_expression  # noqa: E402
+from priors.effects import is_measured_derivative, thrust_proxy  # noqa: E402
+from priors.models import get_prior  # noqa: E402
+
+FOLDABLE = {"quadratic_drag", "vertical_drag", "anisotropic_drag", "thrust_variation", "thrust_direction",
+            "ground_effect", "battery_sag", "thrust_curve"}
+
+
+def _eval_on_dataset(expr, ds):
+    cols = ds.columns()
+    names = sorted(s.name for s in expr.free_symbols)
+    assert set(names) <= set(cols), (expr, set(names) - set(cols))   # canonical signals only
+    return compile_expression(expr, names)({k: cols[k] for k in names})
+
+
+@pytest.mark.parametrize("target", ["vx_dot", "vy_dot"])
+def test_every_foldable_effect_expression_reproduces_its_feature_column(target):
+    ds = S.make(None, seed=0)[target]
+    ctx = _ctx(target)
+    assert {e.id for e in CATALOGUE.values() if e.foldable} == FOLDABLE
+    for e in CATALOGUE.values():
+        consts = e.constants(ctx)
+        exprs = e.expressions(ctx, consts)
+        if not e.applies_to(target):
+            assert exprs == {} and e.features(ctx) == {}, e.id
+            continue
+        if not e.foldable:
+            assert exprs == {} and e.fold_reason, e.id
+            continue
+        if e.id == "thrust_curve":  # needs rotor-thrust from motor speeds (tested below)
+            assert e.not_applicable(ctx) and exprs == {}, e.id
+            continue
+        cols = e.features(ctx, consts)
+        assert exprs and set(exprs) == set(cols), e.id
+        for k, expr in exprs.items():
+            assert all(not is_measured_derivative(s.name) for s in expr.free_symbols), (e.id, expr)
+            diff = np.max(np.abs(_eval_on_dataset(expr, ds) - cols[k]))
+            assert diff < 1e-9, (e.id, k, diff)
+
+
+def test_rotor_thrust_vz_expressions_reproduce_columns_and_skip_horizontal_only_effects():
+    pr = get_prior("rotor-thrust", source="rpm", motors=4)
+    ds = S.make_rotor(None, seed=0)["vz_dot"]
+    g = sum(f.expr for f in pr.features("vz_dot") if f.role == "thrust")
+    ctx = EffectContext.build("vz_dot", ds.columns(), ds.t, ds.flight, g, tilt_role="thrust")
+    for eid in ("vertical_drag", "ground_effect", "thrust_curve"):
+        e = CATALOGUE[eid]
+        exprs = e.expressions(ctx)
+        assert exprs, eid
+        for k, col in e.features(ctx).items():
+            assert np.max(np.abs(_eval_on_dataset(exprs[k], ds) - col)) < 1e-9, (eid, k)
+    assert set(CATALOGUE["vertical_drag"].expressions(ctx)) == {"c_z"}
+    for eid in ("quadratic_drag", "wind", "anisotropic_drag", "thrust_direction", "thrust_variation"):
+        assert CATALOGUE[eid].not_applicable(ctx), eid
+    assert "measured rotor speeds" in CATALOGUE["battery_sag"].not_applicable(ctx)
+
+
+def test_thrust_variation_is_built_from_the_logged_thrust_never_from_a_derivative():
+    ctx = _ctx()
+    assert "vz_dot" not in ctx.columns                   # a measured derivative: absent by default
+    e = CATALOGUE["thrust_variation"]
+    k = e.constants(ctx)
+    c = ctx.columns
+    assert k["T_mean"] == pytest.approx(np.mean(c["throttle"]))       # training mean of the proxy
+    np.testing.assert_allclose(e.features(ctx)["s"], c["G"] * (c["throttle"] / k["T_mean"] - 1),
+                               atol=1e-12)
+    assert "vz" not in {s.name for s in e.expressions(ctx)["s"].free_symbols}
+    assert thrust_proxy({"throttle", "rpm1", "rpm2"})[0] == "Σ(rpm/10⁴)²"
+    assert thrust_proxy({"throttle", "thrust"})[0] == "thrust"
+    assert thrust_proxy({"vx"}) is None
+    assert e.missing({TILT, "vz", "az"}) == ["thrust|rpm1|motor1|throttle"]
+    # with the rotor-thrust prior the thrust IS logged: not applicable
+    thr = EffectContext.build("vx_dot", ctx.columns, ctx.t, ctx.flight, ctx.tilt, tilt_role="thrust")
+    assert "rotor-thrust" in e.not_applicable(thr) and e.features(thr) == {}
+
+
+def test_measured_derivatives_only_with_the_explicit_option():
+    ds = S.make(None, seed=0)["vx_dot"]
+    cols = {**ds.columns(), "az": np.full(len(ds), 9.8), "ax": np.zeros(len(ds))}
+    tilt = sum(f.expr for f in S.TiltDragStub().features("vx_dot")[:2])
+    ctx = EffectContext.build("vx_dot", cols, ds.t, ds.flight, tilt)
+    assert not {"az", "ax", "vz_dot"} & set(ctx.columns)
+    ctx = EffectContext.build("vx_dot", cols, ds.t, ds.flight, tilt, allow_measured_derivatives=True)
+    assert {"az", "ax", "vz_dot"} <= set(ctx.columns)
+
+
+def test_user_effect_expression_substitutes_derived_names_and_flags_derivatives(tmp_path):
+    p = tmp_path / "fx.toml"
+    p.write_text('''
+[[effect]]
+id = "speed_tilt"
+[effect.features.vx_dot]
+k = "G * speed"
+[[effect]]
+id = "climb"
+[effect.features.vx_dot]
+k = "G * vz_dot"
+''')
+    fx = load_effects(p)
+    ds = S.make(None, seed=0)["vx_dot"]
+    ctx = _ctx()
+    e = fx["speed_tilt"]
+    assert e.foldable and e.targets == ("vx_dot",)
+    (expr,) = e.expressions(ctx).values()
+    assert {s.name for s in expr.free_symbols} <= {"vx", "vy", "roll", "pitch", "yaw"}
+    np.testing.assert_allclose(_eval_on_dataset(expr, ds), e.features(ctx)["k"], atol=1e-9)
+    c = fx["climb"]
+    assert not c.foldable and "measured derivative" in c.fold_reason
+    assert c.missing(ctx.available()) == ["vz_dot"]          # untestable without the option

@@ -60,7 +60,14 @@ def test_identify_writes_the_documented_schema_and_files(identified):
         tr = doc["targets"][t]
         assert isinstance(tr["equation"], str) and tr["equation"].startswith(f"{t} = ")
         assert isinstance(tr["coefficients"], dict) and isinstance(tr["prior_coefficients"], dict)
-        assert len(tr["prior_coefficients"]) == 3
+        assert len(tr["prior_coefficients"]) == len(tr["prior_features"]) == 2  # rotor-thrust: thrust, drag
+        # the ladder, its final model and the models predict and export apply
+        assert [r["name"] for r in tr["ladder"]][0] == "empirical" and tr["ladder"][-1]["name"] == "final"
+        for r in tr["ladder"]:
+            assert {"rmse_train", "rmse_validation", "rmse_test", "constraint_rmse_test", "model"} <= set(r)
+        for key in ("final", "empirical_model", "refit_model"):
+            assert {"target", "expr", "signals", "delays_s", "equation"} <= set(tr[key])
+        assert tr["verdict"].startswith(f"{t}: ")
         for part in ("identified", "empirical", "empirical_refit"):
             assert all(isinstance(tr[part][k], float) for k in SCHEMA_METRICS), part
         assert len(tr["runs"]) == 2
@@ -68,6 +75,9 @@ def test_identify_writes_the_documented_schema_and_files(identified):
             assert {"seed", "rmse_train", "rmse_test", "constraint_rmse_test", "wall_s"} <= set(r)
         assert tr["model"] and tr["holdout"] is False
     assert doc["config"]["prior_features"] == 3 and doc["config"]["constraints"] == "paper"
+    # the simulated logs carry motor speeds: auto picks rotor-thrust and says why
+    assert doc["config"]["prior_used"] == "rotor-thrust" and "motor speeds" in doc["config"]["prior_reason"]
+    assert "delays_s" in doc["config"] and doc["config"]["fitness"]["train"]["ok"]
     assert doc["provenance"]["train"][0]["files"][0].endswith("eight.tlog")
     html = (identified / "report.html").read_text()
     # 4 figures per target + the multi-step error and trace figures
@@ -121,7 +131,8 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
     from parsers import read_flight
     train = read_flight(logs[0])
     test = simulate(path="eight", duration_s=12, seed=2, k_drag=0.4).flight
-    common = dict(targets=("vx_dot",), runs=2, generations=1500, population=150, jobs=1, seed=3)
+    common = dict(targets=("vx_dot",), runs=2, generations=1500, population=150, jobs=1, seed=3,
+                  prior="tilt-drag", effects="none", delays="none")  # the paper's setting
     guided = identify([train], [test], IdentifyConfig.make(prior_features=3, constraints="paper", **common))
     base = identify([train], [test], IdentifyConfig.make(prior_features=0, constraints="none", **common))
     g, b = guided.targets["vx_dot"], base.targets["vx_dot"]
@@ -226,7 +237,7 @@ def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
 
 @pytest.mark.slow
 def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
-    distributed = pytest.importorskip("distributed")
+    import distributed  # a declared dependency: an import failure is a failure, not a skip
     from droneid.identify import IdentifyConfig, identify
     from parsers import read_flight
     train, test = read_flight(logs[0]), read_flight(logs[1])
@@ -269,3 +280,27 @@ def test_holdout_is_cut_before_any_choice(logs):
     res = identify([read_flight(logs[0])], None, cfg).targets["vx_dot"]
     assert res.holdout and 0.25 < res.n_test / (res.n_train + res.n_test) < 0.35
     assert "before any choice" in res.test_data
+
+
+@pytest.mark.parametrize("planted", [{"quadratic_drag": {"c": 0.3}}, None])
+def test_identify_folds_the_effect_the_diagnosis_finds(planted):
+    """Planted truth inside identify: a quadratic drag the rotor-thrust prior lacks is found on the
+    training flight, folded into the prior features (a ladder rung with c near the planted value)
+    and kept in the final model; on a control flight no effect is added."""
+    from droneid.identify import IdentifyConfig, identify
+    from droneid.simulate import simulate
+    flight = simulate(path="lissajous", duration_s=60, seed=11, effects=planted).flight
+    cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=1, generations=200, population=60, jobs=1)
+    res = identify([flight], None, cfg)
+    for t, tr in res.targets.items():
+        rungs = [r["name"] for r in tr.ladder]
+        if planted:
+            assert "effect:quadratic_drag" in rungs, (t, rungs, res.notes)
+            rung = tr.ladder[rungs.index("effect:quadratic_drag")]
+            import re
+            c = float(re.search(r"c_D/m = ([0-9.]+)", rung["description"]).group(1))
+            assert c == pytest.approx(0.3, rel=0.1), rung["description"]
+            assert "sqrt(vx**2 + vy**2)" in tr.final["expr"]  # the folded feature is in the final model
+            assert rung["rmse_validation"] < 0.9 * tr.ladder[rungs.index("effect:quadratic_drag") - 1]["rmse_validation"]
+        else:
+            assert not any(r.startswith("effect:") for r in rungs), (t, rungs, res.notes)

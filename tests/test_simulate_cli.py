@@ -93,7 +93,6 @@ def test_every_sample_carries_the_rotor_signals():
 
 
 def test_flat_csv_output_carries_rpm_and_motor_commands(tmp_path):
-    pytest.importorskip("parsers.csv_writer", reason="the flat CSV writer is on branch parsers")
     import numpy as np
 
     from droneid.simulate import simulate

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ._common import ProgressBar
 
-#: about a minute on a 2-core machine (see notes/README_identify.md for the measured time)
+#: about a minute on a 2-core machine (measured: `make demo` prints its wall time)
 DEMO_BUDGET = {"runs": 8, "generations": 6000, "population": 300}
 _FORMATS = (".tlog", ".csv", ".mcap", ".bin", ".ulg")
 

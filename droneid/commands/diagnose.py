@@ -10,14 +10,21 @@ def register(sub) -> None:
     p = sub.add_parser(
         "diagnose", help="trace a prior model's residual to the physical effects it lacks",
         description="Fit the prior, score a catalogue of candidate effects (wind, quadratic drag, "
-                    "attitude bias/delay, ...) against the residual with blocked cross-validation and "
-                    "the test flight, add the significant ones in order, and search the rest of the "
-                    "residual with SNGP. Effects whose signals are missing are reported as untestable.")
+                    "attitude bias/delay, ...) against the residual with blocked cross-validation on "
+                    "the TRAINING flights, add the significant ones in order, and search the rest of "
+                    "the residual with SNGP. Test flights are reported, never used for a choice. "
+                    "Effects whose signals are missing are reported as untestable.")
     p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training flight log(s)")
     p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None, help="test flight log(s)")
-    p.add_argument("--prior", default="tilt-drag", help="prior model name (default: tilt-drag)")
-    p.add_argument("--target", default="vx_dot,vy_dot",
-                   help="comma-separated targets (default: vx_dot,vy_dot)")
+    p.add_argument("--prior", default="auto",
+                   help="prior model: auto (rotor-thrust when the logs have motor speeds, motor "
+                        "commands, thrust or throttle, else tilt-drag; as identify), a built-in "
+                        "name or file.toml:name (default: auto)")
+    p.add_argument("--target", default=None,
+                   help="comma-separated targets (default: the prior's among vx_dot, vy_dot, vz_dot)")
+    p.add_argument("--allow-measured-derivatives", action="store_true",
+                   help="let effects and the open-ended search use measured derivatives (IMU ax ay "
+                        "az, differenced vz_dot); the resulting model cannot be simulated")
     p.add_argument("--report", metavar="DIR", help="write diagnosis.json/.md/.html and plots here")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.add_argument("--effects", metavar="TOML", help="extra user-defined effects (TOML)")
@@ -45,9 +52,11 @@ def run(args: argparse.Namespace) -> int:
     from droneid.diagnose_report import summary_text, write_report
     from droneid.errors import ConfigError
 
-    targets = tuple(t.strip() for t in args.target.split(",") if t.strip())
-    if not targets:
-        raise ConfigError("--target: no targets given")
+    targets = None
+    if args.target is not None:
+        targets = tuple(t.strip() for t in args.target.split(",") if t.strip())
+        if not targets:
+            raise ConfigError("--target: no targets given")
     user = None
     if args.effects:
         from priors.effects import load_effects
@@ -55,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
     only = tuple(s.strip() for s in args.only.split(",")) if args.only else None
     cfg = DiagnoseConfig(ts_s=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
                          min_rel_improvement=args.min_improvement, max_steps=args.max_steps,
-                         sngp_generations=args.sngp_generations, sngp_seed=args.seed, effects=only)
+                         sngp_generations=args.sngp_generations, sngp_seed=args.seed, effects=only,
+                         allow_measured_derivatives=args.allow_measured_derivatives)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("diagnose", quiet=args.quiet or args.json)
