@@ -334,23 +334,6 @@ def _hover_calibrated(prior, flights, cfg: IdentifyConfig, cuts=None):
     return get_prior("rotor-thrust", k_T=float(prior.params.get("g", 9.81)) / med, **params)
 
 
-def check_fitness(flights, prior, cfg: IdentifyConfig, role: str):
-    """:func:`droneid.fitness.assess` of the flights for this prior and its targets; refuses
-    (DataError naming the problem and how to override) or returns the Fitness (warnings inside).
-    None for priors of vehicles the check does not know (e.g. the unicycle)."""
-    from .fitness import assess
-    if prior.vehicle not in ("multirotor", "fixed-wing"):
-        return None
-    targets = cfg.targets or tuple(t for t in prior.targets if t in TARGETS)
-    needed = sorted({s for t in targets if t in prior.targets for s in prior.signals(t)}
-                    | {t[:-4] for t in targets})
-    fit = assess(list(flights), needed_signals=needed, ts_s=cfg.ts, prior_kind=prior.vehicle)
-    if fit.problems:
-        raise DataError(f"the {role} data cannot identify the {prior.name} model: {fit.problems[0]}"
-                        + (f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""))
-    return fit
-
-
 def _common_signals(flights) -> set:
     names = None
     for f in flights:
@@ -1169,9 +1152,11 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
         raise DataError("no training flights")
     t0 = time.perf_counter()
     prior, _ = resolve_plan_prior(cfg, train_flights)
-    fitness = {"train": check_fitness(train_flights, prior, cfg, "training")}
+    from .fitness import check_prior_data
+    targets = cfg.targets or tuple(t for t in prior.targets if t in TARGETS)
+    fitness = {"train": check_prior_data(train_flights, prior, targets, cfg.ts, "training")}
     if test_flights:
-        fitness["test"] = check_fitness(test_flights, prior, cfg, "test")
+        fitness["test"] = check_prior_data(test_flights, prior, targets, cfg.ts, "test")
     cuts = None
     if not test_flights and cfg.test_fraction > 0:
         first = (cfg.targets or tuple(t for t in prior.targets if t in TARGETS))[0]
