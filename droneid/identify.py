@@ -522,6 +522,23 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     return p
 
 
+def _fitted_thrust(p: TargetProblem, terms: dict) -> float | None:
+    """Median over the training rows of the fitted specific thrust (m/s², the thrust terms'
+    fitted scales times their magnitudes, without the direction), or None for priors without
+    thrust terms."""
+    from priors.models import thrust_columns
+    prior = p.plan.prior if p.plan else None
+    if prior is None or prior.name != "rotor-thrust":
+        return None
+    names = [f"⟨{f.name}⟩" for f in p.priors3[:p.n_base] if f.role == "thrust"]
+    cols = thrust_columns(prior.params["source"], int(prior.params.get("motors", 4)))
+    data = p.train.columns()
+    from .ladder import evaluate_expr
+    lift = sum(float(terms.get(n, 0.0)) * float(prior.params["k_T"]) * evaluate_expr(e, data, len(p.train))
+               for n, (_, e, _) in zip(names, cols))
+    return float(np.median(lift)) if np.ndim(lift) else None
+
+
 def _same_rows(ds: Dataset, like: Dataset) -> Dataset:
     """The rows of ``ds`` (same grid, more rows) that ``like`` has: same flight and time."""
     key = lambda d: d.flight.astype(np.int64) * 10**9 + np.round(d.t * 1e4).astype(np.int64)  # noqa: E731
@@ -633,12 +650,11 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
                            tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
                            delays=plan.delays_s))
     p.ladder = ladder
-    thrust = [f"⟨{f.name}⟩" for f in p.priors3[:p.n_base] if f.role == "thrust"]
-    bad = [k for k in thrust if not ladder[-1]["terms"].get(k, 1.0) > 0]
-    if bad:
-        p.notes.append(f"the fitted thrust scale of {', '.join(bad)} is not positive: these data cannot "
-                       f"separate thrust from gravity and drag (e.g. a flight at constant height); this "
-                       f"{p.target} model is not physical")
+    lift = _fitted_thrust(p, ladder[-1]["terms"])
+    if lift is not None and not lift > 0:
+        p.notes.append(f"the fitted thrust is not positive over the training data (median {lift:.3g} m/s²): "
+                       f"these data cannot separate thrust from gravity and drag (e.g. a flight at constant "
+                       f"height); this {p.target} model is not physical")
     e0, r1 = ladder[0], ladder[1]
     p.empirical = {"rmse_train": e0["rmse_train"], "rmse_test": e0["rmse_test"],
                    "constraint_rmse_test": e0["constraint_rmse_test"],
