@@ -49,6 +49,8 @@ _PARAMS = {
     "simplify_s": 0.5,
     "prune": "exact",
     "validation_fraction": 0.25,
+    "early_stop_window": 10000,
+    "early_stop_margin": 0.001,
 }
 _CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
@@ -71,13 +73,20 @@ class SNGPRegressor:
     relative, as the spec says; "validation": the search sees only ``1 - validation_fraction``
     of the training rows (contiguous blocks), evolved features are then dropped by backward
     elimination while the error on the held-out blocks rises by less than 1 %, and the kept ones are
-    refit on all training rows: terms that only fit the noise of the search rows go).
+    refit on all training rows: terms that only fit the noise of the search rows go),
+    ``early_stop_window`` (generations; the search stops when the error of its best model has
+    not improved by the relative ``early_stop_margin`` over this many generations; the error is
+    the one on the held-out rows with ``prune="validation"``, else the training error (the
+    constrained variant: e_d once a model qualifies, e_c before); None or 0: always run all
+    ``generations``, the paper's protocol). ``generations_`` reports the generations run and
+    ``stopped_early_`` whether the window ended the search.
     """
 
     def __init__(self, *, functions=DEFAULT_FUNCTIONS, population_size=500, generations=60000,
                  n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
                  progress=None, identity_steps=100, simplify_s=0.5, prune="exact",
-                 validation_fraction=0.25, **unknown):
+                 validation_fraction=0.25, early_stop_window=10000, early_stop_margin=0.001,
+                 **unknown):
         if unknown:
             name = next(iter(unknown))
             raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
@@ -96,6 +105,8 @@ class SNGPRegressor:
         self.simplify_s = simplify_s
         self.prune = prune
         self.validation_fraction = validation_fraction
+        self.early_stop_window = early_stop_window
+        self.early_stop_margin = early_stop_margin
 
     # -- sklearn-style parameter access -------------------------------------------------------
     def get_params(self, deep: bool = True) -> dict:
@@ -152,6 +163,12 @@ class SNGPRegressor:
         v = self.validation_fraction
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.05 <= v <= 0.5:
             bad("validation_fraction", "a number in [0.05, 0.5]", v)
+        w = self.early_stop_window
+        if w is not None and (isinstance(w, bool) or not isinstance(w, (int, np.integer)) or w < 0):
+            bad("early_stop_window", "None or an int >= 0 (generations; 0 or None: no early stop)", w)
+        m = self.early_stop_margin
+        if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
+            bad("early_stop_margin", "a number in [0, 1) (relative improvement)", m)
 
     # -- fit -----------------------------------------------------------------------------------
     def fit(self, X, y, *, feature_names=None, priors=(), prior_names=None, constraints=None):
@@ -187,19 +204,7 @@ class SNGPRegressor:
 
         # terminal rows: inputs then priors, over training columns then constraint columns
         Xall = X if not constrained else np.vstack([X, cs.X])
-        cols = {n: Xall[:, i] for i, n in enumerate(names)}
-        prior_vals = []
-        for sym, expr in zip(prior_syms, prior_exprs):
-            v = compile_expression(expr, names)(cols)
-            if not np.isfinite(v[:y.size]).all():
-                raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
-                                f"{int((~np.isfinite(v[:y.size])).sum())} training samples")
-            if not np.isfinite(v).all():
-                raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
-                                "constraint samples")
-            prior_vals.append(v)
-        terminals = np.vstack([Xall.T] + [v[None, :] for v in prior_vals]) if prior_vals else Xall.T
-        terminals = np.ascontiguousarray(terminals)
+        terminals = _terminal_rows(Xall, y.size, names, prior_syms, prior_exprs, prior_labels)
         yc = y - y.mean()
         if constrained:
             ckind = np.asarray(cs.kind, dtype=np.int64)
@@ -216,10 +221,17 @@ class SNGPRegressor:
         except ValueError as exc:
             raise ConfigError(f"The 'population_size' parameter of SNGPRegressor is too small: "
                               f"{exc}") from None
+        monitor = None
+        if val is not None and self.early_stop_window:
+            held = _terminal_rows(X_all[val], int(val.sum()), names, prior_syms, prior_exprs,
+                                  prior_labels)
+            monitor = popmod.holdout(template, held, y_all[val])
         result = run_search(template, problem, generations=int(self.generations),
                             n_epochs=int(self.n_epochs), n_threads=int(self.n_threads),
                             identity_steps=int(self.identity_steps), gamma=float(self.gamma),
-                            rng=rng, progress=self.progress)
+                            rng=rng, progress=self.progress,
+                            early_stop_window=self.early_stop_window,
+                            early_stop_margin=float(self.early_stop_margin), monitor=monitor)
 
         self._names = names
         self._prior_syms = prior_syms
@@ -253,11 +265,18 @@ class SNGPRegressor:
         self.archive_ = self._archive(result.archive) if constrained else [
             {"rmse_train": ed, "constraint_rmse_train": float("nan"), "equation": self.equation_}]
         self.generations_ = int(result.generations)
+        self.stopped_early_ = bool(result.stopped_early)
         self.seed_ = seed
         self.search_stats_ = {
             "search_s": result.wall_s,
             "search_cpu_s": result.cpu_s,
             "generations": int(result.generations),
+            "generations_budget": int(result.budget),
+            "stopped_early": bool(result.stopped_early),
+            "early_stop_window": int(self.early_stop_window or 0),
+            "early_stop_margin": float(self.early_stop_margin),
+            "early_stop_signal": ("held-out rmse" if monitor is not None else
+                                  "training error" if self.early_stop_window else "none"),
             "node_evaluations": int(result.evaluations),
             "accepted": int(result.accepted),
             "failed_fits": int(result.failed_fits),
@@ -529,10 +548,28 @@ class SNGPRegressor:
         d.update({"equation": self.equation_, "rmse_train": self.rmse_train_,
                   "constraint_rmse_train": self.constraint_rmse_train_, "qualified": self.qualified_,
                   "prior_coef": dict(self.prior_coef_), "seed": self.seed_,
-                  "generations": self.generations_,
+                  "generations": self.generations_, "stopped_early": self.stopped_early_,
                   "params": {k: v for k, v in self.get_params().items() if k != "progress"}})
         d["params"]["functions"] = list(d["params"]["functions"])
         return d
+
+
+def _terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> np.ndarray:
+    """The terminal rows of the node cache: the inputs, then each prior evaluated on ``X``
+    (rows ``n_train`` on are constraint samples); a prior that is not finite is a DataError."""
+    cols = {n: X[:, i] for i, n in enumerate(names)}
+    prior_vals = []
+    for sym, expr in zip(prior_syms, prior_exprs):
+        v = compile_expression(expr, names)(cols)
+        if not np.isfinite(v[:n_train]).all():
+            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
+                            f"{int((~np.isfinite(v[:n_train])).sum())} training samples")
+        if not np.isfinite(v).all():
+            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
+                            "constraint samples")
+        prior_vals.append(v)
+    rows = np.vstack([X.T] + [v[None, :] for v in prior_vals]) if prior_vals else X.T
+    return np.ascontiguousarray(rows, dtype=np.float64)
 
 
 def _validation_rows(n: int, fraction: float):
