@@ -280,6 +280,7 @@ class SNGPRegressor:
             "node_evaluations": int(result.evaluations),
             "accepted": int(result.accepted),
             "failed_fits": int(result.failed_fits),
+            "least_squares_fits": int(result.solves),
             "generations_per_s": result.generations / result.wall_s if result.wall_s > 0 else float("nan"),
             "node_evaluations_per_s": result.evaluations / result.wall_s if result.wall_s > 0 else float("nan"),
         }

@@ -27,7 +27,8 @@ L_HEAD, L_VAR, L_TAIL, L_ID, L_P, L_NPRIOR, L_NT, L_DEPTH, L_MODE = range(9)
 # objective slots in ``obj``
 O_ED, O_EC, O_SCORE = 0, 1, 2
 # stats slots
-S_EVALS, S_ACCEPT, S_GENS, S_FAILED = 0, 1, 2, 3
+S_EVALS, S_ACCEPT, S_GENS, S_FAILED, S_SOLVES = 0, 1, 2, 3, 4
+N_STATS = 5
 
 ADD = by_name("add").code
 SUB = by_name("sub").code
@@ -221,10 +222,11 @@ def apply_op(code, xa, xb):
 def _row_stats(row, nt, yc, syy):
     """(valid, constant, fit) of one node's output row; fit = 1 - |corr(row, y)| on training columns.
 
-    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude.
+    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude. The
+    loops carry no per-element test: a sum of squares <= MAX_ABS^2 proves every value finite
+    and within MAX_ABS (NaN and inf make it fail), so the exact test runs only when it does not.
     """
     n = row.shape[0]
-    bad = 0
     s0 = s1 = s2 = s3 = 0.0
     q0 = q1 = q2 = q3 = 0.0
     c0 = c1 = c2 = c3 = 0.0
@@ -234,8 +236,6 @@ def _row_stats(row, nt, yc, syy):
         v1 = row[i + 1]
         v2 = row[i + 2]
         v3 = row[i + 3]
-        bad += (0 if abs(v0) <= MAX_ABS else 1) + (0 if abs(v1) <= MAX_ABS else 1) \
-            + (0 if abs(v2) <= MAX_ABS else 1) + (0 if abs(v3) <= MAX_ABS else 1)
         s0 += v0
         s1 += v1
         s2 += v2
@@ -250,16 +250,18 @@ def _row_stats(row, nt, yc, syy):
         c3 += v3 * yc[i + 3]
     for i in range(m, nt):
         v = row[i]
-        bad += 0 if abs(v) <= MAX_ABS else 1       # NaN compares false
         s0 += v
         q0 += v * v
         c0 += v * yc[i]
+    qc = 0.0
     for i in range(nt, n):                          # constraint columns: validity only
-        bad += 0 if abs(row[i]) <= MAX_ABS else 1
-    if bad > 0:
-        return False, True, 1.0
-    s = (s0 + s1) + (s2 + s3)
+        qc += row[i] * row[i]
     sxx = (q0 + q1) + (q2 + q3)
+    if not (sxx <= MAX_ABS * MAX_ABS and qc <= MAX_ABS * MAX_ABS):
+        for i in range(n):
+            if not (abs(row[i]) <= MAX_ABS):        # NaN compares false
+                return False, True, 1.0
+    s = (s0 + s1) + (s2 + s3)
     sxy = (c0 + c1) + (c2 + c3)                # yc is centred: this is the centred sum
     mean = s / nt
     var = sxx - s * mean
@@ -290,7 +292,8 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
             val = _scalar_op(code, x, y)
             if not (abs(val) <= MAX_ABS):
                 val = cval[n]    # the node's proxy constant
-        out[:] = val
+        for t in range(out.shape[0]):
+            out[t] = val
         buf[n] = nb
         valid[n] = 1
         isconst[n] = 1
@@ -305,7 +308,9 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
         fit[n] = 1.0
         return
     if code == IDENT:           # a feature slot just mirrors its successor
-        out[:] = V[buf[sa], sa]
+        src = V[buf[sa], sa]
+        for t in range(out.shape[0]):
+            out[t] = src[t]
         valid[n] = valid[sa]
         isconst[n] = isconst[sa]
         fit[n] = fit[sa]
@@ -585,7 +590,9 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             if not (abs(beta[i]) < np.inf):
                 return False
     # predictions on all columns, then residuals (training) and violations (constraints)
-    pred = np.full(N, beta[0])
+    pred = np.empty(N)
+    for t in range(N):
+        pred[t] = beta[0]
     for i in range(1, k):
         if keep[i] == 0:
             continue
@@ -624,6 +631,14 @@ def _score(ed, ec, mode, weight):
     return (1.0 - weight) * ed + weight * ec
 
 
+@njit(cache=True, inline="always")
+def _copy_links(a, b, a_out, b_out):
+    """Element loops instead of slice assignment (whose shape check compiles string code)."""
+    for i in range(a.shape[0]):
+        a_out[i] = a[i]
+        b_out[i] = b[i]
+
+
 @njit(cache=True)
 def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
     """Keep (ed, ec) and its links if no archived model is at least as good in both."""
@@ -638,14 +653,19 @@ def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
         if j != i:
             arch_obj[j, 0] = arch_obj[i, 0]
             arch_obj[j, 1] = arch_obj[i, 1]
-            arch_a[j, :] = arch_a[i, :]
-            arch_b[j, :] = arch_b[i, :]
+            _copy_links(arch_a[i], arch_b[i], arch_a[j], arch_b[j])
         j += 1
     n = j
     K = arch_obj.shape[0]
     if n >= K:
         # full: drop the most crowded interior point (by log-distance of its neighbours)
-        order = np.argsort(arch_obj[:n, 0])
+        order = np.empty(n, dtype=np.int64)    # by e_d; insertion sort (n <= 64, no argsort
+        for i in range(n):                       # to compile)
+            j = i
+            while j > 0 and arch_obj[order[j - 1], 0] > arch_obj[i, 0]:
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = i
         worst = -1
         gap = np.inf
         for q in range(1, n - 1):
@@ -662,12 +682,10 @@ def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
         if worst != n:
             arch_obj[worst, 0] = arch_obj[n, 0]
             arch_obj[worst, 1] = arch_obj[n, 1]
-            arch_a[worst, :] = arch_a[n, :]
-            arch_b[worst, :] = arch_b[n, :]
+            _copy_links(arch_a[n], arch_b[n], arch_a[worst], arch_b[worst])
     arch_obj[n, 0] = ed
     arch_obj[n, 1] = ec
-    arch_a[n, :] = a
-    arch_b[n, :] = b
+    _copy_links(a, b, arch_a[n], arch_b[n])
     arch_n[0] = n + 1
 
 
@@ -871,6 +889,7 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                         g_row[ng, j] = gram[g, j]
                     ng += 1
                     _gram_row(n, V, buf, valid, isconst, lay, y, gram, rhs)
+            stats[S_SOLVES] += 1
             ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols,
                               nobj, gram, rhs)
             if ok:

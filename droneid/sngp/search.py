@@ -39,6 +39,7 @@ class SearchResult:
     evaluations: int = 0
     accepted: int = 0
     failed_fits: int = 0
+    solves: int = 0               # least-squares refits (generations that changed a feature)
     wall_s: float = 0.0
     cpu_s: float = 0.0
 
@@ -95,7 +96,7 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
     P = int(template.lay[K.L_P])
     arch = (np.zeros((ARCHIVE_SIZE, 2)), np.zeros((ARCHIVE_SIZE, P), dtype=np.int64),
             np.zeros((ARCHIVE_SIZE, P), dtype=np.int64), np.zeros(1, dtype=np.int64))
-    stats = np.zeros(4, dtype=np.int64)
+    stats = np.zeros(K.N_STATS, dtype=np.int64)
 
     def seed() -> int:
         return int(rng.integers(0, 2**31 - 1))
@@ -157,6 +158,6 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
     return SearchResult(best=best, archive=archive, generations=done, budget=total,
                         stopped_early=stopped,
                         evaluations=int(stats[K.S_EVALS]), accepted=int(stats[K.S_ACCEPT]),
-                        failed_fits=int(stats[K.S_FAILED]),
+                        failed_fits=int(stats[K.S_FAILED]), solves=int(stats[K.S_SOLVES]),
                         wall_s=time.perf_counter() - t_start,
                         cpu_s=time.process_time() - c_start)
