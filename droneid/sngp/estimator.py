@@ -12,7 +12,7 @@ import re
 import signal
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -507,20 +507,20 @@ class SNGPRegressor:
         self.equation_ = to_text(shown)
         self.latex_ = sp.latex(shown)
 
-    def _archive(self, archive) -> list[dict]:
-        out = []
-        for ed, ec, a, b in archive:
-            pop = self._population_from_links(a, b)
-            node_expr = self._node_exprs(pop)
-            expr = sp.Integer(0)
-            for c, bta in zip(pop.cols, pop.beta):
-                if c == -1:
-                    expr += sp.Float(float(bta))
-                elif c >= 0 and bta != 0.0:
-                    expr += sp.Float(float(bta)) * node_expr(int(c))
-            out.append({"rmse_train": ed, "constraint_rmse_train": ec,
-                        "equation": to_text(round_expr(expr))})
-        return out
+    def _archive(self, archive) -> list["ArchiveEntry"]:
+        return [ArchiveEntry(ed, ec, lambda a=a, b=b: self._archive_equation(a, b))
+                for ed, ec, a, b in archive]
+
+    def _archive_equation(self, a, b) -> str:
+        pop = self._population_from_links(a, b)
+        node_expr = self._node_exprs(pop)
+        expr = sp.Integer(0)
+        for c, bta in zip(pop.cols, pop.beta):
+            if c == -1:
+                expr += sp.Float(float(bta))
+            elif c >= 0 and bta != 0.0:
+                expr += sp.Float(float(bta)) * node_expr(int(c))
+        return to_text(round_expr(expr))
 
     # -- use -----------------------------------------------------------------------------------
     def _check_fitted(self):
@@ -553,6 +553,35 @@ class SNGPRegressor:
                   "params": {k: v for k, v in self.get_params().items() if k != "progress"}})
         d["params"]["functions"] = list(d["params"]["functions"])
         return d
+
+
+class ArchiveEntry(Mapping):
+    """One non-dominated model of the constrained search: a read-only mapping with the keys
+    ``rmse_train``, ``constraint_rmse_train`` and ``equation``. The equation is built with sympy
+    only when first read (a run archives up to 64 models and most callers read the errors)."""
+
+    _KEYS = ("rmse_train", "constraint_rmse_train", "equation")
+
+    def __init__(self, rmse_train: float, constraint_rmse_train: float, equation):
+        self._values = {"rmse_train": float(rmse_train),
+                        "constraint_rmse_train": float(constraint_rmse_train)}
+        self._equation = equation
+
+    def __getitem__(self, key):
+        if key == "equation" and key not in self._values:
+            self._values[key] = self._equation()
+        if key not in self._KEYS:
+            raise KeyError(key)
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._KEYS)
+
+    def __len__(self) -> int:
+        return len(self._KEYS)
+
+    def __repr__(self) -> str:
+        return f"ArchiveEntry({dict(self)!r})"
 
 
 def _terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> np.ndarray:
