@@ -74,3 +74,39 @@ def test_early_stop_parameters_validated(params, match):
     X, y = flight_data(n=30)
     with pytest.raises(ConfigError, match=match):
         SNGPRegressor(**params).fit(X, y)
+
+
+def test_kernels_ready_after_warmup_and_no_compiling_message_then():
+    from droneid.sngp import kernels_ready, warmup
+    seconds = warmup()
+    assert seconds > 0 and kernels_ready()
+    messages = []
+    X, y = flight_data(n=60)
+    SNGPRegressor(generations=50, seed=0, simplify_s=0,
+                  progress=lambda d, t, msg="": messages.append(msg)).fit(X, y, feature_names=NAMES)
+    assert messages and not any("compiling" in m for m in messages)
+
+
+def test_compiling_is_announced_when_the_kernels_are_not_ready(monkeypatch):
+    from droneid.sngp import estimator
+    monkeypatch.setattr(estimator, "kernels_ready", lambda: False)
+    messages = []
+    X, y = flight_data(n=60)
+    SNGPRegressor(generations=50, seed=0, simplify_s=0,
+                  progress=lambda d, t, msg="": messages.append(msg)).fit(X, y, feature_names=NAMES)
+    assert "compiling the SNGP kernels" in messages[0]
+
+
+@pytest.mark.slow
+def test_fresh_cache_compiles_everything_and_a_second_process_only_loads(tmp_path):
+    """First run in a fresh clone: compile time with an empty numba cache, then a cache hit."""
+    import os
+    import subprocess
+    import sys
+    code = ("import time; t = time.perf_counter(); import droneid.sngp as s; "
+            "r = s.kernels_ready(); s.warmup(); print(r, s.kernels_ready(), time.perf_counter() - t)")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          check=True).stdout.split() for _ in range(2)]
+    assert out[0][:2] == ["False", "True"] and out[1][:2] == ["True", "True"]
+    assert float(out[1][2]) < float(out[0][2])

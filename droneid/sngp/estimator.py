@@ -29,6 +29,7 @@ from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
 from .population import Population, Problem
 from .search import run_search
+from .warmup import kernels_ready
 
 log = logging.getLogger(__name__)
 
@@ -221,6 +222,9 @@ class SNGPRegressor:
         except ValueError as exc:
             raise ConfigError(f"The 'population_size' parameter of SNGPRegressor is too small: "
                               f"{exc}") from None
+        if self.progress is not None and not kernels_ready():
+            self.progress(0, int(self.generations), "compiling the SNGP kernels (once; cached for "
+                          "later runs)")
         monitor = None
         if val is not None and self.early_stop_window:
             held = _terminal_rows(X_all[val], int(val.sum()), names, prior_syms, prior_exprs,
