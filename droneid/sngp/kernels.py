@@ -487,20 +487,29 @@ def _gram_full(V, buf, valid, isconst, lay, y, gram, rhs):
 def solve_fresh(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj, gram, rhs):
     """Rebuild the Gram cache and fit the model (after links were set from outside)."""
     _gram_full(V, buf, valid, isconst, lay, y, gram, rhs)
+    wk, wkeep = _solve_work(cols.shape[0], V.shape[2])
     return _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj,
-                        gram, rhs)
+                        gram, rhs, wk, wkeep)
+
+
+@njit(cache=True)
+def _solve_work(K, N):
+    """Work buffers of :func:`_solve_model` for up to K columns and N samples (allocated once
+    per chunk rather than once per generation)."""
+    return np.empty(2 * K * K + 4 * K + N), np.empty(K, dtype=np.uint8)
 
 
 @njit(cache=True, fastmath=FM)
 def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj_out,
-                 gram, rhs):
+                 gram, rhs, wk, wkeep):
     """Least squares over [1 | priors | valid identity features]; fills beta/cols/obj_out.
 
     Returns False when no finite fit exists. Columns that are (numerically) linear combinations
     of earlier ones get coefficient 0: pivoted-out by a Cholesky factorisation of the
     column-normalised Gram matrix (so the intercept and the priors win over evolved features).
     Identity features with the same fitness as an earlier one are skipped (duplicate filter).
-    The Gram matrix entries come from the cache ``gram``/``rhs`` (see :func:`_gram_row`).
+    The Gram matrix entries come from the cache ``gram``/``rhs`` (see :func:`_gram_row`);
+    ``wk``/``wkeep`` are work buffers from :func:`_solve_work`.
     """
     P = lay[L_P]
     nt = lay[L_NT]
@@ -526,8 +535,21 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
         k += 1
     for j in range(k, K):
         cols[j] = -2
-    G = np.zeros((k, k))
-    r = np.zeros(k)
+    kk = k * k
+    G = wk[:kk].reshape((k, k))
+    L = wk[kk:2 * kk].reshape((k, k))
+    r = wk[2 * kk:2 * kk + k]
+    d = wk[2 * kk + k:2 * kk + 2 * k]
+    z = wk[2 * kk + 2 * k:2 * kk + 3 * k]
+    x = wk[2 * kk + 3 * k:2 * kk + 4 * k]
+    pred = wk[2 * kk + 4 * k:2 * kk + 4 * k + N]
+    keep = wkeep[:k]
+    for i in range(kk):
+        wk[kk + i] = 0.0          # L
+    for i in range(k):
+        z[i] = 0.0
+        x[i] = 0.0
+        keep[i] = 1
     for i in range(k):
         gi = _gidx(cols[i], lay)
         r[i] = rhs[gi]
@@ -536,15 +558,12 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             G[i, j] = v
             G[j, i] = v
     # normalise and factorise with column dropping
-    d = np.empty(k)
-    keep = np.ones(k, dtype=np.uint8)
     for i in range(k):
         if G[i, i] > 0.0 and G[i, i] < np.inf:
             d[i] = math.sqrt(G[i, i])
         else:
             d[i] = 1.0
             keep[i] = 0
-    L = np.zeros((k, k))
     for j in range(k):
         if keep[j] == 0:
             continue
@@ -564,7 +583,6 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
                 if keep[p]:
                     s2 -= L[i, p] * L[j, p]
             L[i, j] = s2 / L[j, j]
-    z = np.zeros(k)
     for i in range(k):
         if keep[i] == 0:
             continue
@@ -573,7 +591,6 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             if keep[p]:
                 s -= L[i, p] * z[p]
         z[i] = s / L[i, i]
-    x = np.zeros(k)
     for i in range(k - 1, -1, -1):
         if keep[i] == 0:
             continue
@@ -590,7 +607,6 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             if not (abs(beta[i]) < np.inf):
                 return False
     # predictions on all columns, then residuals (training) and violations (constraints)
-    pred = np.empty(N)
     for t in range(N):
         pred[t] = beta[0]
     for i in range(1, k):
@@ -779,14 +795,20 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
     g_node = np.empty(max(n_slots, 1), dtype=np.int64)
     g_row = np.empty((max(n_slots, 1), KG))
     g_rhs = np.empty(max(n_slots, 1))
+    wk, wkeep = _solve_work(K, V.shape[2])
+    depth0 = np.empty(P, dtype=np.int64)
+    ltr0 = np.empty(P, dtype=np.int64)
+    fresh = False
     obj[O_SCORE] = _score(obj[O_ED], obj[O_EC], mode, weight)
     for g in range(n_gens):
         gen_id = stats[S_GENS] + 1
         stats[S_GENS] = gen_id
         # bestPred (lowest fit among a node and everything that uses it) and levelsToRoot, in
         # one pass over the users (descending); depth in one ascending pass. Within the
-        # generation both are then only raised (conservative bounds), recomputed next time.
-        if not identity_only:
+        # generation both are then only raised (conservative bounds), recomputed next time:
+        # after a rejected generation, links and fit are back as they were, so the values from
+        # before its mutations (kept when the first bound was raised) are exact again.
+        if not identity_only and not fresh:
             for n in range(P):
                 bp[n] = fit[n]
                 ltr[n] = 0
@@ -804,6 +826,7 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                     if ltr[s] < lp:
                         ltr[s] = lp
             _depths(a, b, lay, depth)
+        saved = False
         k = 1 if identity_only else np.random.randint(1, MAX_MUTATIONS + 1)
         nm = 0
         lowest = P
@@ -832,6 +855,11 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
             else:
                 s = _pick_successor(m, ltr[m], depth, lay)
                 if s >= t0:
+                    if not saved:
+                        for i in range(P):
+                            depth0[i] = depth[i]
+                            ltr0[i] = ltr[i]
+                        saved = True
                     _raise_bounds(m, s, a, b, lay, depth, ltr, stack)
             u_node[nm] = m
             u_slot[nm] = slot
@@ -891,7 +919,7 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                     _gram_row(n, V, buf, valid, isconst, lay, y, gram, rhs)
             stats[S_SOLVES] += 1
             ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols,
-                              nobj, gram, rhs)
+                              nobj, gram, rhs, wk, wkeep)
             if ok:
                 sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
                 if mode == 1:
@@ -908,7 +936,13 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                 stats[S_FAILED] += 1
         if accept:
             stats[S_ACCEPT] += 1
+            fresh = False
         else:
+            if saved:
+                for i in range(P):
+                    depth[i] = depth0[i]
+                    ltr[i] = ltr0[i]
+            fresh = True
             for i in range(ng - 1, -1, -1):
                 g = g_node[i]
                 rhs[g] = g_rhs[i]
