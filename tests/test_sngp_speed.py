@@ -110,3 +110,27 @@ def test_fresh_cache_compiles_everything_and_a_second_process_only_loads(tmp_pat
                           check=True).stdout.split() for _ in range(2)]
     assert out[0][:2] == ["False", "True"] and out[1][:2] == ["True", "True"]
     assert float(out[1][2]) < float(out[0][2])
+
+
+def test_study_keeps_the_papers_fixed_budget(monkeypatch):
+    """identify may stop runs early (the estimator's default); the study must not."""
+    from droneid import runner
+    from droneid.identify import IdentifyConfig
+    from droneid.simulate import simulate
+    from droneid.study import study
+
+    captured = []
+
+    class _Captured(Exception):
+        pass
+
+    def fake_run_jobs(fn, jobs, **kw):
+        captured.extend(jobs)
+        raise _Captured
+
+    monkeypatch.setattr(runner, "run_jobs", fake_run_jobs)
+    train = simulate(path="eight", duration_s=8.0, seed=11).flight
+    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=50, population=40, seed=0)
+    with pytest.raises(_Captured):
+        study([train], None, cfg)
+    assert captured and all(j.engine["early_stop_window"] is None for j in captured)
