@@ -9,7 +9,7 @@ workers); :func:`kernels_ready` says whether the next fit would compile them fir
 from .estimator import SNGPRegressor
 from .model import SymbolicModel
 from .operators import DEFAULT_FUNCTIONS, OPERATORS
-from .warmup import kernels_ready, warmup
+from .precompile import kernels_ready, warmup
 
 __all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS", "kernels_ready",
            "warmup"]

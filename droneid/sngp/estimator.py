@@ -29,7 +29,7 @@ from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
 from .population import Population, Problem
 from .search import run_search
-from .warmup import kernels_ready
+from .precompile import kernels_ready
 
 log = logging.getLogger(__name__)
 

@@ -327,7 +327,7 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
     fit[n] = f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _depths(a, b, lay, depth):
     t0 = lay[L_TAIL]
     for n in range(t0):
@@ -339,7 +339,7 @@ def _depths(a, b, lay, depth):
         depth[n] = d + 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _raise_bounds(m, s, a, b, lay, depth, ltr, stack):
     """After linking m -> s: raise depth bounds above m and levelsToRoot bounds below s."""
     d = depth[s] + 1
@@ -386,7 +386,7 @@ def _changed(r0, r1, valid_now, valid_before):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _terminal(lay):
     """A terminal: constant/head node or variable (incl. prior terminals), 50/50."""
     if lay[L_HEAD] > 0 and np.random.random() < 0.5:
@@ -394,7 +394,7 @@ def _terminal(lay):
     return np.random.randint(lay[L_HEAD], lay[L_TAIL])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pick_successor(m, ltr_m, depth, lay):
     """A new successor for tail/identity node m obeying depth(s) + levelsToRoot(m) < max depth."""
     t0 = lay[L_TAIL]
@@ -647,7 +647,7 @@ def _score(ed, ec, mode, weight):
     return (1.0 - weight) * ed + weight * ec
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _copy_links(a, b, a_out, b_out):
     """Element loops instead of slice assignment (whose shape check compiles string code)."""
     for i in range(a.shape[0]):
