@@ -134,3 +134,15 @@ def test_study_keeps_the_papers_fixed_budget(monkeypatch):
     with pytest.raises(_Captured):
         study([train], None, cfg)
     assert captured and all(j.engine["early_stop_window"] is None for j in captured)
+
+
+def test_equation_is_rendered_on_first_use_and_kept():
+    X, y = flight_data(n=80)
+    m = SNGPRegressor(generations=300, seed=2).fit(X, y, feature_names=NAMES, priors=TILT_DRAG_3)
+    assert m._rendered is None                     # fit itself runs no sympy simplification
+    eq = m.equation_
+    assert isinstance(eq, str) and m._rendered is not None and m.equation_ is eq
+    assert set(m.prior_coef_) == {"prior1", "prior2", "prior3"}
+    assert m.archive_[0]["equation"] == eq
+    with pytest.raises(AttributeError):
+        SNGPRegressor().equation_                   # not fitted: NotFittedError is an AttributeError

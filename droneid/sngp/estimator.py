@@ -265,9 +265,10 @@ class SNGPRegressor:
         self.constraint_rmse_train_ = ec if constrained else float("nan")
         if constrained and self.qualified_ and not ec < self.gamma:
             self.qualified_ = False
-        self._render(model)
+        self._rendered = None
+        self.intercept_ = model.intercept
         self.archive_ = self._archive(result.archive) if constrained else [
-            {"rmse_train": ed, "constraint_rmse_train": float("nan"), "equation": self.equation_}]
+            ArchiveEntry(ed, float("nan"), lambda: self.equation_)]
         self.generations_ = int(result.generations)
         self.stopped_early_ = bool(result.stopped_early)
         self.seed_ = seed
@@ -485,31 +486,49 @@ class SNGPRegressor:
         ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
         return keep, beta, ed, ec
 
-    def _render(self, model: SymbolicModel) -> None:
-        """Simplified forms of the model: equation_, expr_, latex_, coef_, prior_coef_."""
+    def _render(self, model: SymbolicModel) -> dict:
+        """Simplified forms of the model: equation_, expr_, expr_raw_, latex_, coef_, prior_coef_."""
         deadline = time.perf_counter() + float(self.simplify_s)
         prior_set = {symbol(s) for s in self._prior_syms}
         simple_terms = []
         for t in model.terms:
             left = deadline - time.perf_counter()
             simple_terms.append(_guarded_simplify(t, left) if t not in prior_set else t)
-        self.coef_ = {}
-        self.prior_coef_ = {self._prior_labels[s]: 0.0 for s in self._prior_syms}
+        coef = {}
+        prior_coef = {self._prior_labels[s]: 0.0 for s in self._prior_syms}
         display = sp.Float(model.intercept)
         for t, st, c in zip(model.terms, simple_terms, model.coefs):
             if t in prior_set:
-                self.prior_coef_[self._prior_labels[t.name]] = c
+                prior_coef[self._prior_labels[t.name]] = c
             else:
                 key = to_text(st)
-                self.coef_[key] = self.coef_.get(key, 0.0) + c
+                coef[key] = coef.get(key, 0.0) + c
             display = display + sp.Float(c) * st
-        self.intercept_ = model.intercept
-        self.expr_raw_ = model.expression(expand_priors=True)
-        expanded = display.xreplace({symbol(s): e for s, e in self._prior_exprs.items()})
-        self.expr_ = expanded
         shown = round_expr(display)
-        self.equation_ = to_text(shown)
-        self.latex_ = sp.latex(shown)
+        return {"coef_": coef, "prior_coef_": prior_coef,
+                "expr_raw_": model.expression(expand_priors=True),
+                "expr_": display.xreplace({symbol(s): e for s, e in self._prior_exprs.items()}),
+                "equation_": to_text(shown), "latex_": sp.latex(shown)}
+
+    def _rendered_attr(self, name: str):
+        """The simplified forms are built with sympy on first use (most runs of a study or of
+        identify are never shown), then kept."""
+        self._check_fitted()
+        if self._rendered is None:
+            self._rendered = self._render(self.model_)
+        return self._rendered[name]
+
+    equation_ = property(lambda self: self._rendered_attr("equation_"),
+                         doc="The fitted equation as text (simplified, rounded), built on first use.")
+    expr_ = property(lambda self: self._rendered_attr("expr_"),
+                     doc="The fitted model as a sympy expression with the priors written out.")
+    expr_raw_ = property(lambda self: self._rendered_attr("expr_raw_"),
+                         doc="The fitted model before simplification (sympy).")
+    latex_ = property(lambda self: self._rendered_attr("latex_"), doc="The equation in LaTeX.")
+    coef_ = property(lambda self: self._rendered_attr("coef_"),
+                     doc="Coefficient of each evolved term, keyed by the simplified term's text.")
+    prior_coef_ = property(lambda self: self._rendered_attr("prior_coef_"),
+                           doc="Coefficient of each prior feature, keyed by its name.")
 
     def _archive(self, archive) -> list["ArchiveEntry"]:
         return [ArchiveEntry(ed, ec, lambda a=a, b=b: self._archive_equation(a, b))
