@@ -68,6 +68,8 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
             for k in PRIOR_VARIANTS:
                 jobs += make_jobs(problems[t], cfg, prior_features=k, constrained=constrained,
                                   variant=_variant(scenario, k))
+    # the paper's protocol: every run spends the whole budget (no early stopping)
+    jobs = [replace(j, engine={**j.engine, "early_stop_window": None}) for j in jobs]
     outcome = run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
                        label="SNGP run")
     keep = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
