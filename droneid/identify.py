@@ -70,6 +70,8 @@ class IdentifyConfig:
         given with this k_D, 1/s); v̇z's empirical model is v̇z = 0 (hover balance)
     margin : an evolved model replaces the physical one only if it lowers the blocked-CV error
         of the training flights by this fraction
+    search_rows : SNGP searches on at most this many training rows (every k-th, time order kept;
+        0: all); the trust guards refit and validate every proposed term on ALL training rows
     constraints : "paper", "none" or the path of a constraints TOML file
     runs : independent SNGP runs per target; jobs : parallel workers (None: all cores);
     scheduler : a Dask scheduler address (``tcp://host:port``) instead of local workers
@@ -113,6 +115,7 @@ class IdentifyConfig:
     empirical: str = "tilt-drag"
     k_D: float = 0.28
     margin: float = 0.05
+    search_rows: int = 1000
 
     @classmethod
     def make(cls, *, quick: bool = False, **given) -> "IdentifyConfig":
@@ -148,6 +151,10 @@ class IdentifyConfig:
         check_choice("effects", self.effects, ("auto", "none"))
         check_choice("delays", self.delays, ("auto", "none"))
         check_choice("empirical", self.empirical, ("tilt-drag",))
+        if isinstance(self.search_rows, bool) or not isinstance(self.search_rows, (int, np.integer)) \
+                or not (self.search_rows == 0 or self.search_rows >= 50):
+            raise ConfigError(f"The 'search_rows' parameter must be 0 (all) or an integer >= 50. "
+                              f"Got {self.search_rows!r} instead.")
         if not (isinstance(self.margin, (int, float)) and 0 <= self.margin < 0.5):
             raise ConfigError(f"The 'margin' parameter must be in [0, 0.5). Got {self.margin!r} instead.")
         check_choice("method", self.method, METHODS)
@@ -702,13 +709,16 @@ def make_jobs(p: TargetProblem, cfg: IdentifyConfig, *, prior_features: int | No
         raise ConfigError(f"constrained runs for {p.target} need constraints, and none are defined "
                           f"for prior '{cfg.prior}' and this target; use --constraints none or FILE")
     _, seeds = run_seeds(cfg.seed, cfg.runs)
+    n = len(p.train)
+    step = -(-n // cfg.search_rows) if cfg.search_rows and n > cfg.search_rows else 1
+    rows = np.arange(0, n, step)
     jobs = []
     for i, (engine_seed, cs_seed) in enumerate(seeds):
         cs_train = None
         if constrained:
             cs_train = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
                                    seed=cs_seed)
-        jobs.append(RunJob(p.target, variant, i, engine_seed, cfg.engine_params(), p.train.X, p.train.y,
+        jobs.append(RunJob(p.target, variant, i, engine_seed, cfg.engine_params(), p.train.X[rows], p.train.y[rows],
                            p.test.X, p.test.y, tuple(p.train.input_names),
                            tuple(f.expr for f in feats), tuple(f.name for f in feats), cs_train, p.cs_test))
     return jobs
@@ -738,6 +748,7 @@ def run_job(job: RunJob) -> dict:
         "prior_coefficients": {str(k): float(v) for k, v in (est.prior_coef_ or {}).items()},
         "intercept": float(est.intercept_), "wall_s": float(getattr(est, "wall_s_", time.perf_counter() - t0)),
         "generations": int(getattr(est, "generations_", job.engine.get("generations", 0))),
+        "stopped_early": bool(getattr(est, "stopped_early_", False)),
         "archive": archive, "model": model, "pred_test": pred_test,
         "prior_symbols": {p["symbol"]: p["name"] for p in model.get("priors", []) if "symbol" in p},
     }
@@ -796,7 +807,7 @@ def improvement_pct(reference: float, value: float) -> float:
 
 
 RUN_KEYS = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
-            "qualified", "wall_s", "generations", "equation", "equation_expanded", "archive")
+            "qualified", "wall_s", "generations", "stopped_early", "equation", "equation_expanded", "archive")
 
 
 @dataclass
