@@ -1192,6 +1192,7 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     cfg = replace(cfg, targets=plan.targets)
     problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
     jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
+    _compile_once(progress)
     outcome = run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
                        label="SNGP run")
     targets = {}
@@ -1216,6 +1217,18 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     horizons = _horizons(targets, test_flights, notes) if test_flights else {}
     return IdentificationResult(targets, conf, prov, versions(), outcome.interrupted,
                                 time.perf_counter() - t0, outcome.backend, notes, horizons)
+
+
+def _compile_once(progress: Callable | None) -> None:
+    """Compile the SNGP kernels here, once, when numba's cache lacks them (a fresh clone without
+    ``make install``), so the workers load them instead of each compiling at once; says so."""
+    from .sngp.precompile import kernels_ready, warmup
+    if kernels_ready():
+        return
+    if progress:
+        progress(0, 1, "compiling the SNGP kernels (first run only, ~20 s)…")
+    s = warmup()
+    log.info("SNGP kernels compiled in %.1f s", s)
 
 
 def _horizons(targets: dict, flights, notes: list, steps=(1, 10, 50)) -> dict:
