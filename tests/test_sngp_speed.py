@@ -1,7 +1,6 @@
 """SNGP engine speed features: early stopping, bit-for-bit determinism, the compile-once path."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
