@@ -14,7 +14,7 @@ import pytest
 
 from droneid.cli import build_parser, main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FAST = ["--generations", "60", "--population", "40"]
 
 
