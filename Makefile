@@ -10,6 +10,8 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@echo "compiling the SNGP kernels once (numba cache; later runs load them in < 1 s) ..."
+	@$(BIN)/python -c "import droneid.sngp as s; print(f'compiled in {s.warmup():.1f} s')"
 	@touch $(STAMP)
 
 install: $(STAMP)

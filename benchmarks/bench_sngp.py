@@ -1,34 +1,50 @@
 """Speed of the SNGP engine at the paper's budget, against the authors' Java SNGP.
 
-    .venv/bin/python benchmarks/bench_sngp.py [--repeats R] [--quick]
+    .venv/bin/python benchmarks/bench_sngp.py [--repeats R] [--quick] [--previous DIR]
 
 Paper budget (Table I): population 500, 60 000 generations, nf 10, depth 7, function set
-{+, -, x, square, cube, sin, cos}. Data: drone-like samples along an eight (tilt-drag model with
-a planted quadratic drag -0.3|vx|vx the model lacks, noise 0.05 m/s^2), test set on a different
-path. Prints wall and CPU time per run, generations/s, node evaluations/s, scaling with samples
-and generations (ratios), the speed-up over the reference (22 s on 160 samples, 155 s on 1 000
-samples on this 2-core machine), and test errors (noise floor 0.05) to show accuracy is kept.
+{+, -, x, square, cube, sin, cos}, early stopping off (the paper's fixed budget). Data:
+drone-like samples along an eight (tilt-drag model with a planted quadratic drag -0.3|vx|vx the
+model lacks, noise 0.05 m/s^2), test set on a different path. Prints, side by side: droneid's
+CPU time per run, the engine's previous figures (the README's, or measured in this run from
+another checkout with ``--previous DIR``), the authors' SNGP.jar measured in this run when Java
+and the jar are available (``SNGP_JAR=path/to/SNGP.jar`` and ``SNGP_JAR_CMD``, a command template
+with ``{jar}``, ``{train_csv}`` and ``{generations}``), otherwise skipped with the reason and the
+jar's figures measured earlier on this machine (22 s on 160 samples, 155 s on 1 000), labelled
+as such. Then generations/s, node evaluations/s, scaling, early stopping (generations used, time
+and errors with and without it) and test errors (noise floor 0.05) to show accuracy is kept.
 One core: the search is single-threaded. Other processes on a shared machine inflate wall time;
 CPU time (process_time) is the fairer figure then.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
+import re
+import shutil
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(os.environ.get("BENCH_SNGP_ROOT") or Path(__file__).resolve().parents[1])
+sys.path.insert(0, str(ROOT))
 
 from droneid.sngp import SNGPRegressor  # noqa: E402
 
 NAMES = ["vx", "pitch", "roll", "yaw"]
+#: SNGP.jar at the paper budget, measured earlier on this 2-core machine (README)
 REFERENCE_S = {160: 22.0, 1000: 155.0}
+#: this engine before issue 16 (README: whole fit CPU s, search CPU s; loaded machine)
+PREVIOUS_S = {160: (2.20, 1.62), 1000: (6.73, 6.15)}
+#: done-when of issue 16: speed-up over SNGP.jar at the paper budget
+TARGET_X = {160: 20.0, 1000: 40.0}
 NOISE = 0.05
 
 
@@ -54,7 +70,8 @@ def drone_data(n, seed, path="eight"):
 
 def one_run(n, generations, seed, X_test, y_test):
     X, y = drone_data(n, seed=100 + n)
-    est = SNGPRegressor(generations=generations, seed=seed)   # defaults: paper budget
+    kw = {"early_stop_window": None} if "early_stop_window" in SNGPRegressor().get_params() else {}
+    est = SNGPRegressor(generations=generations, seed=seed, **kw)   # paper budget, fixed
     c0, w0 = time.process_time(), time.perf_counter()
     est.fit(X, y, feature_names=NAMES)
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
@@ -72,13 +89,83 @@ def median_run(n, generations, repeats, X_test, y_test):
             for k in runs[0]}
 
 
+def jar_status() -> tuple[bool, str]:
+    """Whether SNGP.jar can be run here, and why not."""
+    if shutil.which("java") is None:
+        return False, "no java on PATH"
+    jar = os.environ.get("SNGP_JAR")
+    if not jar or not Path(jar).is_file():
+        return False, "SNGP_JAR does not name the authors' SNGP.jar"
+    if not os.environ.get("SNGP_JAR_CMD"):
+        return False, "SNGP_JAR_CMD (the command template that runs the jar) is not set"
+    return True, ""
+
+
+def jar_run(n: int, generations: int) -> dict:
+    """One SNGP.jar run on the same training data (CPU time of the Java process; its training
+    RMSE when its output has a line like ``rmse_train = x``)."""
+    X, y = drone_data(n, seed=100 + n)
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "train.csv"
+        np.savetxt(csv, np.c_[X, y], delimiter=",", header=",".join(NAMES + ["y"]), comments="")
+        cmd = os.environ["SNGP_JAR_CMD"].format(jar=os.environ["SNGP_JAR"], train_csv=csv,
+                                                generations=generations)
+        import resource
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        out = subprocess.run(cmd, shell=True, capture_output=True, text=True, check=True).stdout
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    m = re.search(r"rmse[_ ]?train\D{0,5}([0-9.eE+-]+)", out, re.IGNORECASE)
+    return {"cpu": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
+            "train": float(m.group(1)) if m else float("nan")}
+
+
+def previous_run(root: str, n: int, repeats: int) -> dict:
+    """The same paper-budget measurement with the engine of another checkout (``--previous``),
+    in a subprocess so that its droneid is the one imported."""
+    env = dict(os.environ, BENCH_SNGP_ROOT=str(Path(root).resolve()))
+    out = subprocess.run([sys.executable, __file__, "--worker", str(n), "--repeats", str(repeats)],
+                         env=env, capture_output=True, text=True, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def early_stop_table(sizes, seeds=3):
+    """Generations, time and errors of the estimator's default early stopping vs the fixed
+    budget (3 prior features, the same seeds)."""
+    priors = ["9.81*cos(yaw)*tan(pitch)/cos(roll)", "9.81*sin(yaw)*tan(roll)", "-0.28*vx"]
+    Xt, yt = drone_data(251, seed=7, path="square")
+    print(f"\n## Early stopping (default window {SNGPRegressor().early_stop_window} generations, margin "
+          f"{SNGPRegressor().early_stop_margin:g}) vs the fixed budget; 3 prior features, "
+          f"median of {seeds} seeds")
+    print(f"{'samples':>7} {'prune':>10} {'setting':>8} {'generations':>11} {'cpu s':>6} {'rmse train':>10} "
+          f"{'rmse test':>9}")
+    for n in sizes:
+        X, y = drone_data(n, seed=100 + n)
+        for prune in ("exact", "validation"):
+            for label, w in (("fixed", None), ("early", SNGPRegressor().early_stop_window)):
+                rows = []
+                for seed in range(1, seeds + 1):
+                    c0 = time.process_time()
+                    m = SNGPRegressor(seed=seed, prune=prune, early_stop_window=w, simplify_s=0).fit(
+                        X, y, feature_names=NAMES, priors=priors)
+                    rows.append((m.generations_, time.process_time() - c0, m.rmse_train_, m.rmse(Xt, yt)))
+                med = [statistics.median(r[i] for r in rows) for i in range(4)]
+                print(f"{n:>7} {prune:>10} {label:>8} {med[0]:11.0f} {med[1]:6.2f} {med[2]:10.4f} {med[3]:9.4f}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=1, help="runs per setting (median reported)")
     ap.add_argument("--quick", action="store_true", help="only the two headline runs")
     ap.add_argument("--seeds", type=int, default=5, help="runs per setting in the accuracy table")
+    ap.add_argument("--previous", default=None,
+                    help="a checkout of the previous engine to time side by side (e.g. a git worktree of main)")
+    ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     X_test, y_test = drone_data(251, seed=7, path="square")
+    if args.worker:
+        SNGPRegressor(generations=200, seed=0, simplify_s=0).fit(*drone_data(50, 0), feature_names=NAMES)
+        print(json.dumps(median_run(args.worker, 60000, args.repeats, X_test, y_test)))
+        return 0
 
     print(f"# SNGP benchmark: {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} (other processes share "
@@ -86,23 +173,42 @@ def main(argv=None) -> int:
     t = time.perf_counter()
     SNGPRegressor(generations=200, seed=0, simplify_s=0).fit(*drone_data(50, 0), feature_names=NAMES)
     print(f"# warm-up (numba compile or cache load): {time.perf_counter() - t:.1f} s")
+    jar_ok, jar_why = jar_status()
+    print("# SNGP.jar: measured in this run" if jar_ok else
+          f"# SNGP.jar: skipped ({jar_why}); its column shows the jar's CPU time measured earlier on "
+          "this machine (README), marked 'ref'")
 
-    print("\n## Paper budget (population 500, 60 000 generations, nf 10, depth 7, Table I set)")
-    head = f"{'samples':>7} {'wall s':>7} {'cpu s':>7} {'search':>7} {'ref s':>6} {'speed-up':>9} {'gen/s':>8} " \
-           f"{'node eval/s':>12} {'evals/gen':>9} {'rmse train':>10} {'rmse test':>9}"
+    print("\n## Paper budget, side by side (population 500, 60 000 generations, nf 10, depth 7, Table I "
+          "set, fixed budget)")
+    prev_label = "prev (this run)" if args.previous else "prev (README)"
+    head = (f"{'samples':>7} {'cpu s':>7} {'search':>7} {prev_label:>15} {'jar s':>9} {'vs jar':>7} "
+            f"{'target':>6} {'vs prev':>7} {'gen/s':>8} {'evals/gen':>9} {'train':>7} {'jar train':>9} "
+            f"{'prev train':>10} {'test':>7}")
     print(head)
     rows = {}
     sizes = (160, 1000) if args.quick else (160, 500, 1000)
     for n in sizes:
         r = median_run(n, 60000, args.repeats, X_test, y_test)
         rows[n] = r
-        ref = REFERENCE_S.get(n)
-        sp = f"{ref / r['cpu']:8.1f}x" if ref else f"{'':>9}"
-        print(f"{n:>7} {r['wall']:7.2f} {r['cpu']:7.2f} {r['search_cpu']:7.2f} {ref if ref else '':>6} {sp} {r['gps']:8.0f} "
-              f"{r['eps']:12.3g} {r['evals_per_gen']:9.1f} {r['train']:10.4f} {r['test']:9.4f}")
-    print("(cpu s: the whole fit incl. pruning and sympy; search: the SNGP search alone (ratios use\n"
-          " it); rates per CPU second of search."
-          " Targets: <= 2.2 s on 160 samples, <= 15 s on 1000.)")
+        if args.previous:
+            pr = previous_run(args.previous, n, args.repeats)
+            prev_cpu, prev_train = pr["cpu"], pr["train"]
+        else:
+            prev_cpu, prev_train = (PREVIOUS_S[n][0] if n in PREVIOUS_S else float("nan")), float("nan")
+        if jar_ok:
+            jr = jar_run(n, 60000)
+            jar_s, jar_train, jar_tag = jr["cpu"], jr["train"], ""
+        else:
+            jar_s, jar_train, jar_tag = REFERENCE_S.get(n, float("nan")), float("nan"), " ref"
+        vs_jar = jar_s / r["cpu"]
+        target = TARGET_X.get(n)
+        print(f"{n:>7} {r['cpu']:7.2f} {r['search_cpu']:7.2f} {prev_cpu:15.2f} {jar_s:5.1f}{jar_tag:<4} "
+              f"{vs_jar:6.1f}x {(f'{target:.0f}x' if target else ''):>6} {prev_cpu / r['cpu']:6.2f}x "
+              f"{r['gps']:8.0f} {r['evals_per_gen']:9.1f} {r['train']:7.4f} {jar_train:9.4f} {prev_train:10.4f} "
+              f"{r['test']:7.4f}")
+    print("(cpu s: the whole fit incl. pruning and sympy, the figure the ratios use; search: the SNGP\n"
+          " search alone; rates per CPU second of search. 'ref': not measured in this run. README\n"
+          " figures of the previous engine were taken on a loaded machine: --previous measures it here.)")
 
     if not args.quick:
         print("\n## Scaling with generations (160 samples)")
@@ -120,6 +226,7 @@ def main(argv=None) -> int:
             print(f"{n:>7} {r['cpu']:7.2f} {r['search_cpu']:7.2f} "
                   f"{r['search_cpu'] / rows[160]['search_cpu']:6.2f} {n / 160:13.2f} "
                   f"{1e6 * r['search_cpu'] / 60000:7.1f}")
+    early_stop_table((160, 1000) if args.quick else (160, 1000), seeds=1 if args.quick else 3)
     if not args.quick:
         accuracy(args.seeds)
     return 0
@@ -152,7 +259,8 @@ def accuracy(seeds):
         rows = []
         for seed in range(1, seeds + 1):
             c0 = time.process_time()
-            m = SNGPRegressor(seed=seed).fit(X, y, feature_names=NAMES, priors=pri, constraints=cs)
+            m = SNGPRegressor(seed=seed, early_stop_window=None).fit(X, y, feature_names=NAMES, priors=pri,
+                                                                     constraints=cs)
             rows.append((m.rmse_train_, m.rmse(Xt, yt), m.constraint_rmse(cs_test), m.qualified_,
                          time.process_time() - c0))
         med = [statistics.median(r[i] for r in rows) for i in (0, 1, 2, 4)]

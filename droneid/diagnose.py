@@ -489,6 +489,10 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     if targets is None:
         from priors.effects import AXIS
         targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS)
+    from .fitness import check_prior_data
+    check_prior_data(train_flights, pr, targets, cfg.ts_s, "training")
+    if test_flights:
+        check_prior_data(test_flights, pr, targets, cfg.ts_s, "test")
     train = build_datasets(train_flights, targets, pr, cfg)
     test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
     return diagnose_datasets(train, test, prior=pr, prior_label=label, config=cfg,

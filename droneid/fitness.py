@@ -41,7 +41,7 @@ import numpy as np
 from .errors import DataError, check_choice
 from .flight import VEHICLE_TYPES, Flight
 
-__all__ = ["assess", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS", "ROTOR_THRUST_SIGNALS"]
+__all__ = ["assess", "check_prior_data", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS", "ROTOR_THRUST_SIGNALS"]
 
 MIN_RATE_STEPS = 0.25
 SLOW_DYNAMICS_HZ = 5.0
@@ -283,3 +283,20 @@ def _excitation(f: Flight, ivs, resample_signal):
                 spans.append(float(np.degrees(u.max() - u.min())))
         yaw_span = max(spans) if spans else math.nan
     return tilt, speed, yaw_span
+
+
+def check_prior_data(flights, prior, targets, ts_s: float, role: str = "training") -> "Fitness | None":
+    """:func:`assess` of ``flights`` for ``prior`` and its ``targets`` (the signals its terms read
+    plus each target's velocity): raises :class:`DataError` naming the first problem and how to
+    override it, else returns the Fitness (warnings inside). None for priors of vehicles the
+    check does not know (e.g. the ground robot's unicycle). Used by identify and diagnose."""
+    kind = getattr(prior, "vehicle", "multirotor")
+    if kind not in ("multirotor", "fixed-wing"):
+        return None
+    targets = [t for t in targets if t in prior.targets]
+    needed = sorted({s for t in targets for s in prior.signals(t)} | {t[:-4] for t in targets})
+    fit = assess(list(flights), needed_signals=needed, ts_s=ts_s, prior_kind=kind)
+    if fit.problems:
+        more = f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""
+        raise DataError(f"the {role} data cannot identify the {prior.name} model: {fit.problems[0]}{more}")
+    return fit

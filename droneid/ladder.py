@@ -28,7 +28,7 @@ import sympy as sp
 from .expressions import compile_expression
 from .numerics import lstsq, rmse
 
-__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "blocked_cv", "choose_delay", "trim_terms", "plausible",
+__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr", "blocked_cv", "choose_delay", "trim_terms", "plausible",
            "DELAY_GRID_S", "n_blocks_for"]
 
 #: candidate input delays of the thrust signals (s)
@@ -80,7 +80,8 @@ def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     return pred
 
 
-def _eval(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+def evaluate_expr(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+    """``expr`` on data columns, broadcast to ``n`` rows (constants too); invalid values stay nan."""
     names = sorted(s.name for s in expr.free_symbols)
     if not names:
         return np.full(n, float(expr))
@@ -99,7 +100,7 @@ class TermModel:
 
     def design(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         """(n, k+1): one column per term, then ones."""
-        cols = [_eval(t, columns, n) for t in self.terms]
+        cols = [evaluate_expr(t, columns, n) for t in self.terms]
         return np.column_stack([*cols, np.ones(n)]) if cols else np.ones((n, 1))
 
     def fit(self, columns: Mapping[str, np.ndarray], y: np.ndarray) -> "TermModel":
@@ -163,7 +164,7 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
     Returns the refit model and one line per dropped term.
     """
     n = y.size
-    cols = [_eval(t, columns, n) for t in model.terms]
+    cols = [evaluate_expr(t, columns, n) for t in model.terms]
     notes = []
     keep = []
     for i, c in enumerate(cols):
@@ -255,7 +256,7 @@ def plausible(expr: sp.Expr, ranges: Mapping[str, tuple[float, float]], bound: f
         if n.startswith(("rpm", "motor")) or n in ("throttle", "thrust", "battery_voltage"):
             lo = max(lo, 0.0)
         cols[n] = rng.uniform(lo, hi, n_points)
-    v = _eval(expr, cols, n_points)
+    v = evaluate_expr(expr, cols, n_points)
     m = float(np.max(np.abs(v))) if np.all(np.isfinite(v)) else math.inf
     ok = m <= bound
     note = "" if ok else (f"reaches {m:.3g} (bound {bound:.3g}) on inputs within the training range "
@@ -275,6 +276,6 @@ def drag_slope(expr: sp.Expr, velocity: str, rows: Mapping[str, np.ndarray], v_m
     v = np.linspace(-v_max, v_max, n_points)
     cols = {k: np.repeat(np.asarray(a, float), n_points) for k, a in rows.items()}
     cols[velocity] = np.tile(v, m)
-    vals = _eval(expr, cols, m * n_points).reshape(m, n_points)
+    vals = evaluate_expr(expr, cols, m * n_points).reshape(m, n_points)
     slopes = np.diff(vals, axis=1) / np.diff(v)
     return float(np.max(slopes)) if np.all(np.isfinite(slopes)) else math.inf

@@ -20,7 +20,6 @@ import os
 import signal
 import time
 import traceback
-from pathlib import Path
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -76,27 +75,10 @@ def startup_message() -> str:
 
 
 def sngp_kernels_cached() -> bool:
-    """True when a numba cache index of the SNGP kernels exists and is newer than their source."""
-    source = Path(__file__).parent / "sngp" / "kernels.py"
-    try:
-        stamp = source.stat().st_mtime
-    except OSError:
-        return True  # not a source install (e.g. zipped): nothing to say
-    # numba's order: NUMBA_CACHE_DIR when set, else __pycache__ beside the source, else (a
-    # read-only install) the user-wide cache
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        places = [Path(os.environ["NUMBA_CACHE_DIR"])]
-    else:
-        cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-        places = [source.parent / "__pycache__", cache_home / "numba"]
-    for place in places:
-        pattern = "kernels.*.nbi" if place.name == "__pycache__" else "**/kernels.*.nbi"
-        try:
-            if any(p.stat().st_mtime >= stamp for p in place.glob(pattern)):
-                return True
-        except OSError:
-            continue
-    return False
+    """True when the SNGP kernels are compiled in this process or in numba's cache
+    (:func:`droneid.sngp.precompile.kernels_ready`, the engine's own answer)."""
+    from .sngp.precompile import kernels_ready
+    return kernels_ready()
 
 
 def _call(fn, index, job):

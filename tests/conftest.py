@@ -1,6 +1,13 @@
-"""Shared test fixtures. Real logs are read from ../shared/real_logs and never copied here."""
+"""Shared test fixtures. Real logs are read from ../shared/real_logs and never copied here.
+
+Tests are sorted by kind: ``unit/`` (one module, small data), ``integration/`` (pipelines and the
+CLI end to end), ``real_logs/`` (public logs recorded on real vehicles). Every test under
+``real_logs/`` carries the ``real_logs`` marker, and so does any other test that reads a real log
+(the ``real_logs`` fixture or :func:`real_log`): ``-m "not real_logs"`` runs without them.
+"""
 from __future__ import annotations
 
+import inspect
 import os
 from pathlib import Path
 
@@ -25,3 +32,18 @@ def real_log(relpath: str) -> Path:
     if not p.is_file():
         pytest.skip(f"real log {p} is absent (../shared/real_logs is not part of this repo)")
     return p
+
+
+def pytest_collection_modifyitems(config, items):
+    """The ``real_logs`` marker by folder, and on tests elsewhere that read a real log."""
+    folder = Path(__file__).resolve().parent / "real_logs"
+    for item in items:
+        path = Path(str(item.fspath)).resolve()
+        reads = "real_logs" in getattr(item, "fixturenames", ())
+        if not reads and getattr(item, "function", None) is not None:
+            try:
+                reads = "real_log(" in inspect.getsource(item.function)
+            except (OSError, TypeError):
+                reads = False
+        if folder in path.parents or reads:
+            item.add_marker(pytest.mark.real_logs)

@@ -20,8 +20,8 @@ def register(sub):
     p.add_argument("--extras", default="none", help="further signals as columns: 'none' "
                    "(default), 'all' (every canonical signal the logs have) or a comma list")
     p.add_argument("--ts", type=float, default=0.05, help="grid period in seconds (default 0.05)")
-    p.add_argument("--method", default="forward", help="differentiator: forward (the paper's, "
-                   "default), central, savgol, spline")
+    p.add_argument("--method", default="central", help="differentiator: central (default, as identify "
+                   "and diagnose), forward (the paper's), savgol, spline")
     p.add_argument("--smooth-s", type=float, default=None, dest="window_s",
                    help="smoothing window in seconds for savgol/spline")
     p.add_argument("--in-flight", default="auto", choices=("auto", "all"),

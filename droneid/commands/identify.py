@@ -66,7 +66,7 @@ def register(sub) -> None:
     p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
     p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
                    help="test log(s): reported, never used for a choice (without them: see --holdout)")
-    add_budget_arguments(p, runs_help="independent SNGP runs per target (default 10; the paper: 50; --quick: 4)")
+    add_budget_arguments(p, runs_help="independent SNGP runs per target (default 4; the paper: 50; --quick: 4)")
     p.add_argument("--prior-features", type=int, default=3, choices=(0, 1, 3),
                    help="0: no prior; 1: the empirical model as one feature; 3: its three terms (default)")
     p.add_argument("--constraints", default="paper",

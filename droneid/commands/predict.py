@@ -74,7 +74,8 @@ def run(args) -> int:
         print(_text_table(header, rows))
         for note in r.get("notes", ()):
             print(f"note: {note}")
-        print("errors: RMSE in m/s²\n")
+        print(f"errors: RMSE in m/s²; targets by {res['method']} differences at Ts = {res['ts']} s "
+              f"(as at identification)\n")
     if rollout is not None:
         info = res["horizon_info"]
         print(f"== multi-step prediction: RK4 at dt = {fmt(info['dt_s'])} s; velocities of the modelled axes "

@@ -42,6 +42,8 @@ def budget_line(cfg) -> str:
 
 def run(args) -> int:
     from ..study import format_study, study, write_study
+    if args.runs is None and not args.quick:
+        args.runs = 10  # the study's own default (identify's is 4)
     cfg = config_from_args(args, constraints=args.constraints)
     if not (args.quiet or args.json):
         print(budget_line(cfg), file=sys.stderr)

@@ -3,9 +3,13 @@
 ``SNGPRegressor`` is the estimator; ``SymbolicModel`` a fitted equation that can be saved as
 JSON (``to_dict``/``from_dict``) and evaluated with numpy. The operator table is in
 :mod:`droneid.sngp.operators`, the compiled kernels in :mod:`droneid.sngp.kernels`.
+:func:`warmup` compiles the kernels ahead (an install step; a parallel runner before it starts
+workers); :func:`kernels_ready` says whether the next fit would compile them first.
 """
 from .estimator import SNGPRegressor
 from .model import SymbolicModel
 from .operators import DEFAULT_FUNCTIONS, OPERATORS
+from .precompile import kernels_ready, warmup
 
-__all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS"]
+__all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS", "kernels_ready",
+           "warmup"]

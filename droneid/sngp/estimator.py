@@ -12,7 +12,7 @@ import re
 import signal
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -29,6 +29,7 @@ from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
 from .population import Population, Problem
 from .search import run_search
+from .precompile import kernels_ready
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +50,8 @@ _PARAMS = {
     "simplify_s": 0.5,
     "prune": "exact",
     "validation_fraction": 0.25,
+    "early_stop_window": 10000,
+    "early_stop_margin": 0.001,
 }
 _CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
@@ -71,13 +74,20 @@ class SNGPRegressor:
     relative, as the spec says; "validation": the search sees only ``1 - validation_fraction``
     of the training rows (contiguous blocks), evolved features are then dropped by backward
     elimination while the error on the held-out blocks rises by less than 1 %, and the kept ones are
-    refit on all training rows: terms that only fit the noise of the search rows go).
+    refit on all training rows: terms that only fit the noise of the search rows go),
+    ``early_stop_window`` (generations; the search stops when the error of its best model has
+    not improved by the relative ``early_stop_margin`` over this many generations; the error is
+    the one on the held-out rows with ``prune="validation"``, else the training error (the
+    constrained variant: e_d once a model qualifies, e_c before); None or 0: always run all
+    ``generations``, the paper's protocol). ``generations_`` reports the generations run and
+    ``stopped_early_`` whether the window ended the search.
     """
 
     def __init__(self, *, functions=DEFAULT_FUNCTIONS, population_size=500, generations=60000,
                  n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
                  progress=None, identity_steps=100, simplify_s=0.5, prune="exact",
-                 validation_fraction=0.25, **unknown):
+                 validation_fraction=0.25, early_stop_window=10000, early_stop_margin=0.001,
+                 **unknown):
         if unknown:
             name = next(iter(unknown))
             raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
@@ -96,6 +106,8 @@ class SNGPRegressor:
         self.simplify_s = simplify_s
         self.prune = prune
         self.validation_fraction = validation_fraction
+        self.early_stop_window = early_stop_window
+        self.early_stop_margin = early_stop_margin
 
     # -- sklearn-style parameter access -------------------------------------------------------
     def get_params(self, deep: bool = True) -> dict:
@@ -152,6 +164,12 @@ class SNGPRegressor:
         v = self.validation_fraction
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.05 <= v <= 0.5:
             bad("validation_fraction", "a number in [0.05, 0.5]", v)
+        w = self.early_stop_window
+        if w is not None and (isinstance(w, bool) or not isinstance(w, (int, np.integer)) or w < 0):
+            bad("early_stop_window", "None or an int >= 0 (generations; 0 or None: no early stop)", w)
+        m = self.early_stop_margin
+        if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
+            bad("early_stop_margin", "a number in [0, 1) (relative improvement)", m)
 
     # -- fit -----------------------------------------------------------------------------------
     def fit(self, X, y, *, feature_names=None, priors=(), prior_names=None, constraints=None):
@@ -187,19 +205,7 @@ class SNGPRegressor:
 
         # terminal rows: inputs then priors, over training columns then constraint columns
         Xall = X if not constrained else np.vstack([X, cs.X])
-        cols = {n: Xall[:, i] for i, n in enumerate(names)}
-        prior_vals = []
-        for sym, expr in zip(prior_syms, prior_exprs):
-            v = compile_expression(expr, names)(cols)
-            if not np.isfinite(v[:y.size]).all():
-                raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
-                                f"{int((~np.isfinite(v[:y.size])).sum())} training samples")
-            if not np.isfinite(v).all():
-                raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
-                                "constraint samples")
-            prior_vals.append(v)
-        terminals = np.vstack([Xall.T] + [v[None, :] for v in prior_vals]) if prior_vals else Xall.T
-        terminals = np.ascontiguousarray(terminals)
+        terminals = _terminal_rows(Xall, y.size, names, prior_syms, prior_exprs, prior_labels)
         yc = y - y.mean()
         if constrained:
             ckind = np.asarray(cs.kind, dtype=np.int64)
@@ -216,10 +222,20 @@ class SNGPRegressor:
         except ValueError as exc:
             raise ConfigError(f"The 'population_size' parameter of SNGPRegressor is too small: "
                               f"{exc}") from None
+        if self.progress is not None and not kernels_ready():
+            self.progress(0, int(self.generations), "compiling the SNGP kernels (once; cached for "
+                          "later runs)")
+        monitor = None
+        if val is not None and self.early_stop_window:
+            held = _terminal_rows(X_all[val], int(val.sum()), names, prior_syms, prior_exprs,
+                                  prior_labels)
+            monitor = popmod.holdout(template, held, y_all[val])
         result = run_search(template, problem, generations=int(self.generations),
                             n_epochs=int(self.n_epochs), n_threads=int(self.n_threads),
                             identity_steps=int(self.identity_steps), gamma=float(self.gamma),
-                            rng=rng, progress=self.progress)
+                            rng=rng, progress=self.progress,
+                            early_stop_window=self.early_stop_window,
+                            early_stop_margin=float(self.early_stop_margin), monitor=monitor)
 
         self._names = names
         self._prior_syms = prior_syms
@@ -249,18 +265,27 @@ class SNGPRegressor:
         self.constraint_rmse_train_ = ec if constrained else float("nan")
         if constrained and self.qualified_ and not ec < self.gamma:
             self.qualified_ = False
-        self._render(model)
+        self._rendered = None
+        self.intercept_ = model.intercept
         self.archive_ = self._archive(result.archive) if constrained else [
-            {"rmse_train": ed, "constraint_rmse_train": float("nan"), "equation": self.equation_}]
+            ArchiveEntry(ed, float("nan"), lambda: self.equation_)]
         self.generations_ = int(result.generations)
+        self.stopped_early_ = bool(result.stopped_early)
         self.seed_ = seed
         self.search_stats_ = {
             "search_s": result.wall_s,
             "search_cpu_s": result.cpu_s,
             "generations": int(result.generations),
+            "generations_budget": int(result.budget),
+            "stopped_early": bool(result.stopped_early),
+            "early_stop_window": int(self.early_stop_window or 0),
+            "early_stop_margin": float(self.early_stop_margin),
+            "early_stop_signal": ("held-out rmse" if monitor is not None else
+                                  "training error" if self.early_stop_window else "none"),
             "node_evaluations": int(result.evaluations),
             "accepted": int(result.accepted),
             "failed_fits": int(result.failed_fits),
+            "least_squares_fits": int(result.solves),
             "generations_per_s": result.generations / result.wall_s if result.wall_s > 0 else float("nan"),
             "node_evaluations_per_s": result.evaluations / result.wall_s if result.wall_s > 0 else float("nan"),
         }
@@ -461,46 +486,64 @@ class SNGPRegressor:
         ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
         return keep, beta, ed, ec
 
-    def _render(self, model: SymbolicModel) -> None:
-        """Simplified forms of the model: equation_, expr_, latex_, coef_, prior_coef_."""
+    def _render(self, model: SymbolicModel) -> dict:
+        """Simplified forms of the model: equation_, expr_, expr_raw_, latex_, coef_, prior_coef_."""
         deadline = time.perf_counter() + float(self.simplify_s)
         prior_set = {symbol(s) for s in self._prior_syms}
         simple_terms = []
         for t in model.terms:
             left = deadline - time.perf_counter()
             simple_terms.append(_guarded_simplify(t, left) if t not in prior_set else t)
-        self.coef_ = {}
-        self.prior_coef_ = {self._prior_labels[s]: 0.0 for s in self._prior_syms}
+        coef = {}
+        prior_coef = {self._prior_labels[s]: 0.0 for s in self._prior_syms}
         display = sp.Float(model.intercept)
         for t, st, c in zip(model.terms, simple_terms, model.coefs):
             if t in prior_set:
-                self.prior_coef_[self._prior_labels[t.name]] = c
+                prior_coef[self._prior_labels[t.name]] = c
             else:
                 key = to_text(st)
-                self.coef_[key] = self.coef_.get(key, 0.0) + c
+                coef[key] = coef.get(key, 0.0) + c
             display = display + sp.Float(c) * st
-        self.intercept_ = model.intercept
-        self.expr_raw_ = model.expression(expand_priors=True)
-        expanded = display.xreplace({symbol(s): e for s, e in self._prior_exprs.items()})
-        self.expr_ = expanded
         shown = round_expr(display)
-        self.equation_ = to_text(shown)
-        self.latex_ = sp.latex(shown)
+        return {"coef_": coef, "prior_coef_": prior_coef,
+                "expr_raw_": model.expression(expand_priors=True),
+                "expr_": display.xreplace({symbol(s): e for s, e in self._prior_exprs.items()}),
+                "equation_": to_text(shown), "latex_": sp.latex(shown)}
 
-    def _archive(self, archive) -> list[dict]:
-        out = []
-        for ed, ec, a, b in archive:
-            pop = self._population_from_links(a, b)
-            node_expr = self._node_exprs(pop)
-            expr = sp.Integer(0)
-            for c, bta in zip(pop.cols, pop.beta):
-                if c == -1:
-                    expr += sp.Float(float(bta))
-                elif c >= 0 and bta != 0.0:
-                    expr += sp.Float(float(bta)) * node_expr(int(c))
-            out.append({"rmse_train": ed, "constraint_rmse_train": ec,
-                        "equation": to_text(round_expr(expr))})
-        return out
+    def _rendered_attr(self, name: str):
+        """The simplified forms are built with sympy on first use (most runs of a study or of
+        identify are never shown), then kept."""
+        self._check_fitted()
+        if self._rendered is None:
+            self._rendered = self._render(self.model_)
+        return self._rendered[name]
+
+    equation_ = property(lambda self: self._rendered_attr("equation_"),
+                         doc="The fitted equation as text (simplified, rounded), built on first use.")
+    expr_ = property(lambda self: self._rendered_attr("expr_"),
+                     doc="The fitted model as a sympy expression with the priors written out.")
+    expr_raw_ = property(lambda self: self._rendered_attr("expr_raw_"),
+                         doc="The fitted model before simplification (sympy).")
+    latex_ = property(lambda self: self._rendered_attr("latex_"), doc="The equation in LaTeX.")
+    coef_ = property(lambda self: self._rendered_attr("coef_"),
+                     doc="Coefficient of each evolved term, keyed by the simplified term's text.")
+    prior_coef_ = property(lambda self: self._rendered_attr("prior_coef_"),
+                           doc="Coefficient of each prior feature, keyed by its name.")
+
+    def _archive(self, archive) -> list["ArchiveEntry"]:
+        return [ArchiveEntry(ed, ec, lambda a=a, b=b: self._archive_equation(a, b))
+                for ed, ec, a, b in archive]
+
+    def _archive_equation(self, a, b) -> str:
+        pop = self._population_from_links(a, b)
+        node_expr = self._node_exprs(pop)
+        expr = sp.Integer(0)
+        for c, bta in zip(pop.cols, pop.beta):
+            if c == -1:
+                expr += sp.Float(float(bta))
+            elif c >= 0 and bta != 0.0:
+                expr += sp.Float(float(bta)) * node_expr(int(c))
+        return to_text(round_expr(expr))
 
     # -- use -----------------------------------------------------------------------------------
     def _check_fitted(self):
@@ -529,10 +572,57 @@ class SNGPRegressor:
         d.update({"equation": self.equation_, "rmse_train": self.rmse_train_,
                   "constraint_rmse_train": self.constraint_rmse_train_, "qualified": self.qualified_,
                   "prior_coef": dict(self.prior_coef_), "seed": self.seed_,
-                  "generations": self.generations_,
+                  "generations": self.generations_, "stopped_early": self.stopped_early_,
                   "params": {k: v for k, v in self.get_params().items() if k != "progress"}})
         d["params"]["functions"] = list(d["params"]["functions"])
         return d
+
+
+class ArchiveEntry(Mapping):
+    """One non-dominated model of the constrained search: a read-only mapping with the keys
+    ``rmse_train``, ``constraint_rmse_train`` and ``equation``. The equation is built with sympy
+    only when first read (a run archives up to 64 models and most callers read the errors)."""
+
+    _KEYS = ("rmse_train", "constraint_rmse_train", "equation")
+
+    def __init__(self, rmse_train: float, constraint_rmse_train: float, equation):
+        self._values = {"rmse_train": float(rmse_train),
+                        "constraint_rmse_train": float(constraint_rmse_train)}
+        self._equation = equation
+
+    def __getitem__(self, key):
+        if key == "equation" and key not in self._values:
+            self._values[key] = self._equation()
+        if key not in self._KEYS:
+            raise KeyError(key)
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._KEYS)
+
+    def __len__(self) -> int:
+        return len(self._KEYS)
+
+    def __repr__(self) -> str:
+        return f"ArchiveEntry({dict(self)!r})"
+
+
+def _terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> np.ndarray:
+    """The terminal rows of the node cache: the inputs, then each prior evaluated on ``X``
+    (rows ``n_train`` on are constraint samples); a prior that is not finite is a DataError."""
+    cols = {n: X[:, i] for i, n in enumerate(names)}
+    prior_vals = []
+    for sym, expr in zip(prior_syms, prior_exprs):
+        v = compile_expression(expr, names)(cols)
+        if not np.isfinite(v[:n_train]).all():
+            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
+                            f"{int((~np.isfinite(v[:n_train])).sum())} training samples")
+        if not np.isfinite(v).all():
+            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
+                            "constraint samples")
+        prior_vals.append(v)
+    rows = np.vstack([X.T] + [v[None, :] for v in prior_vals]) if prior_vals else X.T
+    return np.ascontiguousarray(rows, dtype=np.float64)
 
 
 def _validation_rows(n: int, fraction: float):

@@ -27,7 +27,8 @@ L_HEAD, L_VAR, L_TAIL, L_ID, L_P, L_NPRIOR, L_NT, L_DEPTH, L_MODE = range(9)
 # objective slots in ``obj``
 O_ED, O_EC, O_SCORE = 0, 1, 2
 # stats slots
-S_EVALS, S_ACCEPT, S_GENS, S_FAILED = 0, 1, 2, 3
+S_EVALS, S_ACCEPT, S_GENS, S_FAILED, S_SOLVES = 0, 1, 2, 3, 4
+N_STATS = 5
 
 ADD = by_name("add").code
 SUB = by_name("sub").code
@@ -221,10 +222,11 @@ def apply_op(code, xa, xb):
 def _row_stats(row, nt, yc, syy):
     """(valid, constant, fit) of one node's output row; fit = 1 - |corr(row, y)| on training columns.
 
-    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude.
+    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude. The
+    loops carry no per-element test: a sum of squares <= MAX_ABS^2 proves every value finite
+    and within MAX_ABS (NaN and inf make it fail), so the exact test runs only when it does not.
     """
     n = row.shape[0]
-    bad = 0
     s0 = s1 = s2 = s3 = 0.0
     q0 = q1 = q2 = q3 = 0.0
     c0 = c1 = c2 = c3 = 0.0
@@ -234,8 +236,6 @@ def _row_stats(row, nt, yc, syy):
         v1 = row[i + 1]
         v2 = row[i + 2]
         v3 = row[i + 3]
-        bad += (0 if abs(v0) <= MAX_ABS else 1) + (0 if abs(v1) <= MAX_ABS else 1) \
-            + (0 if abs(v2) <= MAX_ABS else 1) + (0 if abs(v3) <= MAX_ABS else 1)
         s0 += v0
         s1 += v1
         s2 += v2
@@ -250,16 +250,18 @@ def _row_stats(row, nt, yc, syy):
         c3 += v3 * yc[i + 3]
     for i in range(m, nt):
         v = row[i]
-        bad += 0 if abs(v) <= MAX_ABS else 1       # NaN compares false
         s0 += v
         q0 += v * v
         c0 += v * yc[i]
+    qc = 0.0
     for i in range(nt, n):                          # constraint columns: validity only
-        bad += 0 if abs(row[i]) <= MAX_ABS else 1
-    if bad > 0:
-        return False, True, 1.0
-    s = (s0 + s1) + (s2 + s3)
+        qc += row[i] * row[i]
     sxx = (q0 + q1) + (q2 + q3)
+    if not (sxx <= MAX_ABS * MAX_ABS and qc <= MAX_ABS * MAX_ABS):
+        for i in range(n):
+            if not (abs(row[i]) <= MAX_ABS):        # NaN compares false
+                return False, True, 1.0
+    s = (s0 + s1) + (s2 + s3)
     sxy = (c0 + c1) + (c2 + c3)                # yc is centred: this is the centred sum
     mean = s / nt
     var = sxx - s * mean
@@ -290,7 +292,8 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
             val = _scalar_op(code, x, y)
             if not (abs(val) <= MAX_ABS):
                 val = cval[n]    # the node's proxy constant
-        out[:] = val
+        for t in range(out.shape[0]):
+            out[t] = val
         buf[n] = nb
         valid[n] = 1
         isconst[n] = 1
@@ -305,7 +308,9 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
         fit[n] = 1.0
         return
     if code == IDENT:           # a feature slot just mirrors its successor
-        out[:] = V[buf[sa], sa]
+        src = V[buf[sa], sa]
+        for t in range(out.shape[0]):
+            out[t] = src[t]
         valid[n] = valid[sa]
         isconst[n] = isconst[sa]
         fit[n] = fit[sa]
@@ -322,7 +327,7 @@ def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
     fit[n] = f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _depths(a, b, lay, depth):
     t0 = lay[L_TAIL]
     for n in range(t0):
@@ -334,7 +339,7 @@ def _depths(a, b, lay, depth):
         depth[n] = d + 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _raise_bounds(m, s, a, b, lay, depth, ltr, stack):
     """After linking m -> s: raise depth bounds above m and levelsToRoot bounds below s."""
     d = depth[s] + 1
@@ -381,7 +386,7 @@ def _changed(r0, r1, valid_now, valid_before):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _terminal(lay):
     """A terminal: constant/head node or variable (incl. prior terminals), 50/50."""
     if lay[L_HEAD] > 0 and np.random.random() < 0.5:
@@ -389,7 +394,7 @@ def _terminal(lay):
     return np.random.randint(lay[L_HEAD], lay[L_TAIL])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pick_successor(m, ltr_m, depth, lay):
     """A new successor for tail/identity node m obeying depth(s) + levelsToRoot(m) < max depth."""
     t0 = lay[L_TAIL]
@@ -482,20 +487,29 @@ def _gram_full(V, buf, valid, isconst, lay, y, gram, rhs):
 def solve_fresh(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj, gram, rhs):
     """Rebuild the Gram cache and fit the model (after links were set from outside)."""
     _gram_full(V, buf, valid, isconst, lay, y, gram, rhs)
+    wk, wkeep = _solve_work(cols.shape[0], V.shape[2])
     return _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj,
-                        gram, rhs)
+                        gram, rhs, wk, wkeep)
+
+
+@njit(cache=True)
+def _solve_work(K, N):
+    """Work buffers of :func:`_solve_model` for up to K columns and N samples (allocated once
+    per chunk rather than once per generation)."""
+    return np.empty(2 * K * K + 4 * K + N), np.empty(K, dtype=np.uint8)
 
 
 @njit(cache=True, fastmath=FM)
 def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, cols, obj_out,
-                 gram, rhs):
+                 gram, rhs, wk, wkeep):
     """Least squares over [1 | priors | valid identity features]; fills beta/cols/obj_out.
 
     Returns False when no finite fit exists. Columns that are (numerically) linear combinations
     of earlier ones get coefficient 0: pivoted-out by a Cholesky factorisation of the
     column-normalised Gram matrix (so the intercept and the priors win over evolved features).
     Identity features with the same fitness as an earlier one are skipped (duplicate filter).
-    The Gram matrix entries come from the cache ``gram``/``rhs`` (see :func:`_gram_row`).
+    The Gram matrix entries come from the cache ``gram``/``rhs`` (see :func:`_gram_row`);
+    ``wk``/``wkeep`` are work buffers from :func:`_solve_work`.
     """
     P = lay[L_P]
     nt = lay[L_NT]
@@ -521,8 +535,21 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
         k += 1
     for j in range(k, K):
         cols[j] = -2
-    G = np.zeros((k, k))
-    r = np.zeros(k)
+    kk = k * k
+    G = wk[:kk].reshape((k, k))
+    L = wk[kk:2 * kk].reshape((k, k))
+    r = wk[2 * kk:2 * kk + k]
+    d = wk[2 * kk + k:2 * kk + 2 * k]
+    z = wk[2 * kk + 2 * k:2 * kk + 3 * k]
+    x = wk[2 * kk + 3 * k:2 * kk + 4 * k]
+    pred = wk[2 * kk + 4 * k:2 * kk + 4 * k + N]
+    keep = wkeep[:k]
+    for i in range(kk):
+        wk[kk + i] = 0.0          # L
+    for i in range(k):
+        z[i] = 0.0
+        x[i] = 0.0
+        keep[i] = 1
     for i in range(k):
         gi = _gidx(cols[i], lay)
         r[i] = rhs[gi]
@@ -531,15 +558,12 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             G[i, j] = v
             G[j, i] = v
     # normalise and factorise with column dropping
-    d = np.empty(k)
-    keep = np.ones(k, dtype=np.uint8)
     for i in range(k):
         if G[i, i] > 0.0 and G[i, i] < np.inf:
             d[i] = math.sqrt(G[i, i])
         else:
             d[i] = 1.0
             keep[i] = 0
-    L = np.zeros((k, k))
     for j in range(k):
         if keep[j] == 0:
             continue
@@ -559,7 +583,6 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
                 if keep[p]:
                     s2 -= L[i, p] * L[j, p]
             L[i, j] = s2 / L[j, j]
-    z = np.zeros(k)
     for i in range(k):
         if keep[i] == 0:
             continue
@@ -568,7 +591,6 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             if keep[p]:
                 s -= L[i, p] * z[p]
         z[i] = s / L[i, i]
-    x = np.zeros(k)
     for i in range(k - 1, -1, -1):
         if keep[i] == 0:
             continue
@@ -585,7 +607,8 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
             if not (abs(beta[i]) < np.inf):
                 return False
     # predictions on all columns, then residuals (training) and violations (constraints)
-    pred = np.full(N, beta[0])
+    for t in range(N):
+        pred[t] = beta[0]
     for i in range(1, k):
         if keep[i] == 0:
             continue
@@ -625,6 +648,14 @@ def _score(ed, ec, mode, weight):
 
 
 @njit(cache=True)
+def _copy_links(a, b, a_out, b_out):
+    """Element loops instead of slice assignment (whose shape check compiles string code)."""
+    for i in range(a.shape[0]):
+        a_out[i] = a[i]
+        b_out[i] = b[i]
+
+
+@njit(cache=True)
 def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
     """Keep (ed, ec) and its links if no archived model is at least as good in both."""
     n = arch_n[0]
@@ -638,14 +669,19 @@ def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
         if j != i:
             arch_obj[j, 0] = arch_obj[i, 0]
             arch_obj[j, 1] = arch_obj[i, 1]
-            arch_a[j, :] = arch_a[i, :]
-            arch_b[j, :] = arch_b[i, :]
+            _copy_links(arch_a[i], arch_b[i], arch_a[j], arch_b[j])
         j += 1
     n = j
     K = arch_obj.shape[0]
     if n >= K:
         # full: drop the most crowded interior point (by log-distance of its neighbours)
-        order = np.argsort(arch_obj[:n, 0])
+        order = np.empty(n, dtype=np.int64)    # by e_d; insertion sort (n <= 64, no argsort
+        for i in range(n):                       # to compile)
+            j = i
+            while j > 0 and arch_obj[order[j - 1], 0] > arch_obj[i, 0]:
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = i
         worst = -1
         gap = np.inf
         for q in range(1, n - 1):
@@ -662,12 +698,10 @@ def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
         if worst != n:
             arch_obj[worst, 0] = arch_obj[n, 0]
             arch_obj[worst, 1] = arch_obj[n, 1]
-            arch_a[worst, :] = arch_a[n, :]
-            arch_b[worst, :] = arch_b[n, :]
+            _copy_links(arch_a[n], arch_b[n], arch_a[worst], arch_b[worst])
     arch_obj[n, 0] = ed
     arch_obj[n, 1] = ec
-    arch_a[n, :] = a
-    arch_b[n, :] = b
+    _copy_links(a, b, arch_a[n], arch_b[n])
     arch_n[0] = n + 1
 
 
@@ -761,14 +795,20 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
     g_node = np.empty(max(n_slots, 1), dtype=np.int64)
     g_row = np.empty((max(n_slots, 1), KG))
     g_rhs = np.empty(max(n_slots, 1))
+    wk, wkeep = _solve_work(K, V.shape[2])
+    depth0 = np.empty(P, dtype=np.int64)
+    ltr0 = np.empty(P, dtype=np.int64)
+    fresh = False
     obj[O_SCORE] = _score(obj[O_ED], obj[O_EC], mode, weight)
     for g in range(n_gens):
         gen_id = stats[S_GENS] + 1
         stats[S_GENS] = gen_id
         # bestPred (lowest fit among a node and everything that uses it) and levelsToRoot, in
         # one pass over the users (descending); depth in one ascending pass. Within the
-        # generation both are then only raised (conservative bounds), recomputed next time.
-        if not identity_only:
+        # generation both are then only raised (conservative bounds), recomputed next time:
+        # after a rejected generation, links and fit are back as they were, so the values from
+        # before its mutations (kept when the first bound was raised) are exact again.
+        if not identity_only and not fresh:
             for n in range(P):
                 bp[n] = fit[n]
                 ltr[n] = 0
@@ -786,6 +826,7 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                     if ltr[s] < lp:
                         ltr[s] = lp
             _depths(a, b, lay, depth)
+        saved = False
         k = 1 if identity_only else np.random.randint(1, MAX_MUTATIONS + 1)
         nm = 0
         lowest = P
@@ -814,6 +855,11 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
             else:
                 s = _pick_successor(m, ltr[m], depth, lay)
                 if s >= t0:
+                    if not saved:
+                        for i in range(P):
+                            depth0[i] = depth[i]
+                            ltr0[i] = ltr[i]
+                        saved = True
                     _raise_bounds(m, s, a, b, lay, depth, ltr, stack)
             u_node[nm] = m
             u_slot[nm] = slot
@@ -871,8 +917,9 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                         g_row[ng, j] = gram[g, j]
                     ng += 1
                     _gram_row(n, V, buf, valid, isconst, lay, y, gram, rhs)
+            stats[S_SOLVES] += 1
             ok = _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, nbeta, ncols,
-                              nobj, gram, rhs)
+                              nobj, gram, rhs, wk, wkeep)
             if ok:
                 sc = _score(nobj[O_ED], nobj[O_EC], mode, weight)
                 if mode == 1:
@@ -889,7 +936,13 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
                 stats[S_FAILED] += 1
         if accept:
             stats[S_ACCEPT] += 1
+            fresh = False
         else:
+            if saved:
+                for i in range(P):
+                    depth[i] = depth0[i]
+                    ltr[i] = ltr0[i]
+            fresh = True
             for i in range(ng - 1, -1, -1):
                 g = g_node[i]
                 rhs[g] = g_rhs[i]

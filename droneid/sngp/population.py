@@ -10,10 +10,12 @@ valid evaluation order)::
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..numerics import rmse
 from . import kernels as K
 from .operators import CONST, HEAD_OPERATORS, IDENT, VAR, by_name
 
@@ -143,3 +145,36 @@ def run(pop: Population, problem: Problem, seed: int, n_gens: int, identity_only
                 pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, problem.y, problem.yc,
                 problem.syy, problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj,
                 pop.gram, pop.rhs, arch_obj, arch_a, arch_b, arch_n, stats)
+
+
+def holdout(template: Population, terminals: np.ndarray, y: np.ndarray):
+    """A callable(pop) -> RMSE of ``pop``'s current model on held-out rows.
+
+    ``terminals``: (n_inputs + n_priors, n_rows) the variable and prior rows of the held-out
+    samples; ``y``: their target. The links of ``pop`` are copied into a population sized for
+    these rows and evaluated there; the coefficients are ``pop``'s (fitted on the search rows).
+    A model that is not finite on a held-out row scores inf.
+    """
+    n_rows = terminals.shape[1]
+    shadow = template.copy()
+    shadow.V = np.zeros((2, shadow.V.shape[1], n_rows))
+    shadow.lay[K.L_NT] = n_rows
+    shadow.lay[K.L_MODE] = 0
+    prob = Problem(y=y, yc=np.zeros(n_rows), syy=0.0, ckind=np.zeros(0, dtype=np.int64),
+                   cbound=np.zeros(0), terminals=terminals)
+    load_terminals(shadow, prob)
+
+    def error(pop: Population) -> float:
+        np.copyto(shadow.a, pop.a)
+        np.copyto(shadow.b, pop.b)
+        evaluate_all(shadow, prob)
+        pred = np.full(n_rows, 0.0)
+        for c, beta in zip(pop.cols, pop.beta):
+            if c == -1:
+                pred += beta
+            elif c >= 0 and beta != 0.0:
+                pred += beta * shadow.current(int(c))
+        with np.errstate(all="ignore"):
+            e = rmse(pred, y)
+        return e if math.isfinite(e) else math.inf
+    return error

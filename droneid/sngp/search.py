@@ -5,6 +5,11 @@ local search in compiled chunks, ends with ~100 identity-relinking steps, and re
 population only when strictly better. The threads of one epoch all start from the same
 population (as the reference runs them in parallel); here they run one after the other on one
 core, which gives the same result.
+
+Early stopping: after every epoch the search scores its best population with ``monitor`` (the
+held-out error of ``prune="validation"``, else the search key); when that score has not improved
+by the relative ``margin`` for ``window`` generations, the remaining epochs are skipped. The
+check draws no random numbers, so a stopped run is the exact prefix of the fixed-budget run.
 """
 from __future__ import annotations
 
@@ -28,10 +33,13 @@ CHUNK = 1000
 class SearchResult:
     best: Population
     archive: list = field(default_factory=list)   # [(e_d, e_c, a, b)], non-dominated
-    generations: int = 0
+    generations: int = 0          # generations actually run
+    budget: int = 0               # generations planned (the cap)
+    stopped_early: bool = False
     evaluations: int = 0
     accepted: int = 0
     failed_fits: int = 0
+    solves: int = 0               # least-squares refits (generations that changed a feature)
     wall_s: float = 0.0
     cpu_s: float = 0.0
 
@@ -54,16 +62,41 @@ def schedule(generations: int, n_epochs: int, n_threads: int) -> list[list[int]]
     return [counts[e * n_threads:(e + 1) * n_threads] for e in range(n_epochs)]
 
 
+class _Stopper:
+    """Tracks the monitored score of the best population; says when it has stalled.
+
+    Improvement: a score below ``(1 - margin)`` times the best score so far (scores are tuples
+    compared lexicographically, the last entry relative, the others exactly: see :func:`key`).
+    """
+
+    def __init__(self, window: int | None, margin: float):
+        self.window = int(window) if window else 0
+        self.margin = float(margin)
+        self.best = None
+        self.since = 0
+
+    def stalled(self, score: tuple, done: int) -> bool:
+        if self.best is None or score[:-1] < self.best[:-1] or (
+                score[:-1] == self.best[:-1] and score[-1] < self.best[-1] * (1.0 - self.margin)):
+            self.best, self.since = score, done
+            return False
+        return self.window > 0 and done - self.since >= self.window
+
+
 def run_search(template: Population, problem: Problem, *, generations: int, n_epochs: int,
                n_threads: int, identity_steps: int, gamma: float, rng: np.random.Generator,
-               progress=None) -> SearchResult:
+               progress=None, early_stop_window: int | None = None, early_stop_margin: float = 0.0,
+               monitor=None) -> SearchResult:
+    """The whole search. ``early_stop_window`` (generations; None or 0: the fixed budget),
+    ``early_stop_margin`` (relative) and ``monitor`` (callable(population) -> float, the score
+    to watch instead of e_d or e_c in the search key; NaN never improves) control early stopping."""
     t_start = time.perf_counter()
     c_start = time.process_time()
     constrained = bool(template.lay[K.L_MODE])
     P = int(template.lay[K.L_P])
     arch = (np.zeros((ARCHIVE_SIZE, 2)), np.zeros((ARCHIVE_SIZE, P), dtype=np.int64),
             np.zeros((ARCHIVE_SIZE, P), dtype=np.int64), np.zeros(1, dtype=np.int64))
-    stats = np.zeros(4, dtype=np.int64)
+    stats = np.zeros(K.N_STATS, dtype=np.int64)
 
     def seed() -> int:
         return int(rng.integers(0, 2**31 - 1))
@@ -84,6 +117,8 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
     plan = schedule(generations, n_epochs, n_threads)
     total = sum(map(sum, plan))
     done = 0
+    stopper = _Stopper(early_stop_window, early_stop_margin)
+    stopped = False
     for epoch, threads in enumerate(plan):
         cand.copy_from(best)
         for t, per_thread in enumerate(threads):
@@ -106,12 +141,23 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
                 cand.copy_from(work)
         if key(cand, constrained, gamma) < key(best, constrained, gamma):
             best.copy_from(cand)
+        if stopper.window and epoch + 1 < len(plan):
+            score = key(best, constrained, gamma)
+            if monitor is not None:      # e.g. the held-out error, after the qualification flag
+                score = (score[0], float(monitor(best)))
+            if stopper.stalled(score, done):
+                stopped = True
+                if progress is not None:
+                    progress(total, total, f"stopped early after {done} generations: no "
+                             f"{100 * stopper.margin:g} % gain in {stopper.window}")
+                break
     n = int(arch[3][0])
     archive = [(float(arch[0][i, 0]), float(arch[0][i, 1]), arch[1][i].copy(), arch[2][i].copy())
                for i in range(n)]
     archive.sort(key=lambda r: r[0])
-    return SearchResult(best=best, archive=archive, generations=total,
+    return SearchResult(best=best, archive=archive, generations=done, budget=total,
+                        stopped_early=stopped,
                         evaluations=int(stats[K.S_EVALS]), accepted=int(stats[K.S_ACCEPT]),
-                        failed_fits=int(stats[K.S_FAILED]),
+                        failed_fits=int(stats[K.S_FAILED]), solves=int(stats[K.S_SOLVES]),
                         wall_s=time.perf_counter() - t_start,
                         cpu_s=time.process_time() - c_start)

@@ -4,7 +4,7 @@ then review the diff):
     .venv/bin/python tests/golden/regenerate.py
 
 One small JSON per real log: format, vehicle, firmware, duration, each signal's unit, count,
-span and source, segments and diagnostics. tests/test_parsers_golden.py compares against them.
+span and source, segments and diagnostics. tests/real_logs/test_parsers_golden.py compares against them.
 """
 from __future__ import annotations
 

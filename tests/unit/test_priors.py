@@ -156,7 +156,7 @@ def test_shipped_example_files_load():
     from pathlib import Path
 
     from priors.constraints import load_constraints
-    root = Path(__file__).resolve().parents[1] / "priors"
+    root = Path(__file__).resolve().parents[2] / "priors"
     models = load_priors(root / "example_priors.toml")
     assert set(models) == {"tilt-quadratic-drag", "hover-thrust"}
     assert len(models["tilt-quadratic-drag"].features("vy_dot")) == 3

@@ -14,7 +14,7 @@ import pytest
 
 from droneid.cli import build_parser, main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FAST = ["--generations", "60", "--population", "40"]
 
 
@@ -94,20 +94,13 @@ def test_progress_says_when_the_kernels_compile(monkeypatch):
     assert seen[0] == (0, "starting")
 
 
-def test_kernel_cache_is_detected_from_numba_index_files(monkeypatch, tmp_path):
+def test_progress_says_compiling_when_the_engine_has_no_compiled_kernels(monkeypatch):
     import droneid.runner as runner
-    src = Path(runner.__file__).parent / "sngp" / "kernels.py"
-    monkeypatch.setattr(Path, "glob", lambda self, pattern: iter(()))  # no index anywhere
-    assert runner.sngp_kernels_cached() is False
-    monkeypatch.undo()
-    cache = tmp_path / "numba"
-    (cache / "x").mkdir(parents=True)
-    idx = cache / "x" / "kernels._evaluate-1.py311.nbi"
-    idx.write_bytes(b"")
-    import os
-    os.utime(idx, (src.stat().st_mtime + 10, src.stat().st_mtime + 10))
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
-    assert runner.sngp_kernels_cached() is True
+    import droneid.sngp.precompile as pre
+    monkeypatch.setattr(pre, "kernels_ready", lambda: False)
+    assert runner.sngp_kernels_cached() is False and "compiling" in runner.startup_message()
+    monkeypatch.setattr(pre, "kernels_ready", lambda: True)
+    assert runner.startup_message() == "starting"
 
 
 def sleepy(x):

@@ -14,7 +14,7 @@ from conftest import real_log
 @pytest.mark.slow
 def test_bench_read_runs_and_counts():
     real_log("ardupilot/copter33_quad_log171.bin")
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_read.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_read.py"
     spec = importlib.util.spec_from_file_location("bench_read", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)

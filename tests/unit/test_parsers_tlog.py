@@ -10,7 +10,7 @@ import pytest
 from droneid.errors import LogFormatError
 from parsers import detect_format, read_flight
 
-from tests_tlog import tlog_bytes
+from tlog_fixture import tlog_bytes
 
 ARMED = 128 | 81
 

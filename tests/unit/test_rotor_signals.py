@@ -15,7 +15,7 @@ from parsers import read_flight
 
 from conftest import real_log
 from dataflash_fixture import DataFlashWriter
-from tests_tlog import tlog_bytes
+from tlog_fixture import tlog_bytes
 
 
 def test_rotor_names_are_canonical():

@@ -39,7 +39,7 @@ def test_detect_by_content_not_extension(tmp_path, head, fmt):
 
 
 def test_detect_tlog_by_timestamp_and_magic(tmp_path):
-    from tests_tlog import tlog_bytes
+    from tlog_fixture import tlog_bytes
     p = tmp_path / "x.bin"               # misleading extension: content wins
     p.write_bytes(tlog_bytes([("heartbeat", 0.0, {})]))
     assert detect_format(p) == "tlog"

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from droneid.cli import main
-from test_sngp import NAMES, flight_data
+from sngp_data import NAMES, flight_data
 
 
 @pytest.fixture()
@@ -77,7 +77,6 @@ def test_fit_bad_csv_exit_2(tmp_path, capsys):
 
 
 def test_fit_with_constraint_file(tables, tmp_path, capsys):
-    pytest.importorskip("priors.constraints")
     train, test = tables
     toml = tmp_path / "c.toml"
     toml.write_text('target = "vx_dot"\n'
