@@ -47,6 +47,7 @@ import sympy as sp
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice, did_you_mean
 from .expressions import compile_expression, symbol
+from .ladder import block_ids
 from .numerics import lstsq, rmse
 
 log = logging.getLogger(__name__)
@@ -184,17 +185,6 @@ def _final_effect_json(fe: dict) -> dict:
 
 
 # -- statistics -----------------------------------------------------------------------------------
-def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
-    """Contiguous time blocks 0..n_blocks-1 inside each flight, with equal sample counts
-    (so trimmed ground time or gaps leave no block empty)."""
-    t = np.asarray(t, float)
-    flight = np.asarray(flight, int)
-    out = np.zeros(t.size, dtype=int)
-    for f in np.unique(flight):
-        idx = np.flatnonzero(flight == f)
-        order = idx[np.argsort(t[idx], kind="stable")]
-        out[order] = np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1), n_blocks - 1)
-    return out
 
 
 def _block_p(mse_before, mse_after) -> tuple[float, np.ndarray]:

@@ -916,7 +916,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     its own-axis velocity (±1.2 x the training speed, other inputs at 50 flown states) the
     model's slope may not exceed the physical rung's (or 0) by more than 0.05 1/s. The survivor with the lowest CV error replaces the
     physical rung only if its CV error is ``cfg.margin`` lower."""
-    from .ladder import TermModel, drag_slope, plausible, trim_terms
+    from .ladder import TermModel, drag_slope, drop_negligible, evaluate_expr, plausible, trim_terms
     from .sngp.model import SymbolicModel, round_expr, to_text
     phys = p.ladder[-1]
     delays = p.plan.delays_s if p.plan else {}
@@ -955,15 +955,17 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
             continue
         prior_syms = {symbol(k) for k in m.priors}
         subs = {symbol(k): v for k, v in m.priors.items()}
-        evolved = [t.xreplace(subs) for t in m.terms if t not in prior_syms]
+        env = {**cols, **{k: evaluate_expr(v, cols, len(y)) for k, v in m.priors.items()}}
+        raw = [drop_negligible(t, env, len(y)) for t in m.terms if t not in prior_syms]
+        evolved = [t.xreplace(subs) for t in raw]
         if not evolved:
             guards["no_evolved_term_left"] += 1
             continue
         shown = [display_term(to_text(round_expr(t, 4)), {k: m.prior_labels.get(k, k) for k in m.priors})
-                 for t in m.terms if t not in prior_syms]
+                 for t in raw]
         tm = TermModel(base + tuple(evolved),
                        labels + tuple(("-" if neg else "") + txt for txt, neg in shown))
-        sizes = [0] * len(base) + [int(sp.count_ops(t)) for t in m.terms if t not in prior_syms]
+        sizes = [0] * len(base) + [int(sp.count_ops(t)) for t in raw]
         trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base), sizes=sizes)
         guards["dropped"].extend(f"run {i + 1}: {n}" for n in notes)
         if len(trimmed.terms) == len(base):
@@ -1082,7 +1084,12 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
     evolved = bool(final and guards.get("chosen_run") is not None)
     equation = None
     if final is not None:
-        parts = [f"{c:+.4g}·{lab}" for lab, c in final["terms"].items()]
+        parts = []
+        for lab, c in final["terms"].items():
+            lead = _LEADING_NUMBER.match(lab)
+            if lead:  # 1.085e-10·4*roll**2 -> 4.34e-10·roll**2
+                c, lab = c * float(lead.group(1)), lab[lead.end():]
+            parts.append(f"{c:+.4g}·{lab}")
         if final.get("intercept") is not None:
             parts.append(f"{final['intercept']:+.4g}")
         equation = f"{p.target} = " + " ".join(parts).lstrip("+")

@@ -28,7 +28,8 @@ import sympy as sp
 from .expressions import compile_expression
 from .numerics import lstsq, rmse
 
-__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr", "blocked_cv", "choose_delay", "trim_terms", "plausible",
+__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
+           "drop_negligible", "blocked_cv", "choose_delay", "trim_terms", "plausible",
            "DELAY_GRID_S", "n_blocks_for"]
 
 #: candidate input delays of the thrust signals (s)
@@ -279,3 +280,23 @@ def drag_slope(expr: sp.Expr, velocity: str, rows: Mapping[str, np.ndarray], v_m
     vals = evaluate_expr(expr, cols, m * n_points).reshape(m, n_points)
     slopes = np.diff(vals, axis=1) / np.diff(v)
     return float(np.max(slopes)) if np.all(np.isfinite(slopes)) else math.inf
+
+
+def drop_negligible(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int, rel: float = 1e-3) -> sp.Expr:
+    """``expr`` without the addends of its sums that never reach ``rel`` of the sum's largest value
+    on the training data (``4·roll²·rpm4² + rpm2 + 3.142`` -> ``4·roll²·rpm4²`` when rpm4 is
+    ~10⁵): the same numbers to that precision, a shorter equation."""
+    def walk(e):
+        if not e.args:
+            return e
+        e = e.func(*[walk(a) for a in e.args]) if not isinstance(e, sp.Add) else e
+        if isinstance(e, sp.Add):
+            parts = [walk(a) for a in e.args]
+            vals = [np.abs(evaluate_expr(a, columns, n)) for a in parts]
+            if not all(np.all(np.isfinite(v)) for v in vals):
+                return sp.Add(*parts)
+            top = float(np.max(np.abs(evaluate_expr(sp.Add(*parts), columns, n)))) if n else 0.0
+            keep = [a for a, v in zip(parts, vals) if float(np.max(v, initial=0.0)) >= rel * top]
+            return sp.Add(*keep) if keep else sp.Add(*parts)
+        return e
+    return walk(expr)

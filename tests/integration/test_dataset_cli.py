@@ -33,10 +33,16 @@ def test_cli_exports_the_table(tmp_path, capsys):
     assert list(df.columns) == ["vy", "pitch", "roll", "yaw", "vy_dot", "t", "flight"]
     assert set(df["flight"]) == {"paper_train_eight"}
     assert np.allclose(np.diff(df["t"]), 0.1)
-    # the target column is the paper's forward difference of the vy column
-    np.testing.assert_allclose(df["vy_dot"][:-1], np.diff(df["vy"]) / 0.1, atol=1e-6)
+    # the target column is the central difference of the vy column (the default, as identify's)
+    vy = df["vy"].to_numpy()
+    np.testing.assert_allclose(df["vy_dot"][1:-1], (vy[2:] - vy[:-2]) / 0.2, atol=1e-6)
     err = capsys.readouterr().err
     assert f"{out}: {len(df)} samples of vy_dot" in err and "grid period ts = 0.1 s" in err
+    # --method forward: the paper's forward difference
+    assert main(["-q", "dataset", str(log), "--target", "vy_dot", "--ts", "0.1", "--method", "forward",
+                 "-o", str(out)]) == 0
+    df = pd.read_csv(out)
+    np.testing.assert_allclose(df["vy_dot"][:-1], np.diff(df["vy"]) / 0.1, atol=1e-6)
 
 
 def test_cli_options(tmp_path, capsys):

@@ -108,3 +108,12 @@ def test_functions_of_functions_are_unreadable(data):
     m = TermModel((a, v, sp.cos(sp.sin(3 * v))), ("pitch", "vx", "cos(sin(3 vx))"))
     trimmed, notes = trim_terms(m, cols, y2, blocks, keep_first=2)
     assert trimmed.labels == ("pitch", "vx") and "unreadable" in notes[0]
+
+
+def test_negligible_addends_are_dropped_from_the_shown_equation():
+    from droneid.ladder import drop_negligible
+    r, w = symbol("roll"), symbol("rpm4")
+    cols = {"roll": np.linspace(0.1, 0.5, 20), "rpm4": np.linspace(5e4, 1.4e5, 20), "vx": np.linspace(-1, 1, 20)}
+    e = 1.1e-10 * (4 * r ** 2 * w ** 2 + w + 3.142) * sp.sin(v)
+    assert drop_negligible(e, cols, 20) == 1.1e-10 * 4 * r ** 2 * w ** 2 * sp.sin(v)
+    assert drop_negligible(v + 0.5, cols, 20) == v + 0.5  # both parts matter
