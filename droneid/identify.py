@@ -870,8 +870,10 @@ def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: b
         return f"{target}: the {what} beats the empirical model by {gain:.0f} % {where}{extra}"
     if gain > -5:
         return f"{target}: the {what} is no better than the empirical model {where} ({gain:+.0f} %): keep the empirical model"
+    why = ("the training flights do not represent the test flights" if has_test else
+           "its fitted terms do not hold across the validation blocks")
     return (f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %){extra}: "
-            f"the training flights do not represent the test flights; keep the empirical model")
+            f"{why}; keep the empirical model")
 
 
 def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict | None],

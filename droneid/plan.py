@@ -62,10 +62,15 @@ def _hover_calibrated(prior, flights, cfg, cuts=None):
     return get_prior("rotor-thrust", k_T=float(prior.params.get("g", 9.81)) / med, **params)
 
 
-def _common_signals(flights) -> set:
+def usable_signals(flights, ts_s: float) -> set:
+    """The signals every flight has at a rate the data-fitness check accepts for a grid of
+    ``ts_s`` (≥ :data:`droneid.fitness.MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
+    4 Hz ESC telemetry does not win over 100 Hz motor commands."""
+    from .fitness import MIN_RATE_STEPS
     names = None
     for f in flights:
-        n = set(getattr(f, "names", ()))
+        n = {name for name, sig in getattr(f, "signals", {}).items()
+             if len(sig) < 2 or sig.rate_hz >= MIN_RATE_STEPS / ts_s}
         names = n if names is None else names & n
     return names or set()
 
@@ -73,7 +78,7 @@ def _common_signals(flights) -> set:
 def resolve_plan_prior(cfg, flights) -> tuple:
     """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
     from priors.models import prior_for
-    return prior_for(cfg.prior, _common_signals(flights))
+    return prior_for(cfg.prior, usable_signals(flights, cfg.ts))
 
 
 def thrust_signals(prior, target: str) -> list:
