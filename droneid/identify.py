@@ -298,10 +298,7 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
     if cfg.constraints == "none":
         return None, paper
     if cfg.constraints == "paper":
-        if paper is None:
-            raise ConfigError(f"prior '{name}' defines no constraints for {target}: use --constraints "
-                              f"none or a constraints TOML file")
-        return paper, paper
+        return paper, paper  # None, None: the prior has no set (a user prior); runs go unconstrained
     cs = with_medians(pc.load_constraints(cfg.constraints, target=target))
     return cs, cs
 
@@ -352,6 +349,9 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                                   seed=test_seed)
     p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test,
                       plan=plan, n_base=len(base))
+    if eval_set is None and cfg.constraints != "none":
+        p.notes.append(f"prior '{prior.name}' defines no constraints for {target}: the runs are "
+                       f"unconstrained and e_c is not measured (give --constraints FILE.toml)")
     if len(test):
         p.notes.extend(range_notes(train, test))
     undelayed = None
@@ -545,9 +545,7 @@ def make_jobs(p: TargetProblem, cfg: IdentifyConfig, *, prior_features: int | No
     constrained = cfg.constrained if constrained is None else constrained
     feats = {0: (), 1: p.prior1, 3: p.priors3}[nprior]
     cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
-    if constrained and cset is None:
-        raise ConfigError(f"constrained runs for {p.target} need constraints, and none are defined "
-                          f"for prior '{cfg.prior}' and this target; use --constraints none or FILE")
+    constrained = constrained and cset is not None  # a prior without constraints: said in the notes
     _, seeds = run_seeds(cfg.seed, cfg.runs)
     n = len(p.train)
     step = -(-n // cfg.search_rows) if cfg.search_rows and n > cfg.search_rows else 1
