@@ -36,6 +36,8 @@ from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
 from .expressions import symbol
 from .numerics import rmse
+from .plan import (TARGETS, Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
+                   split_terms, thrust_signals, train_rows)
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
@@ -44,7 +46,6 @@ __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "Identif
 log = logging.getLogger(__name__)
 
 SCHEMA = "droneid.identify/1"
-TARGETS = ("vx_dot", "vy_dot", "vz_dot")
 #: the paper's setup per run (Table I); identify makes 4 runs per target by default (the paper: 50;
 #: `study` 10): the trust guards decide what survives, and on the shared Crazyflie flights 4 and 10
 #: runs give the same final models (measured), in 15 s instead of 43 s
@@ -267,7 +268,7 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
 
     def own():
         if getattr(prior, "constraints", "paper") == "rotor-thrust":
-            thrust = _thrust_signals(prior, target)
+            thrust = thrust_signals(prior, target)
             cols = train.columns()
             span = {s: float(np.max(cols[s])) for s in thrust}
             cs = pc.rotor_thrust(target, span, g=float(prior.params.get("g", 9.81)))
@@ -297,175 +298,9 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
     if cfg.constraints == "none":
         return None, paper
     if cfg.constraints == "paper":
-        if paper is None:
-            raise ConfigError(f"prior '{name}' defines no constraints for {target}: use --constraints "
-                              f"none or a constraints TOML file")
-        return paper, paper
+        return paper, paper  # None, None: the prior has no set (a user prior); runs go unconstrained
     cs = with_medians(pc.load_constraints(cfg.constraints, target=target))
     return cs, cs
-
-
-@dataclass(frozen=True)
-class Plan:
-    """What identify decided from the TRAINING flights before any SNGP run.
-
-    prior : the PriorModel the search starts from; prior_reason : why (for ``auto``)
-    targets : the targets identified; delays_s : {signal: delay s} of the thrust inputs
-    delay_scores : {delay s: joint blocked-CV error of the refit prior} (the evidence)
-    effects : the diagnosis' folded effects: [{"effect", "physical", "features": {target:
-        [PriorFeature]}}]; not_folded : [{"effect", "reason"}]; diagnosis : its summary dict
-    """
-    prior: object
-    prior_reason: str
-    targets: tuple
-    delays_s: dict = field(default_factory=dict)
-    delay_scores: dict = field(default_factory=dict)
-    effects: tuple = ()
-    not_folded: tuple = ()
-    diagnosis: dict = field(default_factory=dict)
-    notes: tuple = ()
-
-
-def _hover_calibrated(prior, flights, cfg: IdentifyConfig, cuts=None):
-    """The rotor-thrust prior with its nominal thrust scale k_T set by hover balance on the
-    training rows: the median of k_T·thrust·cosφ·cosθ is g (uses inputs only, no derivative),
-    so the fitted scales read as ~1 and the 1-feature form is a sensible model as given."""
-    from priors.models import get_prior
-    t = "vz_dot"
-    ds = _train_rows(_builder(cfg).build(list(flights), target=t, inputs=prior.inputs(t)), cuts)
-    thrust = [f for f in prior.features(t) if f.role == "thrust"]
-    k_T = float(prior.params["k_T"])
-    lift = sum(prior.evaluate(ds.columns(), t)[:, i] for i, f in enumerate(prior.features(t)) if f.role == "thrust")
-    med = float(np.median(lift)) / k_T if thrust and len(ds) else 0.0
-    if not med > 0:
-        return prior
-    params = {k: v for k, v in prior.params.items() if k != "k_T"}
-    return get_prior("rotor-thrust", k_T=float(prior.params.get("g", 9.81)) / med, **params)
-
-
-def _common_signals(flights) -> set:
-    names = None
-    for f in flights:
-        n = set(getattr(f, "names", ()))
-        names = n if names is None else names & n
-    return names or set()
-
-
-def resolve_plan_prior(cfg: IdentifyConfig, flights) -> tuple:
-    """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
-    from priors.models import prior_for
-    return prior_for(cfg.prior, _common_signals(flights))
-
-
-def _thrust_signals(prior, target: str) -> list:
-    return sorted({s for f in prior.features(target) if f.role == "thrust" for s in f.signals
-                   if s not in ("roll", "pitch", "yaw")})
-
-
-def _builder(cfg: IdentifyConfig, delays=None):
-    from droneid.dataset import DatasetBuilder
-    return DatasetBuilder(ts=cfg.ts, method=cfg.method, delays_s=dict(delays or {}))
-
-
-def _split_terms(prior, target: str) -> tuple:
-    """The prior's terms as separate features, without constant ones (the intercept holds them)."""
-    return tuple(f for f in prior.features(target) if f.expr.free_symbols)
-
-
-def plan_identification(train_flights, cfg: IdentifyConfig, progress: Callable | None = None,
-                        cuts: dict | None = None) -> Plan:
-    """Choose the prior, the thrust input delay and the effects from the training flights only
-    (``cuts``: {flight index: time s} where a held-out test block starts: rows from there on
-    are never seen here)."""
-    from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
-    prior, reason = resolve_plan_prior(cfg, train_flights)
-    if prior.name == "rotor-thrust":
-        prior = _hover_calibrated(prior, train_flights, cfg, cuts)
-    targets = tuple(cfg.targets) if cfg.targets else tuple(t for t in prior.targets if t in TARGETS)
-    if not targets:
-        raise ConfigError(f"prior '{prior.name}' models none of {', '.join(TARGETS)}")
-    for t in targets:
-        if t not in prior.targets:
-            raise ConfigError(f"prior '{prior.name}' has no model of {t}; it models "
-                              f"{', '.join(prior.targets)} (choose another --prior or --target)")
-    notes = []
-    thrust = sorted({s for t in targets for s in _thrust_signals(prior, t)})
-    delays, scores = {}, {}
-    if cfg.delays == "auto" and thrust:
-        cache = {}
-
-        def cv_error(d):
-            total = 0.0
-            for t in targets:
-                ds = _train_rows(_builder(cfg, {s: d for s in thrust}).build(
-                    list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-                tm = TermModel(tuple(f.expr for f in _split_terms(prior, t)), ())
-                blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
-                e = tm.cv_rmse(ds.columns(), ds.y, blocks)
-                base = cache.setdefault(t, e)  # d = 0 comes first: errors relative to no delay
-                total += e / base
-            return total / len(targets)
-        if progress:
-            progress(0, 1, "choosing the thrust input delay")
-        best, scores = choose_delay(cv_error)
-        if best:
-            delays = {s: best for s in thrust}
-            notes.append(f"thrust inputs ({', '.join(thrust)}) delayed by {1000 * best:.0f} ms: blocked-CV "
-                         f"error of the refit prior {100 * (1 - scores[best] / scores[0.0]):.1f} % lower "
-                         f"than without delay (training flights only)")
-    effects, not_folded, diag = (), (), {}
-    if cfg.effects == "auto":
-        effects, not_folded, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts)
-        notes.extend(enotes)
-    return Plan(prior, reason, targets, delays, scores, effects, not_folded, diag, tuple(notes))
-
-
-def _train_rows(ds: Dataset, cuts: dict | None, test: bool = False) -> Dataset:
-    """The rows before each flight's hold-out cut (``test``: from the cut on); all without cuts."""
-    if not cuts:
-        return ds
-    cut = np.array([cuts.get(int(k), np.inf) for k in range(int(ds.flight.max()) + 1)]) if len(ds) else []
-    before = ds.t < cut[ds.flight] if len(ds) else np.zeros(0, bool)
-    return ds.subset(~before if test else before)
-
-
-def holdout_cuts(train_flights, cfg: IdentifyConfig, target: str, prior) -> dict:
-    """{flight index: start time s of its held-out last ``cfg.test_fraction``} (time-block split
-    of the undelayed dataset of ``target``)."""
-    from droneid.dataset import split_time_block
-    ds = _builder(cfg).build(list(train_flights), target=target, inputs=prior.inputs(target))
-    _, test = split_time_block(ds, test_fraction=cfg.test_fraction)
-    return {int(k): float(np.min(test.t[test.flight == k])) for k in np.unique(test.flight)}
-
-
-def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
-    """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in."""
-    from .diagnose import DiagnoseConfig, diagnose_datasets
-    builder = _builder(cfg, delays)
-    train = {t: _train_rows(builder.build(list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-             for t in targets}
-    try:
-        res = diagnose_datasets(train, None, prior=prior,
-                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, sngp_generations=0))
-    except (ConfigError, DataError, TypeError) as exc:
-        return (), (), {}, [f"diagnosis skipped: {exc}"]
-    folded, skipped = [], []
-    for fe in res.final_effects:
-        feats = fe.get("features")
-        if fe.get("foldable") and feats:
-            from priors.models import PriorFeature
-            folded.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
-                           "features": {t: tuple(PriorFeature(d["name"], d["expr"], fe.get("physical", ""),
-                                                              "other") for d in feats.get(t, ()))
-                                        for t in targets}})
-        else:
-            skipped.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
-                            "reason": fe.get("reason") or "not foldable into a model of states and inputs"})
-    summary = {"effects_added": list(res.effects_added), "conclusion": res.conclusion,
-               "untestable": dict(res.untestable), "not_detected": list(res.not_detected)}
-    notes = [f"diagnosis on the training flights: {res.conclusion}"]
-    notes += [f"effect {s['effect']} ({s['physical']}) not folded into the model: {s['reason']}" for s in skipped]
-    return tuple(folded), tuple(skipped), summary, notes
 
 
 def prepare_target(train_flights: Sequence, test_flights: Sequence | None, target: str,
@@ -480,11 +315,11 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
         cuts = holdout_cuts(train_flights, cfg, target, plan.prior)
     prior = plan.prior
     effect_feats = tuple(f for e in plan.effects for f in e["features"].get(target, ()))
-    base = _split_terms(prior, target)
+    base = split_terms(prior, target)
     extra_inputs = sorted({s for f in effect_feats for s in f.signals} - set(prior.inputs(target)))
     inputs = tuple(prior.inputs(target)) + tuple(extra_inputs)
     empirical_inputs = _empirical_inputs(cfg, target)
-    builder = _builder(cfg, plan.delays_s)
+    builder = dataset_builder(cfg, plan.delays_s)
     ds = builder.build(list(train_flights), target=target, inputs=inputs,
                        extras=[s for s in empirical_inputs if s not in inputs])
     holdout = not test_flights and cfg.test_fraction > 0
@@ -494,7 +329,7 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                              extras=[s for s in empirical_inputs if s not in inputs])
         desc = f"test flights: {', '.join(test.sources) or len(test_flights)}"
     elif holdout:
-        train, test = _train_rows(ds, cuts), _train_rows(ds, cuts, test=True)
+        train, test = train_rows(ds, cuts), train_rows(ds, cuts, test=True)
         desc = (f"no test flights given: the last {100 * cfg.test_fraction:.0f} % (time block) of "
                 f"each training flight is held out as test data, before any choice is made")
     else:
@@ -514,16 +349,19 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                                   seed=test_seed)
     p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test,
                       plan=plan, n_base=len(base))
+    if eval_set is None and cfg.constraints != "none":
+        p.notes.append(f"prior '{prior.name}' defines no constraints for {target}: the runs are "
+                       f"unconstrained and e_c is not measured (give --constraints FILE.toml)")
     if len(test):
         p.notes.extend(range_notes(train, test))
     undelayed = None
     if plan.delays_s:
-        b0 = _builder(cfg)
+        b0 = dataset_builder(cfg)
         tr0 = b0.build(list(train_flights), target=target, inputs=inputs,
                        extras=[s for s in empirical_inputs if s not in inputs])
         undelayed = (tr0, b0.build(list(test_flights), target=target, inputs=inputs,
                                    extras=[s for s in empirical_inputs if s not in inputs])) \
-            if test_flights else (_train_rows(tr0, cuts), _train_rows(tr0, cuts, test=True) if holdout
+            if test_flights else (train_rows(tr0, cuts), train_rows(tr0, cuts, test=True) if holdout
                                   else tr0.subset(np.zeros(len(tr0), bool)))
         # every rung is measured on the same rows: those the delayed inputs exist for
         undelayed = tuple(_same_rows(u, d) for u, d in zip(undelayed, (train, test)))
@@ -707,9 +545,7 @@ def make_jobs(p: TargetProblem, cfg: IdentifyConfig, *, prior_features: int | No
     constrained = cfg.constrained if constrained is None else constrained
     feats = {0: (), 1: p.prior1, 3: p.priors3}[nprior]
     cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
-    if constrained and cset is None:
-        raise ConfigError(f"constrained runs for {p.target} need constraints, and none are defined "
-                          f"for prior '{cfg.prior}' and this target; use --constraints none or FILE")
+    constrained = constrained and cset is not None  # a prior without constraints: said in the notes
     _, seeds = run_seeds(cfg.seed, cfg.runs)
     n = len(p.train)
     step = -(-n // cfg.search_rows) if cfg.search_rows and n > cfg.search_rows else 1
@@ -1032,8 +868,10 @@ def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: b
         return f"{target}: the {what} beats the empirical model by {gain:.0f} % {where}{extra}"
     if gain > -5:
         return f"{target}: the {what} is no better than the empirical model {where} ({gain:+.0f} %): keep the empirical model"
+    why = ("the training flights do not represent the test flights" if has_test else
+           "its fitted terms do not hold across the validation blocks")
     return (f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %){extra}: "
-            f"the training flights do not represent the test flights; keep the empirical model")
+            f"{why}; keep the empirical model")
 
 
 def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict | None],

@@ -117,3 +117,17 @@ def test_negligible_addends_are_dropped_from_the_shown_equation():
     e = 1.1e-10 * (4 * r ** 2 * w ** 2 + w + 3.142) * sp.sin(v)
     assert drop_negligible(e, cols, 20) == 1.1e-10 * 4 * r ** 2 * w ** 2 * sp.sin(v)
     assert drop_negligible(v + 0.5, cols, 20) == v + 0.5  # both parts matter
+
+
+def test_verdicts_read_as_what_they_are():
+    from droneid.identify import verdict
+    rung = lambda te, va: {"rmse_test": te, "rmse_validation": va}  # noqa: E731
+    emp = rung(1.0, 1.0)
+    assert "beats the empirical model by 40 % on the test flights" in verdict("vx_dot", rung(0.6, 0.5), emp, False, False)
+    assert "no better" in verdict("vx_dot", rung(0.98, 0.9), emp, True, False)
+    assert "WORSE" in verdict("vx_dot", rung(1.5, 0.9), emp, True, False)
+    nan = float("nan")
+    v = verdict("vx_dot", rung(nan, 0.5), rung(nan, 1.0), False, False)
+    assert "on validation blocks of the training flights (no test data)" in v and "50 %" in v
+    # the copter34 bench case: a target that does not vary is no "+100 %" success
+    assert "no verdict" in verdict("vy_dot", rung(0.0, 0.0), rung(0.0, 0.0), False, False, y_spread=0.0)
