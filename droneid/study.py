@@ -34,7 +34,7 @@ def _variant(scenario: str, nprior: int) -> str:
 
 
 def _label(nprior: int) -> str:
-    return {0: "no prior", 1: "1 prior feature", 3: "3 prior features"}[nprior]
+    return "no prior" if nprior == 0 else f"{nprior} prior feature" + ("" if nprior == 1 else "s")
 
 
 def _ranksum_p(a, b) -> float:
@@ -201,14 +201,16 @@ def study_document(result: dict) -> Document:
         doc.paragraph(f"{tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']}.")
         for n in tr.get("notes") or []:
             doc.paragraph(f"NOTE: {n}")
-        fig = new_figure(7.0, 3.4)
+        fig = new_figure(7.5, 3.8)
         ax = fig.add_subplot()
         data, labels = [], []
         for v in tr["variants"].values():
             vals = [r["rmse_test"] for r in v["runs"] if r["rmse_test"] is not None]
             data.append(vals if vals else [float("nan")])
-            labels.append(f"{v['scenario'][:5]}\n{v['prior_features']}p")
+            labels.append(f"{v['scenario']}\n{_label(v['prior_features'])}")
         ax.boxplot(data, tick_labels=labels)
+        ax.tick_params(axis="x", labelsize=8)
+        ax.set_xlabel("scenario and prior variant")
         ax.axhline(tr["empirical"]["rmse_test"], color="tab:orange", ls="--", label="empirical model")
         ax.set_ylabel("e_d test (m/s²)")
         finite = [x for d in data for x in d if x == x]
