@@ -203,10 +203,9 @@ def build_document(result) -> Document:
     return doc
 
 
-def _figures(doc, r):
-    if not r.series:
-        return
-    doc.heading("Residual over time")
+def fig_residual_time(r):
+    """Training residual over time per target, before and after the added effects; the lines
+    break at gaps in time and between flights (:func:`droneid.reporting.break_gaps`)."""
     fig = new_figure(7.5, 2.2 * len(r.series) + 0.6)
     for i, (t, s) in enumerate(r.series.items()):
         ax = fig.add_subplot(len(r.series), 1, i + 1)
@@ -218,6 +217,14 @@ def _figures(doc, r):
         ax.set_ylabel(f"{t} residual (m/s²)")
         ax.legend(loc="upper right", fontsize=7)
     ax.set_xlabel("time (s)")
+    return fig
+
+
+def _figures(doc, r):
+    if not r.series:
+        return
+    doc.heading("Residual over time")
+    fig = fig_residual_time(r)
     doc.figure(fig, "residual_time", "Training residual of the refit prior before and after the added effects")
     from priors.effects import CATALOGUE
     for k, step in enumerate(r.steps, 1):
