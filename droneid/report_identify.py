@@ -7,6 +7,7 @@ from logs, so a saved result can be re-rendered anywhere.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -211,16 +212,20 @@ def _tex_tokens(e) -> list[str]:
     return [sympy.latex(e)]
 
 
-def _math_lines(lhs: str, expr, width: int = 110) -> list[str] | None:
+def _math_lines(lhs: str, expr, width: int = 110, signals=None) -> list[str] | None:
     """The equation ``lhs = expr`` as mathtext lines (sympy LaTeX, numbers to 4 significant
     figures), wrapped between terms and factors so that no line is much longer than ``width``
     LaTeX characters; None if ``expr`` does not parse."""
     import sympy
-    try:
-        e = sympy.sympify(expr) if isinstance(expr, str) else expr
+
+    from .errors import ConfigError
+    from .expressions import parse_expression
+    try:  # the safe parser, never sympify: a saved result.json may come from anywhere
+        e = parse_expression(expr, signals if signals is not None else re.findall(r"[A-Za-z_]\w*", expr),
+                             what="final model") if isinstance(expr, str) else expr
         e = e.xreplace({n: sympy.Float(float(n), 4) for n in e.atoms(sympy.Float)})
         tokens = _tex_tokens(e)
-    except (sympy.SympifyError, TypeError, ValueError, SyntaxError, AttributeError):
+    except (ConfigError, TypeError, ValueError, AttributeError):
         return None
     name = lhs.replace("_dot", "")
     head = r"\dot{%s}_{%s} = " % (name[0], name[1:]) if len(name) == 2 and name[0] == "v" else lhs + " = "
@@ -240,7 +245,7 @@ def fig_equation(name: str, tr: dict):
     expression or mathtext cannot render it."""
     fin = tr.get("final") or {}
     expr = fin.get("expr")
-    lines = _math_lines(name, expr) if expr else None
+    lines = _math_lines(name, expr, signals=fin.get("signals")) if expr else None
     if not lines:
         return None
     step = 0.42  # inches per line

@@ -207,6 +207,7 @@ def test_long_equation_is_wrapped_into_lines_of_bounded_length():
     assert len(lines) >= 2 and all(len(ln) < 110 + 60 for ln in lines)
     assert lines[0].startswith(r"$\dot{v}_{x} = ") and "0.2827" in "".join(lines)
     assert "0.282747590081903" not in "".join(lines)  # numbers rounded to 4 significant figures
+    assert _math_lines("vx_dot", "__import__('os').system('false')") is None  # parsed safely, never eval'd
     fig = fig_equation("vx_dot", ladder_result()["targets"]["vx_dot"])
     w, h = fig.get_size_inches()
     assert w <= 10 and h >= 2 * 0.42  # wrapped, not one very wide line
