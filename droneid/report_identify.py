@@ -375,7 +375,7 @@ def build_document(result: dict) -> Document:
                 if delays else "")))
         if has_series:
             top.append((fig_measured_vs_predicted(name, tr), f"{name}_test_prediction",
-                        "measured vs predicted on the test data (identified best run and empirical model)"))
+                        "measured vs predicted on the test data (final model and empirical model)"))
         if top:
             doc.side_by_side(*top)
         if tr.get("equation"):
@@ -386,22 +386,32 @@ def build_document(result: dict) -> Document:
             doc.paragraph(method_line(cfg))
         doc.paragraph(f"{tr['n_train']} training and {tr['n_test']} test samples; {tr['test_data']}. "
                       f"Inputs: {', '.join(tr['inputs'])}.")
-        doc.table(ERROR_HEADER, error_rows(tr))
-        imp = tr.get("improvement_pct") or {}
-        doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
-                      f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its least-squares refit. "
-                      f"The best run is chosen by training error among runs meeting the constraint "
-                      f"threshold, never by test error.")
-        refit = tr["empirical_refit"].get("coefficients") or {}
-        if refit:
-            doc.paragraph("Empirical refit: " + ", ".join(f"{fmt(v)}·⟨{k}⟩" for k, v in refit.items())
-                          + f" + {fmt(tr['empirical_refit'].get('intercept'))}")
+        if not tr.get("ladder"):  # a result of the first version (no ladder): its own table
+            doc.table(ERROR_HEADER, error_rows(tr))
+            imp = tr.get("improvement_pct") or {}
+            doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
+                          f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its least-squares refit. "
+                          f"The best run is chosen by training error among runs meeting the constraint "
+                          f"threshold, never by test error.")
+            refit = tr["empirical_refit"].get("coefficients") or {}
+            if refit:
+                doc.paragraph("Empirical refit: " + ", ".join(f"{fmt(v)}·⟨{k}⟩" for k, v in refit.items())
+                              + f" + {fmt(tr['empirical_refit'].get('intercept'))}")
         for note in tr.get("notes") or []:
             if note != tr["test_data"]:
                 doc.paragraph(f"NOTE: {note}")
         if tr.get("runs"):
+            chosen = (tr.get("guards") or {}).get("chosen_run") if tr.get("ladder") else tr.get("best_run")
+            mark = " (its evolved terms are in the final model)" if tr.get("ladder") else " (best)"
+            if tr.get("ladder"):
+                g = tr.get("guards") or {}
+                doc.paragraph(f"SNGP runs (errors of each run's own model on the rows it searched): "
+                              f"{g.get('implausible', 0)} rejected as implausible, "
+                              f"{g.get('constraints_broken', 0)} breaking the constraints, "
+                              f"{g.get('drag_not_monotone', 0)} with drag not growing with speed, "
+                              f"{g.get('no_evolved_term_left', 0)} with no evolved term left after the guards.")
             doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "qualified", "wall (s)"],
-                      [[str(i + 1) + (" (best)" if i == tr.get("best_run") else ""), r.get("seed"),
+                      [[str(i + 1) + (mark if i == chosen else ""), r.get("seed"),
                         fmt(r.get("rmse_train")), fmt(r.get("rmse_test")), fmt(r.get("constraint_rmse_train")),
                         fmt(r.get("constraint_rmse_test")), "yes" if r.get("qualified") else "no",
                         fmt(r.get("wall_s"), 3)] for i, r in enumerate(tr["runs"])])
