@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .reporting import Document, fmt, new_figure
+from .errors import MissingSignalError
+from .reporting import Document, break_gaps, fmt, new_figure
 
 __all__ = ["summary_text", "build_document", "write_report"]
 
@@ -109,6 +110,21 @@ def summary_text(result) -> str:
     return "\n".join(lines)
 
 
+def _with_unit(name: str) -> str:
+    """An axis label: the signal name with its unit ("t (s)", "vz (m/s)"); the name alone where
+    the unit is unknown (a derived quantity such as ``dG/dt``)."""
+    if name == "t":
+        return "t (s)"
+    if name == "|v| v_axis":
+        return "|v| v_axis (m²/s²)"
+    from .flight import canonical_unit
+    try:
+        unit = canonical_unit(name)
+    except MissingSignalError:
+        return name
+    return f"{name} ({'dimensionless' if unit == '1' else unit})"
+
+
 def _thin(n):
     return np.arange(n) if n <= _MAX_POINTS else np.linspace(0, n - 1, _MAX_POINTS).astype(int)
 
@@ -187,25 +203,28 @@ def build_document(result) -> Document:
     return doc
 
 
+def fig_residual_time(r):
+    """Training residual over time per target, before and after the added effects; the lines
+    break at gaps in time and between flights (:func:`droneid.reporting.break_gaps`)."""
+    fig = new_figure(7.5, 2.2 * len(r.series) + 0.6)
+    for i, (t, s) in enumerate(r.series.items()):
+        ax = fig.add_subplot(len(r.series), 1, i + 1)
+        tt, (before, after) = break_gaps(s["t"], [s["residual_before"], s["residual_after"]],
+                                         flight=s["flight"])
+        ax.plot(tt, before, lw=0.6, color="C3", label="before (prior refit)")
+        if r.steps:
+            ax.plot(tt, after, lw=0.6, color="C0", label="after")
+        ax.set_ylabel(f"{t} residual (m/s²)")
+        ax.legend(loc="upper right", fontsize=7)
+    ax.set_xlabel("time (s)")
+    return fig
+
+
 def _figures(doc, r):
     if not r.series:
         return
     doc.heading("Residual over time")
-    fig = new_figure(7.5, 2.2 * len(r.series) + 0.6)
-    for i, (t, s) in enumerate(r.series.items()):
-        ax = fig.add_subplot(len(r.series), 1, i + 1)
-        tt = np.asarray(s["t"], float)
-        fl = np.asarray(s["flight"])
-        for f in np.unique(fl):
-            m = fl == f
-            ax.plot(tt[m], s["residual_before"][m], lw=0.6, color="C3",
-                    label="before (prior refit)" if f == fl[0] else None)
-            if r.steps:
-                ax.plot(tt[m], s["residual_after"][m], lw=0.6, color="C0",
-                        label="after" if f == fl[0] else None)
-        ax.set_ylabel(f"{t} residual (m/s²)")
-        ax.legend(loc="upper right", fontsize=7)
-    ax.set_xlabel("time (s)")
+    fig = fig_residual_time(r)
     doc.figure(fig, "residual_time", "Training residual of the refit prior before and after the added effects")
     from priors.effects import CATALOGUE
     for k, step in enumerate(r.steps, 1):
@@ -223,12 +242,13 @@ def _figures(doc, r):
                 ax.plot(contrib[idx], res[idx], ".", ms=2, alpha=0.5)
                 ax.plot([lo, hi], [lo, hi], "k-", lw=1)
                 ax.set_xlabel(f"fitted {eid} term (m/s²)")
-                ax.set_ylabel(f"{t} residual before")
+                ax.set_ylabel(f"{t} residual before (m/s²)")
             else:  # a constant term: the residual's distribution and the fitted constant
                 ax.hist(res, bins=40, color="C0", alpha=0.7)
                 ax.axvline(lo, color="k", lw=1.5, label=f"fitted {eid} term")
                 ax.axvline(0.0, color="C3", lw=1, ls="--", label="zero")
                 ax.set_xlabel(f"{t} residual before (m/s²)")
+                ax.set_ylabel("samples (count)")
                 ax.legend(fontsize=7)
             ax2 = fig.add_subplot(len(r.series), 2, 2 * i + 2)
             xs = s["signals"].get(explain) if explain != "t" else s["t"]
@@ -238,7 +258,8 @@ def _figures(doc, r):
             xs = np.asarray(xs, float)
             ax2.plot(xs[idx], res[idx], ".", ms=2, alpha=0.4, label="residual before")
             ax2.plot(xs[idx], contrib[idx], ".", ms=2, alpha=0.6, label=f"{eid} term")
-            ax2.set_xlabel(xname)
+            ax2.set_xlabel(_with_unit(xname))
+            ax2.set_ylabel("m/s²")
             ax2.legend(fontsize=7)
         doc.figure(fig, f"step{k}_{eid}", f"Step {k}: residual before the step against the fitted {eid} "
                                           f"term (left; points on the line = explained) and against {explain or 't'}")

@@ -1052,7 +1052,8 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         targets[t] = summarise_target(problems[t], cfg, runs, errors)
     notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes,
-             *(f"data ({role}): {w}" for role, f in fitness.items() if f is not None for w in f.warnings)]
+             *(f"data ({role}): {w}" for role, f in fitness.items() if f is not None
+               for w in _grouped(f.warnings))]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
@@ -1064,6 +1065,16 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     horizons = _horizons(targets, test_flights, notes) if test_flights else {}
     return IdentificationResult(targets, conf, prov, versions(), outcome.interrupted,
                                 time.perf_counter() - t0, outcome.backend, notes, horizons)
+
+
+def _grouped(warnings) -> list[str]:
+    """Per-flight warnings ``"name: text"`` with the same text said once, naming every flight."""
+    by_text: dict[str, list[str]] = {}
+    for w in warnings:
+        name, sep, text = w.partition(": ")
+        by_text.setdefault(text if sep else w, []).append(name if sep else "")
+    return [f"{', '.join(n for n in names if n)}: {text}" if any(names) else text
+            for text, names in by_text.items()]
 
 
 def _compile_once(progress: Callable | None) -> None:

@@ -7,11 +7,12 @@ from logs, so a saved result can be re-rendered anywhere.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 
-from .reporting import Document, fmt, new_figure
+from .reporting import Document, break_gaps, fmt, new_figure
 
 __all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front", "compact",
            "ERROR_HEADER"]
@@ -179,17 +180,101 @@ def _x_axis(series: dict):
     fl = np.asarray(series.get("flight") or [], int)
     if t.size and (fl.size == 0 or np.all(fl == fl[0])):
         return t, "time in test flight (s)"
-    return np.arange(t.size), "test sample (flights one after another)"
+    return np.arange(t.size), "test sample index (flights one after another; 1 sample = 1 Ts)"
+
+
+def _gapped(s: dict, *ys):
+    """x axis, its label and the ``ys`` with NaN at every gap in time or change of flight."""
+    x, xl = _x_axis(s)
+    t = s.get("t") or None
+    fl = s.get("flight") or None
+    xg, yg = break_gaps(x, ys, t=t if t is not None and len(t) == len(x) else None, flight=fl)
+    return xg, xl, yg
+
+
+def _tex_tokens(e) -> list[str]:
+    """LaTeX of the sympy expression ``e`` as tokens whose concatenation is the whole; a line may
+    break between any two tokens (between the terms of a sum, the factors of a product)."""
+    import sympy
+    if isinstance(e, sympy.Add):
+        out = []
+        for i, t in enumerate(sympy.Add.make_args(e)):
+            neg = t.could_extract_minus_sign()
+            out += ([" - " if i else "-"] if neg else ([" + "] if i else [])) + _tex_tokens(-t if neg else t)
+        return out
+    if isinstance(e, sympy.Mul) and len(sympy.latex(e)) > 30:
+        out = []
+        for f in e.as_ordered_factors():
+            if out:
+                out.append(r" \cdot ")
+            out += ["("] + _tex_tokens(f) + [")"] if isinstance(f, sympy.Add) else _tex_tokens(f)
+        return out
+    return [sympy.latex(e)]
+
+
+def _math_lines(lhs: str, expr, width: int = 110, signals=None) -> list[str] | None:
+    """The equation ``lhs = expr`` as mathtext lines (sympy LaTeX, numbers to 4 significant
+    figures), wrapped between terms and factors so that no line is much longer than ``width``
+    LaTeX characters; None if ``expr`` does not parse."""
+    import sympy
+
+    from .errors import ConfigError
+    from .expressions import parse_expression
+    try:  # the safe parser, never sympify: a saved result.json may come from anywhere
+        e = parse_expression(expr, signals if signals is not None else re.findall(r"[A-Za-z_]\w*", expr),
+                             what="final model") if isinstance(expr, str) else expr
+        e = e.xreplace({n: sympy.Float(float(n), 4) for n in e.atoms(sympy.Float)})
+        tokens = _tex_tokens(e)
+    except (ConfigError, TypeError, ValueError, AttributeError):
+        return None
+    name = lhs.replace("_dot", "")
+    head = r"\dot{%s}_{%s} = " % (name[0], name[1:]) if len(name) == 2 and name[0] == "v" else lhs + " = "
+    lines, cur = [], head
+    for tok in tokens:
+        if len(cur) + len(tok) > width and cur not in (head, r"\quad "):
+            lines.append(cur)
+            cur = r"\quad "
+        cur += tok
+    lines.append(cur)
+    return ["$" + ln.replace(r"\operatorname", r"\mathrm") + "$" for ln in lines]
+
+
+def fig_equation(name: str, tr: dict):
+    """The final model typeset with matplotlib's mathtext (no LaTeX install, no network), wrapped
+    over several lines, the figure as wide as its longest line; None when there is no final
+    expression or mathtext cannot render it."""
+    fin = tr.get("final") or {}
+    expr = fin.get("expr")
+    lines = _math_lines(name, expr, signals=fin.get("signals")) if expr else None
+    if not lines:
+        return None
+    step = 0.42  # inches per line
+    fig = new_figure(7.5, step * len(lines) + 0.2)
+    fig.set_layout_engine(None)
+    texts = [fig.text(0.1 / 7.5, 1 - (0.1 + step * (i + 0.75)) / (step * len(lines) + 0.2), ln,
+                      fontsize=12, va="baseline") for i, ln in enumerate(lines)]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    canvas = FigureCanvasAgg(fig)
+    try:
+        canvas.draw()
+    except ValueError:  # mathtext could not parse a construct: the plain equation is shown anyway
+        return None
+    r = canvas.get_renderer()
+    width_in = max(t.get_window_extent(r).x1 for t in texts) / fig.dpi + 0.1
+    fig.set_size_inches(max(width_in, 2.0), step * len(lines) + 0.2)
+    for t in texts:  # keep the left margin constant in inches
+        t.set_x(0.1 / max(width_in, 2.0))
+    return fig
 
 
 def fig_measured_vs_predicted(name: str, tr: dict):
     s = tr["test_series"]
-    x, xl = _x_axis(s)
+    x, xl, (y, emp, ide) = _gapped(s, s["y"], s["empirical"], s["identified"])
     fig = new_figure(7.5, 3.4)
     ax = fig.add_subplot()
-    ax.plot(x, s["y"], color="k", lw=1.2, label="measured")
-    ax.plot(x, s["empirical"], color="tab:orange", lw=1, label="empirical model")
-    ax.plot(x, s["identified"], color="tab:blue", lw=1, label="identified (best run)")
+    ax.plot(x, y, color="k", lw=1.2, label="measured")
+    ax.plot(x, emp, color="tab:orange", lw=1, label="empirical model")
+    ax.plot(x, ide, color="tab:blue", lw=1, label="identified (best run)")
     ax.set_xlabel(xl)
     ax.set_ylabel(f"{name} (m/s²)")
     ax.legend(loc="best", fontsize=8)
@@ -199,14 +284,15 @@ def fig_measured_vs_predicted(name: str, tr: dict):
 
 def fig_residuals(name: str, tr: dict):
     s = tr["test_series"]
-    x, xl = _x_axis(s)
     y = np.asarray(s["y"], float)
+    x, xl, (r_emp, r_ref, r_ide) = _gapped(s, y - np.asarray(s["empirical"], float),
+                                           y - np.asarray(s["empirical_refit"], float),
+                                           y - np.asarray(s["identified"], float))
     fig = new_figure(7.5, 3.0)
     ax = fig.add_subplot()
-    ax.plot(x, y - np.asarray(s["empirical"], float), color="tab:orange", lw=0.9, label="empirical model")
-    ax.plot(x, y - np.asarray(s["empirical_refit"], float), color="tab:green", lw=0.9, alpha=0.7,
-            label="empirical refit")
-    ax.plot(x, y - np.asarray(s["identified"], float), color="tab:blue", lw=0.9, label="identified")
+    ax.plot(x, r_emp, color="tab:orange", lw=0.9, label="empirical model")
+    ax.plot(x, r_ref, color="tab:green", lw=0.9, alpha=0.7, label="empirical refit")
+    ax.plot(x, r_ide, color="tab:blue", lw=0.9, label="identified")
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel(xl)
     ax.set_ylabel("measured − predicted (m/s²)")
@@ -224,6 +310,8 @@ def fig_runs(name: str, tr: dict):
     ax.axhline(_f(tr["empirical"].get("rmse_test")), color="tab:orange", ls="--", label="empirical model")
     ax.axhline(_f(tr["empirical_refit"].get("rmse_test")), color="tab:green", ls=":", label="empirical refit")
     ax.set_xlabel("run (sorted by test error)")
+    from matplotlib.ticker import MaxNLocator
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("e_d test (m/s²)")
     if e.size and np.nanmax(e) > 0 and np.nanmax(e) / max(np.nanmin(e), 1e-12) > 30:
         ax.set_yscale("log")
@@ -275,38 +363,59 @@ def build_document(result: dict) -> Document:
     doc.paragraph(f"Training logs: {files('train') or '—'}. Test logs: {files('test') or '—'}.")
     for name, tr in result["targets"].items():
         doc.heading(name)
-        doc.paragraph(f"{tr['n_train']} training and {tr['n_test']} test samples; {tr['test_data']}. "
-                      f"Inputs: {', '.join(tr['inputs'])}.")
+        if tr.get("verdict"):
+            doc.verdict(tr["verdict"])
+        has_series = bool(tr.get("test_series", {}).get("y"))
+        eq = fig_equation(name, tr)
+        top = []
+        if eq is not None:
+            delays = (tr.get("final") or {}).get("delays_s") or {}
+            top.append((eq, f"{name}_equation", "final model, in m/s²" + (
+                "; delayed inputs: " + ", ".join(f"{k}(t − {1000 * v:.0f} ms)" for k, v in delays.items())
+                if delays else "")))
+        if has_series:
+            top.append((fig_measured_vs_predicted(name, tr), f"{name}_test_prediction",
+                        "measured vs predicted on the test data (final model and empirical model)"))
+        if top:
+            doc.side_by_side(*top)
         if tr.get("equation"):
             doc.code("\n".join([tr["equation"], *_legend(tr)]
                                + ([f"expanded: {tr['equation_expanded']}"] if tr.get("equation_expanded") else [])))
-        if tr.get("verdict"):
-            doc.paragraph(tr["verdict"])
         if tr.get("ladder"):
             doc.table(LADDER_HEADER, ladder_rows(tr))
             doc.paragraph(method_line(cfg))
-        doc.table(ERROR_HEADER, error_rows(tr))
-        imp = tr.get("improvement_pct") or {}
-        doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
-                      f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its least-squares refit. "
-                      f"The best run is chosen by training error among runs meeting the constraint "
-                      f"threshold, never by test error.")
-        refit = tr["empirical_refit"].get("coefficients") or {}
-        if refit:
-            doc.paragraph("Empirical refit: " + ", ".join(f"{fmt(v)}·⟨{k}⟩" for k, v in refit.items())
-                          + f" + {fmt(tr['empirical_refit'].get('intercept'))}")
+        doc.paragraph(f"{tr['n_train']} training and {tr['n_test']} test samples; {tr['test_data']}. "
+                      f"Inputs: {', '.join(tr['inputs'])}.")
+        if not tr.get("ladder"):  # a result of the first version (no ladder): its own table
+            doc.table(ERROR_HEADER, error_rows(tr))
+            imp = tr.get("improvement_pct") or {}
+            doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
+                          f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its least-squares refit. "
+                          f"The best run is chosen by training error among runs meeting the constraint "
+                          f"threshold, never by test error.")
+            refit = tr["empirical_refit"].get("coefficients") or {}
+            if refit:
+                doc.paragraph("Empirical refit: " + ", ".join(f"{fmt(v)}·⟨{k}⟩" for k, v in refit.items())
+                              + f" + {fmt(tr['empirical_refit'].get('intercept'))}")
         for note in tr.get("notes") or []:
             if note != tr["test_data"]:
                 doc.paragraph(f"NOTE: {note}")
         if tr.get("runs"):
+            chosen = (tr.get("guards") or {}).get("chosen_run") if tr.get("ladder") else tr.get("best_run")
+            mark = " (its evolved terms are in the final model)" if tr.get("ladder") else " (best)"
+            if tr.get("ladder"):
+                g = tr.get("guards") or {}
+                doc.paragraph(f"SNGP runs (errors of each run's own model on the rows it searched): "
+                              f"{g.get('implausible', 0)} rejected as implausible, "
+                              f"{g.get('constraints_broken', 0)} breaking the constraints, "
+                              f"{g.get('drag_not_monotone', 0)} with drag not growing with speed, "
+                              f"{g.get('no_evolved_term_left', 0)} with no evolved term left after the guards.")
             doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "qualified", "wall (s)"],
-                      [[str(i + 1) + (" (best)" if i == tr.get("best_run") else ""), r.get("seed"),
+                      [[str(i + 1) + (mark if i == chosen else ""), r.get("seed"),
                         fmt(r.get("rmse_train")), fmt(r.get("rmse_test")), fmt(r.get("constraint_rmse_train")),
                         fmt(r.get("constraint_rmse_test")), "yes" if r.get("qualified") else "no",
                         fmt(r.get("wall_s"), 3)] for i, r in enumerate(tr["runs"])])
-        if tr.get("test_series", {}).get("y"):
-            doc.figure(fig_measured_vs_predicted(name, tr), f"{name}_test_prediction",
-                       "measured vs predicted on the test data (identified best run and empirical model)")
+        if has_series:
             doc.figure(fig_residuals(name, tr), f"{name}_residuals", "residual over time on the test data")
         if any(math.isfinite(_f(r.get("rmse_test"))) for r in tr.get("runs") or []):
             doc.figure(fig_runs(name, tr), f"{name}_runs",

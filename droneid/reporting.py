@@ -22,10 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote
 
+import numpy as np
+
 from .errors import ConfigError
 from .io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
 
-__all__ = ["Document", "new_figure", "fmt", "md_escape", "write_report_set"]
+__all__ = ["Document", "new_figure", "fmt", "md_escape", "write_report_set", "break_gaps"]
 
 
 #: characters that Markdown may read as syntax anywhere in a line
@@ -53,6 +55,33 @@ def new_figure(width_in: float = 7.0, height_in: float = 3.6):
     return Figure(figsize=(width_in, height_in), dpi=110, layout="constrained")
 
 
+def break_gaps(x, ys, t=None, flight=None, factor: float = 5.0):
+    """``(x, [y, ...])`` with NaN inserted wherever the samples are not contiguous, so a plotted
+    line is broken there instead of bridging the gap.
+
+    A gap is where ``flight`` (one id per sample) changes, or where the time step of ``t`` (s;
+    defaults to ``x``) is non-positive or more than ``factor`` times the median positive step
+    (e.g. the seconds the vehicle sat on the ground, which the dataset dropped). Returns float
+    arrays one NaN longer per gap.
+    """
+    x = np.asarray(x, float)
+    ys = [np.asarray(y, float) for y in ys]
+    tt = x if t is None else np.asarray(t, float)
+    if tt.size < 2:
+        return x, ys
+    dt = np.diff(tt)
+    pos = dt[dt > 0]
+    med = float(np.median(pos)) if pos.size else 0.0
+    brk = (dt <= 0) | (dt > factor * med) if med > 0 else np.zeros(dt.size, bool)
+    if flight is not None and len(flight) == tt.size:
+        fl = np.asarray(flight)
+        brk |= fl[1:] != fl[:-1]
+    idx = np.flatnonzero(brk) + 1
+    if not idx.size:
+        return x, ys
+    return np.insert(x, idx, np.nan), [np.insert(y, idx, np.nan) for y in ys]
+
+
 def fmt(x, sig: int = 4) -> str:
     """A number with ``sig`` significant figures; '—' for None/nan."""
     if x is None:
@@ -64,6 +93,12 @@ def fmt(x, sig: int = 4) -> str:
     if xf != xf:
         return "—"
     return f"{xf:.{sig}g}"
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
 
 
 @dataclass
@@ -87,6 +122,18 @@ class Document:
         self.blocks.append(("p", text))
         return self
 
+    def verdict(self, text: str) -> "Document":
+        """A prominent one-sentence conclusion (bold, in a box in HTML)."""
+        self.blocks.append(("verdict", text))
+        return self
+
+    def side_by_side(self, *items) -> "Document":
+        """Figures shown beside each other (wrapping on narrow pages); each item is
+        ``(fig_or_png_bytes, name, caption)``; ``name`` becomes ``name.png``."""
+        self.blocks.append(("row", [_Figure(n, f if isinstance(f, (bytes, bytearray)) else _png(f), c)
+                                    for f, n, c in items]))
+        return self
+
     def code(self, text: str) -> "Document":
         self.blocks.append(("code", text))
         return self
@@ -102,10 +149,15 @@ class Document:
 
     def figure(self, fig, name: str, caption: str = "") -> "Document":
         """Add a matplotlib figure; ``name`` becomes ``name.png`` beside the report."""
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
-        self.blocks.append(("fig", _Figure(name, buf.getvalue(), caption)))
+        self.blocks.append(("fig", _Figure(name, _png(fig), caption)))
         return self
+
+    def _figs(self):
+        for b in self.blocks:
+            if b[0] == "fig":
+                yield b[1]
+            elif b[0] == "row":
+                yield from b[1]
 
     # -- rendering ----------------------------------------------------------------------------
     def markdown(self) -> str:
@@ -118,6 +170,13 @@ class Document:
                 out += ["#" * b[1] + " " + esc(b[2]), ""]
             elif b[0] == "p":
                 out += [esc(b[1]), ""]
+            elif b[0] == "verdict":
+                out += [f"**{esc(b[1])}**", ""]
+            elif b[0] == "row":
+                for f in b[1]:
+                    out += [f"![{esc(f.caption or f.name)}]({quote(f.name)}.png)", ""]
+                    if f.caption:
+                        out += [f"*{esc(f.caption)}*", ""]
             elif b[0] == "code":
                 fence = "`" * max(3, 1 + max((len(r) for r in re.findall(r"`+", b[1])), default=0))
                 out += [fence, b[1], fence, ""]
@@ -136,32 +195,44 @@ class Document:
     def html(self) -> str:
         e = html.escape
         out = ["<!DOCTYPE html>", "<html><head><meta charset='utf-8'>", f"<title>{e(self.title)}</title>",
-               "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em}"
+               "<style>body{font-family:sans-serif;max-width:70em;margin:2em auto;padding:0 1em;"
+               "overflow-wrap:anywhere}"
+               ".tbl{overflow-x:auto;max-width:100%}"
                "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:.25em .6em;"
                "text-align:right}th{background:#eee}td:first-child,th:first-child{text-align:left}"
-               "pre{background:#f6f6f6;padding:.6em;overflow-x:auto}img{max-width:100%}"
+               "pre{background:#f6f6f6;padding:.6em;white-space:pre-wrap;overflow-wrap:anywhere;"
+               "max-width:100%;box-sizing:border-box}"
+               "img{max-width:100%;height:auto}figure{margin:1em 0;min-width:0}"
+               ".row{display:flex;flex-wrap:wrap;gap:1em;align-items:flex-start}"
+               ".row figure{flex:1 1 26em;max-width:100%}"
+               ".verdict{font-size:120%;font-weight:bold;background:#eef5ee;border-left:.3em solid #2a7;"
+               "padding:.5em .8em}"
                "figcaption{color:#555;font-size:90%}</style></head><body>", f"<h1>{e(self.title)}</h1>"]
+        img = lambda f: (f"<figure><img alt='{e(f.name)}' src='data:image/png;base64,"  # noqa: E731
+                         f"{base64.b64encode(f.png).decode('ascii')}'><figcaption>{e(f.caption)}</figcaption></figure>")
         for b in self.blocks:
             if b[0] == "h":
                 out.append(f"<h{b[1]}>{e(b[2])}</h{b[1]}>")
             elif b[0] == "p":
                 out.append(f"<p>{e(b[1])}</p>")
+            elif b[0] == "verdict":
+                out.append(f"<p class='verdict'>{e(b[1])}</p>")
+            elif b[0] == "row":
+                out.append("<div class='row'>" + "".join(img(f) for f in b[1]) + "</div>")
             elif b[0] == "code":
                 out.append(f"<pre>{e(b[1])}</pre>")
             elif b[0] == "table":
-                out.append("<table><tr>" + "".join(f"<th>{e(h)}</th>" for h in b[1]) + "</tr>")
+                out.append("<div class='tbl'><table><tr>" + "".join(f"<th>{e(h)}</th>" for h in b[1]) + "</tr>")
                 out += ["<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in b[2]]
-                out.append("</table>")
+                out.append("</table></div>")
             elif b[0] == "fig":
-                data = base64.b64encode(b[1].png).decode("ascii")
-                out.append(f"<figure><img alt='{e(b[1].name)}' src='data:image/png;base64,{data}'>"
-                           f"<figcaption>{e(b[1].caption)}</figcaption></figure>")
+                out.append(img(b[1]))
         out.append("</body></html>")
         return "\n".join(out)
 
     def files(self, stem: str = "report") -> dict[str, bytes | str]:
         """{file name: content}: ``stem.md``, ``stem.html`` and every figure's PNG."""
-        out: dict[str, bytes | str] = {f"{b[1].name}.png": b[1].png for b in self.blocks if b[0] == "fig"}
+        out: dict[str, bytes | str] = {f"{f.name}.png": f.png for f in self._figs()}
         out[f"{stem}.md"] = self.markdown()
         out[f"{stem}.html"] = self.html()
         return out
@@ -179,7 +250,7 @@ class Document:
         files = {name: json_text(obj) for name, obj in data.items()}
         files.update(self.files(stem))
         written = write_report_set(directory, files)
-        paths = {b[1].name: written[f"{b[1].name}.png"] for b in self.blocks if b[0] == "fig"}
+        paths = {f.name: written[f"{f.name}.png"] for f in self._figs()}
         paths.update({name: written[name] for name in data})
         if len(data) == 1:
             paths["json"] = written[next(iter(data))]

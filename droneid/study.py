@@ -34,7 +34,7 @@ def _variant(scenario: str, nprior: int) -> str:
 
 
 def _label(nprior: int) -> str:
-    return {0: "no prior", 1: "1 prior feature", 3: "3 prior features"}[nprior]
+    return "no prior" if nprior == 0 else f"{nprior} prior feature" + ("" if nprior == 1 else "s")
 
 
 def _ranksum_p(a, b) -> float:
@@ -189,6 +189,29 @@ def format_study(result: dict) -> str:
     return "\n".join(lines)
 
 
+def fig_study_box(t: str, tr: dict):
+    """Box plot of the test errors (m/s²) per scenario and prior variant of one target; the tick
+    labels name the scenario and the prior variant in full."""
+    fig = new_figure(7.5, 3.8)
+    ax = fig.add_subplot()
+    data, labels = [], []
+    for v in tr["variants"].values():
+        vals = [r["rmse_test"] for r in v["runs"] if r["rmse_test"] is not None]
+        data.append(vals if vals else [float("nan")])
+        labels.append(f"{v['scenario']}\n{_label(v['prior_features'])}")
+    ax.boxplot(data, tick_labels=labels)
+    ax.tick_params(axis="x", labelsize=8)
+    ax.set_xlabel("scenario and prior variant")
+    ax.axhline(tr["empirical"]["rmse_test"], color="tab:orange", ls="--", label="empirical model")
+    ax.set_ylabel("e_d test (m/s²)")
+    finite = [x for d in data for x in d if x == x]
+    if finite and max(finite) / max(min(finite), 1e-12) > 30:
+        ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    ax.set_title(f"{t}: test error per variant")
+    return fig
+
+
 def study_document(result: dict) -> Document:
     cfg = result["config"]
     doc = Document("droneid study: prior features and constraints")
@@ -206,21 +229,7 @@ def study_document(result: dict) -> Document:
         doc.paragraph(f"{tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']}.")
         for n in tr.get("notes") or []:
             doc.paragraph(f"NOTE: {n}")
-        fig = new_figure(7.0, 3.4)
-        ax = fig.add_subplot()
-        data, labels = [], []
-        for v in tr["variants"].values():
-            vals = [r["rmse_test"] for r in v["runs"] if r["rmse_test"] is not None]
-            data.append(vals if vals else [float("nan")])
-            labels.append(f"{v['scenario'][:5]}\n{v['prior_features']}p")
-        ax.boxplot(data, tick_labels=labels)
-        ax.axhline(tr["empirical"]["rmse_test"], color="tab:orange", ls="--", label="empirical model")
-        ax.set_ylabel("e_d test (m/s²)")
-        finite = [x for d in data for x in d if x == x]
-        if finite and max(finite) / max(min(finite), 1e-12) > 30:
-            ax.set_yscale("log")
-        ax.legend(fontsize=8)
-        ax.set_title(f"{t}: test error per variant")
+        fig = fig_study_box(t, tr)
         doc.figure(fig, f"study_{t}", "test errors per scenario and prior variant")
     return doc
 

@@ -80,8 +80,10 @@ def test_identify_writes_the_documented_schema_and_files(identified):
     assert "delays_s" in doc["config"] and doc["config"]["fitness"]["train"]["ok"]
     assert doc["provenance"]["train"][0]["files"][0].endswith("eight.tlog")
     html = (identified / "report.html").read_text()
-    # 4 figures per target + the multi-step error and trace figures
-    assert html.count("data:image/png;base64,") == 10
+    # 5 figures per target (typeset equation, comparison, residual, runs, Pareto) + the multi-step
+    # error and trace figures
+    assert html.count("data:image/png;base64,") == 12
+    assert {f"{t}_equation.png" for t in doc["targets"]} <= names
 
 
 def test_predict_round_trip_reproduces_the_test_error(identified, logs, capsys):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 import math
 
 import numpy as np
@@ -144,3 +145,100 @@ def test_readable_equation_shows_prior_symbols_by_name_and_rounds():
     eq = readable_equation("vx_dot", {"-sin(P1_a)": -0.5, "vx**2": 0.25, "8.0*P1_a*vx": 0.5}, {"a": 1.0},
                            0.0, syms)
     assert eq == "vx_dot = 1·⟨a⟩ + 0.5·sin(⟨a⟩) + 0.25·vx**2 + 4·⟨a⟩*vx"
+
+
+# ------------------------------------------------------------------------------------------------
+# reports that read at a glance (issue 13 item 5)
+
+LONG_EXPR = ("-0.282747590081903*vx + 0.996674873717764*(sin(pitch)*cos(roll)*cos(yaw) + sin(roll)*sin(yaw))"
+             "*(1.08996582798623e-8*rpm1**2 + 1.08996582798623e-8*rpm2**2 + 1.08996582798623e-8*rpm3**2"
+             " + 1.08996582798623e-8*rpm4**2) - 0.00227831391289888")
+
+
+def ladder_result(gap: bool = True) -> dict:
+    """The hand-built result with the ladder, final model and verdict of the current identify, and
+    (``gap``) a 3 s gap in the test flight's time (the vehicle on the ground)."""
+    r = hand_built_result()
+    tr = r["targets"]["vx_dot"]
+    if gap:
+        t = np.asarray(tr["test_series"]["t"])
+        tr["test_series"]["t"] = np.where(t >= 2.5, t + 3.0, t).tolist()
+    rung = lambda name, d, e: {"name": name, "description": d, "rmse_train": e, "rmse_validation": e,  # noqa: E731
+                               "rmse_test": e, "constraint_rmse_test": 0.01, "terms": [], "model": None}
+    tr["ladder"] = [rung("empirical", "the empirical tilt-drag model as given", 0.3),
+                    rung("refit", "prior, least-squares refit", 0.2),
+                    rung("final", "= the rung above", 0.2)]
+    model = {"target": "vx_dot", "expr": LONG_EXPR, "delays_s": {"rpm1": 0.1}, "unit": "m/s^2",
+             "equation": "vx_dot = " + LONG_EXPR}
+    tr["final"] = tr["empirical_model"] = tr["refit_model"] = model
+    tr["verdict"] = "vx_dot: the physical model is 33 % better than the empirical model on the test flights"
+    tr["guards"] = {}
+    return r
+
+
+def _lines(fig):
+    return [ln for ax in fig.axes for ln in ax.get_lines()]
+
+
+def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_the_ladder(tmp_path):
+    write_result(ladder_result(), tmp_path)
+    html = (tmp_path / "report.html").read_text()
+    i_verdict = html.index("class='verdict'>vx_dot: the physical model is 33 %")
+    i_eq = html.index("alt='vx_dot_equation'")
+    i_plot = html.index("alt='vx_dot_test_prediction'")
+    i_ladder = html.index("the empirical tilt-drag model as given")
+    assert html.index("<h2>vx_dot</h2>") < i_verdict < i_eq < i_plot < i_ladder
+    # equation and comparison plot share one row (side by side)
+    row = html[html.rindex("<div class='row'>", 0, i_eq):]
+    assert row.index("alt='vx_dot_test_prediction'") < row.index("</div>")
+    assert (tmp_path / "vx_dot_equation.png").read_bytes()[:4] == b"\x89PNG"
+    md = (tmp_path / "report.md").read_text()
+    assert md.index("**vx_dot: the physical model") < md.index("the empirical tilt-drag model as given")
+
+
+def test_text_output_keeps_verdict_equation_ladder_order():
+    text = format_text(ladder_result())
+    assert text.index("33 % better") < text.index("expanded:") < text.index("FINAL: = the rung above")
+
+
+def test_long_equation_is_wrapped_into_lines_of_bounded_length():
+    from droneid.report_identify import _math_lines, fig_equation
+    lines = _math_lines("vx_dot", LONG_EXPR, width=110)
+    assert len(lines) >= 2 and all(len(ln) < 110 + 60 for ln in lines)
+    assert lines[0].startswith(r"$\dot{v}_{x} = ") and "0.2827" in "".join(lines)
+    assert "0.282747590081903" not in "".join(lines)  # numbers rounded to 4 significant figures
+    assert _math_lines("vx_dot", "__import__('os').system('false')") is None  # parsed safely, never eval'd
+    fig = fig_equation("vx_dot", ladder_result()["targets"]["vx_dot"])
+    w, h = fig.get_size_inches()
+    assert w <= 10 and h >= 2 * 0.42  # wrapped, not one very wide line
+
+
+def test_plots_break_the_line_at_a_gap_in_time():
+    from droneid.report_identify import fig_measured_vs_predicted, fig_residuals
+    tr = ladder_result(gap=True)["targets"]["vx_dot"]
+    for fig in (fig_measured_vs_predicted("vx_dot", tr), fig_residuals("vx_dot", tr)):
+        for ln in [ln for ln in _lines(fig) if len(ln.get_xdata()) > 2]:
+            x, y = np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float)
+            k = int(np.flatnonzero(np.isnan(y))[0])
+            assert np.isnan(y).sum() == 1 and x[k - 1] < 2.5 and x[k + 1] >= 5.5
+    tr = ladder_result(gap=False)["targets"]["vx_dot"]
+    assert not any(np.isnan(np.asarray(ln.get_ydata(), float)).any() for ln in
+                   _lines(fig_measured_vs_predicted("vx_dot", tr)))
+
+
+def test_break_gaps_splits_flights_and_time_jumps():
+    from droneid.reporting import break_gaps
+    x, (y,) = break_gaps(np.arange(6.0), [np.ones(6)], t=[0, .1, .2, 9, 9.1, 0.05], flight=[0, 0, 0, 0, 0, 1])
+    assert np.flatnonzero(np.isnan(y)).tolist() == [3, 6] and np.isnan(x[[3, 6]]).all()
+
+
+def test_every_axis_of_the_report_figures_has_a_unit():
+    from droneid import report_identify as R
+    tr = ladder_result()["targets"]["vx_dot"]
+    figs = [R.fig_measured_vs_predicted("vx_dot", tr), R.fig_residuals("vx_dot", tr), R.fig_runs("vx_dot", tr),
+            R.fig_pareto("vx_dot", tr, 0.1)]
+    unit = re.compile(r"\((s|m/s²|m/s\^2|m/s)\)|sorted")
+    for fig in figs:
+        for ax in fig.axes:
+            assert unit.search(ax.get_xlabel()), ax.get_xlabel()
+            assert unit.search(ax.get_ylabel()), ax.get_ylabel()

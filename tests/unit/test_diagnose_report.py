@@ -40,3 +40,29 @@ def test_summary_of_control_lists_untestable(tmp_path):
     assert "effects added: none" in txt and "battery_sag: needs battery_voltage" in txt
     write_report(r, tmp_path)
     assert (tmp_path / "diagnosis.html").is_file()
+
+
+def test_residual_plot_is_not_bridged_across_ground_time_or_between_flights():
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from droneid.diagnose_report import fig_residual_time
+    t = np.r_[np.arange(0, 10, 0.05), np.arange(46, 50, 0.05), np.arange(0, 5, 0.05)]  # 36 s on the ground
+    fl = np.r_[np.zeros(200 + 80, int), np.ones(100, int)]
+    res = np.sin(t)
+    r = SimpleNamespace(series={"vz_dot": {"t": t, "flight": fl, "residual_before": res,
+                                           "residual_after": 0.5 * res}}, steps=[{"effect": "x"}])
+    fig = fig_residual_time(r)
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == "vz_dot residual (m/s²)" and ax.get_xlabel() == "time (s)"
+    for ln in ax.get_lines():
+        x, y = np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float)
+        gaps = np.flatnonzero(np.isnan(y))
+        assert gaps.tolist() == [200, 281]  # after the ground time, and where flight 2 starts
+        assert x[199] < 10 <= 46 <= x[201]
+
+
+def test_axis_labels_of_explaining_signals_carry_units():
+    from droneid.diagnose_report import _with_unit
+    assert _with_unit("t") == "t (s)" and _with_unit("vz") == "vz (m/s)" and _with_unit("yaw") == "yaw (rad)"
