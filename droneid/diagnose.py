@@ -66,7 +66,7 @@ _OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis"
 
 @dataclass(frozen=True)
 class DiagnoseConfig:
-    """Settings of a diagnosis (the README's Diagnosis section documents them).
+    """Settings of a diagnosis (docs/diagnosis.md documents them).
 
     ts_s, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).

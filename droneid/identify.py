@@ -909,6 +909,11 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
                       "seed": done[guards["chosen_run"]]["seed"] if guards.get("chosen_run") is not None else None,
                       "qualified": identified.get("qualified", True)}
         pred = np.asarray(final["pred_test"], float)
+        if math.isfinite(final["constraint_rmse_test"]) and final["constraint_rmse_test"] > cfg.gamma:
+            notes.append(f"the final model breaks the prior's formal constraints (e_c = "
+                         f"{final['constraint_rmse_test']:.3g} m/s² > γ = {cfg.gamma:g}): the data pull its "
+                         f"fitted scales away from the physics where there are no data (e.g. zero thrust); "
+                         f"trust it inside the training range only")
         if guards.get("implausible"):
             notes.append(f"{guards['implausible']} run(s) rejected: their model leaves ±{guards['bound']:.3g} "
                          f"{'m/s²' if p.target.startswith('v') else ''} on the training inputs' range ± 20 %")
@@ -945,9 +950,11 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
                                                 best["intercept"], best.get("prior_symbols")) if best else None),
         equation_expanded=(final["model"]["equation"] if final else
                            f"{p.target} = {best.get('equation_expanded') or best['equation']}" if best else None),
-        coefficients=dict(best["coefficients"]) if best else {},
-        prior_coefficients=dict(best["prior_coefficients"]) if best else {},
-        intercept=best["intercept"] if best else None,
+        coefficients=({k: v for k, v in final["terms"].items() if not k.startswith("⟨")} if final
+                      else dict(best["coefficients"]) if best else {}),
+        prior_coefficients=({k.strip("⟨⟩"): v for k, v in final["terms"].items() if k.startswith("⟨")}
+                            if final else dict(best["prior_coefficients"]) if best else {}),
+        intercept=final.get("intercept") if final else best["intercept"] if best else None,
         identified=identified, identified_median=median,
         empirical=dict(p.empirical), empirical_refit=dict(p.empirical_refit), improvement_pct=imp,
         runs=[{k: r.get(k) for k in RUN_KEYS} for r in done],

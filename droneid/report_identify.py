@@ -80,12 +80,21 @@ def _legend(tr: dict) -> list[str]:
             for p in tr.get("prior_features") or []]
 
 
+def _constraints_label(cfg: dict) -> str:
+    """``paper`` means the prior's own set: say which."""
+    c = cfg.get("constraints")
+    if c != "paper":
+        return str(c)
+    prior = cfg.get("prior_used") or cfg.get("prior")
+    return "the paper's" if prior == "tilt-drag" else f"{prior}'s own (docs/priors.md)"
+
+
 def format_text(result: dict) -> str:
     """The terminal summary: per target the equation, the error table and the improvement."""
     out = []
     cfg = result.get("config", {})
     out.append(f"droneid identify: prior {cfg.get('prior_used') or cfg.get('prior')} with {cfg.get('prior_features')} prior "
-               f"feature(s), constraints {cfg.get('constraints')}, {cfg.get('runs')} run(s) of "
+               f"feature(s), constraints {_constraints_label(cfg)}, {cfg.get('runs')} run(s) of "
                f"{cfg.get('generations')} generations x population {cfg.get('population')}"
                + (" (quick budget)" if cfg.get("quick") else ""))
     for note in result.get("notes") or []:

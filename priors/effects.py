@@ -65,7 +65,7 @@ battery_sag         G·(u/ū)·(V − V̄)/V̄, u the command (throttle, else me
                     not applicable when G comes from measured rotor speeds or thrust
 ==================  ==========================================================================
 
-User effects: :func:`load_effects` reads TOML (see the README's Diagnosis section); expressions are
+User effects: :func:`load_effects` reads TOML (see docs/diagnosis.md); expressions are
 parsed only with :func:`droneid.expressions.parse_expression`.
 """
 from __future__ import annotations
