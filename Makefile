@@ -9,7 +9,9 @@ STAMP  := $(VENV)/.installed-stamp
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@# PYTHONWARNINGS: setuptools' build backend prints a boxed 'Editable installation' notice
+	@# on every editable install; the user can do nothing about it, so it is not shown
+	PYTHONWARNINGS=ignore $(BIN)/python -m pip install --quiet -e '.[test]'
 	@echo "compiling the SNGP kernels once (numba cache; later runs load them in < 1 s) ..."
 	@$(BIN)/python -c "import droneid.sngp as s; print(f'compiled in {s.warmup():.1f} s')"
 	@touch $(STAMP)
