@@ -118,9 +118,6 @@ class TermModel:
         """The fitted model as one sympy expression."""
         return sp.Float(self.intercept) + sp.Add(*[sp.Float(c) * t for c, t in zip(self.coefs, self.terms)])
 
-    def with_terms(self, terms: Sequence, labels: Sequence) -> "TermModel":
-        return TermModel(tuple(terms), tuple(labels))
-
 
 def choose_delay(cv_error: Callable[[float], float], grid: Sequence[float] = DELAY_GRID_S,
                  min_gain: float = 0.01) -> tuple[float, dict]:
@@ -154,12 +151,13 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
 
     1. A term whose column correlates with an earlier one beyond ``corr_limit`` (a cancelling
        pair or a near-duplicate) is dropped (least squares refits the survivor).
-    Terms with more than ``max_ops`` sympy operations (``sizes``: counted on the form a person
-       reads, e.g. with a named prior feature as one symbol) or with a function inside a function
-       (sin(cos(.)), :func:`nested_functions`) are dropped first (unreadable). While the
-       terms' contributions Σ|b_i|·std(col_i) exceed ``cancel_limit`` times the spread of their
-       sum, the evolved term contributing most goes (a cancelling pair such as 22.9·cos a − 21.7·cos b
-       fits the training range and explodes outside it).
+       Terms with more than ``max_ops`` sympy operations (``sizes``: counted on the form a
+       person reads, e.g. with a named prior feature as one symbol) or with a function inside a
+       function (sin(cos(.)), :func:`nested_functions`) go too (unreadable). While the terms'
+       contributions Σ|b_i|·std(col_i) exceed ``cancel_limit`` times the spread of their sum
+       (times the physical terms' own ratio when that is above 1: a command map a Σu² + b Σu
+       offsets by design), the evolved term contributing most goes (a cancelling pair such as
+       22.9·cos a − 21.7·cos b fits the training range and explodes outside it).
     2. Backward elimination on the blocked-CV error: the evolved term whose removal costs least
        goes while the CV error rises by less than ``margin`` (relative).
     Returns the refit model and one line per dropped term.
@@ -200,15 +198,23 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
         spread = float(np.std(np.sum(parts, axis=0)))
         return {i: abs(b) * float(np.std(cols[i])) for b, i in zip(beta, idx)}, spread
 
+    def ratio(idx):
+        contrib, spread = cancellation(idx)
+        return sum(contrib.values()) / max(spread, 1e-12), contrib
+
+    # the physical terms may offset each other by design (a command map a Σu² + b Σu): only
+    # cancellation beyond theirs counts against evolved terms
+    base = [i for i in keep if i < keep_first]
+    limit = cancel_limit * max(1.0, ratio(base)[0] if base else 1.0)
     while True:  # cancelling pairs: big opposite contributions that nearly sum to nothing
-        contrib, spread = cancellation(keep)
+        r, contrib = ratio(keep)
         evolved = [i for i in keep if i >= keep_first]
-        if not evolved or sum(contrib.values()) <= cancel_limit * max(spread, 1e-12):
+        if not evolved or r <= limit:
             break
         i = max(evolved, key=lambda k: contrib[k])
         keep.remove(i)
-        notes.append(f"dropped {model.labels[i]}: it cancels other terms (contributions "
-                     f"{sum(contrib.values()):.3g} for a sum that spreads {spread:.3g})")
+        notes.append(f"dropped {model.labels[i]}: it cancels other terms (contributions {r:.3g}x the "
+                     f"spread of their sum, limit {limit:.3g}x)")
 
     cur = cv(keep)
     while True:
@@ -220,7 +226,7 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
         if trials[i] <= cur * (1.0 + margin):
             keep.remove(i)
             notes.append(f"dropped {model.labels[i]}: validation error {cur:.4g} -> {trials[i]:.4g} without it")
-            cur = min(cur, trials[i]) if trials[i] < cur else trials[i]
+            cur = trials[i]
         else:
             break
     trimmed = TermModel(tuple(model.terms[i] for i in keep), tuple(model.labels[i] for i in keep))

@@ -131,3 +131,18 @@ def test_verdicts_read_as_what_they_are():
     assert "on validation blocks of the training flights (no test data)" in v and "50 %" in v
     # the copter34 bench case: a target that does not vary is no "+100 %" success
     assert "no verdict" in verdict("vy_dot", rung(0.0, 0.0), rung(0.0, 0.0), False, False, y_spread=0.0)
+
+
+def test_physical_terms_that_offset_each_other_do_not_cost_a_real_evolved_term():
+    """A command map a·Σu² + b·Σu has terms of opposite sign by design; a real missing term
+    beside it is kept (only cancellation beyond the physical terms' own counts)."""
+    rng = np.random.default_rng(3)
+    n = 1000
+    u = rng.uniform(0.4, 0.8, n)
+    cols = {"u": u, "vx": rng.uniform(-2, 2, n)}
+    U, V = symbol("u"), v
+    y = 40 * u ** 2 - 30 * u - 0.3 * cols["vx"] - 0.2 * np.abs(cols["vx"]) * cols["vx"] + rng.normal(0, 0.02, n)
+    blocks, _ = validation_blocks(np.tile(np.arange(200) * 0.05, 5), np.repeat(np.arange(5), 200))
+    m = TermModel((U ** 2, U, V, sp.Abs(V) * V), ("u²", "u", "vx", "quadratic drag"))
+    trimmed, notes = trim_terms(m, cols, y, blocks, keep_first=3)
+    assert "quadratic drag" in trimmed.labels, notes
