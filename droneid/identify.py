@@ -36,6 +36,7 @@ from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
 from .expressions import symbol
 from .numerics import rmse
+from .sngp.selection import best_index
 from .plan import (TARGETS, Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
 
@@ -613,22 +614,12 @@ def _float(v) -> float:
 
 
 def select_best(runs: Sequence[dict]) -> int | None:
-    """Index of the chosen run: lowest TRAINING error among runs whose model qualified
-    (met e_c^train < gamma; every unconstrained run qualifies); if none qualified, the run with
-    the lowest training constraint error. Test errors are never looked at. None for no runs."""
-    idx = [i for i, r in enumerate(runs) if r is not None]
-    if not idx:
-        return None
-    ok = [i for i in idx if runs[i].get("qualified", True)]
-    if ok:
-        return min(ok, key=lambda i: (_nan_last(runs[i]["rmse_train"]), i))
-    return min(idx, key=lambda i: (_nan_last(runs[i].get("constraint_rmse_train")),
-                                   _nan_last(runs[i]["rmse_train"]), i))
-
-
-def _nan_last(v) -> float:
-    v = _float(v)
-    return v if math.isfinite(v) else math.inf
+    """Index of the chosen run by the engine's one selection rule (:mod:`droneid.sngp.selection`)
+    on TRAINING errors: runs whose model qualified (met e_c^train < gamma; every unconstrained
+    run qualifies) by e_d^train, else by e_c^train. Test errors are never looked at. None for no
+    runs."""
+    return best_index(runs, lambda r: r["rmse_train"], lambda r: r.get("constraint_rmse_train"),
+                      lambda r: r.get("qualified", True))
 
 
 def _median(runs, key) -> float:

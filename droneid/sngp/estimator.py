@@ -7,6 +7,7 @@ simplifies the equation with sympy under a time limit and fills the ``*_`` attri
 from __future__ import annotations
 
 import logging
+import inspect
 import math
 import re
 import signal
@@ -28,6 +29,7 @@ from . import population as popmod
 from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
 from .population import Population, Problem
+from .selection import best_index
 from .search import run_search
 from .precompile import kernels_ready
 
@@ -35,24 +37,6 @@ log = logging.getLogger(__name__)
 
 __all__ = ["SNGPRegressor"]
 
-_PARAMS = {
-    "functions": DEFAULT_FUNCTIONS,
-    "population_size": 500,
-    "generations": 60000,
-    "n_features": 10,
-    "max_depth": 7,
-    "gamma": 0.05,
-    "n_epochs": 30,
-    "n_threads": 2,
-    "seed": None,
-    "progress": None,
-    "identity_steps": 100,
-    "simplify_s": 0.5,
-    "prune": "exact",
-    "validation_fraction": 0.25,
-    "early_stop_window": 10000,
-    "early_stop_margin": 0.001,
-}
 _CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
 PRUNE_RTOL = 1e-6
@@ -246,12 +230,11 @@ class SNGPRegressor:
 
         # final model
         if constrained and result.archive:
-            qualified = [r for r in result.archive if r[1] < self.gamma]
-            chosen = min(qualified, key=lambda r: r[0]) if qualified else \
-                min(result.archive, key=lambda r: r[1])
+            chosen = result.archive[best_index(result.archive, lambda r: r[0], lambda r: r[1],
+                                               lambda r: r[1] < self.gamma)]
             final = self._population_from_links(chosen[2], chosen[3])
-            self.qualified_ = bool(qualified)
-            if not qualified:
+            self.qualified_ = bool(chosen[1] < self.gamma)
+            if not self.qualified_:
                 log.warning("no model met the constraint error threshold gamma=%g; returning the "
                             "lowest-e_c model (e_c=%g)", self.gamma, chosen[1])
         else:
@@ -688,3 +671,8 @@ def _guarded_simplify(expr: sp.Expr, seconds: float, max_ops: int = 60) -> sp.Ex
         finally:
             signal.signal(signal.SIGALRM, old if old is not None else signal.SIG_DFL)
     return out if sp.count_ops(out) <= sp.count_ops(expr) else expr
+
+
+#: the estimator's parameters and their defaults, read from its signature (their one home)
+_PARAMS = {name: p.default for name, p in inspect.signature(SNGPRegressor.__init__).parameters.items()
+           if p.kind is inspect.Parameter.KEYWORD_ONLY}

@@ -21,6 +21,7 @@ import numpy as np
 from . import kernels as K
 from . import population as popmod
 from .population import Population, Problem
+from .selection import rank
 
 #: Scalarisation weights on e_c in the constrained variant, cycled over threads and epochs so
 #: that the non-dominated archive spans the front.
@@ -44,12 +45,11 @@ class SearchResult:
     cpu_s: float = 0.0
 
 
-def key(pop: Population, constrained: bool, gamma: float):
-    """Ordering of populations: e_d; constrained: qualified (e_c < gamma) by e_d, then by e_c."""
+def key(pop: Population, constrained: bool, gamma: float) -> tuple[int, float]:
+    """Sort key of a population: :func:`selection.rank` of its model (qualified: unconstrained
+    or e_c < gamma)."""
     ed, ec = float(pop.obj[K.O_ED]), float(pop.obj[K.O_EC])
-    if not constrained:
-        return (0, ed)
-    return (0, ed) if ec < gamma else (1, ec)
+    return rank(ed, ec, (not constrained) or ec < gamma)
 
 
 def schedule(generations: int, n_epochs: int, n_threads: int) -> list[list[int]]:
