@@ -2,95 +2,60 @@
 in droneid's internal convention (see :mod:`droneid.frames`).
 
 ``read_flight(path)`` recognises the format by the file's CONTENT (magic bytes, header rows);
-the extension only breaks ties. Readers are registered by format name in :data:`READERS`.
+the extension only names it in errors. A format is a plug-in: any module of this package that
+exports ``READER`` (a :class:`~parsers._registry.Reader`: name, ``read``, ``sniff``, options) is
+found by :data:`READERS`; adding a format is one new module (docs/extending.md).
 """
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import replace
-from types import MappingProxyType
 
 from droneid.errors import ConfigError, DroneIdError, LogFormatError, check_choice, did_you_mean
 from droneid.flight import VEHICLE_TYPES, Flight
 
 from ._guard import captured_output
+from ._registry import Reader, clear_cache, discover
 
 log = logging.getLogger(__name__)
 
-__all__ = ["read_flight", "detect_format", "get_reader", "READERS", "FORMATS"]
+__all__ = ["read_flight", "detect_format", "get_reader", "READERS", "FORMATS", "Reader",
+           "clear_cache"]
 
-#: format name -> "module:function" of its reader (imported on first use).
-READERS: Mapping[str, str] = MappingProxyType({
-    "dataflash": "parsers.dataflash_log:read_dataflash",
-    "tlog": "parsers.mavlink_log:read_tlog",
-    "ulog": "parsers.ulog_log:read_ulog",
-    "mcap": "parsers.mcap_log:read_mcap",
-    "motive_csv": "parsers.mocap_csv:read_motive_csv",
-    "csv": "parsers.mocap_csv:read_flat_csv",
-})
-FORMATS = tuple(READERS)
 
-_EXT = {".bin": "dataflash", ".tlog": "tlog", ".ulg": "ulog", ".mcap": "mcap", ".csv": "csv"}
+def __getattr__(name: str):
+    """``READERS`` (format name -> :class:`Reader`, read-only) and ``FORMATS`` (the names, in
+    detection order), discovered on first use."""
+    if name == "READERS":
+        return discover()
+    if name == "FORMATS":
+        return tuple(r.name for r in _in_order())
+    raise AttributeError(f"module 'parsers' has no attribute {name!r}")
+
+
+def _in_order() -> list[Reader]:
+    return sorted(discover().values(), key=lambda r: (r.order, r.name))
+
+
+def _spec(name: str) -> Reader:
+    readers = discover()
+    if name not in readers:
+        names = [r.name for r in _in_order()]
+        raise ConfigError(f"unknown log format {name!r}; known formats: {', '.join(names)}"
+                          + did_you_mean(str(name), names))
+    return readers[name]
 
 
 def get_reader(name: str) -> Callable[..., Flight]:
     """The reader function registered under a format name (ConfigError for unknown names)."""
-    if name not in READERS:
-        raise ConfigError(f"unknown log format {name!r}; known formats: {', '.join(FORMATS)}"
-                          + did_you_mean(str(name), FORMATS))
-    mod, func = READERS[name].split(":")
-    return getattr(importlib.import_module(mod), func)
-
-
-def _looks_like_tlog(head: bytes) -> bool:
-    """MAVLink frames, each after an 8-byte big-endian µs UNIX time stamp, make up most of the
-    head of the file (a few garbage bytes are tolerated; the reader counts them)."""
-    pos, frames, garbage = 0, 0, 0
-    n = len(head)
-    while pos + 10 <= n:
-        magic = head[pos + 8]
-        ts = int.from_bytes(head[pos:pos + 8], "big")
-        if magic in (0xFE, 0xFD) and 946684800_000000 < ts < 4102444800_000000:  # 2000..2100
-            ln = head[pos + 9] + (8 if magic == 0xFE else 12)
-            if magic == 0xFD and pos + 10 < n and head[pos + 10] & 1:
-                ln += 13
-            frames += 1
-            pos += 8 + ln
-        else:
-            pos += 1
-            garbage += 1
-    return frames >= 1 and garbage <= 0.25 * max(pos, 1) and (frames >= 2 or n < 64)
-
-
-def _csv_kind(head: bytes) -> str | None:
-    try:
-        text = head.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = head.decode("latin-1")
-    if "\x00" in text:
-        return None
-    first = text.splitlines()[0] if text.splitlines() else ""
-    cells = [c.strip().strip('"') for c in first.split(",")]
-    if cells and cells[0] == "Format Version":
-        return "motive_csv"
-    if len(cells) >= 2 and sum(1 for c in cells if c and not _is_number(c)) >= 2:
-        return "csv"
-    return None
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-        return True
-    except ValueError:
-        return False
+    return _spec(name).read
 
 
 def detect_format(path) -> str:
-    """The format name of a log file, from its content (extension only as a tie-breaker).
+    """The format name of a log file, from its content: the first registered reader (in
+    ``order``) whose ``sniff`` accepts the file's first 4096 bytes.
 
     Raises LogFormatError for an empty file or unrecognised content.
     """
@@ -99,26 +64,21 @@ def detect_format(path) -> str:
         head = f.read(4096)
     if not head:
         raise LogFormatError(path, "the file is empty")
-    if head.startswith(b"ULog\x01\x12\x35"):
-        return "ulog"
-    if head.startswith(b"\x89MCAP0\r\n"):
-        return "mcap"
-    if head[:2] == b"\xa3\x95" and len(head) >= 3:
-        return "dataflash"
-    if len(head) >= 10 and _looks_like_tlog(head):
-        return "tlog"
-    kind = _csv_kind(head)
-    if kind:
-        return kind
+    readers = _in_order()
+    for r in readers:
+        if r.sniff(head):
+            return r.name
     ext = os.path.splitext(path)[1].lower()
-    hint = f" (the extension says {_EXT[ext]!r} but the content does not match)" if ext in _EXT else ""
-    raise LogFormatError(path, "unrecognised log format: not DataFlash, tlog, ULog, MCAP or CSV"
-                         + hint)
+    claim = [r.name for r in readers if ext in r.extensions]
+    hint = (f" (the extension says {' or '.join(map(repr, claim))} but the content does not match)"
+            if claim else "")
+    raise LogFormatError(path, "unrecognised log format: not "
+                         + ", ".join(r.name for r in readers) + hint)
 
 
 def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | None = None,
                 body: str | None = None, column_map: Mapping[str, str] | None = None,
-                sysid: int | None = None, vehicle: str | None = None) -> Flight:
+                sysid: int | None = None, vehicle: str | None = None, **options) -> Flight:
     """Read one flight log into a :class:`Flight` (internal convention: ENU/FLU, SI, seconds).
 
     Parameters
@@ -132,6 +92,7 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     vehicle : the vehicle type (one of :data:`droneid.flight.VEHICLE_TYPES`) when the log does not
         declare it (mocap CSV, MCAP) or declares it wrongly; the log's declaration is kept in
         ``vehicle_declared``.
+    options : any other keyword option of a plug-in reader (its ``Reader.options``).
     """
     if vehicle is not None:
         check_choice("vehicle", vehicle, VEHICLE_TYPES, "read_flight")
@@ -141,20 +102,13 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     if os.path.isdir(path):
         raise LogFormatError(path, "is a directory, not a log file")
     fmt = format or detect_format(path)
-    reader = get_reader(fmt)
-    opts = {}
-    if fmt == "mcap":
-        opts["topics"] = topics
-    elif fmt == "motive_csv":
-        opts["body"] = body
-    elif fmt == "csv":
-        opts["column_map"] = column_map
-    elif fmt == "tlog":
-        opts["sysid"] = sysid
-    unused = {"topics": topics, "body": body, "column_map": column_map, "sysid": sysid}
-    bad = [k for k, v in unused.items() if v is not None and k not in opts]
+    spec = _spec(fmt)
+    given = {"topics": topics, "body": body, "column_map": column_map, "sysid": sysid, **options}
+    opts = {k: v for k, v in given.items() if v is not None}
+    bad = [k for k in opts if k not in spec.options]
     if bad:
         raise ConfigError(f"option(s) {', '.join(bad)} do not apply to {fmt} logs ({path})")
+    reader = spec.read
     flight = _guarded(reader, path, fmt, opts)
     if vehicle is not None:
         prov = flight.provenance

@@ -36,6 +36,7 @@ from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
 from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
+from ._registry import Reader
 
 log = logging.getLogger(__name__)
 
@@ -473,3 +474,12 @@ def _flip_time(b: FlightBuilder):
     i = int(np.flatnonzero(mask)[0])
     b.event(t[i], "crash", "attitude beyond 90 deg tilt while armed (flipped over)")
     return float(t[i])
+
+
+def sniff(head: bytes) -> bool:
+    """A DataFlash log starts with a message header 0xA3 0x95 (and a message type)."""
+    return head[:2] == b"\xa3\x95" and len(head) >= 3
+
+
+READER = Reader("dataflash", read_dataflash, sniff, order=10, extensions=(".bin",),
+                description="ArduPilot DataFlash (.bin), read with pymavlink; NED/FRD converted to ENU/FLU")

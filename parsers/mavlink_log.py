@@ -43,6 +43,7 @@ from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
 from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
+from ._registry import Reader
 from .dataflash_log import _frame_motors
 
 log = logging.getLogger(__name__)
@@ -380,3 +381,30 @@ def _mode_string(typ: int, autopilot: int, base_mode: int, custom_mode: int) -> 
         return str(mavutil.mode_string_v10(hb))
     except Exception:  # pragma: no cover - cosmetic
         return f"custom_mode {custom_mode}"
+
+
+def sniff(head: bytes) -> bool:
+    """MAVLink frames, each after an 8-byte big-endian µs UNIX time stamp, make up most of the
+    head of the file (a few garbage bytes are tolerated; the reader counts them)."""
+    if len(head) < 10:
+        return False
+    pos, frames, garbage = 0, 0, 0
+    n = len(head)
+    while pos + 10 <= n:
+        magic = head[pos + 8]
+        ts = int.from_bytes(head[pos:pos + 8], "big")
+        if magic in (0xFE, 0xFD) and 946684800_000000 < ts < 4102444800_000000:  # 2000..2100
+            ln = head[pos + 9] + (8 if magic == 0xFE else 12)
+            if magic == 0xFD and pos + 10 < n and head[pos + 10] & 1:
+                ln += 13
+            frames += 1
+            pos += 8 + ln
+        else:
+            pos += 1
+            garbage += 1
+    return frames >= 1 and garbage <= 0.25 * max(pos, 1) and (frames >= 2 or n < 64)
+
+
+READER = Reader("tlog", read_tlog, sniff, order=20, extensions=(".tlog",), options=("sysid",),
+                description="MAVLink telemetry log (.tlog), read with pymavlink; NED/FRD converted "
+                            "to ENU/FLU")

@@ -49,6 +49,7 @@ from droneid.flight import Flight, canonical_unit, is_canonical
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler, quat_to_matrix
 
 from ._build import FlightBuilder, command_to_unit
+from ._registry import Reader
 
 log = logging.getLogger(__name__)
 
@@ -414,3 +415,12 @@ def _has(obj, *path) -> bool:
         return True
     except (KeyError, AttributeError, TypeError):
         return False
+
+
+def sniff(head: bytes) -> bool:
+    """An MCAP file starts with the magic 0x89 ``MCAP0`` CR LF."""
+    return head.startswith(b"\x89MCAP0\r\n")
+
+
+READER = Reader("mcap", read_mcap, sniff, order=10, extensions=(".mcap",), options=("topics",),
+                description="ROS 2 MCAP (.mcap), read with mcap + mcap-ros2-support")

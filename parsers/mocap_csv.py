@@ -48,6 +48,7 @@ from droneid.flight import Flight, is_canonical
 from droneid.frames import quat_to_euler, wrap_angle
 
 from ._build import FlightBuilder, command_to_unit, intervals_from_bool
+from ._registry import Reader
 
 log = logging.getLogger(__name__)
 
@@ -386,3 +387,43 @@ def _check_euler(q, e) -> str:
                 "attitude taken from the quaternion")
     return (f"roll/pitch/yaw columns do NOT match the quaternion's Z-Y-X angles (best: {unit}, "
             f"max diff {score:.2f} rad); attitude taken from the quaternion")
+
+
+def _first_cells(head: bytes) -> list[str] | None:
+    """The cells of the first line of a text file's head (None for binary content)."""
+    try:
+        text = head.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = head.decode("latin-1")
+    if "\x00" in text:
+        return None
+    lines = text.splitlines()
+    return [c.strip().strip('"') for c in lines[0].split(",")] if lines else []
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def sniff_motive(head: bytes) -> bool:
+    """A Motive export's first row starts with ``Format Version``."""
+    cells = _first_cells(head)
+    return bool(cells) and cells[0] == "Format Version"
+
+
+def sniff_flat(head: bytes) -> bool:
+    """A flat CSV: a text first row with at least two non-numeric cells (the header)."""
+    cells = _first_cells(head)
+    return bool(cells) and len(cells) >= 2 and sum(1 for c in cells if c and not _is_number(c)) >= 2
+
+
+READERS = (
+    Reader("motive_csv", read_motive_csv, sniff_motive, order=30, extensions=(".csv",),
+           options=("body",), description="OptiTrack Motive CSV export (rigid bodies; Y-up to ENU)"),
+    Reader("csv", read_flat_csv, sniff_flat, order=90, extensions=(".csv",), options=("column_map",),
+           description="flat CSV, one header row of recognisable column names"),
+)

@@ -30,6 +30,7 @@ from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._registry import Reader
 from ._guard import BoundedReader, ReaderLoopError
 
 log = logging.getLogger(__name__)
@@ -287,3 +288,12 @@ def _status(b, topics, tt):
                 prev = a
     else:
         b.in_flight_from_height()
+
+
+def sniff(head: bytes) -> bool:
+    """A ULog file starts with the magic ``ULog`` 0x01 0x12 0x35."""
+    return head.startswith(b"ULog\x01\x12\x35")
+
+
+READER = Reader("ulog", read_ulog, sniff, order=10, extensions=(".ulg",),
+                description="PX4 ULog (.ulg), read with pyulog; NED/FRD converted to ENU/FLU")

@@ -77,7 +77,8 @@ def add_log_options(p, *, with_format: bool = True) -> None:
     ``--body``, ``--column``, ``--sysid``, ``--vehicle``) to a subcommand parser."""
     if with_format:
         p.add_argument("--format", dest="log_format", default=None,
-                       help="skip format detection (dataflash, tlog, ulog, mcap, motive_csv, csv)")
+                       help="skip format detection: a format name (dataflash, tlog, ulog, mcap, motive_csv, csv, "
+                            "or a plug-in's; docs/logs.md)")
     p.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
                    help="MCAP: use TOPIC for ROLE (pose, twist, odom, imu, battery, rc) or for a "
                         "canonical signal (throttle=/rc[2], rpm1=/esc/rpm1); repeatable")
