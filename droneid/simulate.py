@@ -708,8 +708,8 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     ex_, ey_ = _exact_hover_model(vx_t, vy_t, roll_t, pitch_t, yaw_t, P["k_drag"], P["g"])
     wind_log = np.column_stack([np.interp(t_log, th, wind[:, 0]), np.interp(t_log, th, wind[:, 1])])
 
-    def rms(x):
-        return float(np.sqrt(np.mean(np.square(x))))
+    def rms(x):  # m/s², to 1e-12: below that it is round-off, which differs between numpy builds
+        return round(float(np.sqrt(np.mean(np.square(x)))), 12)
 
     from priors.models import RPM_SCALE
     m = P["mass_kg"]
