@@ -41,7 +41,7 @@ def main(argv=None) -> int:
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
     test = simulate(path="square", duration_s=12.55, seed=12).flight
     cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=args.runs, generations=args.generations,
-                              population=args.population, jobs=args.jobs, scheduler=args.scheduler, seed=0,
+                              population_size=args.population, jobs=args.jobs, scheduler=args.scheduler, seed=0,
                               prune="exact")  # the paper's protocol, as `droneid study` runs it
     workers = args.jobs or default_jobs()
     t0 = time.perf_counter()

@@ -68,7 +68,7 @@ _OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis"
 class DiagnoseConfig:
     """Settings of a diagnosis (docs/diagnosis.md documents them).
 
-    ts_s, method: dataset grid step and differentiator (central differences by default: forward
+    ts, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
     n_blocks: contiguous time blocks per training flight for cross-validation; None (default):
         ``clip(n_train // 150, 8, 20)`` with n_train the training samples per target, so blocks
@@ -83,9 +83,9 @@ class DiagnoseConfig:
         (IMU ax ay az, differenced vz_dot); the result then says the model cannot be simulated.
     max_steps: most effects added (a joint pair counts as one step).
     effects: restrict the catalogue to these ids (None: all); user_effects: extra Effect objects.
-    sngp_generations: budget of the open-ended search per run (0 disables it).
+    generations: budget of the open-ended search per run (0 disables it).
     """
-    ts_s: float = 0.05
+    ts: float = 0.05
     method: str = "central"
     n_blocks: int | None = None
     alpha: float = 0.01
@@ -97,16 +97,16 @@ class DiagnoseConfig:
     g: float = 9.81
     ground_h0_m: float = 0.5
     effects: tuple[str, ...] | None = None
-    sngp_generations: int = 5000
-    sngp_population: int = 500
-    sngp_features: int = 3
-    sngp_max_depth: int = 5
-    sngp_seed: int = 0
-    sngp_max_samples: int = 1500
+    generations: int = 5000
+    population_size: int = 500
+    n_features: int = 3
+    max_depth: int = 5
+    seed: int = 0
+    max_samples: int = 1500
 
     def validate(self) -> "DiagnoseConfig":
-        if not (self.ts_s > 0):
-            raise ConfigError(f"The 'ts_s' parameter of DiagnoseConfig must be > 0. Got {self.ts_s!r} instead.")
+        if not (self.ts > 0):
+            raise ConfigError(f"The 'ts' parameter of DiagnoseConfig must be > 0. Got {self.ts!r} instead.")
         if self.n_blocks is not None and not (isinstance(self.n_blocks, int) and 3 <= self.n_blocks <= 50):
             raise ConfigError("The 'n_blocks' parameter of DiagnoseConfig must be an int in [3, 50]. "
                               f"Got {self.n_blocks!r} instead.")
@@ -117,8 +117,8 @@ class DiagnoseConfig:
                               f"Got {self.min_rel_improvement!r} instead.")
         from .differentiation import DIFFERENTIATORS
         check_choice("method", self.method, DIFFERENTIATORS, owner="DiagnoseConfig")
-        if self.max_steps < 0 or self.sngp_generations < 0:
-            raise ConfigError("max_steps and sngp_generations must be >= 0")
+        if self.max_steps < 0 or self.generations < 0:
+            raise ConfigError("max_steps and generations must be >= 0")
         if not (isinstance(self.pair_top, int) and self.pair_top >= 0):
             raise ConfigError("The 'pair_top' parameter of DiagnoseConfig must be an int >= 0. "
                               f"Got {self.pair_top!r} instead.")
@@ -480,9 +480,9 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
         from priors.effects import AXIS
         targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS)
     from .fitness import check_prior_data
-    check_prior_data(train_flights, pr, targets, cfg.ts_s, "training")
+    check_prior_data(train_flights, pr, targets, cfg.ts, "training")
     if test_flights:
-        check_prior_data(test_flights, pr, targets, cfg.ts_s, "test")
+        check_prior_data(test_flights, pr, targets, cfg.ts, "test")
     train = build_datasets(train_flights, targets, pr, cfg)
     test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
     return diagnose_datasets(train, test, prior=pr, prior_label=label, config=cfg,
@@ -507,7 +507,7 @@ def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Da
     motor speeds ``rpm1..`` every flight has: the most direct thrust signal for the effects)."""
     from .dataset import DatasetBuilder
     flights = list(flights)
-    builder = DatasetBuilder(ts=cfg.ts_s, method=cfg.method)
+    builder = DatasetBuilder(ts=cfg.ts, method=cfg.method)
     rpm = [f"rpm{i}" for i in range(1, 17)
            if flights and all(f"rpm{i}" in getattr(fl, "signals", ()) for fl in flights)]
     out = {}
@@ -951,8 +951,8 @@ def _series(model, base_fit, cur, plot_steps) -> dict:
 # -- open-ended search ----------------------------------------------------------------------------
 def _open_ended_all(model, cur, cfg) -> dict:
     parts = model.tr_parts
-    if cfg.sngp_generations <= 0:
-        return {p.target: {"ran": False, "reason": "disabled (sngp_generations = 0)"} for p in parts}
+    if cfg.generations <= 0:
+        return {p.target: {"ran": False, "reason": "disabled (generations = 0)"} for p in parts}
     out = {}
     for i, p in enumerate(parts):
         test = None
@@ -992,10 +992,10 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
 
     def run(rows, seed):
         idx = np.flatnonzero(rows)
-        if idx.size > cfg.sngp_max_samples:
-            idx = idx[np.linspace(0, idx.size - 1, cfg.sngp_max_samples).astype(int)]
-        m = SNGPRegressor(population_size=cfg.sngp_population, generations=cfg.sngp_generations,
-                          n_features=cfg.sngp_features, max_depth=cfg.sngp_max_depth,
+        if idx.size > cfg.max_samples:
+            idx = idx[np.linspace(0, idx.size - 1, cfg.max_samples).astype(int)]
+        m = SNGPRegressor(population_size=cfg.population_size, generations=cfg.generations,
+                          n_features=cfg.n_features, max_depth=cfg.max_depth,
                           n_threads=1, seed=seed)
         m.fit(X[idx], resid[idx], feature_names=names)
         return m
@@ -1004,7 +1004,7 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
     even = part.block % 2 == 0
     pred = np.zeros_like(resid)
     for k, rows in enumerate((even, ~even)):
-        m = run(rows, cfg.sngp_seed + k)
+        m = run(rows, cfg.seed + k)
         pred[~rows] = np.asarray(m.predict(X[~rows]), float)
     pred[~np.isfinite(pred)] = 0.0
     nb = cfg.n_blocks
@@ -1012,7 +1012,7 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
     mse_a = np.array([np.mean((resid - pred)[part.block == k] ** 2) if np.any(part.block == k) else 0
                       for k in range(nb)])
     n = np.array([np.sum(part.block == k) for k in range(nb)])
-    final = run(np.ones(resid.size, bool), cfg.sngp_seed + 7)
+    final = run(np.ones(resid.size, bool), cfg.seed + 7)
     tb = ta = None
     if test is not None and all(nm in test[0].ctx.columns for nm in names):
         # reported only: the test flights never decide
@@ -1025,4 +1025,4 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
                                  min_rel_improvement=cfg.min_rel_improvement), tb, ta)
     return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
             "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),
-            "generations": cfg.sngp_generations, "passed": ev["passed"], "evidence": ev}
+            "generations": cfg.generations, "passed": ev["passed"], "evidence": ev}

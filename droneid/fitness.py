@@ -72,7 +72,7 @@ class FlightFitness:
     airborne_s: float
     airborne_notes: tuple[str, ...]
     rates_hz: Mapping[str, float]           # median rate of each needed signal; nan when absent
-    samples: int                            # grid samples at ts_s inside the airborne intervals
+    samples: int                            # grid samples at ts inside the airborne intervals
     tilt_deg: tuple[float, float]           # (min, max) of max(|roll|, |pitch|) while airborne
     speed_ms: tuple[float, float]           # (min, max) horizontal speed while airborne
     yaw_span_deg: float                     # max - min of the unwrapped yaw while airborne
@@ -86,7 +86,7 @@ class Fitness:
     """The verdict of :func:`assess`: per-flight measurements, refusals and warnings."""
     flights: tuple[FlightFitness, ...]
     needed_signals: tuple[str, ...]
-    ts_s: float
+    ts: float
     prior_kind: str
     problems: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
@@ -110,7 +110,7 @@ class Fitness:
     def to_dict(self) -> dict:
         """A JSON-ready dict (non-finite numbers as None)."""
         return {
-            "ok": self.ok, "prior_kind": self.prior_kind, "ts_s": self.ts_s,
+            "ok": self.ok, "prior_kind": self.prior_kind, "ts": self.ts,
             "needed_signals": list(self.needed_signals),
             "problems": list(self.problems), "warnings": list(self.warnings),
             "thresholds": dict(self.thresholds),
@@ -127,10 +127,10 @@ def _r(x, nd=3):
     return None if x is None or not math.isfinite(x) else round(float(x), nd)
 
 
-def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str], ts_s: float,
+def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str], ts: float,
            prior_kind: str = "multirotor", vehicle: str | None = None) -> Fitness:
     """Judge whether ``flights`` can identify a ``prior_kind`` model of ``needed_signals`` on a
-    grid of ``ts_s`` seconds (see the module doc for the thresholds).
+    grid of ``ts`` seconds (see the module doc for the thresholds).
 
     ``vehicle`` (one of :data:`droneid.flight.VEHICLE_TYPES`) overrides each flight's declared
     vehicle type, as ``--vehicle`` does.
@@ -141,9 +141,9 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
         flights = [flights]
     if not flights:
         raise DataError("assess: no flights given")
-    if not (isinstance(ts_s, (int, float)) and ts_s > 0 and math.isfinite(ts_s)):
-        raise DataError(f"The 'ts_s' parameter of assess must be a positive number of seconds. "
-                        f"Got {ts_s!r} instead.")
+    if not (isinstance(ts, (int, float)) and ts > 0 and math.isfinite(ts)):
+        raise DataError(f"The 'ts' parameter of assess must be a positive number of seconds. "
+                        f"Got {ts!r} instead.")
     check_choice("prior_kind", prior_kind, ("multirotor", "fixed-wing"), "assess")
     if vehicle is not None:
         check_choice("vehicle", vehicle, VEHICLE_TYPES, "assess")
@@ -163,9 +163,9 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
             if not f.has(s):
                 problems.append(f"{name}: signal '{s}' is missing: choose other inputs or map a "
                                 f"column/topic to it (--column {s}=..., --topic {s}=...)")
-        ivs, notes = _airborne(f, ts_s, in_flight_intervals)
+        ivs, notes = _airborne(f, ts, in_flight_intervals)
         airborne = float(sum(b - a for a, b in ivs))
-        samples = int(sum(math.floor((b - a) / ts_s) + 1 for a, b in ivs if b > a))
+        samples = int(sum(math.floor((b - a) / ts) + 1 for a, b in ivs if b > a))
         total_samples += samples
         if airborne <= 0:
             problems.append(f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
@@ -173,7 +173,7 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
         elif airborne < MIN_AIRBORNE_S:
             warnings.append(f"{name}: only {airborne:.1f} s airborne (< {MIN_AIRBORNE_S:.0f} s): "
                             f"expect loose estimates")
-        _rate_verdict(name, rates, ts_s, problems, warnings)
+        _rate_verdict(name, rates, ts, problems, warnings)
         tilt, speed, yaw_span = _excitation(f, ivs, resample_signal)
         if airborne > 0:
             if math.isfinite(tilt[1]) and tilt[1] - tilt[0] < MIN_TILT_RANGE_DEG:
@@ -188,29 +188,29 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
         out.append(FlightFitness(name, vtype, declared, airborne, tuple(notes), rates, samples,
                                  tilt, speed, yaw_span))
     if 0 < total_samples < MIN_SAMPLES:
-        problems.append(f"only {total_samples} samples in flight at Ts = {ts_s:g} s "
+        problems.append(f"only {total_samples} samples in flight at Ts = {ts:g} s "
                         f"(< {MIN_SAMPLES}): use more or longer flights")
-    return Fitness(tuple(out), needed, float(ts_s), prior_kind, tuple(problems), tuple(warnings))
+    return Fitness(tuple(out), needed, float(ts), prior_kind, tuple(problems), tuple(warnings))
 
 
-def _rate_verdict(name, rates, ts_s, problems, warnings) -> None:
+def _rate_verdict(name, rates, ts, problems, warnings) -> None:
     """One line per kind of rate trouble, listing the signals (slowest first)."""
     known = sorted(((hz, s) for s, hz in rates.items() if math.isfinite(hz)))
-    refused = [(hz, s) for hz, s in known if hz * ts_s < MIN_RATE_STEPS]
-    coarse = [(hz, s) for hz, s in known if MIN_RATE_STEPS <= hz * ts_s < 0.95]   # 5 % jitter
-    slow = [(hz, s) for hz, s in known if hz < SLOW_DYNAMICS_HZ and hz * ts_s >= MIN_RATE_STEPS]
+    refused = [(hz, s) for hz, s in known if hz * ts < MIN_RATE_STEPS]
+    coarse = [(hz, s) for hz, s in known if MIN_RATE_STEPS <= hz * ts < 0.95]   # 5 % jitter
+    slow = [(hz, s) for hz, s in known if hz < SLOW_DYNAMICS_HZ and hz * ts >= MIN_RATE_STEPS]
 
     def listing(items):
         return ", ".join(f"{s} {hz:.1f} Hz" for hz, s in items)
     if refused:
         hz, s = refused[0]
         problems.append(
-            f"{name}: {s} is logged at {hz:.1f} Hz, below 1/(4 Ts) = {MIN_RATE_STEPS / ts_s:.0f} Hz "
-            f"for Ts = {ts_s:g} s (2/Ts = {2 / ts_s:.0f} Hz is ideal): use --ts "
+            f"{name}: {s} is logged at {hz:.1f} Hz, below 1/(4 Ts) = {MIN_RATE_STEPS / ts:.0f} Hz "
+            f"for Ts = {ts:g} s (2/Ts = {2 / ts:.0f} Hz is ideal): use --ts "
             f"{_nice(MIN_RATE_STEPS / hz)} or more, or a log with faster {s}"
             + (f" (also slow: {listing(refused[1:])})" if len(refused) > 1 else ""))
     if coarse:
-        warnings.append(f"{name}: logged slower than the grid (1/Ts = {1 / ts_s:.0f} Hz), grid values "
+        warnings.append(f"{name}: logged slower than the grid (1/Ts = {1 / ts:.0f} Hz), grid values "
                         f"between samples are interpolated: {listing(coarse)}")
     if slow:
         warnings.append(f"{name}: below {SLOW_DYNAMICS_HZ:.0f} Hz, multirotor dynamics are barely "
@@ -238,12 +238,12 @@ def _vehicle_verdict(name, vtype, declared, prior_kind, problems, warnings) -> N
                         f"{'hover' if vtype == 'vtol' else 'matching'} phases follow the prior")
 
 
-def _airborne(f: Flight, ts_s: float, in_flight_intervals):
+def _airborne(f: Flight, ts: float, in_flight_intervals):
     if f.duration_s > MAX_SPAN_S:
         return [], [f"a time span of {f.duration_s:.3g} s is not a flight (damaged time stamps?)"]
     if "armed" in f.segments and not f.segments["armed"]:
         return [], ["never armed (the log's armed state is false throughout)"]
-    ivs, notes = in_flight_intervals(f, ts=ts_s)
+    ivs, notes = in_flight_intervals(f, ts=ts)
     return [(a, b) for a, b in ivs if b > a], list(notes)
 
 
@@ -285,7 +285,7 @@ def _excitation(f: Flight, ivs, resample_signal):
     return tilt, speed, yaw_span
 
 
-def check_prior_data(flights, prior, targets, ts_s: float, role: str = "training") -> "Fitness | None":
+def check_prior_data(flights, prior, targets, ts: float, role: str = "training") -> "Fitness | None":
     """:func:`assess` of ``flights`` for ``prior`` and its ``targets`` (the signals its terms read
     plus each target's velocity): raises :class:`DataError` naming the first problem and how to
     override it, else returns the Fitness (warnings inside). None for priors of vehicles the
@@ -295,7 +295,7 @@ def check_prior_data(flights, prior, targets, ts_s: float, role: str = "training
         return None
     targets = [t for t in targets if t in prior.targets]
     needed = sorted({s for t in targets for s in prior.signals(t)} | {t[:-4] for t in targets})
-    fit = assess(list(flights), needed_signals=needed, ts_s=ts_s, prior_kind=kind)
+    fit = assess(list(flights), needed_signals=needed, ts=ts, prior_kind=kind)
     if fit.problems:
         more = f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""
         raise DataError(f"the {role} data cannot identify the {prior.name} model: {fit.problems[0]}{more}")

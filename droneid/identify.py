@@ -36,6 +36,7 @@ from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
 from .expressions import symbol
 from .numerics import rmse
+from .sngp import SNGPRegressor
 from .sngp.selection import best_index
 from .plan import (TARGETS, Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
@@ -50,9 +51,9 @@ SCHEMA = "droneid.identify/1"
 #: the paper's setup per run (Table I); identify makes 4 runs per target by default (the paper: 50;
 #: `study` 10): the trust guards decide what survives, and on the shared Crazyflie flights 4 and 10
 #: runs give the same final models (measured), in 15 s instead of 43 s
-PAPER_BUDGET = {"generations": 60000, "population": 500, "runs": 4}
+PAPER_BUDGET = {"generations": 60000, "population_size": 500, "runs": 4}
 #: a fast look: a few seconds per run on ~200 samples
-QUICK_BUDGET = {"generations": 3000, "population": 200, "runs": 4}
+QUICK_BUDGET = {"generations": 3000, "population_size": 200, "runs": 4}
 METHODS = ("forward", "central", "savgol", "spline")
 
 
@@ -79,7 +80,7 @@ class IdentifyConfig:
     constraints : "paper", "none" or the path of a constraints TOML file
     runs : independent SNGP runs per target; jobs : parallel workers (None: all cores);
     scheduler : a Dask scheduler address (``tcp://host:port``) instead of local workers
-    generations, population, n_features, max_depth, gamma : SNGP budget (paper: 60000, 500, 10, 7, 0.05)
+    generations, population_size, n_features, max_depth, gamma : SNGP budget (paper: 60000, 500, 10, 7, 0.05)
     n_constraint_samples : samples per constraint for training and (separately) for testing
     seed : root of every random number (run seeds are spawned from ``SeedSequence(seed)``)
     ts, method : dataset sampling period (s) and differentiator
@@ -102,7 +103,7 @@ class IdentifyConfig:
     jobs: int | None = None
     scheduler: str | None = None
     generations: int = PAPER_BUDGET["generations"]
-    population: int = PAPER_BUDGET["population"]
+    population_size: int = PAPER_BUDGET["population_size"]
     n_features: int = 10
     max_depth: int = 7
     gamma: float = 0.05
@@ -166,7 +167,7 @@ class IdentifyConfig:
         if self.constraints not in ("paper", "none") and not Path(self.constraints).is_file():
             raise ConfigError(f"The 'constraints' parameter must be 'paper', 'none' or an existing "
                               f"TOML file. Got {self.constraints!r} instead (no such file).")
-        for name, lo in (("runs", 1), ("generations", 1), ("population", 20), ("n_features", 1),
+        for name, lo in (("runs", 1), ("generations", 1), ("population_size", 20), ("n_features", 1),
                          ("max_depth", 2), ("n_constraint_samples", 1)):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
@@ -197,11 +198,10 @@ class IdentifyConfig:
         return asdict(self)
 
     def engine_params(self) -> dict:
-        """Keyword arguments of ``SNGPRegressor`` (without seed/progress)."""
-        return {"population_size": int(self.population), "generations": int(self.generations),
-                "n_features": int(self.n_features), "max_depth": int(self.max_depth),
-                "gamma": float(self.gamma), "simplify_s": float(self.simplify_s),
-                "prune": str(self.prune)}
+        """Keyword arguments of ``SNGPRegressor``: every estimator parameter this config names,
+        under the same name (the run's seed is spawned per run, so not this one)."""
+        own = {f.name for f in fields(self)}
+        return {k: getattr(self, k) for k in SNGPRegressor.param_names() if k in own and k != "seed"}
 
 
 # ------------------------------------------------------------------------------------------------

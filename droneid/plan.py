@@ -62,15 +62,15 @@ def _hover_calibrated(prior, flights, cfg, cuts=None):
     return get_prior("rotor-thrust", k_T=float(prior.params.get("g", 9.81)) / med, **params)
 
 
-def usable_signals(flights, ts_s: float) -> set:
+def usable_signals(flights, ts: float) -> set:
     """The signals every flight has at a rate the data-fitness check accepts for a grid of
-    ``ts_s`` (≥ :data:`droneid.fitness.MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
+    ``ts`` (≥ :data:`droneid.fitness.MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
     4 Hz ESC telemetry does not win over 100 Hz motor commands."""
     from .fitness import MIN_RATE_STEPS
     names = None
     for f in flights:
         n = {name for name, sig in getattr(f, "signals", {}).items()
-             if len(sig) < 2 or sig.rate_hz >= MIN_RATE_STEPS / ts_s}
+             if len(sig) < 2 or sig.rate_hz >= MIN_RATE_STEPS / ts}
         names = n if names is None else names & n
     return names or set()
 
@@ -171,7 +171,7 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
              for t in targets}
     try:
         res = diagnose_datasets(train, None, prior=prior,
-                                config=DiagnoseConfig(ts_s=cfg.ts, method=cfg.method, sngp_generations=0))
+                                config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0))
     except (ConfigError, DataError, TypeError) as exc:
         return (), (), {}, [f"diagnosis skipped: {exc}"]
     folded, skipped = [], []

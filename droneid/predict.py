@@ -169,7 +169,7 @@ def _fitness(models: dict, flights, ts: float):
         needed |= set(m.get("inputs") or ())
     if not needed:
         return None
-    fit = assess(list(flights), needed_signals=sorted(needed), ts_s=ts, prior_kind="multirotor")
+    fit = assess(list(flights), needed_signals=sorted(needed), ts=ts, prior_kind="multirotor")
     if fit.problems:
         raise DataError(f"these logs cannot score the model: {fit.problems[0]}")
     return fit

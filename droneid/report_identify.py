@@ -95,7 +95,7 @@ def format_text(result: dict) -> str:
     cfg = result.get("config", {})
     out.append(f"droneid identify: prior {cfg.get('prior_used') or cfg.get('prior')} with {cfg.get('prior_features')} prior "
                f"feature(s), constraints {_constraints_label(cfg)}, {cfg.get('runs')} run(s) of "
-               f"{cfg.get('generations')} generations x population {cfg.get('population')}"
+               f"{cfg.get('generations')} generations x population {cfg.get('population_size')}"
                + (" (quick budget)" if cfg.get("quick") else ""))
     for note in result.get("notes") or []:
         out.append(f"NOTE: {note}")
@@ -362,7 +362,7 @@ def build_document(result: dict) -> Document:
     doc = Document("droneid identification report")
     doc.paragraph(f"Prior '{cfg.get('prior')}' with {cfg.get('prior_features')} prior feature(s); "
                   f"constraints: {cfg.get('constraints')}; {cfg.get('runs')} SNGP run(s), "
-                  f"{cfg.get('generations')} generations, population {cfg.get('population')}, "
+                  f"{cfg.get('generations')} generations, population {cfg.get('population_size')}, "
                   f"seed {cfg.get('seed')}; Ts {cfg.get('ts')} s, {cfg.get('method')} differences. "
                   f"Errors in m/s²: e_d is the RMSE on data, e_c the RMSE of constraint violations.")
     for note in result.get("notes") or []:

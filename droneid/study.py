@@ -176,7 +176,7 @@ def format_study(result: dict) -> str:
     from .report_identify import _text_table
     cfg = result["config"]
     head = (f"droneid study: {cfg['runs']} run(s) per variant, {cfg['generations']} generations x population "
-            f"{cfg['population']}; medians over runs, errors in m/s²; p = Wilcoxon rank-sum test of the "
+            f"{cfg['population_size']}; medians over runs, errors in m/s²; p = Wilcoxon rank-sum test of the "
             f"test errors against the same scenario's no-prior variant.")
     lines = [head]
     for t, tr in result["targets"].items():
@@ -216,7 +216,7 @@ def study_document(result: dict) -> Document:
     cfg = result["config"]
     doc = Document("droneid study: prior features and constraints")
     doc.paragraph(f"{cfg['runs']} SNGP run(s) per (target, scenario, prior variant), {cfg['generations']} "
-                  f"generations, population {cfg['population']}, seed {cfg['seed']}; prior '{cfg['prior']}', "
+                  f"generations, population {cfg['population_size']}, seed {cfg['seed']}; prior '{cfg['prior']}', "
                   f"constraints '{cfg['constraints']}' in the constrained scenario. Medians over runs; errors "
                   f"in m/s²; p = Wilcoxon rank-sum test (scipy.stats.ranksums) of each prior variant's test "
                   f"errors against the no-prior variant of the same scenario.")

@@ -18,7 +18,7 @@ from pathlib import Path
 from ._common import ProgressBar
 
 #: about a minute on a 2-core machine (measured: `make demo` prints its wall time)
-DEMO_BUDGET = {"runs": 8, "generations": 6000, "population": 300}
+DEMO_BUDGET = {"runs": 8, "generations": 6000, "population_size": 300}
 _FORMATS = (".tlog", ".csv", ".mcap", ".bin", ".ulg")
 
 
@@ -47,8 +47,8 @@ def register(sub) -> None:
     p.add_argument("--runs", type=int, default=DEMO_BUDGET["runs"], help=f"SNGP runs per target (default {DEMO_BUDGET['runs']})")
     p.add_argument("--generations", type=int, default=DEMO_BUDGET["generations"],
                    help=f"generations per run (default {DEMO_BUDGET['generations']}; the paper: 60000)")
-    p.add_argument("--population", type=int, default=DEMO_BUDGET["population"],
-                   help=f"population (default {DEMO_BUDGET['population']}; the paper: 500)")
+    p.add_argument("--population", type=int, default=DEMO_BUDGET["population_size"],
+                   help=f"population (default {DEMO_BUDGET['population_size']}; the paper: 500)")
     p.add_argument("--logs", "--dir", dest="logs", default=None, metavar="DIR",
                    help="folder of the sample logs (default sample_logs/)")
     p.set_defaults(func=run)
@@ -65,7 +65,7 @@ def run(args) -> int:
           f"{args.generations} generations, population {args.population} (the paper: 50 x 60000 x 500)\n")
     cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), prior="tilt-drag", prior_features=3,
                               constraints="paper", runs=args.runs, generations=args.generations,
-                              population=args.population, jobs=args.jobs, seed=0, method="forward",
+                              population_size=args.population, jobs=args.jobs, seed=0, method="forward",
                               effects="none", delays="none")
     train, test = read_logs([train_path]), read_logs([test_path])
     result = identify(train, test, cfg, progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
@@ -81,7 +81,7 @@ def run(args) -> int:
               "thrust = k_f Σ rpm², motor lag 20 ms, speeds logged 40 ms ahead of the thrust; identify's "
               "defaults: --prior auto, thrust delay and effects chosen on this flight alone)\n")
         rcfg = IdentifyConfig.make(runs=max(1, args.runs // 2), generations=args.generations,
-                                   population=args.population, jobs=args.jobs, seed=0)
+                                   population_size=args.population, jobs=args.jobs, seed=0)
         rres = identify(read_logs([rotor_log]), None, rcfg,
                         progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
         write_result(rres, Path(args.out) / "rotor")

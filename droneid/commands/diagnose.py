@@ -38,9 +38,9 @@ def register(sub) -> None:
     p.add_argument("--min-improvement", type=float, default=0.01,
                    help="minimum relative CV-RMSE improvement to add an effect (default 0.01)")
     p.add_argument("--max-steps", type=int, default=5, help="most effects added (default 5)")
-    p.add_argument("--sngp-generations", type=int, default=5000,
-                   help="open-ended SNGP search budget per run (3 runs per target); 0 disables it "
-                        "(default 5000)")
+    p.add_argument("--generations", "--sngp-generations", dest="generations", type=int, default=5000,
+                   metavar="G", help="open-ended SNGP search budget per run (3 runs per target); 0 "
+                                     "disables it (default 5000; --sngp-generations is the old name)")
     p.add_argument("--seed", type=int, default=0, help="seed of the open-ended search")
     p.add_argument("--format", dest="log_format", default=None, help="force the log format")
     add_log_options(p, with_format=False)
@@ -62,9 +62,9 @@ def run(args: argparse.Namespace) -> int:
         from priors.effects import load_effects
         user = load_effects(args.effects)
     only = tuple(s.strip() for s in args.only.split(",")) if args.only else None
-    cfg = DiagnoseConfig(ts_s=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
+    cfg = DiagnoseConfig(ts=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
                          min_rel_improvement=args.min_improvement, max_steps=args.max_steps,
-                         sngp_generations=args.sngp_generations, sngp_seed=args.seed, effects=only,
+                         generations=args.generations, seed=args.seed, effects=only,
                          allow_measured_derivatives=args.allow_measured_derivatives)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None

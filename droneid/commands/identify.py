@@ -51,7 +51,7 @@ def config_from_args(args, **extra):
     from ..identify import IdentifyConfig
     return IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
                                jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
-                               population=args.population, seed=args.seed, ts=args.ts, method=args.method,
+                               population_size=args.population, seed=args.seed, ts=args.ts, method=args.method,
                                test_fraction=args.holdout,
                                prune=args.prune, **extra)
 

@@ -34,13 +34,13 @@ def run(args) -> int:
     return 0
 
 
-def fitness_summary(flight, ts_s: float) -> dict:
+def fitness_summary(flight, ts: float) -> dict:
     """The fitness of one flight for the tilt-drag model and for a rotor-thrust model (the
     latter with the first rotor signal present: rpm1, motor1 or throttle)."""
     from ..fitness import ROTOR_THRUST_SIGNALS, TILT_DRAG_SIGNALS, assess
-    out = {"tilt-drag": assess(flight, needed_signals=TILT_DRAG_SIGNALS, ts_s=ts_s).to_dict()}
+    out = {"tilt-drag": assess(flight, needed_signals=TILT_DRAG_SIGNALS, ts=ts).to_dict()}
     rotor = next((n for n in ("rpm1", "motor1", "throttle") if flight.has(n)), "rpm1")
-    out["rotor-thrust"] = assess(flight, needed_signals=ROTOR_THRUST_SIGNALS + (rotor,), ts_s=ts_s).to_dict()
+    out["rotor-thrust"] = assess(flight, needed_signals=ROTOR_THRUST_SIGNALS + (rotor,), ts=ts).to_dict()
     return out
 
 
@@ -114,7 +114,7 @@ def render_text(s: dict) -> str:
 def render_fitness(fit: dict) -> list[str]:
     """The "fitness for the tilt-drag/rotor-thrust models" block (pure)."""
     any_fit = next(iter(fit.values()))
-    ts = any_fit["ts_s"]
+    ts = any_fit["ts"]
     fl = any_fit["flights"][0]
     tilt, speed = fl["tilt_deg"], fl["speed_ms"]
     out = [f"fitness for the tilt-drag/rotor-thrust models (Ts = {ts:g} s):",

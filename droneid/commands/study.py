@@ -34,7 +34,7 @@ def budget_line(cfg) -> str:
     n = len(cfg.targets) * len(SCENARIOS) * len(PRIOR_VARIANTS) * cfg.runs
     line = (f"study: {n} SNGP runs ({len(cfg.targets)} target(s) x {len(SCENARIOS)} scenarios x "
             f"{len(PRIOR_VARIANTS)} prior variants x {cfg.runs} runs), each {cfg.generations} "
-            f"generations x population {cfg.population}")
+            f"generations x population {cfg.population_size}")
     if not cfg.quick:
         line += " (--runs sets only the run count; --quick: 3000 generations x population 200)"
     return line

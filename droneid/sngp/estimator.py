@@ -94,6 +94,12 @@ class SNGPRegressor:
         self.early_stop_margin = early_stop_margin
 
     # -- sklearn-style parameter access -------------------------------------------------------
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        """The estimator's parameter names, read from its signature: the one list that
+        configs (``IdentifyConfig``, ``DiagnoseConfig``) take their engine names from."""
+        return tuple(_PARAMS)
+
     def get_params(self, deep: bool = True) -> dict:
         return {k: getattr(self, k) for k in _PARAMS}
 

@@ -12,7 +12,7 @@ from conftest import SAMPLE_LOGS, real_log
 
 def test_cli_finds_wind_then_quadratic_drag_in_the_sample_log(tmp_path, capsys):
     log = SAMPLE_LOGS / "wind_quadratic_eight.tlog"
-    rc = main(["-q", "diagnose", str(log), "--sngp-generations", "0", "--json",
+    rc = main(["-q", "diagnose", str(log), "--generations", "0", "--json",
                "--report", str(tmp_path / "rep")])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
@@ -28,7 +28,7 @@ def test_cli_finds_wind_then_quadratic_drag_in_the_sample_log(tmp_path, capsys):
 
 def test_cli_summary_and_control_pair(capsys):
     rc = main(["-q", "diagnose", str(SAMPLE_LOGS / "paper_train_eight.mcap"), "--test",
-               str(SAMPLE_LOGS / "paper_test_square.mcap"), "--sngp-generations", "0"])
+               str(SAMPLE_LOGS / "paper_test_square.mcap"), "--generations", "0"])
     out = capsys.readouterr().out
     assert rc == 0
     assert "effects added: none" in out and "no further effect is detectable" in out
@@ -36,7 +36,7 @@ def test_cli_summary_and_control_pair(capsys):
 
 def test_cli_errors_are_one_line(tmp_path, capsys):
     rc = main(["diagnose", str(SAMPLE_LOGS / "paper_train_eight.tlog"), "--only", "wnd",
-               "--sngp-generations", "0"])
+               "--generations", "0"])
     err = capsys.readouterr().err
     assert rc == 2 and "did you mean 'wind'" in err and len(err.strip().splitlines()) == 1
     rc = main(["diagnose", str(tmp_path / "missing.csv")])
@@ -48,7 +48,7 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
 def test_cli_on_crazyflie_square_to_melon(tmp_path, capsys):
     train = real_log("mocap/crazyflie_nanodrone/square_run1.csv")
     test = real_log("mocap/crazyflie_nanodrone/melon_run1.csv")
-    rc = main(["-q", "diagnose", str(train), "--test", str(test), "--sngp-generations", "0", "--json"])
+    rc = main(["-q", "diagnose", str(train), "--test", str(test), "--generations", "0", "--json"])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
     # --prior auto: the Crazyflie logs motor speeds, so rotor-thrust with v̇z, as identify does
@@ -63,7 +63,7 @@ def test_cli_on_crazyflie_square_to_melon(tmp_path, capsys):
 @pytest.mark.real_logs
 def test_cli_on_the_arducopter_log(tmp_path, capsys):
     log = real_log("ardupilot/copter33_quad_log171.bin")
-    rc = main(["-q", "diagnose", str(log), "--sngp-generations", "0", "--json",
+    rc = main(["-q", "diagnose", str(log), "--generations", "0", "--json",
                "--report", str(tmp_path)])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)

@@ -6,7 +6,7 @@ import numpy as np
 import diag_synth as S
 from droneid.diagnose import DiagnoseConfig, _clock_like, diagnose_datasets
 
-CFG = DiagnoseConfig(sngp_generations=1500, sngp_population=200, sngp_seed=3)
+CFG = DiagnoseConfig(generations=1500, population_size=200, seed=3)
 
 
 def test_open_ended_search_claims_nothing_on_a_control_flight():

@@ -13,7 +13,7 @@ import pytest
 from droneid.diagnose import NO_FURTHER, DiagnoseConfig, diagnose
 from droneid.simulate import simulate
 
-CFG = DiagnoseConfig(sngp_generations=0)
+CFG = DiagnoseConfig(generations=0)
 
 
 def _diagnose(effects, train_path="square", test_path="random", seed=1, drop=(), duration_s=40.0):

@@ -10,7 +10,7 @@ import diag_synth as S
 from droneid.diagnose import NO_FURTHER, DiagnoseConfig, block_ids, diagnose_datasets, significance
 from droneid.errors import ConfigError
 
-CFG = DiagnoseConfig(sngp_generations=0)
+CFG = DiagnoseConfig(generations=0)
 PLANTED = [
     ("quadratic_drag", {"c": 0.1}, lambda s: abs(s["physical_values"]["c_D_over_m_per_m"] - 0.1) < 0.01),
     ("wind", {"wx": 2.0, "wy": -1.5},
@@ -119,4 +119,4 @@ def test_config_validation_and_unknown_effect():
         DiagnoseConfig(method="centrl").validate()
     with pytest.raises(ConfigError, match="did you mean 'wind'"):
         diagnose_datasets(S.make(None), None, prior=S.TiltDragStub(),
-                          config=DiagnoseConfig(sngp_generations=0, effects=("windd",)))
+                          config=DiagnoseConfig(generations=0, effects=("windd",)))

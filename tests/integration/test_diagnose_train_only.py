@@ -14,7 +14,7 @@ from droneid.expressions import compile_expression
 from priors.effects import Effect, Interpretation, load_effects
 from priors.models import get_prior
 
-CFG = DiagnoseConfig(sngp_generations=0)
+CFG = DiagnoseConfig(generations=0)
 ROTOR = get_prior("rotor-thrust", source="rpm", motors=4)
 
 
@@ -101,7 +101,7 @@ def _plant_overlap(data):
 
 def test_overlapping_effects_are_found_by_testing_pairs_jointly():
     data = _plant_overlap(S.make(None, seed=7))
-    cfg = DiagnoseConfig(sngp_generations=0, effects=("over_a", "over_b", "quadratic_drag", "wind"))
+    cfg = DiagnoseConfig(generations=0, effects=("over_a", "over_b", "quadratic_drag", "wind"))
     r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=cfg, user_effects=_overlap_effects())
     first = r.candidates[0]
     # each alone gains a lot but fails the block test ...
@@ -120,7 +120,7 @@ def test_overlapping_effects_are_found_by_testing_pairs_jointly():
 def test_pairs_make_no_false_discovery_on_controls():
     for seed in (20, 21, 22):
         r = diagnose_datasets(S.make(None, seed=seed), None, prior=S.TiltDragStub(),
-                              config=DiagnoseConfig(sngp_generations=0, pair_min_gain=0.0))
+                              config=DiagnoseConfig(generations=0, pair_min_gain=0.0))
         assert r.effects_added == [], (seed, r.candidates)
 
 
@@ -144,7 +144,7 @@ def test_an_effect_needing_a_measured_derivative_is_untestable_unless_allowed(tm
     r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=CFG, user_effects=fx)
     assert "climb" in r.untestable and "allow-measured-derivatives" in r.untestable["climb"]
     assert r.simulable and "climb" not in r.effects_added
-    cfg = DiagnoseConfig(sngp_generations=0, allow_measured_derivatives=True)
+    cfg = DiagnoseConfig(generations=0, allow_measured_derivatives=True)
     r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=cfg, user_effects=fx)
     assert r.effects_added[0] == "climb"
     assert not r.simulable and "cannot be simulated" in r.notes[0]
@@ -157,7 +157,7 @@ def test_open_ended_search_never_sees_measured_derivatives_by_default():
     data = S.make(None, seed=9, duration_s=30)
     data = {t: dataclasses.replace(ds, extra={**ds.extra, "az": np.full(len(ds), 9.81),
                                               "ax": np.sin(ds.t)}) for t, ds in data.items()}
-    cfg = DiagnoseConfig(sngp_generations=20, sngp_population=100)
+    cfg = DiagnoseConfig(generations=20, population_size=100)
     r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=cfg)
     for o in r.open_ended.values():
         assert o["ran"] and not {"ax", "az", "vz_dot"} & set(o["signals"])
@@ -222,7 +222,7 @@ def test_an_open_ended_term_in_a_measured_derivative_makes_the_model_not_simulab
     data = {t: dataclasses.replace(ds, y=ds.y + 1.5 * np.sin(1.7 * ds.t),
                                    extra={**ds.extra, "ax": np.sin(1.7 * ds.t)})
             for t, ds in data.items()}
-    cfg = DiagnoseConfig(sngp_generations=300, sngp_population=100, allow_measured_derivatives=True,
+    cfg = DiagnoseConfig(generations=300, population_size=100, allow_measured_derivatives=True,
                          effects=("quadratic_drag",))
     r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=cfg)
     o = r.open_ended["vx_dot"]

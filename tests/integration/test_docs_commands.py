@@ -38,7 +38,7 @@ BUDGET = {
     "study": ["--runs", "1", "--generations", "200", "--population", "60", "--jobs", "1"],
     "demo": ["--runs", "1", "--generations", "200", "--population", "60", "--jobs", "1"],
     "fit": ["--generations", "200", "--population", "60"],
-    "diagnose": ["--sngp-generations", "200"],
+    "diagnose": ["--generations", "200"],
 }
 #: options that set a budget, with the number of values each takes (dropped before BUDGET is added)
 BUDGET_OPTIONS = {"--runs": 1, "--generations": 1, "--population": 1, "--jobs": 1, "--quick": 0,

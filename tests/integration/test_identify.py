@@ -133,7 +133,7 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
     from parsers import read_flight
     train = read_flight(logs[0])
     test = simulate(path="eight", duration_s=12, seed=2, k_drag=0.4).flight
-    common = dict(targets=("vx_dot",), runs=2, generations=1500, population=150, jobs=1, seed=3,
+    common = dict(targets=("vx_dot",), runs=2, generations=1500, population_size=150, jobs=1, seed=3,
                   prior="tilt-drag", effects="none", delays="none")  # the paper's setting
     guided = identify([train], [test], IdentifyConfig.make(prior_features=3, constraints="paper", **common))
     base = identify([train], [test], IdentifyConfig.make(prior_features=0, constraints="none", **common))
@@ -151,7 +151,7 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
 def test_test_data_outside_the_training_range_are_flagged(logs):
     from droneid.identify import IdentifyConfig, prepare_target
     from parsers import read_flight
-    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=10, population=40)
+    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=10, population_size=40)
     p = prepare_target([read_flight(logs[0])], [read_flight(logs[1])], "vx_dot", cfg)
     assert any("leave the training range" in n and "vx [" in n for n in p.notes)
 
@@ -197,7 +197,7 @@ def test_identify_in_a_process_pool_matches_in_process(logs):
     from droneid.identify import IdentifyConfig, identify
     from parsers import read_flight
     train, test = read_flight(logs[0]), read_flight(logs[1])
-    cfg = dict(targets=("vx_dot",), runs=2, generations=200, population=80, seed=5)
+    cfg = dict(targets=("vx_dot",), runs=2, generations=200, population_size=80, seed=5)
     a = identify([train], [test], IdentifyConfig.make(jobs=1, **cfg)).targets["vx_dot"]
     b = identify([train], [test], IdentifyConfig.make(jobs=2, **cfg)).targets["vx_dot"]
     assert [r["seed"] for r in a.runs] == [r["seed"] for r in b.runs]
@@ -228,7 +228,7 @@ def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
         return real(job)
 
     monkeypatch.setattr(ident, "run_job", flaky)
-    cfg = ident.IdentifyConfig.make(targets=("vx_dot",), runs=4, generations=100, population=60, jobs=1)
+    cfg = ident.IdentifyConfig.make(targets=("vx_dot",), runs=4, generations=100, population_size=60, jobs=1)
     res = ident.identify([read_flight(logs[0])], [read_flight(logs[1])], cfg)
     assert res.interrupted and len(res.targets["vx_dot"].runs) == 2
     assert any("interrupted: 2 of 4 runs" in n for n in res.notes)
@@ -243,7 +243,7 @@ def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
     from droneid.identify import IdentifyConfig, identify
     from parsers import read_flight
     train, test = read_flight(logs[0]), read_flight(logs[1])
-    cfg = dict(targets=("vx_dot",), runs=2, generations=150, population=60, seed=4)
+    cfg = dict(targets=("vx_dot",), runs=2, generations=150, population_size=60, seed=4)
     a = identify([train], [test], IdentifyConfig.make(jobs=1, **cfg)).targets["vx_dot"]
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, host="127.0.0.1",
                                   protocol="tcp://", dashboard_address=None) as cluster:
@@ -261,7 +261,7 @@ def test_the_test_flights_never_decide(logs):
     from parsers import read_flight
     train = read_flight(logs[0])
     other = simulate(path="circle", duration_s=12, seed=5, k_drag=0.6).flight
-    cfg = IdentifyConfig.make(runs=2, generations=300, population=60, jobs=1, seed=1)
+    cfg = IdentifyConfig.make(runs=2, generations=300, population_size=60, jobs=1, seed=1)
     results = [identify([train], test, cfg) for test in ([read_flight(logs[1])], [other], None)]
     for t in results[0].targets:
         finals = [r.targets[t].final for r in results]
@@ -277,7 +277,7 @@ def test_holdout_is_cut_before_any_choice(logs):
     delay choice: training data end where the test block begins, per flight."""
     from droneid.identify import IdentifyConfig, identify
     from parsers import read_flight
-    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=100, population=60, jobs=1,
+    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=100, population_size=60, jobs=1,
                               test_fraction=0.3)
     res = identify([read_flight(logs[0])], None, cfg).targets["vx_dot"]
     assert res.holdout and 0.25 < res.n_test / (res.n_train + res.n_test) < 0.35
@@ -292,7 +292,7 @@ def test_identify_folds_the_effect_the_diagnosis_finds(planted):
     from droneid.identify import IdentifyConfig, identify
     from droneid.simulate import simulate
     flight = simulate(path="lissajous", duration_s=60, seed=11, effects=planted).flight
-    cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=1, generations=200, population=60, jobs=1)
+    cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=1, generations=200, population_size=60, jobs=1)
     res = identify([flight], None, cfg)
     for t, tr in res.targets.items():
         rungs = [r["name"] for r in tr.ladder]

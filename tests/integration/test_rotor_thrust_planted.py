@@ -103,7 +103,7 @@ def _delay_flights(delay_s):
 def _identify_delays(delay_s):
     from droneid.identify import IdentifyConfig, identify
     train, test = _delay_flights(delay_s)
-    cfg = IdentifyConfig.make(runs=1, generations=200, population=60, jobs=1, effects="none", delays="auto")
+    cfg = IdentifyConfig.make(runs=1, generations=200, population_size=60, jobs=1, effects="none", delays="auto")
     res = identify(train, test, cfg)
     assert res.config["prior_used"] == "rotor-thrust"
     return res.config["delays_s"], res.config["delay_scores"]

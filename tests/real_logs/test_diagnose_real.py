@@ -12,7 +12,7 @@ from test_diagnose_train_only import _decisions
 
 pytestmark = [pytest.mark.slow, pytest.mark.real_logs]
 CF = "mocap/crazyflie_nanodrone/"
-CFG = DiagnoseConfig(sngp_generations=0)
+CFG = DiagnoseConfig(generations=0)
 
 
 def _flights(names):

@@ -12,7 +12,7 @@ def _result(effect="wind", params=None):
     params = params or {"wx": 2.0, "wy": -1.5}
     return diagnose_datasets(S.make(effect, params, seed=1, duration_s=40),
                              S.make(effect, params, seed=2, phase=1.0, duration_s=40),
-                             prior=S.TiltDragStub(), config=DiagnoseConfig(sngp_generations=0))
+                             prior=S.TiltDragStub(), config=DiagnoseConfig(generations=0))
 
 
 def test_summary_names_effect_values_and_errors():
@@ -35,7 +35,7 @@ def test_write_report(tmp_path):
 
 def test_summary_of_control_lists_untestable(tmp_path):
     r = diagnose_datasets(S.make(None, seed=0, drop=("battery_voltage",), duration_s=40), None,
-                          prior=S.TiltDragStub(), config=DiagnoseConfig(sngp_generations=0))
+                          prior=S.TiltDragStub(), config=DiagnoseConfig(generations=0))
     txt = summary_text(r)
     assert "effects added: none" in txt and "battery_sag: needs battery_voltage" in txt
     write_report(r, tmp_path)

@@ -37,7 +37,7 @@ def _flight(duration=30.0, rate=100.0, vel_rate=None, vehicle="multirotor", decl
 
 
 def _assess(f, ts=0.05, **kw):
-    return assess(f, needed_signals=TILT_DRAG_SIGNALS, ts_s=ts, **kw)
+    return assess(f, needed_signals=TILT_DRAG_SIGNALS, ts=ts, **kw)
 
 
 def test_a_good_flight_passes_with_its_measurements():

@@ -134,7 +134,7 @@ def test_config_quick_budget_and_overrides():
     q = IdentifyConfig.make(quick=True, runs=2)
     assert q.quick and q.runs == 2 and q.generations < 60000
     p = IdentifyConfig.make(targets="vx_dot,vy_dot")
-    assert p.generations == 60000 and p.population == 500 and p.targets == ("vx_dot", "vy_dot")
+    assert p.generations == 60000 and p.population_size == 500 and p.targets == ("vx_dot", "vy_dot")
 
 
 def test_readable_equation_shows_prior_symbols_by_name_and_rounds():

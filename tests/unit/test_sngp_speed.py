@@ -129,7 +129,7 @@ def test_study_keeps_the_papers_fixed_budget(monkeypatch):
 
     monkeypatch.setattr(runner, "run_jobs", fake_run_jobs)
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
-    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=50, population=40, seed=0)
+    cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=50, population_size=40, seed=0)
     with pytest.raises(_Captured):
         study([train], None, cfg)
     assert captured and all(j.engine["early_stop_window"] is None for j in captured)
