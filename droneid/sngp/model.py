@@ -8,7 +8,7 @@ features are written with the signal names; ``abs``, ``sqrt``, ``sin``, ... as i
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -121,11 +121,3 @@ class SymbolicModel:
                        d.get("target", "y"))
         except (KeyError, TypeError) as exc:
             raise ConfigError(f"saved SNGP model is incomplete: {exc}") from None
-
-    @staticmethod
-    def combine(terms: Sequence[sp.Expr], coefs: Sequence[float]):
-        """Merge equal terms (after simplification two features may coincide)."""
-        out: dict = {}
-        for t, c in zip(terms, coefs):
-            out[t] = out.get(t, 0.0) + float(c)
-        return list(out), list(out.values())

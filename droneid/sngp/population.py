@@ -58,10 +58,6 @@ class Population:
         for f in fields(self):
             np.copyto(getattr(self, f.name), getattr(other, f.name))
 
-    @property
-    def identity_nodes(self) -> range:
-        return range(int(self.lay[K.L_ID]), int(self.lay[K.L_P]))
-
     def current(self, n: int) -> np.ndarray:
         return self.V[self.buf[n], n]
 
