@@ -36,7 +36,8 @@ def main(argv=None) -> int:
     from droneid.identify import IdentifyConfig
     from droneid.runner import default_jobs
     from droneid.simulate import simulate
-    from droneid.study import format_study, study
+    from droneid.report import study as study_report
+    from droneid.study import study
 
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
     test = simulate(path="square", duration_s=12.55, seed=12).flight
@@ -52,7 +53,7 @@ def main(argv=None) -> int:
     per_run = sum(run_walls) / max(len(run_walls), 1)
     full_runs = 2 * 2 * 3 * 50
     extrap = wall * full_runs / max(n_runs, 1)
-    print(format_study(res))
+    print(study_report.text(res))
     print()
     n_tr = next(iter(res["targets"].values()))["n_train"]
     n_te = next(iter(res["targets"].values()))["n_test"]

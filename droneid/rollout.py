@@ -362,7 +362,7 @@ def horizon_section(models: Mapping[str, IdentifiedModel], empirical: Mapping[st
 def horizon_figures(section: Mapping) -> dict[str, bytes]:
     """PNG bytes of ``{"rollout_error_vs_horizon": ..., "rollout_traces": ...}`` from the data of
     :func:`horizon_section` (or ``RolloutResult.to_dict()``); the traces only when it holds some."""
-    from .reporting import new_figure
+    from .report.document import new_figure
     out = {}
     models = list(section["rmse"])
     keys = [k for k in ("vx", "vy", "vz", "position")

@@ -56,7 +56,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..identify import IdentifyConfig, identify
-    from ..report_identify import format_text, write_result
+    from ..report import identify as identify_report
     from .identify import read_logs
     t0 = time.perf_counter()
     train_path, test_path = find_sample_logs(Path(args.logs) if args.logs else None)
@@ -69,8 +69,8 @@ def run(args) -> int:
                               effects="none", delays="none")
     train, test = read_logs([train_path]), read_logs([test_path])
     result = identify(train, test, cfg, progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
-    write_result(result, args.out)
-    print(format_text(result))
+    identify_report.write(result, args.out)
+    print(identify_report.text(result))
     print("\nThe sample flights are simulated with the tilt-drag model itself (k_D = 0.28) plus mocap-like "
           "noise and no undeclared effect, so the best an identified model can do here is match the "
           "refit empirical model; priors and constraints keep it there (β ≈ 1 on the prior "
@@ -84,19 +84,19 @@ def run(args) -> int:
                                    population_size=args.population, jobs=args.jobs, seed=0)
         rres = identify(read_logs([rotor_log]), None, rcfg,
                         progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
-        write_result(rres, Path(args.out) / "rotor")
-        print(format_text(rres))
+        identify_report.write(rres, Path(args.out) / "rotor")
+        print(identify_report.text(rres))
         print(f"rotor report: {args.out}/rotor/report.html")
     effect_log = train_path.parent / f"wind_quadratic_eight{train_path.suffix}"
     if effect_log.is_file():
         from ..diagnose import diagnose
-        from ..diagnose_report import summary_text, write_report
+        from ..report import diagnose as diagnose_report
         print(f"\n== closing the loop on {effect_log.name} (planted: wind (1.5, -1) m/s and quadratic "
               "drag c_D/m = 0.15 1/m, neither in the tilt-drag model)\n")
         diag = diagnose(read_logs([effect_log]), None, prior="tilt-drag", targets=("vx_dot", "vy_dot"),
                         progress=ProgressBar("diagnose", quiet=args.quiet))
-        write_report(diag, Path(args.out) / "diagnosis")
-        print(summary_text(diag))
+        diagnose_report.write(diag, Path(args.out) / "diagnosis")
+        print(diagnose_report.text(diag))
         print(f"diagnosis report: {args.out}/diagnosis/diagnosis.html")
     print(f"\nreport: {args.out}/report.html (also report.md, result.json, PNG figures); "
           f"demo wall time {time.perf_counter() - t0:.0f} s")

@@ -49,7 +49,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from droneid.diagnose import DiagnoseConfig, diagnose
-    from droneid.diagnose_report import summary_text, write_report
+    from droneid.report import diagnose as diagnose_report
     from droneid.errors import ConfigError
 
     targets = None
@@ -72,11 +72,11 @@ def run(args: argparse.Namespace) -> int:
     result = diagnose(train, test, prior=args.prior, targets=targets, config=cfg, user_effects=user,
                       progress=bar)
     if args.report:
-        write_report(result, args.report)
+        diagnose_report.write(result, args.report)
     if args.json:
         print_json(result.to_dict())
     else:
-        print(summary_text(result))
+        print(diagnose_report.text(result))
         if args.report:
             print(f"report: {args.report}/diagnosis.html")
     return 0

@@ -86,7 +86,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..identify import identify
-    from ..report_identify import compact, format_text, write_result
+    from ..report import identify as identify_report
     cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints,
                            effects=args.effects, delays=args.delays)
     train = read_logs(args.train, args)
@@ -94,11 +94,11 @@ def run(args) -> int:
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
     result = identify(train, test, cfg, progress=bar).to_dict()
     if args.report:
-        write_result(result, args.report)
+        identify_report.write(result, args.report)
     if args.json:
-        print_json(compact(result))
+        print_json(identify_report.compact(result))
     else:
-        print(format_text(result))
+        print(identify_report.text(result))
         if args.report:
             print(f"\nreport written to {args.report}/ (result.json, report.html, report.md, figures)")
     if result["interrupted"]:

@@ -43,8 +43,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..errors import ConfigError
     from ..predict import load_models, predict_flights
-    from ..reporting import fmt
-    from ..report_identify import _text_table
+    from ..report import fmt, text_table
     if args.plot and not args.horizons:
         raise ConfigError("--plot draws the multi-step prediction: give --horizons too (e.g. --horizons 1,10,50)")
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
@@ -71,7 +70,7 @@ def run(args) -> int:
         keys = [k for k in _LABELS if k in next(iter(r["errors"].values()))]
         header = ["data", "samples"] + [_LABELS[k] for k in keys]
         rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
-        print(_text_table(header, rows))
+        print(text_table(header, rows))
         for note in r.get("notes", ()):
             print(f"note: {note}")
         print(f"errors: RMSE in m/s²; targets by {res['method']} differences at Ts = {res['ts']} s "
@@ -86,7 +85,7 @@ def run(args) -> int:
         rows = [[m, str(h), fmt(h * info["dt_s"]), str(info["n_starts"][str(h)])]
                 + [fmt(e.get(k)) for k in cols]
                 for m, per in res["horizons"].items() for h, e in ((int(h), e) for h, e in per.items())]
-        print(_text_table(header, rows))
+        print(text_table(header, rows))
         print("errors: RMSE at the horizon over every start (skipped starts: "
               + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
     for p in written:

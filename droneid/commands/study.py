@@ -41,7 +41,8 @@ def budget_line(cfg) -> str:
 
 
 def run(args) -> int:
-    from ..study import format_study, study, write_study
+    from ..report import study as study_report
+    from ..study import study
     if args.runs is None and not args.quick:
         args.runs = 10  # the study's own default (identify's is 4)
     cfg = config_from_args(args, constraints=args.constraints)
@@ -51,11 +52,11 @@ def run(args) -> int:
     test = read_logs(args.test) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
     result = study(train, test, cfg, progress=bar)
-    write_study(result, args.out)
+    study_report.write(result, args.out)
     if args.json:
         print_json(result)
     else:
-        print(format_study(result))
+        print(study_report.text(result))
         print(f"\nstudy written to {args.out}/ (study.json, study.md, study.html)")
     if result["interrupted"]:
         print("droneid study: interrupted; the finished runs are reported", file=sys.stderr)

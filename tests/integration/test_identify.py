@@ -163,7 +163,7 @@ def test_study_table_shape_and_p_values(logs, tmp_path, capsys):
                            "--runs", "2", "--generations", "200", "--population", "80", "--jobs", "1",
                            "--out", out_dir)
     assert code == 0
-    from droneid.study import study_table
+    from droneid.report.study import study_table
     doc = json.loads((out_dir / "study.json").read_text())
     header, rows = study_table(doc)
     assert header[:2] == ["scenario", "prior"] and len(header) == 5
@@ -232,9 +232,9 @@ def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
     res = ident.identify([read_flight(logs[0])], [read_flight(logs[1])], cfg)
     assert res.interrupted and len(res.targets["vx_dot"].runs) == 2
     assert any("interrupted: 2 of 4 runs" in n for n in res.notes)
-    from droneid.report_identify import format_text, write_result
-    write_result(res.to_dict(), tmp_path)
-    assert "interrupted" in format_text(res.to_dict())
+    from droneid.report import identify as identify_report
+    identify_report.write(res.to_dict(), tmp_path)
+    assert "interrupted" in identify_report.text(res.to_dict())
 
 
 @pytest.mark.slow

@@ -5,7 +5,8 @@ import json
 
 import diag_synth as S
 from droneid.diagnose import DiagnoseConfig, diagnose_datasets
-from droneid.diagnose_report import summary_text, write_report
+from droneid.report.diagnose import write
+from droneid.report.diagnose import text as render_text
 
 
 def _result(effect="wind", params=None):
@@ -16,14 +17,14 @@ def _result(effect="wind", params=None):
 
 
 def test_summary_names_effect_values_and_errors():
-    txt = summary_text(_result())
+    txt = render_text(_result())
     assert "1. wind: wind ≈ (2, -1.5) m/s" in txt
     assert "train" in txt and "test" in txt and "no further effect is detectable" in txt
 
 
 def test_write_report(tmp_path):
     r = _result("attitude_bias", {"pitch_deg": -2.0})
-    paths = write_report(r, tmp_path / "rep")
+    paths = write(r, tmp_path / "rep")
     d = json.loads((tmp_path / "rep" / "diagnosis.json").read_text())
     assert d["effects_added"] == ["attitude_bias"]
     assert d["targets"]["vx_dot"]["steps"][0]["effect"] == "attitude_bias"
@@ -36,9 +37,9 @@ def test_write_report(tmp_path):
 def test_summary_of_control_lists_untestable(tmp_path):
     r = diagnose_datasets(S.make(None, seed=0, drop=("battery_voltage",), duration_s=40), None,
                           prior=S.TiltDragStub(), config=DiagnoseConfig(generations=0))
-    txt = summary_text(r)
+    txt = render_text(r)
     assert "effects added: none" in txt and "battery_sag: needs battery_voltage" in txt
-    write_report(r, tmp_path)
+    write(r, tmp_path)
     assert (tmp_path / "diagnosis.html").is_file()
 
 
@@ -47,7 +48,7 @@ def test_residual_plot_is_not_bridged_across_ground_time_or_between_flights():
 
     import numpy as np
 
-    from droneid.diagnose_report import fig_residual_time
+    from droneid.report.diagnose import fig_residual_time
     t = np.r_[np.arange(0, 10, 0.05), np.arange(46, 50, 0.05), np.arange(0, 5, 0.05)]  # 36 s on the ground
     fl = np.r_[np.zeros(200 + 80, int), np.ones(100, int)]
     res = np.sin(t)
@@ -64,5 +65,5 @@ def test_residual_plot_is_not_bridged_across_ground_time_or_between_flights():
 
 
 def test_axis_labels_of_explaining_signals_carry_units():
-    from droneid.diagnose_report import _with_unit
+    from droneid.report.diagnose import _with_unit
     assert _with_unit("t") == "t (s)" and _with_unit("vz") == "vz (m/s)" and _with_unit("yaw") == "yaw (rad)"

@@ -11,7 +11,8 @@ import pytest
 from droneid.errors import ConfigError
 from droneid.identify import (IdentificationResult, IdentifyConfig, improvement_pct, readable_equation,
                               run_seeds, select_best)
-from droneid.report_identify import error_rows, format_text, pareto_front, write_result
+from droneid.report.identify import error_rows, pareto_front, write
+from droneid.report.identify import text as render_text
 
 
 def hand_built_result(constraints="paper") -> dict:
@@ -46,7 +47,7 @@ def hand_built_result(constraints="paper") -> dict:
 
 
 def test_text_summary_has_equation_table_and_improvement():
-    text = format_text(hand_built_result())
+    text = render_text(hand_built_result())
     assert "vx_dot = 0.9·⟨tilt_pitch⟩ - 0.3·vx" in text
     assert "⟨tilt_pitch⟩ = 9.81*tan(pitch)" in text
     for label in ("empirical model as given", "empirical model refit", "identified, best run",
@@ -62,7 +63,7 @@ def test_error_rows_shape():
 
 
 def test_write_result_writes_json_markdown_html_and_pngs(tmp_path):
-    paths = write_result(hand_built_result(), tmp_path)
+    paths = write(hand_built_result(), tmp_path)
     names = {p.name for p in tmp_path.iterdir()}
     assert {"result.json", "report.md", "report.html", "vx_dot_test_prediction.png", "vx_dot_residuals.png",
             "vx_dot_runs.png", "vx_dot_pareto.png"} <= names
@@ -75,7 +76,7 @@ def test_write_result_writes_json_markdown_html_and_pngs(tmp_path):
 
 
 def test_no_pareto_figure_without_constraints(tmp_path):
-    write_result(hand_built_result(constraints="none"), tmp_path)
+    write(hand_built_result(constraints="none"), tmp_path)
     assert not (tmp_path / "vx_dot_pareto.png").exists()
 
 
@@ -181,7 +182,7 @@ def _lines(fig):
 
 
 def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_the_ladder(tmp_path):
-    write_result(ladder_result(), tmp_path)
+    write(ladder_result(), tmp_path)
     html = (tmp_path / "report.html").read_text()
     i_verdict = html.index("class='verdict'>vx_dot: the physical model is 33 %")
     i_eq = html.index("alt='vx_dot_equation'")
@@ -197,12 +198,12 @@ def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_th
 
 
 def test_text_output_keeps_verdict_equation_ladder_order():
-    text = format_text(ladder_result())
+    text = render_text(ladder_result())
     assert text.index("33 % better") < text.index("expanded:") < text.index("FINAL: = the rung above")
 
 
 def test_long_equation_is_wrapped_into_lines_of_bounded_length():
-    from droneid.report_identify import _math_lines, fig_equation
+    from droneid.report.identify import _math_lines, fig_equation
     lines = _math_lines("vx_dot", LONG_EXPR, width=110)
     assert len(lines) >= 2 and all(len(ln) < 110 + 60 for ln in lines)
     assert lines[0].startswith(r"$\dot{v}_{x} = ") and "0.2827" in "".join(lines)
@@ -214,7 +215,7 @@ def test_long_equation_is_wrapped_into_lines_of_bounded_length():
 
 
 def test_plots_break_the_line_at_a_gap_in_time():
-    from droneid.report_identify import fig_measured_vs_predicted, fig_residuals
+    from droneid.report.identify import fig_measured_vs_predicted, fig_residuals
     tr = ladder_result(gap=True)["targets"]["vx_dot"]
     for fig in (fig_measured_vs_predicted("vx_dot", tr), fig_residuals("vx_dot", tr)):
         for ln in [ln for ln in _lines(fig) if len(ln.get_xdata()) > 2]:
@@ -227,13 +228,13 @@ def test_plots_break_the_line_at_a_gap_in_time():
 
 
 def test_break_gaps_splits_flights_and_time_jumps():
-    from droneid.reporting import break_gaps
+    from droneid.report.document import break_gaps
     x, (y,) = break_gaps(np.arange(6.0), [np.ones(6)], t=[0, .1, .2, 9, 9.1, 0.05], flight=[0, 0, 0, 0, 0, 1])
     assert np.flatnonzero(np.isnan(y)).tolist() == [3, 6] and np.isnan(x[[3, 6]]).all()
 
 
 def test_every_axis_of_the_report_figures_has_a_unit():
-    from droneid import report_identify as R
+    from droneid.report import identify as R
     tr = ladder_result()["targets"]["vx_dot"]
     figs = [R.fig_measured_vs_predicted("vx_dot", tr), R.fig_residuals("vx_dot", tr), R.fig_runs("vx_dot", tr),
             R.fig_pareto("vx_dot", tr, 0.1)]

@@ -12,7 +12,7 @@ import subprocess
 
 import pytest
 
-from droneid.report_identify import write_result
+from droneid.report.identify import write
 from test_report_identify import ladder_result
 
 pytestmark = pytest.mark.slow
@@ -42,7 +42,7 @@ def test_report_html_has_no_horizontal_overflow_at_1280px(tmp_path):
     # the worst cases for width: a very long plain equation and a wide table cell
     tr["equation"] = "vx_dot = " + " + ".join(f"0.123456*signal_with_a_long_name_{i}" for i in range(40))
     tr["notes"].append("x" * 400)
-    write_result(result, tmp_path / "rep")
+    write(result, tmp_path / "rep")
     page = tmp_path / "rep" / "report.html"
     probe = tmp_path / "probe.html"
     probe.write_text(page.read_text(encoding="utf-8").replace("</body>", PROBE + "</body>"), encoding="utf-8")

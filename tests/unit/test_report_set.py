@@ -9,7 +9,7 @@ import textwrap
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.reporting import INCOMPLETE, MANIFEST, Document, md_escape, write_report_set
+from droneid.report.document import INCOMPLETE, MANIFEST, Document, md_escape, write_report_set
 
 
 def test_fresh_folder_gets_the_set_and_a_manifest(tmp_path):
@@ -50,14 +50,14 @@ def test_bad_names_and_file_targets_are_refused(tmp_path):
 _KILLED_WRITER = textwrap.dedent("""
     import os, sys
     import droneid.io_util as io
-    from droneid.reporting import write_report_set
+    from droneid.report.document import write_report_set
     real, count = io.atomic_write_bytes, [0]
     def dying(path, data):
         count[0] += 1
         if count[0] == 3:          # killed after two files of the new set
             os._exit(9)
         return real(path, data)
-    import droneid.reporting as rep
+    import droneid.report.document as rep
     rep.atomic_write_bytes = dying
     write_report_set(sys.argv[1], {"result.json": "new", "report.md": "new", "report.html": "new",
                                    "new.png": b"new"})

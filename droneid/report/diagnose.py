@@ -1,6 +1,6 @@
 """Rendering of a :class:`droneid.diagnose.DiagnosisResult`: terminal summary, JSON, Markdown/HTML.
 
-Pure functions over the result (no printing); :func:`write_report` writes ``diagnosis.json``,
+Pure functions over the result (no printing); :func:`write` writes ``diagnosis.json``,
 ``diagnosis.md``, ``diagnosis.html`` and the figures' PNGs atomically into a folder.
 """
 from __future__ import annotations
@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import MissingSignalError
-from .reporting import Document, break_gaps, fmt, new_figure
+from ..errors import MissingSignalError
+from .document import Document, break_gaps, fmt, new_figure
 
-__all__ = ["summary_text", "build_document", "write_report"]
+__all__ = ["text", "document", "write"]
 
 _MAX_POINTS = 3000
 
@@ -33,7 +33,7 @@ def _evidence_text(ev) -> str:
     return ", ".join(parts)
 
 
-def summary_text(result) -> str:
+def text(result) -> str:
     """The terminal summary of a diagnosis."""
     r = result
     lines = [f"diagnosis of prior '{r.prior}' on train {', '.join(r.sources['train']) or '—'}"
@@ -117,7 +117,7 @@ def _with_unit(name: str) -> str:
         return "t (s)"
     if name == "|v| v_axis":
         return "|v| v_axis (m²/s²)"
-    from .flight import canonical_unit
+    from ..flight import canonical_unit
     try:
         unit = canonical_unit(name)
     except MissingSignalError:
@@ -129,7 +129,7 @@ def _thin(n):
     return np.arange(n) if n <= _MAX_POINTS else np.linspace(0, n - 1, _MAX_POINTS).astype(int)
 
 
-def build_document(result) -> Document:
+def document(result) -> Document:
     """The Markdown/HTML report with plots (residual over time, residual vs explaining signals,
     RMSE bars per step)."""
     r = result
@@ -205,7 +205,7 @@ def build_document(result) -> Document:
 
 def fig_residual_time(r):
     """Training residual over time per target, before and after the added effects; the lines
-    break at gaps in time and between flights (:func:`droneid.reporting.break_gaps`)."""
+    break at gaps in time and between flights (:func:`droneid.report.document.break_gaps`)."""
     fig = new_figure(7.5, 2.2 * len(r.series) + 0.6)
     for i, (t, s) in enumerate(r.series.items()):
         ax = fig.add_subplot(len(r.series), 1, i + 1)
@@ -282,6 +282,6 @@ def _figures(doc, r):
     doc.figure(fig, "rmse_steps", "RMSE before and after each step")
 
 
-def write_report(result, directory) -> dict[str, Path]:
+def write(result, directory) -> dict[str, Path]:
     """Write diagnosis.json, diagnosis.md, diagnosis.html and PNGs into ``directory`` (atomic)."""
-    return build_document(result).write(directory, "diagnosis", data={"diagnosis.json": result.to_dict()})
+    return document(result).write(directory, "diagnosis", data={"diagnosis.json": result.to_dict()})

@@ -12,25 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .reporting import Document, break_gaps, fmt, new_figure
+from .document import Document, break_gaps, efmt, fmt, new_figure, text_table, to_float
 
-__all__ = ["error_rows", "format_text", "build_document", "write_result", "pareto_front", "compact",
+__all__ = ["error_rows", "text", "document", "write", "pareto_front", "compact",
            "ERROR_HEADER"]
 
 ERROR_HEADER = ("model", "e_d train", "e_d test", "e_c test")
-
-
-def _f(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return float("nan")
-
-
-def efmt(v) -> str:
-    """An error value, 4 significant figures; float round-off (< 1e-12) shown as 0."""
-    x = _f(v)
-    return "0" if math.isfinite(x) and abs(x) < 1e-12 else fmt(v)
 
 
 LADDER_HEADER = ("model", "e_d train", "e_d validation", "e_d test", "e_c test")
@@ -62,16 +49,8 @@ def error_rows(tr: dict) -> list[list[str]]:
             row(f"identified, median of {n} runs", tr.get("identified_median"))]
 
 
-def _text_table(header, rows) -> str:
-    cols = list(zip(*([header] + rows)))
-    widths = [max(len(str(c)) for c in col) for col in cols]
-    line = lambda r: "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)  # noqa: E731
-                               for i, (c, w) in enumerate(zip(r, widths)))
-    return "\n".join([line(header), "  ".join("-" * w for w in widths)] + [line(r) for r in rows])
-
-
 def _pct(v) -> str:
-    v = _f(v)
+    v = to_float(v)
     return "—" if not math.isfinite(v) else f"{v:+.1f} %"
 
 
@@ -89,7 +68,7 @@ def _constraints_label(cfg: dict) -> str:
     return "the paper's" if prior == "tilt-drag" else f"{prior}'s own (docs/priors.md)"
 
 
-def format_text(result: dict) -> str:
+def text(result: dict) -> str:
     """The terminal summary: per target the equation, the error table and the improvement."""
     out = []
     cfg = result.get("config", {})
@@ -111,7 +90,7 @@ def format_text(result: dict) -> str:
                     out.append("  delayed inputs: " + ", ".join(f"{k}(t − {1000 * v:.0f} ms)"
                                                                for k, v in tr["final"]["delays_s"].items()))
             out.append("")
-            out.append(_text_table(list(LADDER_HEADER), ladder_rows(tr)))
+            out.append(text_table(list(LADDER_HEADER), ladder_rows(tr)))
             out.append(method_line(cfg))
             g = tr.get("guards") or {}
             out.append(f"SNGP runs: {len(tr.get('runs') or [])}; rejected as implausible: {g.get('implausible', 0)}; "
@@ -130,7 +109,7 @@ def format_text(result: dict) -> str:
         else:
             out.append("(no finished run)")
         out.append("")
-        out.append(_text_table(list(ERROR_HEADER), error_rows(tr)))
+        out.append(text_table(list(ERROR_HEADER), error_rows(tr)))
         imp = tr.get("improvement_pct") or {}
         out.append(f"errors in the target's units (m/s²); e_d = RMSE on data, e_c = constraint RMSE. "
                    f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
@@ -162,7 +141,7 @@ def horizon_lines(h: dict) -> list[str]:
     if not rows:
         return []
     return ["", "== multi-step prediction on the test flights (velocity integrated from each sample, "
-                "inputs from the log; RMSE against the logged velocity)", _text_table(header, rows),
+                "inputs from the log; RMSE against the logged velocity)", text_table(header, rows),
             f"steps of {h['dt_s']:.3g} s; starts per horizon: "
             + ", ".join(f"{k}: {v}" for k, v in (h.get("n_starts") or {}).items())]
 
@@ -227,8 +206,8 @@ def _math_lines(lhs: str, expr, width: int = 110, signals=None) -> list[str] | N
     LaTeX characters; None if ``expr`` does not parse."""
     import sympy
 
-    from .errors import ConfigError
-    from .expressions import parse_expression
+    from ..errors import ConfigError
+    from ..expressions import parse_expression
     try:  # the safe parser, never sympify: a saved result.json may come from anywhere
         e = parse_expression(expr, signals if signals is not None else re.findall(r"[A-Za-z_]\w*", expr),
                              what="final model") if isinstance(expr, str) else expr
@@ -312,12 +291,12 @@ def fig_residuals(name: str, tr: dict):
 
 def fig_runs(name: str, tr: dict):
     runs = tr.get("runs") or []
-    e = np.sort(np.array([_f(r.get("rmse_test")) for r in runs], float))
+    e = np.sort(np.array([to_float(r.get("rmse_test")) for r in runs], float))
     fig = new_figure(6.0, 3.2)
     ax = fig.add_subplot()
     ax.plot(np.arange(1, e.size + 1), e, "o-", color="tab:blue", ms=4, label="identified runs")
-    ax.axhline(_f(tr["empirical"].get("rmse_test")), color="tab:orange", ls="--", label="empirical model")
-    ax.axhline(_f(tr["empirical_refit"].get("rmse_test")), color="tab:green", ls=":", label="empirical refit")
+    ax.axhline(to_float(tr["empirical"].get("rmse_test")), color="tab:orange", ls="--", label="empirical model")
+    ax.axhline(to_float(tr["empirical_refit"].get("rmse_test")), color="tab:green", ls=":", label="empirical refit")
     ax.set_xlabel("run (sorted by test error)")
     from matplotlib.ticker import MaxNLocator
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -330,7 +309,7 @@ def fig_runs(name: str, tr: dict):
 
 
 def fig_pareto(name: str, tr: dict, gamma: float | None):
-    pts = [(_f(a.get("rmse_train")), _f(a.get("constraint_rmse_train")))
+    pts = [(to_float(a.get("rmse_train")), to_float(a.get("constraint_rmse_train")))
            for r in tr.get("runs") or [] for a in (r.get("archive") or [])]
     pts = np.array([p for p in pts if all(math.isfinite(v) for v in p)], float).reshape(-1, 2)
     if not len(pts):
@@ -356,7 +335,7 @@ def fig_pareto(name: str, tr: dict, gamma: float | None):
 # documents
 
 
-def build_document(result: dict) -> Document:
+def document(result: dict) -> Document:
     """report.md / report.html content: config, per-target equation, table and figures."""
     cfg = result.get("config", {})
     doc = Document("droneid identification report")
@@ -426,7 +405,7 @@ def build_document(result: dict) -> Document:
                         fmt(r.get("wall_s"), 3)] for i, r in enumerate(tr["runs"])])
         if has_series:
             doc.figure(fig_residuals(name, tr), f"{name}_residuals", "residual over time on the test data")
-        if any(math.isfinite(_f(r.get("rmse_test"))) for r in tr.get("runs") or []):
+        if any(math.isfinite(to_float(r.get("rmse_test"))) for r in tr.get("runs") or []):
             doc.figure(fig_runs(name, tr), f"{name}_runs",
                        "runs sorted by test error; dashed: the empirical model's test error (cf. the paper's Figs. 2-3)")
         if cfg.get("constraints") != "none" and tr.get("runs"):
@@ -435,7 +414,7 @@ def build_document(result: dict) -> Document:
                 doc.figure(fig, f"{name}_pareto", "Pareto front of e_d^train vs e_c^train over the runs' archives")
     header, rows = horizon_rows(result.get("horizons") or {})
     if rows:
-        from .rollout import horizon_figures
+        from ..rollout import horizon_figures
         h = result["horizons"]
         doc.heading("Multi-step prediction on the test flights")
         doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
@@ -450,9 +429,9 @@ def build_document(result: dict) -> Document:
     return doc
 
 
-def write_result(result: dict, directory) -> dict[str, Path]:
+def write(result: dict, directory) -> dict[str, Path]:
     """Write result.json, report.md, report.html and the PNGs into ``directory`` (atomically)."""
-    return build_document(result).write(directory, "report", data={"result.json": result})
+    return document(result).write(directory, "report", data={"result.json": result})
 
 
 def compact(result: dict) -> dict:

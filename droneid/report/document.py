@@ -13,6 +13,7 @@ import errno
 import html
 import io
 import json
+import math
 import os
 import re
 import shutil
@@ -24,10 +25,11 @@ from urllib.parse import quote
 
 import numpy as np
 
-from .errors import ConfigError
-from .io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
+from ..errors import ConfigError
+from ..io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
 
-__all__ = ["Document", "new_figure", "fmt", "md_escape", "write_report_set", "break_gaps"]
+__all__ = ["Document", "new_figure", "fmt", "efmt", "to_float", "text_table", "md_escape", "write_report_set",
+           "break_gaps"]
 
 
 #: characters that Markdown may read as syntax anywhere in a line
@@ -93,6 +95,29 @@ def fmt(x, sig: int = 4) -> str:
     if xf != xf:
         return "—"
     return f"{xf:.{sig}g}"
+
+
+def to_float(v) -> float:
+    """``float(v)``, or NaN for None and what is not a number (results hold None for "not measured")."""
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def efmt(v) -> str:
+    """An error value, 4 significant figures; float round-off (< 1e-12) shown as 0."""
+    x = to_float(v)
+    return "0" if math.isfinite(x) and abs(x) < 1e-12 else fmt(v)
+
+
+def text_table(header, rows) -> str:
+    """A plain-text table: first column left-aligned, the others right-aligned, a dashed rule."""
+    cols = list(zip(*([header] + rows)))
+    widths = [max(len(str(c)) for c in col) for col in cols]
+    line = lambda r: "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)  # noqa: E731
+                               for i, (c, w) in enumerate(zip(r, widths)))
+    return "\n".join([line(header), "  ".join("-" * w for w in widths)] + [line(r) for r in rows])
 
 
 def _png(fig) -> bytes:

@@ -1,4 +1,4 @@
-from droneid.reporting import Document, fmt, new_figure
+from droneid.report.document import Document, fmt, new_figure
 
 
 def test_document_writes_md_html_and_pngs(tmp_path):
@@ -20,7 +20,7 @@ def test_fmt():
 
 
 def test_study_box_plot_labels_are_whole_and_fit_the_figure(tmp_path):
-    from droneid.study import fig_study_box
+    from droneid.report.study import fig_study_box
     variants = {f"{sc}/{k}": {"scenario": sc, "prior_features": k,
                               "runs": [{"rmse_test": 0.1 + 0.01 * i} for i in range(3)]}
                 for sc in ("baseline", "constrained") for k in (0, 1, 3)}
