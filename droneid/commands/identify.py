@@ -61,8 +61,10 @@ def register(sub) -> None:
         "identify", help="identify models from logs and compare them with the empirical model",
         description="Identify an analytic model of each target from the training logs with SNGP "
                     "(prior features + formal constraints), compare it with the empirical model as given "
-                    "and refit, and write a report. Defaults are the paper's setup: 3 prior features, "
-                    "the paper's constraints, 60000 generations, population 500; 10 runs.")
+                    "and refit, and write a report. Defaults: --prior auto (rotor-thrust where the logs have "
+                    "motor speeds, commands or thrust, else the paper's tilt-drag), 3 prior features, the "
+                    "prior's constraints, 4 runs per target of at most 60000 generations x population 500 "
+                    "(a run stops early once its validation error stops improving); --quick for a fast look.")
     p.add_argument("train", nargs="+", metavar="TRAIN_LOG", help="training log(s)")
     p.add_argument("--test", nargs="+", metavar="TEST_LOG", default=None,
                    help="test log(s): reported, never used for a choice (without them: see --holdout)")
