@@ -1,14 +1,16 @@
-"""``droneid fit``: SNGP symbolic regression on a plain CSV table."""
+"""``droneid fit``: SNGP symbolic regression on a plain CSV table (the pipeline is
+:func:`droneid.fit.fit_table`; this module parses the options and prints the result)."""
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
-import numpy as np
-
-from ..errors import ConfigError, DataError, LogFormatError, MissingSignalError
-
-NOT_INPUTS = ("t", "flight")
+from ..errors import ConfigError
+from ..fit import FitConfig, fit, prepare
+from ..io_util import atomic_write_json
+from ..runner import startup_message
+from ._common import ProgressBar, print_json
 
 
 def register(sub) -> None:
@@ -49,192 +51,44 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def read_table(path):
-    import pandas as pd
-    path = Path(path)
-    if not path.is_file():
-        raise LogFormatError(path, "no such file")
-    try:
-        df = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise LogFormatError(path, f"not a readable CSV table: {str(exc).splitlines()[0]}") from None
-    if df.empty or df.shape[1] < 2:
-        raise LogFormatError(path, "the table needs a header and at least two columns with rows")
-    return df
-
-
-def _columns(df, names, path) -> np.ndarray:
-    out = []
-    for n in names:
-        if n not in df.columns:
-            raise MissingSignalError(n, [str(c) for c in df.columns], where=str(path))
-        col = df[n]
-        try:
-            v = col.to_numpy(dtype=np.float64)
-        except (ValueError, TypeError):
-            raise DataError(f"{path}: column '{n}' is not numeric") from None
-        out.append(v)
-    return np.column_stack(out)
-
-
-def _finite_rows(X, y):
-    ok = np.isfinite(X).all(axis=1) & np.isfinite(y)
-    return X[ok], y[ok], int((~ok).sum())
-
-
-def load_constraint_samples(path, target, inputs, n, seed):
-    """(train, test) ConstraintSamples from a TOML constraint file (priors.constraints)."""
-    try:
-        from priors.constraints import load_constraints
-    except ImportError:  # pragma: no cover - the module ships with droneid
-        raise ConfigError("--constraints needs priors.constraints, which is not installed") from None
-    cset = load_constraints(path, target=target)
-    if hasattr(cset, "train_test"):
-        return cset.train_test(inputs, n_per_constraint=n, seed=seed)
-    s_train, s_test = np.random.SeedSequence(seed).spawn(2)
-    return cset.sample(inputs, n_per_constraint=n, seed=s_train), \
-        cset.sample(inputs, n_per_constraint=n, seed=s_test)
-
-
-#: largest |value| a target may reach: squared errors of larger values overflow float64
-_MAX_TARGET = 1e150
-#: smallest non-zero max |value| of a target: squared errors of smaller ones underflow to 0
-_MIN_TARGET = 1e-150
-#: largest |value| of an input: evolved features cube and multiply inputs (1e100³ is 1e300)
-_MAX_INPUT = 1e100
-#: fewer rows than this many per coefficient: the training error is optimistic (a warning)
-_ROWS_PER_COEF = 5
-
-
-def check_supports_model(X: np.ndarray, y: np.ndarray, inputs, target: str, n_coef: int,
-                         where) -> str | None:
-    """Raise :class:`DataError` when the table cannot support a model of ``n_coef`` coefficients
-    (intercept + features): too few rows to leave a residual, or values whose squared errors
-    leave float64 (rescale the column). Returns a warning when the rows are few per coefficient."""
-    rows = y.size
-    if rows <= n_coef:
-        raise DataError(f"{where}: {rows} rows with finite values cannot support a model of up to "
-                        f"{n_coef} coefficients (intercept + --features {n_coef - 1}): any such model "
-                        f"fits them exactly; give more than {n_coef} rows or lower --features")
-    top = float(np.max(np.abs(y)))
-    if top > _MAX_TARGET:
-        raise DataError(f"{where}: target '{target}' reaches {top:.3g}; squared errors overflow "
-                        f"float64 beyond {_MAX_TARGET:.0e}: rescale it (other units)")
-    if 0 < top < _MIN_TARGET:
-        raise DataError(f"{where}: target '{target}' is at most {top:.3g} in magnitude; squared errors "
-                        f"underflow to 0 below {_MIN_TARGET:.0e}: rescale it (other units)")
-    big = np.max(np.abs(X), axis=0)
-    if big.size and big.max() > _MAX_INPUT:
-        j = int(np.argmax(big))
-        raise DataError(f"{where}: input '{inputs[j]}' reaches {big[j]:.3g}; products and cubes of "
-                        f"inputs beyond {_MAX_INPUT:.0e} overflow float64: rescale it (other units)")
-    if rows < _ROWS_PER_COEF * n_coef:
-        return (f"only {rows} rows for up to {n_coef} coefficients: the training error is "
-                f"optimistic; judge the model on --test data or lower --features")
-    return None
-
-
-def prior_features(spec: str, inputs, target: str) -> list:
-    """The prior feature(s) one ``--prior`` gives: a built-in prior name or ``FILE.toml:NAME``
-    (every term of that model for ``target``), else an expression over ``inputs``."""
-    from priors.models import PRIORS, resolve_prior
-
-    from ..expressions import parse_expression
-    if spec in PRIORS or (":" in spec and spec.split(":", 1)[0].endswith(".toml")):
-        exprs = [f.expr for f in resolve_prior(spec).features(target)]
-        for e in exprs:
-            unknown = sorted(s.name for s in e.free_symbols if s.name not in inputs)
-            if unknown:
-                raise MissingSignalError(unknown[0], inputs, where=f"the inputs (--prior {spec})")
-        return exprs
-    return [parse_expression(spec, inputs, what=f"--prior {spec!r}")]
-
-
 def run(args) -> int:
-    import sys
-
-    from ..runner import startup_message
-    from ..sngp import SNGPRegressor
-    from ._common import ProgressBar, print_json
-
     if args.save and Path(args.save).is_dir():
         raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
                           f"{Path(args.save) / 'model.json'}")
-    df = read_table(args.train)
-    if args.inputs:
-        inputs = [s.strip() for s in args.inputs.split(",") if s.strip()]
-    else:
-        inputs = [str(c) for c in df.columns if c != args.target and c not in NOT_INPUTS]
-    if not inputs:
+    inputs = tuple(s.strip() for s in args.inputs.split(",") if s.strip()) if args.inputs else None
+    if args.inputs and not inputs:
         raise ConfigError("no input columns (give --inputs)")
-    if args.target in inputs:
-        raise ConfigError(f"the target '{args.target}' cannot also be an input")
-    X = _columns(df, inputs, args.train)
-    y = _columns(df, [args.target], args.train)[:, 0]
-    X, y, dropped = _finite_rows(X, y)
-    if y.size < 3:
-        raise DataError(f"{args.train}: fewer than 3 rows with finite values")
-    warning = check_supports_model(X, y, inputs, args.target, args.features + 1, args.train)
-    priors = [e for p in args.prior for e in prior_features(p, inputs, args.target)]
     functions = tuple(s.strip() for s in args.functions.split(",")) if args.functions else None
-    seed = args.seed
-    cs_train = cs_test = None
-    if args.constraints:
-        cs_train, cs_test = load_constraint_samples(args.constraints, args.target, inputs,
-                                                    args.constraint_samples, seed)
-    quiet = getattr(args, "quiet", False) or args.json
-    if warning:
-        print(f"droneid fit: warning: {warning}", file=sys.stderr)
-    bar = ProgressBar("fit", quiet=quiet)
-    params = dict(generations=args.generations, population_size=args.population,
-                  n_features=args.features, max_depth=args.depth, gamma=args.gamma, seed=seed,
-                  progress=bar)
-    if functions:
-        params["functions"] = functions
-    estimator = SNGPRegressor(**params)
+    config = FitConfig(target=args.target, inputs=inputs, priors=tuple(args.prior),
+                       constraints=args.constraints, n_constraint_samples=args.constraint_samples,
+                       generations=args.generations, population_size=args.population,
+                       n_features=args.features, max_depth=args.depth, gamma=args.gamma,
+                       seed=args.seed, functions=functions)
+    problem = prepare(args.train, config, test=args.test)
+    for w in problem.warnings:
+        print(f"droneid fit: warning: {w}", file=sys.stderr)
+    bar = ProgressBar("fit", quiet=getattr(args, "quiet", False) or args.json)
     bar(0, args.generations, startup_message())
-    model = estimator.fit(X, y, feature_names=inputs, priors=priors, constraints=cs_train)
-    if not math.isfinite(model.rmse_train_):
-        raise DataError(f"{args.train}: the training error of the fitted model is not finite; "
-                        "the data cannot support a model (check the scale of every column)")
-    rmse_test = None
-    if args.test:
-        dft = read_table(args.test)
-        Xt = _columns(dft, inputs, args.test)
-        yt = _columns(dft, [args.target], args.test)[:, 0]
-        Xt, yt, _ = _finite_rows(Xt, yt)
-        rmse_test = model.rmse(Xt, yt) if yt.size else None
-    ec_test = model.constraint_rmse(cs_test) if cs_test is not None else None
-
-    def num(v):
-        return None if v is None or not math.isfinite(v) else float(v)
-
+    res = fit(problem, config, progress=bar)
     if args.save:
-        from ..io_util import atomic_write_json
-        d = model.to_dict()
-        d["target"] = args.target
-        atomic_write_json(args.save, d)
-    out = {"equation": model.equation_, "rmse_train": num(model.rmse_train_),
-           "rmse_test": num(rmse_test),
-           "constraint_rmse_train": num(model.constraint_rmse_train_) if cs_train is not None else None,
-           "constraint_rmse_test": num(ec_test), "wall_s": round(model.wall_s_, 3),
-           "generations": model.generations_, "seed": model.seed_}
+        atomic_write_json(args.save, res.model_dict())
     if args.json:
-        print_json(out)
+        print_json(res.to_dict())
         return 0
+    model = res.estimator
     print(f"{args.target} = {model.equation_}")
     for sym, expr in model.model_.priors.items():
         beta = model.prior_coef_[model.model_.prior_labels[sym]]
         print(f"  {sym} = {expr}  (coefficient {beta:.4g})")
-    print(f"rmse train {model.rmse_train_:.4g}" + (f", test {rmse_test:.4g}" if rmse_test is not None else "")
-          + (f" ({dropped} non-finite training rows dropped)" if dropped else ""))
-    if rmse_test is not None and not math.isfinite(rmse_test):
+    print(f"rmse train {res.rmse_train:.4g}" + (f", test {res.rmse_test:.4g}" if res.rmse_test is not None else "")
+          + (f" ({res.dropped_rows} non-finite training rows dropped)" if res.dropped_rows else ""))
+    if res.rmse_test is not None and not math.isfinite(res.rmse_test):
         print("droneid fit: warning: the test error is not finite: the model overflows on the test "
               "data (inputs outside the training range?)", file=sys.stderr)
-    if cs_train is not None:
-        line = f"constraint rmse train {model.constraint_rmse_train_:.4g}"
-        if ec_test is not None:
-            line += f", test {ec_test:.4g}"
+    if res.constraint_rmse_train is not None:
+        line = f"constraint rmse train {res.constraint_rmse_train:.4g}"
+        if res.constraint_rmse_test is not None:
+            line += f", test {res.constraint_rmse_test:.4g}"
         if not model.qualified_:
             line += f"  (no model reached gamma={args.gamma}: lowest-e_c model shown)"
         print(line)

@@ -1,0 +1,259 @@
+"""SNGP on a plain table: the pipeline behind ``droneid fit``, usable from Python.
+
+``fit_table(train, FitConfig(target="vx_dot", priors=("tilt-drag",)), test=...)`` reads the
+table(s) (a CSV path or a pandas DataFrame, one column per signal), takes every column but the
+target, ``t`` and ``flight`` as an input unless ``inputs`` is given, drops rows with non-finite
+values (counted), refuses data that cannot support a model (:func:`check_supports_model`), turns
+each prior (an expression over the inputs, a built-in prior name or ``FILE.toml:NAME``) into prior
+features, samples the constraint file if any, and fits :class:`droneid.sngp.SNGPRegressor`.
+The :class:`FitResult` holds the fitted estimator and its errors; the CLI only prints it.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from priors.constraints import load_constraints
+from priors.models import PRIORS, resolve_prior
+
+from .constraints import ConstraintSamples
+from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
+from .expressions import parse_expression
+from .sngp import SNGPRegressor
+
+__all__ = ["FitConfig", "FitResult", "TableProblem", "prepare", "fit", "fit_table", "read_table",
+           "check_supports_model", "prior_features", "NOT_INPUTS"]
+
+#: columns never taken as inputs by default (time stamp, flight index)
+NOT_INPUTS = ("t", "flight")
+#: largest |value| a target may reach: squared errors of larger values overflow float64
+_MAX_TARGET = 1e150
+#: smallest non-zero max |value| of a target: squared errors of smaller ones underflow to 0
+_MIN_TARGET = 1e-150
+#: largest |value| of an input: evolved features cube and multiply inputs (1e100³ is 1e300)
+_MAX_INPUT = 1e100
+#: fewer rows than this many per coefficient: the training error is optimistic (a warning)
+_ROWS_PER_COEF = 5
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """What to fit and with which engine settings (the engine's own names, see
+    :meth:`SNGPRegressor.param_names`).
+
+    target : the column to model. inputs : input columns (None: every other column but
+    :data:`NOT_INPUTS`). priors : prior specs, each an expression over the inputs, a built-in prior
+    name (every term of it for ``target``) or ``FILE.toml:NAME``. constraints : a TOML constraint
+    file (None: unconstrained); n_constraint_samples per constraint, for training and for test.
+    functions : the function set (None: the engine's default).
+    """
+    target: str
+    inputs: tuple[str, ...] | None = None
+    priors: tuple[str, ...] = ()
+    constraints: str | Path | None = None
+    n_constraint_samples: int = 50
+    generations: int = 60000
+    population_size: int = 500
+    n_features: int = 10
+    max_depth: int = 7
+    gamma: float = 0.05
+    seed: int = 0
+    functions: tuple[str, ...] | None = None
+
+    def engine_params(self) -> dict:
+        """Keyword arguments of ``SNGPRegressor``: every estimator parameter this config names."""
+        own = {f for f in self.__dataclass_fields__}
+        params = {k: getattr(self, k) for k in SNGPRegressor.param_names() if k in own}
+        if params.get("functions") is None:
+            params.pop("functions", None)
+        return params
+
+
+@dataclass
+class FitResult:
+    """A fitted table model: the estimator, its inputs and its errors (m/s² for a v̇ target; in
+    general the target's unit). ``rmse_test`` / ``constraint_rmse_*`` are None when not measured."""
+    estimator: SNGPRegressor
+    target: str
+    inputs: tuple[str, ...]
+    rmse_train: float
+    rmse_test: float | None = None
+    constraint_rmse_train: float | None = None
+    constraint_rmse_test: float | None = None
+    dropped_rows: int = 0
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """The figures ``droneid fit --json`` prints (non-finite numbers as None)."""
+        def num(v):
+            return None if v is None or not math.isfinite(v) else float(v)
+        m = self.estimator
+        return {"equation": m.equation_, "rmse_train": num(self.rmse_train),
+                "rmse_test": num(self.rmse_test),
+                "constraint_rmse_train": num(self.constraint_rmse_train),
+                "constraint_rmse_test": num(self.constraint_rmse_test), "wall_s": round(m.wall_s_, 3),
+                "generations": m.generations_, "seed": m.seed_}
+
+    def model_dict(self) -> dict:
+        """The fitted model as JSON data (``--save``), with its target."""
+        return {**self.estimator.to_dict(), "target": self.target}
+
+
+def read_table(path) -> pd.DataFrame:
+    """A CSV table with a header row; LogFormatError naming the file when it is not one."""
+    path = Path(path)
+    if not path.is_file():
+        raise LogFormatError(path, "no such file")
+    try:
+        df = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise LogFormatError(path, f"not a readable CSV table: {str(exc).splitlines()[0]}") from None
+    if df.empty or df.shape[1] < 2:
+        raise LogFormatError(path, "the table needs a header and at least two columns with rows")
+    return df
+
+
+def _columns(df: pd.DataFrame, names, where) -> np.ndarray:
+    out = []
+    for n in names:
+        if n not in df.columns:
+            raise MissingSignalError(n, [str(c) for c in df.columns], where=str(where))
+        try:
+            out.append(df[n].to_numpy(dtype=np.float64))
+        except (ValueError, TypeError):
+            raise DataError(f"{where}: column '{n}' is not numeric") from None
+    return np.column_stack(out)
+
+
+def _finite_rows(X, y):
+    ok = np.isfinite(X).all(axis=1) & np.isfinite(y)
+    return X[ok], y[ok], int((~ok).sum())
+
+
+def check_supports_model(X: np.ndarray, y: np.ndarray, inputs, target: str, n_coef: int,
+                         where) -> str | None:
+    """Raise :class:`DataError` when the table cannot support a model of ``n_coef`` coefficients
+    (intercept + features): too few rows to leave a residual, or values whose squared errors
+    leave float64 (rescale the column). Returns a warning when the rows are few per coefficient."""
+    rows = y.size
+    if rows <= n_coef:
+        raise DataError(f"{where}: {rows} rows with finite values cannot support a model of up to "
+                        f"{n_coef} coefficients (intercept + --features {n_coef - 1}): any such model "
+                        f"fits them exactly; give more than {n_coef} rows or lower --features")
+    top = float(np.max(np.abs(y)))
+    if top > _MAX_TARGET:
+        raise DataError(f"{where}: target '{target}' reaches {top:.3g}; squared errors overflow "
+                        f"float64 beyond {_MAX_TARGET:.0e}: rescale it (other units)")
+    if 0 < top < _MIN_TARGET:
+        raise DataError(f"{where}: target '{target}' is at most {top:.3g} in magnitude; squared errors "
+                        f"underflow to 0 below {_MIN_TARGET:.0e}: rescale it (other units)")
+    big = np.max(np.abs(X), axis=0)
+    if big.size and big.max() > _MAX_INPUT:
+        j = int(np.argmax(big))
+        raise DataError(f"{where}: input '{inputs[j]}' reaches {big[j]:.3g}; products and cubes of "
+                        f"inputs beyond {_MAX_INPUT:.0e} overflow float64: rescale it (other units)")
+    if rows < _ROWS_PER_COEF * n_coef:
+        return (f"only {rows} rows for up to {n_coef} coefficients: the training error is "
+                f"optimistic; judge the model on --test data or lower --features")
+    return None
+
+
+def prior_features(spec: str, inputs: Sequence[str], target: str) -> list:
+    """The prior feature(s) one prior spec gives: a built-in prior name or ``FILE.toml:NAME``
+    (every term of that model for ``target``), else an expression over ``inputs``."""
+    if spec in PRIORS or (":" in spec and spec.split(":", 1)[0].endswith(".toml")):
+        exprs = [f.expr for f in resolve_prior(spec).features(target)]
+        for e in exprs:
+            unknown = sorted(s.name for s in e.free_symbols if s.name not in inputs)
+            if unknown:
+                raise MissingSignalError(unknown[0], list(inputs), where=f"the inputs (--prior {spec})")
+        return exprs
+    return [parse_expression(spec, list(inputs), what=f"--prior {spec!r}")]
+
+
+def _table(data, where) -> tuple[pd.DataFrame, str]:
+    if isinstance(data, pd.DataFrame):
+        return data, where
+    return read_table(data), str(data)
+
+
+@dataclass(frozen=True)
+class TableProblem:
+    """A checked table problem, ready for the engine: training arrays, prior features,
+    constraint samples and the test arrays (None without a test table)."""
+    inputs: tuple[str, ...]
+    X: np.ndarray
+    y: np.ndarray
+    priors: tuple
+    constraints_train: ConstraintSamples | None
+    constraints_test: ConstraintSamples | None
+    X_test: np.ndarray | None
+    y_test: np.ndarray | None
+    dropped_rows: int
+    warnings: tuple[str, ...]
+    source: str = "the training table"
+
+
+def prepare(train, config: FitConfig, test=None) -> TableProblem:
+    """Read and check the tables (CSV paths or DataFrames) before any search: bad input fails
+    here, in seconds, with one line naming the file and the problem."""
+    df, where = _table(train, "the training table")
+    if config.inputs:
+        inputs = tuple(config.inputs)
+    else:
+        inputs = tuple(str(c) for c in df.columns if c != config.target and c not in NOT_INPUTS)
+    if not inputs:
+        raise ConfigError("no input columns (give --inputs)")
+    if config.target in inputs:
+        raise ConfigError(f"the target '{config.target}' cannot also be an input")
+    X = _columns(df, inputs, where)
+    y = _columns(df, [config.target], where)[:, 0]
+    X, y, dropped = _finite_rows(X, y)
+    if y.size < 3:
+        raise DataError(f"{where}: fewer than 3 rows with finite values")
+    warning = check_supports_model(X, y, inputs, config.target, config.n_features + 1, where)
+    priors = tuple(e for p in config.priors for e in prior_features(p, inputs, config.target))
+    cs_train = cs_test = None
+    if config.constraints:
+        cset = load_constraints(config.constraints, target=config.target)
+        cs_train, cs_test = cset.train_test(inputs, n_per_constraint=config.n_constraint_samples,
+                                            seed=config.seed)
+    Xt = yt = None
+    if test is not None:
+        dft, twhere = _table(test, "the test table")
+        Xt, yt, _ = _finite_rows(_columns(dft, inputs, twhere), _columns(dft, [config.target], twhere)[:, 0])
+    return TableProblem(inputs, X, y, priors, cs_train, cs_test, Xt, yt, dropped,
+                        (warning,) if warning else (), where)
+
+
+def fit(problem: TableProblem, config: FitConfig, progress: Callable | None = None) -> FitResult:
+    """Run the engine on a prepared problem; ``progress(done, total, message)`` as the engine's."""
+    estimator = SNGPRegressor(progress=progress, **config.engine_params())
+    estimator.fit(problem.X, problem.y, feature_names=list(problem.inputs), priors=list(problem.priors),
+                  constraints=problem.constraints_train)
+    if not math.isfinite(estimator.rmse_train_):
+        raise DataError(f"{problem.source}: the training error of the fitted model is not finite; "
+                        "the data cannot support a model (check the scale of every column)")
+    rmse_test = None
+    if problem.y_test is not None and problem.y_test.size:
+        rmse_test = estimator.rmse(problem.X_test, problem.y_test)
+    return FitResult(
+        estimator, config.target, problem.inputs, float(estimator.rmse_train_), rmse_test,
+        float(estimator.constraint_rmse_train_) if problem.constraints_train is not None else None,
+        _constraint_rmse(estimator, problem.constraints_test), problem.dropped_rows,
+        list(problem.warnings))
+
+
+def fit_table(train, config: FitConfig, test=None, progress: Callable | None = None) -> FitResult:
+    """Fit ``config.target`` on the ``train`` table (CSV path or DataFrame); ``test`` (same
+    columns) is only reported: :func:`prepare` then :func:`fit`."""
+    return fit(prepare(train, config, test), config, progress)
+
+
+def _constraint_rmse(estimator: SNGPRegressor, samples: ConstraintSamples | None) -> float | None:
+    return estimator.constraint_rmse(samples) if samples is not None else None
