@@ -8,10 +8,13 @@ whose notes say what was done.
 Steps, per flight:
 
 1. **Which part.** ``in_flight="auto"``: the log's ``in_flight`` segments (intersected with
-   ``armed`` when both exist); otherwise the ``armed`` segments or the whole log, with ground time
-   removed by detection (ground = near the lowest height AND still AND at idle power, using those
-   of z / speed / throttle-thrust-motors the flight has; the height cue only when the log climbs
-   more than ``3 * min_height_m`` above its lowest point); then everything from a crash on is
+   ``armed`` when both exist), else the ``armed`` segments, else the whole log; in every case
+   ground contact is then removed by detection, ``ground_margin_s`` wider on both sides (a log's
+   "flying" flag is set while the vehicle still sits on the ground spinning up, where the ground,
+   not the thrust, holds it). Ground = near the lowest height AND (still OR at idle power) when
+   the log climbs more than ``3 * min_height_m`` above its lowest point; without that height cue,
+   still AND at idle power (from those of speed / throttle-thrust-motors the flight has); then
+   everything from a crash on is
    dropped (a ``crash`` event, tilt above ``crash_tilt_deg`` held for ``crash_hold_s``, or
    specific force above ``crash_accel`` on two samples within 0.2 s), with ``crash_margin_s``
    before it. ``in_flight="all"`` keeps the whole log. ``time_windows`` (seconds in each flight's
@@ -168,6 +171,7 @@ class _Detect:
     crash_hold_s: float
     crash_accel: float
     crash_margin_s: float
+    ground_margin_s: float = 0.2
 
 
 def _grid_values(flight: Flight, name: str, t: np.ndarray):
@@ -175,15 +179,20 @@ def _grid_values(flight: Flight, name: str, t: np.ndarray):
 
 
 def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarray | None, str]:
-    """Ground mask on grid ``t`` (None when the flight has no cue for it) and a note."""
-    cues, used = [], []
+    """Ground mask on grid ``t`` (None when the flight has no cue for it) and a note.
+
+    With a height that climbs well above its lowest point, the vehicle is on the ground where it
+    is within ``min_height_m`` of that point and either still (below ``still_speed``) or at idle
+    power: resting on the ground with the motors spinning up for take-off is ground contact
+    (the ground, not the thrust, holds the vehicle), whatever the power. Without such a height,
+    ground is idle power and still together."""
+    low = None
     z = _grid_values(flight, "z", t)
     if z is not None and np.isfinite(z).any():
         z_ground = np.nanpercentile(z, 1)
         # only a log that climbs well above its lowest point shows where the ground is
         if np.nanpercentile(z, 99) - z_ground > 3 * p.min_height_m:
-            cues.append(np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m)
-            used.append("height")
+            low = np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m
     power = None
     for name in ("throttle", "thrust"):
         power = _grid_values(flight, name, t)
@@ -193,18 +202,37 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
         motors = [_grid_values(flight, f"motor{i}", t) for i in range(1, 17) if flight.has(f"motor{i}")]
         if motors:
             power = np.nanmean(np.column_stack(motors), axis=1)
+    idle = None
     if power is not None and np.isfinite(power).any():
         top = np.nanpercentile(power, 90)
         if top > 0:
-            cues.append(np.nan_to_num(power, nan=0.0) < p.idle_fraction * top)
-            used.append("power")
-    if not cues:
-        return None, "no power signal and no climb from a lowest height: ground time not detected"
+            idle = np.nan_to_num(power, nan=np.inf) < p.idle_fraction * top  # no data: not a cue
+    still = None
     if flight.has("vx", "vy", "vz"):
         v = np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
-        cues.append(np.nan_to_num(v, nan=0.0) < p.still_speed)
-        used.append("speed")
-    return np.logical_and.reduce(cues), f"ground detected from {'+'.join(used)}"
+        still = np.nan_to_num(v, nan=np.inf) < p.still_speed
+    if low is None and idle is None:
+        return None, "no power signal and no climb from a lowest height: ground time not detected"
+    if low is not None:
+        rest = [c for c in (idle, still) if c is not None]
+        ground = low & np.logical_or.reduce(rest) if rest else low
+        rest_names = [n for n, c in (("power", idle), ("speed", still)) if c is not None]
+        used = "height" + (f" and {' or '.join(rest_names)}" if rest_names else "")
+        return ground, f"ground detected from {used}"
+    cues = [idle] + ([still] if still is not None else [])
+    return np.logical_and.reduce(cues), f"ground detected from power{'+speed' if still is not None else ''}"
+
+
+def _ground_holes(flight: Flight, ts: float, p: _Detect) -> tuple[list[Interval] | None, str]:
+    """The ground-contact intervals of a flight (s), each widened by ``ground_margin_s`` on both
+    sides (lift-off and touchdown: the ground still pushes), and how they were found."""
+    step = min(0.1, ts)
+    t = np.arange(flight.start_s, flight.end_s + step / 2, step)
+    ground, why = _detect_ground(flight, t, p)
+    if ground is None:
+        return None, why
+    m = p.ground_margin_s
+    return [(t[i0] - step / 2 - m, t[i1 - 1] + step / 2 + m) for i0, i1 in _runs(ground)], why
 
 
 def _crash_time(flight: Flight, ivs: Sequence[Interval], p: _Detect) -> tuple[float | None, str]:
@@ -256,15 +284,15 @@ def in_flight_intervals(flight: Flight, *, ts: float = 0.05, detect: _Detect | N
         ivs = _intersect(span, seg["armed"]) if seg.get("armed") else span
         if seg.get("armed"):
             notes.append(f"armed part from the log's segments: {_fmt_iv(ivs)}")
-        step = min(0.1, ts)
-        t = np.arange(span[0][0], span[0][1] + step / 2, step)
-        ground, why = _detect_ground(flight, t, p)
-        if ground is not None and ground.any():
-            holes = [(t[i0] - step / 2, t[i1 - 1] + step / 2) for i0, i1 in _runs(ground)]
-            ivs = [iv for iv in _subtract(ivs, holes) if iv[1] - iv[0] >= p.min_segment_s]
-            notes.append(f"{why}; airborne: {_fmt_iv(ivs)}")
-        else:
-            notes.append(why if ground is None else f"{why}: none found")
+    # a log's "flying" flag says the controller flies, not that the vehicle is off the ground:
+    # ground contact is trimmed from the log's segments too
+    holes, why = _ground_holes(flight, ts, p)
+    if holes:
+        kept = [iv for iv in _subtract(ivs, holes) if iv[1] - iv[0] >= p.min_segment_s]
+        notes.append(f"{why}; airborne: {_fmt_iv(kept)}")
+        ivs = kept
+    else:
+        notes.append(why if holes is None else f"{why}: none found")
     t_crash, why = _crash_time(flight, ivs, p)
     if t_crash is not None:
         ivs = _intersect(ivs, [(-math.inf, t_crash - p.crash_margin_s)])
@@ -297,6 +325,9 @@ class DatasetBuilder:
     min_height_m, still_speed, idle_fraction, min_segment_s : ground detection thresholds (m above
         the lowest height, m/s, fraction of the 90th-percentile power, shortest airborne run in s)
     crash_tilt_deg, crash_hold_s, crash_accel, crash_margin_s : crash detection
+    ground_margin_s : ground contact is trimmed this much (s) longer on both sides (lift-off and
+        touchdown, where the ground still pushes); contact is trimmed even where the log declares
+        in-flight segments (a "flying" flag is set while the vehicle still sits on the ground)
     delays_s : {signal: delay in s}: that input (or extra) is read at ``t − delay`` (an input whose
         effect lags its logged value, e.g. motor speeds logged ahead of the thrust they make);
         samples whose delayed time falls before the signal starts are dropped
@@ -305,7 +336,7 @@ class DatasetBuilder:
     def __init__(self, ts=0.05, method="forward", window_s=None, in_flight="auto",
                  time_windows=None, *, max_gap_s=0.5, min_height_m=0.15, still_speed=0.3,
                  idle_fraction=0.3, min_segment_s=1.0, crash_tilt_deg=60.0, crash_hold_s=0.5,
-                 crash_accel=60.0, crash_margin_s=0.5, delays_s=None):
+                 crash_accel=60.0, crash_margin_s=0.5, ground_margin_s=0.2, delays_s=None):
         self.ts = ts
         self.delays_s = delays_s
         self.method = method
@@ -321,16 +352,18 @@ class DatasetBuilder:
         self.crash_hold_s = crash_hold_s
         self.crash_accel = crash_accel
         self.crash_margin_s = crash_margin_s
+        self.ground_margin_s = ground_margin_s
 
     def _detect(self) -> _Detect:
         return _Detect(self.min_height_m, self.still_speed, self.idle_fraction, self.min_segment_s,
-                       self.crash_tilt_deg, self.crash_hold_s, self.crash_accel, self.crash_margin_s)
+                       self.crash_tilt_deg, self.crash_hold_s, self.crash_accel, self.crash_margin_s,
+                       self.ground_margin_s)
 
     # -- validation --
     def _validate(self):
         for name in ("ts", "max_gap_s", "min_height_m", "still_speed", "idle_fraction",
                      "min_segment_s", "crash_tilt_deg", "crash_hold_s", "crash_accel",
-                     "crash_margin_s"):
+                     "crash_margin_s", "ground_margin_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
                     or (name == "ts" and v == 0):

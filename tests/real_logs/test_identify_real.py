@@ -45,6 +45,18 @@ def test_the_final_model_transfers_to_the_melon_runs(crazyflie):
     assert vz[-1]["rmse_test"] < 0.8 * vz[0]["rmse_test"]  # far better than "v̇z = 0"
 
 
+def test_vertical_model_is_the_physics_of_hover_balance(crazyflie):
+    """v̇z = s·k_T Σω² cosφ cosθ + c: with k_T set by hover balance, physics says s ≈ 1 and
+    c ≈ −g. Samples on the ground (the log's is_flying flag is set while the Crazyflie sits on its
+    pad at hover power) once pulled this to s = 0.51, c = −4.7 m/s²; they must stay out."""
+    doc, _, _ = crazyflie
+    final = doc["targets"]["vz_dot"]["ladder"][-1]
+    scale = final["terms"]["⟨sum_rpm_sq_z⟩"]
+    assert 0.85 <= scale <= 1.15, final["terms"]
+    assert -11.0 <= final["intercept"] <= -8.5, final["intercept"]
+    assert final["constraint_rmse_test"] < 1.0  # free fall at zero thrust, within ~10 % of g
+
+
 def test_predict_per_flight_never_much_worse_than_the_empirical_model(crazyflie, capsys):
     from droneid.cli import main
     doc, result, test = crazyflie

@@ -126,7 +126,7 @@ def test_in_flight_detection_trims_ground_and_crash():
     f = Flight({k: Signal(k, t, v, "rad" if k in ("pitch", "roll", "yaw") else "m") for k, v in sig.items()})
     ds = DatasetBuilder().build(f, "vx_dot")
     assert 4.9 < ds.t.min() < 5.3 and 29.7 < ds.t.max() < 30.1
-    assert any("ground detected from height+power+speed" in n for n in ds.notes)
+    assert any("ground detected from height and power or speed" in n for n in ds.notes)
     # the crash after landing is outside the airborne part: no crash note; now airborne crash:
     sig["z"] = np.where(t > 5, 1.0, 0.0)
     sig["throttle"] = np.where(t > 5, 0.5, 0.05)
@@ -137,6 +137,31 @@ def test_in_flight_detection_trims_ground_and_crash():
     assert any("crash trimmed" in n for n in ds2.notes)
     ds3 = DatasetBuilder(in_flight="all").build(f2, "vx_dot")
     assert ds3.t.min() == 0.0 and ds3.t.max() > 39.0
+
+
+def test_ground_contact_is_trimmed_inside_the_logs_flying_segment():
+    """A log's "flying" flag (the Crazyflie's is_flying) is set while the vehicle still sits on
+    the ground spinning its motors up: there the ground, not the thrust, holds it (v̇z = 0 at
+    hover power), so those samples are not free flight and must not reach the fit."""
+    t = np.arange(0.0, 20.0, 0.01)
+    up = (t > 4) & (t < 16)
+    z = np.where(up, 1.0, 0.02)
+    thr = np.where(t > 2, 0.5, 0.1)  # full hover power on the ground from 2 s to lift-off at 4 s
+    sig = {"z": z, "vx": np.where(up, 0.3 * np.sin(t), 0.0), "vy": 0 * t, "vz": 0 * t,
+           "throttle": thr, "pitch": 0.05 * np.sin(t), "roll": 0 * t, "yaw": 0 * t}
+    f = Flight({k: Signal(k, t, v, "rad" if k in ("pitch", "roll", "yaw") else "m") for k, v in sig.items()},
+               segments={"in_flight": ((2.0, 18.0),)})
+    b = DatasetBuilder()
+    ds = b.build(f, "vx_dot")
+    margin = b.ground_margin_s
+    assert 4.0 + margin - 0.06 <= ds.t.min() <= 4.0 + margin + 0.06
+    # the grid step and the forward difference's dropped last sample: up to two steps earlier
+    assert 16.0 - margin - 2 * b.ts - 0.01 <= ds.t.max() <= 16.0 - margin + 0.01
+    assert any("in-flight part from the log's segments" in n for n in ds.notes)
+    assert any("ground detected from height and power or speed" in n for n in ds.notes)
+    # without the margin, the data reach lift-off and touchdown
+    ds0 = DatasetBuilder(ground_margin_s=0.0).build(f, "vx_dot")
+    assert ds0.t.min() < ds.t.min() - 0.1 and ds0.t.max() > ds.t.max() + 0.1
 
 
 def test_segments_events_and_time_windows_are_used(flight):
