@@ -44,11 +44,19 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 import sympy as sp
 
+from priors.effects import AXIS, CATALOGUE, EffectContext, is_measured_derivative
+from priors.models import PriorFeature, PriorModel, prior_for, resolve_prior
+
 from .data import Dataset
-from .errors import ConfigError, DataError, check_choice, did_you_mean
+from .dataset import DatasetBuilder
+from .differentiation import DIFFERENTIATORS
+from .errors import ConfigError, DataError, MissingSignalError, check_choice, did_you_mean
 from .expressions import compile_expression, symbol
+from .fitness import check_prior_data
+from .io_util import to_jsonable
 from .ladder import block_ids
 from .numerics import lstsq, rmse
+from .sngp import SNGPRegressor
 
 log = logging.getLogger(__name__)
 
@@ -115,7 +123,6 @@ class DiagnoseConfig:
         if not (0 <= self.min_rel_improvement < 1):
             raise ConfigError("The 'min_rel_improvement' parameter of DiagnoseConfig must be in [0, 1). "
                               f"Got {self.min_rel_improvement!r} instead.")
-        from .differentiation import DIFFERENTIATORS
         check_choice("method", self.method, DIFFERENTIATORS, owner="DiagnoseConfig")
         if self.max_steps < 0 or self.generations < 0:
             raise ConfigError("max_steps and generations must be >= 0")
@@ -164,7 +171,6 @@ class DiagnosisResult:
     series: dict = field(default_factory=dict)
 
     def to_dict(self, include_series: bool = False) -> dict:
-        from .io_util import to_jsonable
         d = {"targets": self.targets, "effects_added": self.effects_added,
              "untestable": sorted(self.untestable), "untestable_reasons": self.untestable,
              "not_detected": self.not_detected, "conclusion": self.conclusion,
@@ -261,7 +267,6 @@ class _PriorTerms:
 
 
 def _resolve_prior(prior):
-    from priors.models import resolve_prior
     return resolve_prior(prior)
 
 
@@ -281,7 +286,6 @@ def _prior_terms(prior, target: str) -> _PriorTerms:
     """The prior's terms; G from the terms' roles (``tilt`` or ``thrust``), or for priors
     without roles from the terms containing roll or pitch; drag from the role ``drag`` terms
     (without roles: terms in the target's velocity without angles)."""
-    from priors.effects import AXIS
     feats = _prior_features(prior, target)
     names = tuple(str(f.name) for f in feats)
     exprs = tuple(f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr) for f in feats)
@@ -326,7 +330,6 @@ class _Part:
 
 
 def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig, role: str = "train"):
-    from priors.effects import EffectContext
     cols = ds.columns()
     ctx = EffectContext.build(target, cols, ds.t, ds.flight, terms.tilt, cfg.g,
                               {"ground_h0_m": cfg.ground_h0_m}, terms.tilt_role,
@@ -335,7 +338,6 @@ def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig
     for name, e in zip(terms.names, terms.exprs):
         missing = [s.name for s in e.free_symbols if s.name not in cols]
         if missing:
-            from .errors import MissingSignalError
             raise MissingSignalError(missing[0], list(cols), where=f"the {target} dataset (prior feature {name})")
         f = compile_expression(e, sorted(s.name for s in e.free_symbols))
         v = np.broadcast_to(f({s.name: cols[s.name] for s in e.free_symbols} or {"_": ds.y}), ds.y.shape)
@@ -477,9 +479,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     train_flights = list(train_flights)
     pr, label = choose_diagnose_prior(prior, train_flights)
     if targets is None:
-        from priors.effects import AXIS
         targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS)
-    from .fitness import check_prior_data
     check_prior_data(train_flights, pr, targets, cfg.ts, "training")
     if test_flights:
         check_prior_data(test_flights, pr, targets, cfg.ts, "test")
@@ -493,7 +493,6 @@ def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
     """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``)."""
     if not isinstance(prior, str):
         return _resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
-    from priors.models import prior_for
     sets = [set(getattr(f, "signals", ())) for f in flights]
     pr, why = prior_for(prior, set.intersection(*sets) if sets else set())
     if prior not in ("auto", "rotor-thrust"):
@@ -505,7 +504,6 @@ def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
 def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:
     """One Dataset per target on the configured grid (all other signals in ``extra``, plus the
     motor speeds ``rpm1..`` every flight has: the most direct thrust signal for the effects)."""
-    from .dataset import DatasetBuilder
     flights = list(flights)
     builder = DatasetBuilder(ts=cfg.ts, method=cfg.method)
     rpm = [f"rpm{i}" for i in range(1, 17)
@@ -523,7 +521,6 @@ def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Da
 
 def _select_effects(user_effects, only) -> dict:
     """The catalogue plus user effects, restricted to ``only`` (ids) when given."""
-    from priors.effects import CATALOGUE
     effects = dict(CATALOGUE)
     for e in (user_effects.values() if isinstance(user_effects, Mapping) else user_effects or ()):
         effects[e.id] = e
@@ -538,7 +535,6 @@ def _select_effects(user_effects, only) -> dict:
 def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, dict, dict]:
     """(testable effects, {id: why untestable}, {id: why not applicable}), from the TRAINING
     parts only: an effect is testable when every training part it applies to has its signals."""
-    from priors.effects import is_measured_derivative
     untestable, not_applicable, testable = {}, {}, []
     for eid, e in effects.items():
         applicable, why_not = [], []
@@ -686,7 +682,6 @@ def _fold(effect, model, beta) -> dict:
 
 
 def _uses_derivative(expr_or_names) -> list[str]:
-    from priors.effects import is_measured_derivative
     names = ([s.name for s in expr_or_names.free_symbols] if isinstance(expr_or_names, sp.Basic)
              else list(expr_or_names))
     return sorted({n for n in names if is_measured_derivative(n)})
@@ -884,7 +879,6 @@ def fold_into_prior(result: DiagnosisResult, prior):
     the signals they use added to the prior's inputs. Effects that are not foldable (per-flight
     conditions, attitude delay, measured derivatives) are left out. Raises ConfigError when the
     prior is not a PriorModel."""
-    from priors.models import PriorFeature, PriorModel
     if not isinstance(prior, PriorModel):
         raise ConfigError(f"fold_into_prior needs a PriorModel, got {type(prior).__name__}")
     terms = {t: list(prior.features(t)) for t in prior.targets}
@@ -982,7 +976,6 @@ def _signal_matrix(part, names):
 
 
 def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> dict:
-    from .sngp import SNGPRegressor
     names = sorted(n for n, v in part.ctx.columns.items()
                    if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier()
                    and not _clock_like(v, part.t, part.flight))

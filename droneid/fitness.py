@@ -38,6 +38,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from .dataset import in_flight_intervals, resample_signal
 from .errors import DataError, check_choice
 from .flight import VEHICLE_TYPES, Flight
 
@@ -135,8 +136,6 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     ``vehicle`` (one of :data:`droneid.flight.VEHICLE_TYPES`) overrides each flight's declared
     vehicle type, as ``--vehicle`` does.
     """
-    from .dataset import in_flight_intervals, resample_signal
-
     if isinstance(flights, Flight):
         flights = [flights]
     if not flights:

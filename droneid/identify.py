@@ -32,11 +32,24 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from priors import constraints as pc
+from priors.models import resolve_prior, thrust_columns, tilt_drag
+
+from . import __version__, runner
+from .constraints import constraint_rmse
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
-from .expressions import symbol
+from .expressions import compile_expression, symbol
+from .fitness import check_prior_data
+from .identified import IdentifiedModel
+from .io_util import to_jsonable
+from .ladder import (TermModel, drag_slope, drop_negligible, evaluate_expr, plausible, trim_terms,
+                     validation_blocks)
 from .numerics import rmse
+from .rollout import horizon_section
 from .sngp import SNGPRegressor
+from .sngp.model import SymbolicModel, round_expr, to_text
+from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
 from .plan import (TARGETS, Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
@@ -246,7 +259,6 @@ def run_seeds(seed: int, runs: int) -> tuple[int, list[tuple[int, int]]]:
 
 
 def _eval_features(feats, columns: dict, names) -> np.ndarray:
-    from .expressions import compile_expression
     cols = [compile_expression(f.expr, names)(columns) for f in feats]
     n = len(next(iter(columns.values())))
     return np.column_stack(cols) if cols else np.empty((n, 0))
@@ -264,7 +276,6 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
     are held at their training median. Unconstrained runs are still measured against that set.
     """
     from dataclasses import replace as _replace
-    from priors import constraints as pc
     name = getattr(prior, "name", cfg.prior)
 
     def own():
@@ -309,7 +320,6 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     """Build the train/test datasets, priors, constraint samples and empirical baselines
     (``cuts``: the hold-out starts of :func:`holdout_cuts`, without test flights)."""
     if plan is None:
-        from priors.models import resolve_prior
         prior = resolve_prior("tilt-drag" if cfg.prior == "auto" else cfg.prior)
         plan = Plan(prior, "named by the user", (target,))
     if not test_flights and cfg.test_fraction > 0 and cuts is None:
@@ -374,14 +384,12 @@ def _fitted_thrust(p: TargetProblem, terms: dict) -> float | None:
     """Median over the training rows of the fitted specific thrust (m/s², the thrust terms'
     fitted scales times their magnitudes, without the direction), or None for priors without
     thrust terms."""
-    from priors.models import thrust_columns
     prior = p.plan.prior if p.plan else None
     if prior is None or prior.name != "rotor-thrust":
         return None
     names = [f"⟨{f.name}⟩" for f in p.priors3[:p.n_base] if f.role == "thrust"]
     cols = thrust_columns(prior.params["source"], int(prior.params.get("motors", 4)))
     data = p.train.columns()
-    from .ladder import evaluate_expr
     lift = sum(float(terms.get(n, 0.0)) * float(prior.params["k_T"]) * evaluate_expr(e, data, len(p.train))
                for n, (_, e, _) in zip(names, cols))
     return float(np.median(lift)) if np.ndim(lift) else None
@@ -394,7 +402,6 @@ def _same_rows(ds: Dataset, like: Dataset) -> Dataset:
 
 
 def _empirical_inputs(cfg: IdentifyConfig, target: str) -> tuple:
-    from priors.models import tilt_drag
     m = tilt_drag(k_D=cfg.k_D)
     return m.signals(target) if target in m.targets else ()
 
@@ -402,8 +409,6 @@ def _empirical_inputs(cfg: IdentifyConfig, target: str) -> tuple:
 def empirical_model(cfg: IdentifyConfig, target: str):
     """The user's empirical model as given (an IdentifiedModel): tilt-drag with ``cfg.k_D``;
     v̇z = 0 (hover balance) for vz_dot."""
-    from priors.models import tilt_drag
-    from .identified import IdentifiedModel
     m = tilt_drag(k_D=cfg.k_D)
     if target in m.targets:
         return IdentifiedModel(target, m.features(target, 1)[0].expr, {},
@@ -428,7 +433,6 @@ def range_notes(train: Dataset, test: Dataset, margin: float = 0.05) -> list[str
 
 
 def _ec(pred_cs, cs) -> float:
-    from .constraints import constraint_rmse
     return float(constraint_rmse(pred_cs, cs)) if cs is not None else float("nan")
 
 
@@ -437,8 +441,6 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
     """One rung of the ladder: a model (IdentifiedModel or fitted TermModel) measured on the
     training rows (train; validation = blocked CV of the same terms refit without each block, or
     the training error for a model with nothing fitted), the test rows and the constraints."""
-    from .identified import IdentifiedModel
-    from .ladder import TermModel
     tr_cols, te_cols = train.columns(), test.columns()
     if isinstance(model, TermModel):
         p_tr, p_te = model.predict(tr_cols, len(train)), model.predict(te_cols, len(test))
@@ -465,7 +467,6 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
     """The ladder's physical rungs: the empirical model as given, the prior refit (without the
     input delay: on ``undelayed`` = (train, test) when a delay was chosen), + the delay, + each
     folded effect. Fills p.empirical, p.empirical_refit, p.series and p.ladder."""
-    from .ladder import TermModel, validation_blocks
     cfg = cfg or IdentifyConfig()
     plan = p.plan
     p.blocks, p.validation = validation_blocks(p.train.t, p.train.flight)
@@ -565,7 +566,6 @@ def make_jobs(p: TargetProblem, cfg: IdentifyConfig, *, prior_features: int | No
 
 def run_job(job: RunJob) -> dict:
     """Fit one SNGP model and measure it (runs in a worker process)."""
-    from droneid.sngp import SNGPRegressor
     t0 = time.perf_counter()
     est = SNGPRegressor(seed=job.seed, **job.engine)
     est.fit(job.X_train, job.y_train, feature_names=list(job.feature_names), priors=list(job.priors),
@@ -595,7 +595,6 @@ def run_job(job: RunJob) -> dict:
 
 def _expanded(est) -> str:
     """The fitted model with the prior features written out, floats to 4 significant figures."""
-    from droneid.sngp.model import round_expr, to_text
     expr = getattr(est, "expr_", None)
     if expr is None:
         return str(est.equation_)
@@ -743,8 +742,6 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     its own-axis velocity (±1.2 x the training speed, other inputs at 50 flown states) the
     model's slope may not exceed the physical rung's (or 0) by more than 0.05 1/s. The survivor with the lowest CV error replaces the
     physical rung only if its CV error is ``cfg.margin`` lower."""
-    from .ladder import TermModel, drag_slope, drop_negligible, evaluate_expr, plausible, trim_terms
-    from .sngp.model import SymbolicModel, round_expr, to_text
     phys = p.ladder[-1]
     delays = p.plan.delays_s if p.plan else {}
     cols, y = p.train.columns(), p.train.y
@@ -971,7 +968,6 @@ class IdentificationResult:
     horizons: dict = field(default_factory=dict)   # multi-step prediction on the test flights
 
     def to_dict(self) -> dict:
-        from .io_util import to_jsonable
         return to_jsonable({
             "schema": SCHEMA,
             "targets": {k: asdict(v) if isinstance(v, TargetResult) else v for k, v in self.targets.items()},
@@ -994,7 +990,6 @@ def versions() -> dict:
     import numpy
     import scipy
     import sympy
-    from . import __version__
     return {"droneid": __version__, "python": sys.version.split()[0], "numpy": numpy.__version__,
             "scipy": scipy.__version__, "sympy": sympy.__version__, "platform": platform.platform()}
 
@@ -1018,13 +1013,11 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     Without ``test_flights`` a time block of the training data is held out (the result says so).
     Ctrl-C during the runs returns the finished runs with ``interrupted=True``.
     """
-    from .runner import run_jobs
     cfg = (config or IdentifyConfig()).validated()
     if not train_flights:
         raise DataError("no training flights")
     t0 = time.perf_counter()
     prior, _ = resolve_plan_prior(cfg, train_flights)
-    from .fitness import check_prior_data
     targets = cfg.targets or tuple(t for t in prior.targets if t in TARGETS)
     fitness = {"train": check_prior_data(train_flights, prior, targets, cfg.ts, "training")}
     if test_flights:
@@ -1038,8 +1031,8 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
     jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
     _compile_once(progress)
-    outcome = run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
-                       label="SNGP run")
+    outcome = runner.run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
+                              label="SNGP run")
     targets = {}
     for t in cfg.targets:
         idx = [i for i, j in enumerate(jobs) if j.target == t]
@@ -1078,7 +1071,6 @@ def _grouped(warnings) -> list[str]:
 def _compile_once(progress: Callable | None) -> None:
     """Compile the SNGP kernels here, once, when numba's cache lacks them (a fresh clone without
     ``make install``), so the workers load them instead of each compiling at once; says so."""
-    from .sngp.precompile import kernels_ready, warmup
     if kernels_ready():
         return
     if progress:
@@ -1090,8 +1082,6 @@ def _compile_once(progress: Callable | None) -> None:
 def _horizons(targets: dict, flights, notes: list, steps=(1, 10, 50)) -> dict:
     """Multi-step prediction of the final, empirical and refit models on the test flights
     (:func:`droneid.rollout.horizon_section`); {} with a note when it cannot be done."""
-    from .identified import IdentifiedModel
-    from .rollout import horizon_section
 
     def models(key):
         return {t: IdentifiedModel.from_dict(getattr(tr, key)) for t, tr in targets.items()

@@ -8,6 +8,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from .errors import ConfigError
+
 
 def atomic_write_bytes(path, data: bytes) -> Path:
     """Write ``data`` to ``path`` via a temporary file in the same folder and ``os.replace``.
@@ -86,8 +88,6 @@ def load_toml(path, what: str = "file") -> dict:
     """Parse the TOML file at ``path``; a syntax error or an unreadable file raises
     :class:`droneid.errors.ConfigError` naming the file (``what`` says what it should hold)."""
     import tomllib
-
-    from .errors import ConfigError
     p = Path(path)
     try:
         return tomllib.loads(p.read_text(encoding="utf-8"))

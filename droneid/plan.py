@@ -14,8 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from priors.models import PriorFeature, get_prior, prior_for
+
 from .data import Dataset
+from .dataset import DatasetBuilder, split_time_block
+from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
+from .fitness import MIN_RATE_STEPS
+from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
 
 __all__ = ["Plan", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "thrust_signals", "split_terms", "dataset_builder", "TARGETS"]
@@ -49,7 +55,6 @@ def _hover_calibrated(prior, flights, cfg, cuts=None):
     """The rotor-thrust prior with its nominal thrust scale k_T set by hover balance on the
     training rows: the median of k_T·thrust·cosφ·cosθ is g (uses inputs only, no derivative),
     so the fitted scales read as ~1 and the 1-feature form is a sensible model as given."""
-    from priors.models import get_prior
     t = "vz_dot"
     ds = train_rows(dataset_builder(cfg).build(list(flights), target=t, inputs=prior.inputs(t)), cuts)
     thrust = [f for f in prior.features(t) if f.role == "thrust"]
@@ -66,7 +71,6 @@ def usable_signals(flights, ts: float) -> set:
     """The signals every flight has at a rate the data-fitness check accepts for a grid of
     ``ts`` (≥ :data:`droneid.fitness.MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
     4 Hz ESC telemetry does not win over 100 Hz motor commands."""
-    from .fitness import MIN_RATE_STEPS
     names = None
     for f in flights:
         n = {name for name, sig in getattr(f, "signals", {}).items()
@@ -77,7 +81,6 @@ def usable_signals(flights, ts: float) -> set:
 
 def resolve_plan_prior(cfg, flights) -> tuple:
     """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
-    from priors.models import prior_for
     return prior_for(cfg.prior, usable_signals(flights, cfg.ts))
 
 
@@ -88,7 +91,6 @@ def thrust_signals(prior, target: str) -> list:
 
 def dataset_builder(cfg, delays=None):
     """The DatasetBuilder of an identify config (its Ts and differentiator), with input delays."""
-    from droneid.dataset import DatasetBuilder
     return DatasetBuilder(ts=cfg.ts, method=cfg.method, delays_s=dict(delays or {}))
 
 
@@ -102,7 +104,6 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
     """Choose the prior, the thrust input delay and the effects from the training flights only
     (``cuts``: {flight index: time s} where a held-out test block starts: rows from there on
     are never seen here)."""
-    from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
     prior, reason = resolve_plan_prior(cfg, train_flights)
     if prior.name == "rotor-thrust":
         prior = _hover_calibrated(prior, train_flights, cfg, cuts)
@@ -157,7 +158,6 @@ def train_rows(ds: Dataset, cuts: dict | None, test: bool = False) -> Dataset:
 def holdout_cuts(train_flights, cfg, target: str, prior) -> dict:
     """{flight index: start time s of its held-out last ``cfg.test_fraction``} (time-block split
     of the undelayed dataset of ``target``)."""
-    from droneid.dataset import split_time_block
     ds = dataset_builder(cfg).build(list(train_flights), target=target, inputs=prior.inputs(target))
     _, test = split_time_block(ds, test_fraction=cfg.test_fraction)
     return {int(k): float(np.min(test.t[test.flight == k])) for k in np.unique(test.flight)}
@@ -165,7 +165,6 @@ def holdout_cuts(train_flights, cfg, target: str, prior) -> dict:
 
 def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
     """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in."""
-    from .diagnose import DiagnoseConfig, diagnose_datasets
     builder = dataset_builder(cfg, delays)
     train = {t: train_rows(builder.build(list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
              for t in targets}
@@ -178,7 +177,6 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
     for fe in res.final_effects:
         feats = fe.get("features")
         if fe.get("foldable") and feats:
-            from priors.models import PriorFeature
             folded.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
                            "features": {t: tuple(PriorFeature(d["name"], d["expr"], fe.get("physical", ""),
                                                               "other") for d in feats.get(t, ()))

@@ -17,8 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .dataset import DatasetBuilder
 from .errors import ConfigError, DataError, DroneIdError, check_choice
+from .expressions import compile_expression, parse_expression
+from .fitness import assess
+from .identified import IdentifiedModel
+from .identify import TARGETS
 from .numerics import rmse
+from .rollout import AXES, rollout_errors, sample_inputs
+from .sngp import SymbolicModel
 
 __all__ = ["load_models", "predict_flights", "model_sets"]
 
@@ -46,7 +53,6 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
         out["_config"] = doc.get("config") or {}
         return out
     # a bare model file (SNGPRegressor.to_dict()): its target is saved in it or named by the caller
-    from .identify import TARGETS
     target = targets[0] if targets and len(targets) == 1 else doc.get("target")
     if target not in TARGETS:
         raise ConfigError(f"{path} is a single model without a known target: name it with --target "
@@ -61,7 +67,6 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
 def _entry(path, target: str, tr: dict) -> dict:
     """One target of a result.json: the final / empirical / refit IdentifiedModels when present
     (errors name the file and the target), the engine model and empirical terms otherwise."""
-    from .identified import IdentifiedModel
     if tr.get("final"):
         out = {"equation": tr.get("equation")}
         for key, name in (("final", "identified"), ("empirical_model", "empirical"), ("refit_model", "refit")):
@@ -82,7 +87,6 @@ def _entry(path, target: str, tr: dict) -> dict:
 def model_sets(models: dict) -> dict:
     """{"identified"|"empirical"|"refit": {target: IdentifiedModel}} of the translational targets
     of :func:`load_models` output that hold final models (what multi-step prediction integrates)."""
-    from .rollout import AXES
     targets = {tgt for tgt, _ in AXES.values()}
     sets: dict = {}
     for target, m in models.items():
@@ -104,7 +108,6 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
     ``horizons`` (steps): adds ``"horizons"`` = {model: {h: {vx, vy, vz, position}}} (m/s, m) of
     multi-step prediction (:func:`droneid.rollout.rollout_errors`, at the log's rate) and
     ``"horizon_info"`` (step, counts, notes); needs final models."""
-    from droneid.dataset import DatasetBuilder
     cfg = models.get("_config", {})
     ts = ts or cfg.get("ts") or 0.05
     method = method or cfg.get("method") or "forward"
@@ -144,7 +147,6 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
             r["notes"] = notes
         out["targets"][target] = r
     if horizons:
-        from .rollout import rollout_errors
         res = rollout_errors(sets, flights, horizons)
         d = res.to_dict(segments=False)
         out["horizons"] = d.pop("rmse")
@@ -157,7 +159,6 @@ def _fitness(models: dict, flights, ts: float):
     """:func:`droneid.fitness.assess` of the flights for the signals the models read: refuses
     (DataError) data they cannot be scored on (no airborne data, signals far too slow, a
     multirotor model on a fixed-wing log); None when the models name no signals."""
-    from .fitness import assess
     needed = set()
     for target, m in models.items():
         if target.startswith("_"):
@@ -178,7 +179,6 @@ def _fitness(models: dict, flights, ts: float):
 def _predict_final(builder, flights, target: str, m: dict):
     """Dataset and predictions of the IdentifiedModels of one target (delayed inputs re-read at
     ``t − delay`` from each flight)."""
-    from .rollout import sample_inputs
     ims = {k: m[k] for k in ("identified", "empirical", "refit") if k in m}
     signals = sorted({s for im in ims.values() for s in im.signals})
     ds = builder.build(flights, target=target, inputs=tuple(signals) or (target[:-4],), extras=())
@@ -202,9 +202,6 @@ def _predict_final(builder, flights, target: str, m: dict):
 
 def _predict_engine(builder, flights, target: str, m: dict):
     """Dataset and predictions of an older result (engine model + empirical terms)."""
-    from droneid.sngp import SymbolicModel
-
-    from .expressions import compile_expression, parse_expression
     model = SymbolicModel.from_dict(m["model"])
     ds = builder.build(list(flights), target=target, inputs=tuple(m["inputs"]))
     cols = ds.columns()

@@ -12,8 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
+from parsers.mcap_writer import write_mcap
+from parsers.motive_writer import write_motive_csv
+from parsers.tlog_writer import write_tlog
+
 from .errors import ConfigError, did_you_mean
+from .frames import unwrap_angle
 from .io_util import atomic_write_json, atomic_write_text
+from .simulate import simulate, tilt_drag_model
 
 __all__ = ["SampleSpec", "SAMPLES", "FORMATS", "save", "generate", "sample_command", "residual_rmse"]
 
@@ -107,17 +113,14 @@ def save(result, out_dir, name: str, formats=("tlog", "mcap", "csv")) -> list[Pa
 
 
 def _writer(fmt: str):
-    """The writer function of an output format (imported when asked for)."""
+    """The writer function of an output format."""
     if fmt == "tlog":
-        from parsers.tlog_writer import write_tlog
         return write_tlog
     if fmt == "mcap":
-        from parsers.mcap_writer import write_mcap
         return write_mcap
     if fmt == "csv":
-        from parsers.motive_writer import write_motive_csv
         return write_motive_csv
-    try:
+    try:  # lazy: an optional module (its ImportError is reported below), not a cycle
         from parsers.csv_writer import write_flat_csv
     except ImportError:   # the flat CSV writer lives in parsers/csv_writer.py (branch parsers)
         raise ConfigError("output format 'flatcsv' needs parsers/csv_writer.py, which this "
@@ -128,9 +131,6 @@ def _writer(fmt: str):
 def residual_rmse(flight, k_drag: float = 0.28, g: float = 9.81) -> tuple[float, float, int]:
     """RMSE (m/s²) of the tilt-drag model against forward differences of vx, vy (the paper's
     targets), and the number of differences used. Signals are put on the vx time base."""
-    from .frames import unwrap_angle
-    from .simulate import tilt_drag_model
-
     t = flight["vx"].t
     cols = {}
     for n in ("vx", "vy", "roll", "pitch", "yaw"):
@@ -146,8 +146,6 @@ def residual_rmse(flight, k_drag: float = 0.28, g: float = 9.81) -> tuple[float,
 
 def generate(out_dir, names=None, progress=None) -> list[Path]:
     """Simulate and write the samples (all, or those in ``names``) and the README."""
-    from .simulate import simulate
-
     specs = SAMPLES if names is None else tuple(_spec(n) for n in names)
     written: list[Path] = []
     rows = []

@@ -46,6 +46,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from priors.models import RPM_SCALE
+
 from .errors import ConfigError, check_choice, did_you_mean
 from .flight import Flight, Provenance, Signal, canonical_unit
 from .frames import euler_to_matrix, euler_to_quat, wrap_angle
@@ -711,7 +713,6 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     def rms(x):  # m/s², to 1e-12: below that it is round-off, which differs between numpy builds
         return round(float(np.sqrt(np.mean(np.square(x)))), 12)
 
-    from priors.models import RPM_SCALE
     m = P["mass_kg"]
     k_T = P["k_f"] * RPM_SCALE ** 2 / m
     # the rotor-thrust prior with the planted k_T, k_D on the true states and true speeds

@@ -16,9 +16,11 @@ from dataclasses import replace
 
 import numpy as np
 
+from . import runner
 from .errors import DataError
 from .identify import (IdentifyConfig, make_jobs, prepare_target, run_job, select_best, versions,
                        flight_provenance)
+from .io_util import to_jsonable
 
 __all__ = ["study", "SCENARIOS", "PRIOR_VARIANTS", "variant_key", "prior_label"]
 
@@ -52,7 +54,6 @@ def _median(vals) -> float:
 def study(train_flights: Sequence, test_flights: Sequence | None, config: IdentifyConfig,
           progress: Callable | None = None) -> dict:
     """Run the study; ``config.runs`` runs per (target, scenario, prior variant)."""
-    from .runner import run_jobs
     cfg = config.validated()
     if cfg.constraints == "none":
         cfg = replace(cfg, constraints="paper")
@@ -71,8 +72,8 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
                                   variant=variant_key(scenario, k))
     # the paper's protocol: every run spends the whole budget (no early stopping)
     jobs = [replace(j, engine={**j.engine, "early_stop_window": None}) for j in jobs]
-    outcome = run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
-                       label="SNGP run")
+    outcome = runner.run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
+                              label="SNGP run")
     keep = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
             "qualified", "wall_s", "equation")
     targets = {}
@@ -107,7 +108,6 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
     if not outcome.n_done and not outcome.interrupted:
         raise DataError("every SNGP run of the study failed; first error: "
                         + next(iter(outcome.errors.values()), "unknown"))
-    from .io_util import to_jsonable
     return to_jsonable({"schema": STUDY_SCHEMA, "targets": targets, "config": cfg.to_dict(),
             "provenance": {"train": flight_provenance(train_flights),
                            "test": flight_provenance(test_flights or [])},

@@ -368,7 +368,7 @@ def get_prior(name: str, **params) -> PriorModel:
 
 def load_priors(path) -> dict[str, PriorModel]:
     """User prior models from a TOML file, by name (see :mod:`priors.user` for the format)."""
-    from .user import load_priors as _load
+    from .user import load_priors as _load  # lazy: priors.user imports priors.models
     return _load(path)
 
 

@@ -31,7 +31,7 @@ import re
 from pathlib import Path
 
 from droneid.io_util import load_toml
-from droneid.errors import ConfigError
+from droneid.errors import ConfigError, did_you_mean
 from droneid.expressions import ALLOWED_FUNCTIONS, parse_expression
 from droneid.flight import CANONICAL_SIGNALS
 
@@ -68,7 +68,6 @@ def _one(name: str, spec, where: str) -> PriorModel:
         raise ConfigError(f"{ctx}: must be a table")
     bad = [k for k in spec if k not in _KEYS]
     if bad:
-        from droneid.errors import did_you_mean
         raise ConfigError(f"{ctx}: unknown key {bad[0]!r}{did_you_mean(bad[0], _KEYS)}; "
                           f"allowed: {', '.join(sorted(_KEYS))}")
     signals = _str_list(spec.get("signals", []), f"{ctx}: signals")

@@ -9,7 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
+from priors.effects import CATALOGUE
+
 from ..errors import MissingSignalError
+from ..flight import canonical_unit
 from .document import Document, break_gaps, fmt, new_figure
 
 __all__ = ["text", "document", "write"]
@@ -117,7 +120,6 @@ def _with_unit(name: str) -> str:
         return "t (s)"
     if name == "|v| v_axis":
         return "|v| v_axis (m²/s²)"
-    from ..flight import canonical_unit
     try:
         unit = canonical_unit(name)
     except MissingSignalError:
@@ -226,7 +228,6 @@ def _figures(doc, r):
     doc.heading("Residual over time")
     fig = fig_residual_time(r)
     doc.figure(fig, "residual_time", "Training residual of the refit prior before and after the added effects")
-    from priors.effects import CATALOGUE
     for k, step in enumerate(r.steps, 1):
         eid = step["effect"]
         explain = getattr(CATALOGUE.get(eid), "explain_signal", "")

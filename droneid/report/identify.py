@@ -12,6 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ConfigError
+from ..expressions import parse_expression
+from ..rollout import horizon_figures
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table, to_float
 
 __all__ = ["error_rows", "text", "document", "write", "pareto_front", "compact",
@@ -205,9 +208,6 @@ def _math_lines(lhs: str, expr, width: int = 110, signals=None) -> list[str] | N
     figures), wrapped between terms and factors so that no line is much longer than ``width``
     LaTeX characters; None if ``expr`` does not parse."""
     import sympy
-
-    from ..errors import ConfigError
-    from ..expressions import parse_expression
     try:  # the safe parser, never sympify: a saved result.json may come from anywhere
         e = parse_expression(expr, signals if signals is not None else re.findall(r"[A-Za-z_]\w*", expr),
                              what="final model") if isinstance(expr, str) else expr
@@ -414,7 +414,6 @@ def document(result: dict) -> Document:
                 doc.figure(fig, f"{name}_pareto", "Pareto front of e_d^train vs e_c^train over the runs' archives")
     header, rows = horizon_rows(result.get("horizons") or {})
     if rows:
-        from ..rollout import horizon_figures
         h = result["horizons"]
         doc.heading("Multi-step prediction on the test flights")
         doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
