@@ -11,9 +11,10 @@ import re
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
 from ..errors import ConfigError
-from ..expressions import parse_expression
+from ..expressions import ALLOWED_FUNCTIONS, parse_expression
 from ..rollout import horizon_figures
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table, to_float
 
@@ -57,8 +58,28 @@ def _pct(v) -> str:
     return "—" if not math.isfinite(v) else f"{v:+.1f} %"
 
 
+_LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
+_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
+def readable_expr(text: str, sig: int = 4) -> str:
+    """A prior feature's expression as a person reads it: a common numeric factor pulled out
+    (``2.55e-10*rpm1**2 + 2.55e-10*rpm2**2`` -> ``2.55e-10*(rpm1**2 + rpm2**2)``) and floats to
+    ``sig`` significant figures. Display only: result.json keeps the full expression. Parsed
+    with the project's safe parser (a saved result may come from anywhere); text it refuses is
+    shown with its floats rounded only."""
+    try:
+        names = sorted({m for m in _NAME.findall(str(text))} - set(ALLOWED_FUNCTIONS) - {"pi", "e"})
+        expr = sp.factor_terms(parse_expression(str(text), names))
+        text = str(expr)
+    except ConfigError:
+        pass
+    return _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(text))
+
+
 def _legend(tr: dict) -> list[str]:
-    return [f"  ⟨{p['name']}⟩ = {p['expr']}" + (f"   ({p['description']})" if p.get("description") else "")
+    return [f"  ⟨{p['name']}⟩ = {readable_expr(p['expr'])}"
+            + (f"   ({p['description']})" if p.get("description") else "")
             for p in tr.get("prior_features") or []]
 
 

@@ -243,3 +243,15 @@ def test_every_axis_of_the_report_figures_has_a_unit():
         for ax in fig.axes:
             assert unit.search(ax.get_xlabel()), ax.get_xlabel()
             assert unit.search(ax.get_ylabel()), ax.get_ylabel()
+
+
+def test_prior_feature_legend_is_readable():
+    """The legend pulls the common thrust scale out of the rotor sum and rounds it; the saved
+    expression is untouched, and text the safe parser refuses is never evaluated."""
+    from droneid.report.identify import readable_expr
+    full = ("(sin(pitch)*cos(roll))*(2.56595388352325e-10*rpm1**2 + 2.56595388352325e-10*rpm2**2"
+            " + 2.56595388352325e-10*rpm3**2 + 2.56595388352325e-10*rpm4**2)")
+    shown = readable_expr(full)
+    assert shown.count("2.566e-10") == 1 and "rpm1**2 + rpm2**2 + rpm3**2 + rpm4**2" in shown
+    assert readable_expr("-0.28*vx") == "-0.28*vx"
+    assert readable_expr("9**9**9*vx") == "9**9**9*vx"  # refused by the parser: shown as is
