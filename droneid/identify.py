@@ -676,6 +676,11 @@ class TargetResult:
 _LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
 
 
+def round_floats(text: str, sig: int = 4) -> str:
+    """``text`` with every float of 5 or more decimals written to ``sig`` significant figures."""
+    return _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(text))
+
+
 def _top_level_sum(text: str) -> bool:
     """Whether ``text`` (sympy's str form) is a sum at the outermost level."""
     depth = 0
@@ -690,7 +695,7 @@ def _top_level_sum(text: str) -> bool:
 def display_term(term: str, prior_symbols: dict | None = None, sig: int = 4) -> tuple[str, bool]:
     """(text, negated): a term with floats to ``sig`` figures and prior symbols as ⟨name⟩; a
     leading minus of a product is moved out (``negated``) and sums are parenthesised."""
-    text = _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(term))
+    text = round_floats(term, sig)
     for sym in sorted(prior_symbols or {}, key=len, reverse=True):
         text = re.sub(rf"\b{re.escape(sym)}\b", f"⟨{prior_symbols[sym]}⟩", text)
     if _top_level_sum(text):

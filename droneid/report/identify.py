@@ -15,6 +15,7 @@ import sympy as sp
 
 from ..errors import ConfigError
 from ..expressions import ALLOWED_FUNCTIONS, parse_expression
+from ..identify import round_floats
 from ..rollout import horizon_figures
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table, to_float
 
@@ -58,7 +59,6 @@ def _pct(v) -> str:
     return "—" if not math.isfinite(v) else f"{v:+.1f} %"
 
 
-_LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
 _NAME = re.compile(r"[A-Za-z_]\w*")
 
 
@@ -74,7 +74,7 @@ def readable_expr(text: str, sig: int = 4) -> str:
         text = str(expr)
     except ConfigError:
         pass
-    return _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(text))
+    return round_floats(text, sig)
 
 
 def _legend(tr: dict) -> list[str]:
