@@ -171,7 +171,7 @@ class _Detect:
     crash_hold_s: float
     crash_accel: float
     crash_margin_s: float
-    ground_margin_s: float = 0.2
+    ground_margin_s: float
 
 
 def _grid_values(flight: Flight, name: str, t: np.ndarray):

@@ -14,7 +14,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ConfigError
-from ..expressions import ALLOWED_FUNCTIONS, parse_expression
+from ..expressions import parse_expression
 from ..identify import round_floats
 from ..rollout import horizon_figures
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table, to_float
@@ -69,8 +69,7 @@ def readable_expr(text: str, sig: int = 4) -> str:
     with the project's safe parser (a saved result may come from anywhere); text it refuses is
     shown with its floats rounded only."""
     try:
-        names = sorted({m for m in _NAME.findall(str(text))} - set(ALLOWED_FUNCTIONS) - {"pi", "e"})
-        expr = sp.factor_terms(parse_expression(str(text), names))
+        expr = sp.factor_terms(parse_expression(str(text), _NAME.findall(str(text))))
         text = str(expr)
     except ConfigError:
         pass
@@ -230,7 +229,7 @@ def _math_lines(lhs: str, expr, width: int = 110, signals=None) -> list[str] | N
     LaTeX characters; None if ``expr`` does not parse."""
     import sympy
     try:  # the safe parser, never sympify: a saved result.json may come from anywhere
-        e = parse_expression(expr, signals if signals is not None else re.findall(r"[A-Za-z_]\w*", expr),
+        e = parse_expression(expr, signals if signals is not None else _NAME.findall(expr),
                              what="final model") if isinstance(expr, str) else expr
         e = e.xreplace({n: sympy.Float(float(n), 4) for n in e.atoms(sympy.Float)})
         tokens = _tex_tokens(e)
