@@ -103,15 +103,6 @@ def _sin_or_cos(x, shift):
     return sign * v if odd < 0.5 else -sign * v
 
 
-@njit(cache=True, fastmath=FM, inline="always")
-def _maxabs(x):
-    m = 0.0
-    for i in range(x.shape[0]):
-        v = abs(x[i])
-        m = v if v > m else m
-    return m
-
-
 @njit(cache=True)
 def _scalar_op(code, x, y):
     if code == ADD:
@@ -149,93 +140,115 @@ def _scalar_op(code, x, y):
     return np.nan
 
 
-@njit(cache=True, fastmath=FM, inline="always")
-def _vector_op(code, xa, xb, out):
-    """out = op(xa, xb) elementwise (xb ignored for unary ops)."""
-    n = out.shape[0]
+@njit(cache=True, fastmath=FM)
+def _vector_op(code, V, ra, na, rb, nb, ro, no):
+    """V[ro, no] = op(V[ra, na], V[rb, nb]) elementwise (the second ignored for unary ops).
+
+    Rows are addressed by index, not passed as views: a view costs an atomic reference-count
+    increment and decrement, and at ~40 node evaluations per generation those were a tenth of
+    the search time."""
+    n = V.shape[2]
     if code == IDENT:
         for i in range(n):
-            out[i] = xa[i]
+            V[ro, no, i] = V[ra, na, i]
     elif code == ADD:
         for i in range(n):
-            out[i] = xa[i] + xb[i]
+            V[ro, no, i] = V[ra, na, i] + V[rb, nb, i]
     elif code == SUB:
         for i in range(n):
-            out[i] = xa[i] - xb[i]
+            V[ro, no, i] = V[ra, na, i] - V[rb, nb, i]
     elif code == MUL:
         for i in range(n):
-            out[i] = xa[i] * xb[i]
+            V[ro, no, i] = V[ra, na, i] * V[rb, nb, i]
     elif code == SQUARE:
         for i in range(n):
-            out[i] = xa[i] * xa[i]
+            V[ro, no, i] = V[ra, na, i] * V[ra, na, i]
     elif code == CUBE:
         for i in range(n):
-            out[i] = xa[i] * xa[i] * xa[i]
+            V[ro, no, i] = V[ra, na, i] * V[ra, na, i] * V[ra, na, i]
     elif code == SIN or code == COS:
+        # one vectorised pass that also counts arguments beyond the exact reduction (NaN is not
+        # counted, as before); only a row with such an argument is redone with libm
         shift = 0.0 if code == SIN else 1.0
-        if _maxabs(xa) <= TRIG_REDUCE_MAX:
-            for i in range(n):
-                out[i] = _sin_or_cos(xa[i], shift)
-        elif code == SIN:
-            for i in range(n):
-                out[i] = math.sin(xa[i])
-        else:
-            for i in range(n):
-                out[i] = math.cos(xa[i])
+        big = 0
+        for i in range(n):
+            x = V[ra, na, i]
+            big += abs(x) > TRIG_REDUCE_MAX
+            V[ro, no, i] = _sin_or_cos(x, shift)
+        if big != 0:
+            if code == SIN:
+                for i in range(n):
+                    V[ro, no, i] = math.sin(V[ra, na, i])
+            else:
+                for i in range(n):
+                    V[ro, no, i] = math.cos(V[ra, na, i])
     elif code == NEG:
         for i in range(n):
-            out[i] = -xa[i]
+            V[ro, no, i] = -V[ra, na, i]
     elif code == DIV:
         for i in range(n):
-            d = xb[i]
-            out[i] = xa[i] / d if abs(d) > DIV_EPS else np.nan
+            d = V[rb, nb, i]
+            V[ro, no, i] = V[ra, na, i] / d if abs(d) > DIV_EPS else np.nan
     elif code == SQRTABS:
         for i in range(n):
-            out[i] = math.sqrt(abs(xa[i]))
+            V[ro, no, i] = math.sqrt(abs(V[ra, na, i]))
     elif code == TAN:
         for i in range(n):
-            out[i] = math.tan(xa[i])
+            V[ro, no, i] = math.tan(V[ra, na, i])
     elif code == ABS:
         for i in range(n):
-            out[i] = abs(xa[i])
+            V[ro, no, i] = abs(V[ra, na, i])
     elif code == EXP:
         for i in range(n):
-            x = xa[i]
-            out[i] = math.exp(x) if x < 700.0 else np.inf
+            x = V[ra, na, i]
+            V[ro, no, i] = math.exp(x) if x < 700.0 else np.inf
     elif code == TANH:
         for i in range(n):
-            out[i] = math.tanh(xa[i])
+            V[ro, no, i] = math.tanh(V[ra, na, i])
     else:
         for i in range(n):
-            out[i] = np.nan
+            V[ro, no, i] = np.nan
 
 
 @njit(cache=True)
 def apply_op(code, xa, xb):
     """The compiled kernel of one operator on whole vectors (for tests against the numpy kernels)."""
-    out = np.empty(xa.shape[0])
-    _vector_op(code, xa, xb, out)
+    n = xa.shape[0]
+    V = np.empty((1, 3, n))
+    for i in range(n):
+        V[0, 0, i] = xa[i]
+        V[0, 1, i] = xb[i]
+    _vector_op(code, V, 0, 0, 0, 1, 0, 2)
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = V[0, 2, i]
     return out
 
 
-@njit(cache=True, fastmath=FM, inline="always")
-def _row_stats(row, nt, yc, syy):
-    """(valid, constant, fit) of one node's output row; fit = 1 - |corr(row, y)| on training columns.
+@njit(cache=True, fastmath=FM)
+def _row_stats(V, r, node, nt, yc, syy):
+    """(valid, constant, fit) of the output row ``V[r, node]``; fit = 1 - |corr(row, y)| on
+    training columns.
 
-    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude. The
-    loops carry no per-element test: a sum of squares <= MAX_ABS^2 proves every value finite
-    and within MAX_ABS (NaN and inf make it fail), so the exact test runs only when it does not.
+    Invalid: any column (training or constraint) non-finite or above MAX_ABS in magnitude,
+    counted in one integer pass (which vectorises, unlike a floating-point sum); the sums of
+    the fit then run over the training columns only.
     """
-    n = row.shape[0]
+    n = V.shape[2]
+    bad = 0
+    for i in range(n):
+        bad += not (abs(V[r, node, i]) <= MAX_ABS)     # NaN compares false
+    if bad != 0:
+        return False, True, 1.0
     s0 = s1 = s2 = s3 = 0.0
     q0 = q1 = q2 = q3 = 0.0
     c0 = c1 = c2 = c3 = 0.0
     m = nt - nt % 4
     for i in range(0, m, 4):
-        v0 = row[i]
-        v1 = row[i + 1]
-        v2 = row[i + 2]
-        v3 = row[i + 3]
+        v0 = V[r, node, i]
+        v1 = V[r, node, i + 1]
+        v2 = V[r, node, i + 2]
+        v3 = V[r, node, i + 3]
         s0 += v0
         s1 += v1
         s2 += v2
@@ -249,18 +262,11 @@ def _row_stats(row, nt, yc, syy):
         c2 += v2 * yc[i + 2]
         c3 += v3 * yc[i + 3]
     for i in range(m, nt):
-        v = row[i]
+        v = V[r, node, i]
         s0 += v
         q0 += v * v
         c0 += v * yc[i]
-    qc = 0.0
-    for i in range(nt, n):                          # constraint columns: validity only
-        qc += row[i] * row[i]
     sxx = (q0 + q1) + (q2 + q3)
-    if not (sxx <= MAX_ABS * MAX_ABS and qc <= MAX_ABS * MAX_ABS):
-        for i in range(n):
-            if not (abs(row[i]) <= MAX_ABS):        # NaN compares false
-                return False, True, 1.0
     s = (s0 + s1) + (s2 + s3)
     sxy = (c0 + c1) + (c2 + c3)                # yc is centred: this is the centred sum
     mean = s / nt
@@ -276,55 +282,106 @@ def _row_stats(row, nt, yc, syy):
 
 
 @njit(cache=True)
-def _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
-    """Recompute node n into its spare row, flip ``buf[n]`` and update valid/isconst/fit."""
-    nb = 1 - buf[n]
-    out = V[nb, n]
-    code = op[n]
-    if n < lay[L_HEAD]:          # constants and head block: derived constants
-        if code == CONST:
-            val = cval[n]
+def _propagate(lo, hi, force, gen_id, mutated, stamp, dirty, d_valid, d_const, d_fit,
+               op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
+    """Re-evaluate, in ascending order, the nodes n in [lo, hi) that were mutated in generation
+    ``gen_id`` (``mutated[n] == gen_id``; every node when ``force`` is nonzero) or that use a node whose
+    output changed in it; a re-evaluated node whose output comes out identical (e.g. invalid
+    before and after) does not dirty its users. Terminal rows are never recomputed.
+
+    Marks changed nodes with ``stamp[n] = gen_id`` and records every re-evaluated node and its
+    previous valid/isconst/fit in ``dirty``/``d_valid``/``d_const``/``d_fit`` (the undo log).
+    Returns (number re-evaluated, whether a feature slot's output changed).
+    """
+    nd = 0
+    id_changed = False
+    N = V.shape[2]
+    nt = lay[L_NT]
+    head = lay[L_HEAD]     # layout in locals: LLVM cannot tell that no store in the loop
+    tail = lay[L_TAIL]     # writes into ``lay``, so it would reload it every iteration
+    id0 = lay[L_ID]
+    P = lay[L_P]
+    for n in range(lo, hi):
+        if n >= head and n < tail:
+            continue
+        # links of -1 (none) look up the sentinel stamp[P], which is never set; a stamp equal
+        # to gen_id can only belong to a node at or above ``lo`` (set by this call)
+        sa = a[n]
+        sb = b[n]
+        hit = ((force != 0) | (mutated[n] == gen_id) | (stamp[sa if sa >= 0 else P] == gen_id)
+               | (stamp[sb if sb >= 0 else P] == gen_id))
+        if not hit:
+            continue
+        dirty[nd] = n
+        d_valid[nd] = valid[n]
+        d_const[nd] = isconst[n]
+        d_fit[nd] = fit[n]
+        nd += 1
+        # recompute node n into its spare row and flip buf[n] (written out here rather than as
+        # an inlined function: numba's inlining re-binds every array argument with a reference
+        # count increment and decrement, atomic operations that cost more per node than
+        # evaluating a short row)
+        nb = 1 - buf[n]
+        code = op[n]
+        vn = 1
+        cn = 1
+        fn = 1.0
+        if n < head:                 # constants and head block: derived constants
+            if code == CONST:
+                val = cval[n]
+            else:
+                x = V[buf[sa], sa, 0]
+                y = 0.0
+                if sb >= 0:
+                    y = V[buf[sb], sb, 0]
+                val = _scalar_op(code, x, y)
+                if not (abs(val) <= MAX_ABS):
+                    val = cval[n]    # the node's proxy constant
+            for t in range(N):
+                V[nb, n, t] = val
+        elif valid[sa] == 0 or (sb >= 0 and valid[sb] == 0):
+            vn = 0
+        elif code == IDENT:           # a feature slot just mirrors its successor
+            ra = buf[sa]
+            for t in range(N):
+                V[nb, n, t] = V[ra, sa, t]
+            vn = valid[sa]
+            cn = isconst[sa]
+            fn = fit[sa]
         else:
-            x = V[buf[a[n]], a[n], 0]
-            y = 0.0
-            if b[n] >= 0:
-                y = V[buf[b[n]], b[n], 0]
-            val = _scalar_op(code, x, y)
-            if not (abs(val) <= MAX_ABS):
-                val = cval[n]    # the node's proxy constant
-        for t in range(out.shape[0]):
-            out[t] = val
+            if sb < 0:
+                sb = sa
+            _vector_op(code, V, buf[sa], sa, buf[sb], sb, nb, n)
+            ok, cst, fn = _row_stats(V, nb, n, nt, yc, syy)
+            vn = 1 if ok else 0
+            cn = 1 if cst else 0
         buf[n] = nb
-        valid[n] = 1
-        isconst[n] = 1
-        fit[n] = 1.0
-        return
-    sa = a[n]
-    sb = b[n]
-    buf[n] = nb
-    if valid[sa] == 0 or (sb >= 0 and valid[sb] == 0):
-        valid[n] = 0
-        isconst[n] = 1
-        fit[n] = 1.0
-        return
-    if code == IDENT:           # a feature slot just mirrors its successor
-        src = V[buf[sa], sa]
-        for t in range(out.shape[0]):
-            out[t] = src[t]
-        valid[n] = valid[sa]
-        isconst[n] = isconst[sa]
-        fit[n] = fit[sa]
-        return
-    xa = V[buf[sa], sa]
-    if sb >= 0:
-        xb = V[buf[sb], sb]
-    else:
-        xb = xa
-    _vector_op(code, xa, xb, out)
-    ok, cst, f = _row_stats(out, lay[L_NT], yc, syy)
-    valid[n] = 1 if ok else 0
-    isconst[n] = 1 if cst else 0
-    fit[n] = f
+        valid[n] = vn
+        isconst[n] = cn
+        fit[n] = fn
+        if _changed(V, n, valid[n], d_valid[nd - 1]):
+            stamp[n] = gen_id
+            if n >= id0:
+                id_changed = True
+    return nd, id_changed
+
+
+@njit(cache=True)
+def _evaluate_one(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy, scratch):
+    """Recompute node n alone (cold paths: initialisation, links set from outside);
+    ``scratch`` from :func:`_undo_log`."""
+    mutated, stamp, dirty, d_valid, d_const, d_fit = scratch
+    _propagate(n, n + 1, np.int64(1), np.int64(0), mutated, stamp, dirty, d_valid, d_const,
+               d_fit, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+
+
+@njit(cache=True)
+def _undo_log(P):
+    """The generation marks and undo log of :func:`_propagate` for a population of P nodes
+    (``stamp`` has one more slot: the sentinel for "no link")."""
+    return (np.zeros(P, dtype=np.int64), np.zeros(P + 1, dtype=np.int64),
+            np.empty(P, dtype=np.int64), np.empty(P, dtype=np.uint8),
+            np.empty(P, dtype=np.uint8), np.empty(P))
 
 
 @njit(cache=True)
@@ -374,14 +431,14 @@ def _raise_bounds(m, s, a, b, lay, depth, ltr, stack):
 
 
 @njit(cache=True, inline="always")
-def _changed(r0, r1, valid_now, valid_before):
+def _changed(V, n, valid_now, valid_before):
     """Whether a re-evaluated node's output differs from its previous one (its two rows)."""
     if valid_now != valid_before:
         return True
     if valid_now == 0:
         return False
-    for t in range(r0.shape[0]):
-        if r0[t] != r1[t]:
+    for t in range(V.shape[2]):
+        if V[0, n, t] != V[1, n, t]:
             return True
     return False
 
@@ -409,16 +466,32 @@ def _pick_successor(m, ltr_m, depth, lay):
 
 
 @njit(cache=True, fastmath=FM, inline="always")
-def _dot(x, y, n):
+def _dot(V, r, node, y, n):
+    """Sum of V[r, node, t] * y[t] over the first n columns (four accumulators)."""
     s0 = s1 = s2 = s3 = 0.0
     m = n - n % 4
     for t in range(0, m, 4):
-        s0 += x[t] * y[t]
-        s1 += x[t + 1] * y[t + 1]
-        s2 += x[t + 2] * y[t + 2]
-        s3 += x[t + 3] * y[t + 3]
+        s0 += V[r, node, t] * y[t]
+        s1 += V[r, node, t + 1] * y[t + 1]
+        s2 += V[r, node, t + 2] * y[t + 2]
+        s3 += V[r, node, t + 3] * y[t + 3]
     for t in range(m, n):
-        s0 += x[t] * y[t]
+        s0 += V[r, node, t] * y[t]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, fastmath=FM, inline="always")
+def _dot_rows(V, r, node, r2, node2, n):
+    """Sum of V[r, node, t] * V[r2, node2, t] over the first n columns (four accumulators)."""
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for t in range(0, m, 4):
+        s0 += V[r, node, t] * V[r2, node2, t]
+        s1 += V[r, node, t + 1] * V[r2, node2, t + 1]
+        s2 += V[r, node, t + 2] * V[r2, node2, t + 2]
+        s3 += V[r, node, t + 3] * V[r2, node2, t + 3]
+    for t in range(m, n):
+        s0 += V[r, node, t] * V[r2, node2, t]
     return (s0 + s1) + (s2 + s3)
 
 
@@ -433,6 +506,20 @@ def _sum(x, n):
         s3 += x[t + 3]
     for t in range(m, n):
         s0 += x[t]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, fastmath=FM, inline="always")
+def _sum_row(V, r, node, n):
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for t in range(0, m, 4):
+        s0 += V[r, node, t]
+        s1 += V[r, node, t + 1]
+        s2 += V[r, node, t + 2]
+        s3 += V[r, node, t + 3]
+    for t in range(m, n):
+        s0 += V[r, node, t]
     return (s0 + s1) + (s2 + s3)
 
 
@@ -452,21 +539,21 @@ def _gram_row(node, V, buf, valid, isconst, lay, y, gram, rhs):
     against the intercept, the priors and every usable identity node; training columns only."""
     nt = lay[L_NT]
     g = _gidx(node, lay)
-    x = V[buf[node], node]
-    rhs[g] = _dot(x, y, nt)
-    s = _sum(x, nt)
+    r = buf[node]
+    rhs[g] = _dot(V, r, node, y, nt)
+    s = _sum_row(V, r, node, nt)
     gram[g, 0] = s
     gram[0, g] = s
     for p in range(lay[L_TAIL] - lay[L_NPRIOR], lay[L_TAIL]):
         h = _gidx(p, lay)
-        v = _dot(x, V[buf[p], p], nt)
+        v = _dot_rows(V, r, node, buf[p], p, nt)
         gram[g, h] = v
         gram[h, g] = v
     for m in range(lay[L_ID], lay[L_P]):
         if valid[m] == 0 or isconst[m] == 1:
             continue
         h = _gidx(m, lay)
-        v = _dot(x, V[buf[m], m], nt)
+        v = _dot_rows(V, r, node, buf[m], m, nt)
         gram[g, h] = v
         gram[h, g] = v
 
@@ -613,10 +700,10 @@ def _solve_model(op, V, buf, valid, isconst, fit, lay, y, ckind, cbound, beta, c
         if keep[i] == 0:
             continue
         ci = cols[i]
-        xi = V[buf[ci], ci]
+        ri = buf[ci]
         bi = beta[i]
         for t in range(N):
-            pred[t] += bi * xi[t]
+            pred[t] += bi * V[ri, ci, t]
     sse = 0.0
     for t in range(nt):
         e = y[t] - pred[t]
@@ -711,6 +798,7 @@ def init_population(seed, op, a, b, cval, V, buf, valid, isconst, fit, lay, y, y
     """Random links for head, tail and identity nodes; evaluate everything; fit the model."""
     np.random.seed(seed)
     P = lay[L_P]
+    scratch = _undo_log(P)
     head0 = 0
     while head0 < lay[L_HEAD] and op[head0] == CONST:
         head0 += 1
@@ -719,20 +807,20 @@ def init_population(seed, op, a, b, cval, V, buf, valid, isconst, fit, lay, y, y
         if n >= head0:
             a[n] = np.random.randint(0, n)
             b[n] = np.random.randint(0, n)
-        _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+        _evaluate_one(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy, scratch)
     for n in range(lay[L_HEAD], lay[L_TAIL]):     # variables and prior terminals (rows preset)
-        ok, cst, f = _row_stats(V[buf[n], n], lay[L_NT], yc, syy)
+        ok, cst, f = _row_stats(V, buf[n], n, lay[L_NT], yc, syy)
         valid[n] = 1 if ok else 0
         isconst[n] = 1 if cst else 0
         fit[n] = f
     depth = np.zeros(P, dtype=np.int64)
     for n in range(lay[L_TAIL], P):
         for attempt in range(20):
-            a[n] = _pick_successor(n, 0, depth, lay)
+            a[n] = _pick_successor(n, np.int64(0), depth, lay)
             b[n] = -1
             if _is_binary(op[n]):
-                b[n] = _pick_successor(n, 0, depth, lay)
-            _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+                b[n] = _pick_successor(n, np.int64(0), depth, lay)
+            _evaluate_one(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy, scratch)
             if valid[n] == 1 and isconst[n] == 0:
                 break
         d = depth[a[n]]
@@ -778,15 +866,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
     bp = np.empty(P)
     if identity_only:
         _depths(a, b, lay, depth)
-    stamp = np.zeros(P, dtype=np.int64)
-    mutated = np.zeros(P, dtype=np.int64)
+    mutated, stamp, dirty, d_valid, d_const, d_fit = _undo_log(P)
     u_node = np.empty(MAX_MUTATIONS, dtype=np.int64)
     u_slot = np.empty(MAX_MUTATIONS, dtype=np.int64)
     u_old = np.empty(MAX_MUTATIONS, dtype=np.int64)
-    dirty = np.empty(P, dtype=np.int64)
-    d_valid = np.empty(P, dtype=np.uint8)
-    d_const = np.empty(P, dtype=np.uint8)
-    d_fit = np.empty(P)
     nbeta = np.empty(K)
     ncols = np.empty(K, dtype=np.int64)
     nobj = np.zeros(3)
@@ -851,7 +934,7 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
             if m < lay[L_HEAD]:
                 s = np.random.randint(0, m)
             elif identity_only:
-                s = _pick_successor(m, 0, depth, lay)   # identity nodes have no users
+                s = _pick_successor(m, np.int64(0), depth, lay)   # identity nodes have no users
             else:
                 s = _pick_successor(m, ltr[m], depth, lay)
                 if s >= t0:
@@ -873,34 +956,10 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
             mutated[m] = gen_id
             if m < lowest:
                 lowest = m
-        # re-evaluate the mutated nodes and every node above a changed one, ascending; a node
-        # whose output comes out identical (e.g. invalid before and after) does not dirty its users
-        nd = 0
-        id_changed = False
-        for n in range(lowest, P):
-            if n >= lay[L_HEAD] and n < t0:
-                continue
-            hit = mutated[n] == gen_id
-            if not hit and n >= head0:
-                s = a[n]
-                if s >= lowest and stamp[s] == gen_id:
-                    hit = True
-                else:
-                    s = b[n]
-                    if s >= lowest and stamp[s] == gen_id:
-                        hit = True
-            if not hit:
-                continue
-            dirty[nd] = n
-            d_valid[nd] = valid[n]
-            d_const[nd] = isconst[n]
-            d_fit[nd] = fit[n]
-            nd += 1
-            _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
-            if _changed(V[0, n], V[1, n], valid[n], d_valid[nd - 1]):
-                stamp[n] = gen_id
-                if n >= id0:
-                    id_changed = True
+        # re-evaluate the mutated nodes and every node above a changed one, ascending
+        nd, id_changed = _propagate(lowest, P, np.int64(0), gen_id, mutated, stamp, dirty, d_valid,
+                                    d_const, d_fit, op, a, b, cval, V, buf, valid, isconst, fit,
+                                    lay, yc, syy)
         stats[S_EVALS] += nd
         accept = False
         ng = 0
@@ -966,11 +1025,11 @@ def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid
 @njit(cache=True)
 def evaluate_all(op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
     """Recompute every non-terminal node in ascending order (after links were set from outside)."""
-    for n in range(lay[L_P]):
-        if n >= lay[L_HEAD] and n < lay[L_TAIL]:     # variables and prior terminals
-            ok, cst, f = _row_stats(V[buf[n], n], lay[L_NT], yc, syy)
-            valid[n] = 1 if ok else 0
-            isconst[n] = 1 if cst else 0
-            fit[n] = f
-            continue
-        _evaluate(n, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+    for n in range(lay[L_HEAD], lay[L_TAIL]):     # variables and prior terminals (rows preset)
+        ok, cst, f = _row_stats(V, buf[n], n, lay[L_NT], yc, syy)
+        valid[n] = 1 if ok else 0
+        isconst[n] = 1 if cst else 0
+        fit[n] = f
+    mutated, stamp, dirty, d_valid, d_const, d_fit = _undo_log(lay[L_P])
+    _propagate(np.int64(0), lay[L_P], np.int64(1), np.int64(0), mutated, stamp, dirty, d_valid,
+               d_const, d_fit, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
