@@ -9,7 +9,7 @@ runs (:mod:`droneid.runner`, local pool or Dask) fit the model; the result is pl
   paper's budget or the quick one.
 - :func:`prepare_target` builds one target's problem (datasets, priors, constraints, empirical
   baselines); :func:`make_jobs` turns it into picklable run jobs; :func:`run_job` runs one SNGP
-  fit in a worker; :func:`summarise_target` turns finished runs into a :class:`TargetResult`.
+  fit in a worker and returns a :class:`RunRecord`; :func:`summarise_target` turns finished runs into a :class:`TargetResult`.
 - :func:`identify` composes them for every target and returns an :class:`IdentificationResult`
   (``to_dict()`` is the ``result.json`` document; ``from_dict`` reads it back).
 - :func:`select_best` is the model selection, a pure function: the best run is chosen by
@@ -45,7 +45,7 @@ from .identified import IdentifiedModel
 from .io_util import to_jsonable
 from .ladder import (TermModel, drag_slope, drop_negligible, evaluate_expr, plausible, trim_terms,
                      validation_blocks)
-from .numerics import rmse
+from .numerics import finite_median, rmse
 from .rollout import horizon_section
 from .sngp import SNGPRegressor
 from .sngp.model import SymbolicModel, round_expr, to_text
@@ -54,7 +54,7 @@ from .sngp.selection import best_index
 from .plan import (TARGETS, Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
 
-__all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "TargetResult", "IdentificationResult",
+__all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "RunRecord", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
            "run_seeds", "PAPER_BUDGET", "QUICK_BUDGET", "TARGETS", "SCHEMA"]
 
@@ -564,7 +564,70 @@ def make_jobs(p: TargetProblem, cfg: IdentifyConfig, *, prior_features: int | No
     return jobs
 
 
-def run_job(job: RunJob) -> dict:
+@dataclass(frozen=True)
+class RunRecord:
+    """One finished SNGP run, as :func:`run_job` returns it from a worker.
+
+    Errors are RMSEs in the target's units (m/s² for ``v̇``); constraint errors are NaN when the
+    run had no constraint samples. ``equation`` is the engine's form (prior features as symbols),
+    ``equation_expanded`` the same model with the prior features written out. ``model`` is the
+    estimator's ``to_dict()`` (what ``SymbolicModel.from_dict`` reads); ``pred_test`` the model's
+    prediction on the test data (not part of ``result.json``: see :meth:`summary`).
+    """
+    target: str = ""
+    variant: str = ""
+    index: int = 0
+    seed: int = 0
+    rmse_train: float = math.nan
+    rmse_test: float = math.nan
+    constraint_rmse_train: float = math.nan
+    constraint_rmse_test: float = math.nan
+    qualified: bool = True
+    equation: str = ""
+    equation_expanded: str = ""
+    coefficients: dict = field(default_factory=dict)
+    prior_coefficients: dict = field(default_factory=dict)
+    intercept: float = 0.0
+    wall_s: float = 0.0
+    generations: int = 0
+    stopped_early: bool = False
+    archive: tuple = ()            # the Pareto archive: ({"rmse_train", "constraint_rmse_train"}, ...)
+    model: dict | None = None
+    pred_test: np.ndarray | None = field(default=None, repr=False, compare=False)
+    prior_symbols: dict = field(default_factory=dict)   # engine symbol -> prior feature name
+
+    #: what ``result.json`` keeps of each run (``runs`` of a target)
+    SUMMARY_KEYS = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
+                    "qualified", "wall_s", "generations", "stopped_early", "equation", "equation_expanded",
+                    "archive")
+
+    def summary(self, keys: Sequence[str] = SUMMARY_KEYS) -> dict:
+        """The fields ``keys`` as a plain dict (the archive as a list)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k in keys for v in (getattr(self, k),)}
+
+    def to_dict(self) -> dict:
+        """Every field as JSON-ready data (``pred_test`` as a list)."""
+        return to_jsonable({f.name: getattr(self, f.name) for f in fields(self)})
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "RunRecord":
+        """The record back from :meth:`to_dict` or :meth:`summary` (missing fields: defaults;
+        null errors: NaN)."""
+        if not isinstance(d, dict):
+            raise DataError(f"not a run record: {type(d).__name__}")
+        names = {f.name for f in fields(cls)}
+        kw = {k: v for k, v in d.items() if k in names}
+        for k in ("rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test"):
+            if k in kw:
+                kw[k] = _float(kw[k])       # JSON writes NaN as null
+        if "archive" in kw:
+            kw["archive"] = tuple(kw["archive"] or ())
+        if kw.get("pred_test") is not None:
+            kw["pred_test"] = np.asarray(kw["pred_test"], float)
+        return cls(**kw)
+
+
+def run_job(job: RunJob) -> RunRecord:
     """Fit one SNGP model and measure it (runs in a worker process)."""
     t0 = time.perf_counter()
     est = SNGPRegressor(seed=job.seed, **job.engine)
@@ -573,24 +636,23 @@ def run_job(job: RunJob) -> dict:
     pred_test = np.asarray(est.predict(job.X_test), float)
     ec_test = float(est.constraint_rmse(job.cs_test)) if job.cs_test is not None else float("nan")
     ec_train = getattr(est, "constraint_rmse_train_", float("nan"))
-    archive = [{"rmse_train": float(a.get("rmse_train", np.nan)),
-                "constraint_rmse_train": _float(a.get("constraint_rmse_train"))}
-               for a in (getattr(est, "archive_", None) or [])]
+    archive = tuple({"rmse_train": float(a.get("rmse_train", np.nan)),
+                     "constraint_rmse_train": _float(a.get("constraint_rmse_train"))}
+                    for a in (getattr(est, "archive_", None) or []))
     model = est.to_dict()
-    return {
-        "target": job.target, "variant": job.variant, "index": job.index, "seed": job.seed,
-        "rmse_train": float(est.rmse_train_), "rmse_test": rmse(pred_test, job.y_test),
-        "constraint_rmse_train": _float(ec_train), "constraint_rmse_test": ec_test,
-        "qualified": bool(getattr(est, "qualified_", True)),
-        "equation": str(est.equation_), "equation_expanded": _expanded(est),
-        "coefficients": {str(k): float(v) for k, v in est.coef_.items()},
-        "prior_coefficients": {str(k): float(v) for k, v in (est.prior_coef_ or {}).items()},
-        "intercept": float(est.intercept_), "wall_s": float(getattr(est, "wall_s_", time.perf_counter() - t0)),
-        "generations": int(getattr(est, "generations_", job.engine.get("generations", 0))),
-        "stopped_early": bool(getattr(est, "stopped_early_", False)),
-        "archive": archive, "model": model, "pred_test": pred_test,
-        "prior_symbols": {p["symbol"]: p["name"] for p in model.get("priors", []) if "symbol" in p},
-    }
+    return RunRecord(
+        target=job.target, variant=job.variant, index=job.index, seed=job.seed,
+        rmse_train=float(est.rmse_train_), rmse_test=rmse(pred_test, job.y_test),
+        constraint_rmse_train=_float(ec_train), constraint_rmse_test=ec_test,
+        qualified=bool(getattr(est, "qualified_", True)),
+        equation=str(est.equation_), equation_expanded=_expanded(est),
+        coefficients={str(k): float(v) for k, v in est.coef_.items()},
+        prior_coefficients={str(k): float(v) for k, v in (est.prior_coef_ or {}).items()},
+        intercept=float(est.intercept_), wall_s=float(getattr(est, "wall_s_", time.perf_counter() - t0)),
+        generations=int(getattr(est, "generations_", job.engine.get("generations", 0))),
+        stopped_early=bool(getattr(est, "stopped_early_", False)),
+        archive=archive, model=model, pred_test=pred_test,
+        prior_symbols={p["symbol"]: p["name"] for p in model.get("priors", []) if "symbol" in p})
 
 
 def _expanded(est) -> str:
@@ -612,19 +674,13 @@ def _float(v) -> float:
 # selection and summary (pure)
 
 
-def select_best(runs: Sequence[dict]) -> int | None:
+def select_best(runs: Sequence[RunRecord | None]) -> int | None:
     """Index of the chosen run by the engine's one selection rule (:mod:`droneid.sngp.selection`)
     on TRAINING errors: runs whose model qualified (met e_c^train < gamma; every unconstrained
     run qualifies) by e_d^train, else by e_c^train. Test errors are never looked at. None for no
     runs."""
-    return best_index(runs, lambda r: r["rmse_train"], lambda r: r.get("constraint_rmse_train"),
-                      lambda r: r.get("qualified", True))
-
-
-def _median(runs, key) -> float:
-    vals = np.array([_float(r.get(key)) for r in runs], float)
-    vals = vals[np.isfinite(vals)]
-    return float(np.median(vals)) if vals.size else float("nan")
+    return best_index(runs, lambda r: r.rmse_train, lambda r: r.constraint_rmse_train,
+                      lambda r: r.qualified)
 
 
 def improvement_pct(reference: float, value: float) -> float:
@@ -632,10 +688,6 @@ def improvement_pct(reference: float, value: float) -> float:
     if not (math.isfinite(reference) and math.isfinite(value)) or reference <= 0:
         return float("nan")
     return 100.0 * (reference - value) / reference
-
-
-RUN_KEYS = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
-            "qualified", "wall_s", "generations", "stopped_early", "equation", "equation_expanded", "archive")
 
 
 @dataclass
@@ -734,7 +786,7 @@ def _feature_dicts(feats) -> list:
             for f in feats]
 
 
-def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> tuple[dict, dict]:
+def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]) -> tuple[dict, dict]:
     """(final rung, guard report): the best evolved model that survives the trust guards, or the
     physical rung (prior + delay + effects) when none beats it on TRAINING validation blocks.
 
@@ -779,7 +831,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[dict]) -> 
     best = None
     for i, r in enumerate(done):
         try:
-            m = SymbolicModel.from_dict(r["model"])
+            m = SymbolicModel.from_dict(r.model)
         except (ConfigError, DataError, KeyError, TypeError):
             continue
         prior_syms = {symbol(k) for k in m.priors}
@@ -867,7 +919,7 @@ def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: b
             f"{why}; keep the empirical model")
 
 
-def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict | None],
+def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRecord | None],
                      errors: dict | None = None, *, prior_features: int | None = None) -> TargetResult:
     """Turn the finished runs of one target into its result (pure apart from reading ``p``)."""
     nprior = cfg.prior_features if prior_features is None else prior_features
@@ -878,17 +930,17 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
     nan = float("nan")
     metric = ("rmse_train", "rmse_test", "constraint_rmse_test")
     if best is not None:
-        identified = {k: best[k] for k in ("rmse_train", "rmse_test", "constraint_rmse_train",
-                                           "constraint_rmse_test", "seed", "qualified")}
-        median = {k: _median(done, k) for k in metric}
-        median["constraint_rmse_train"] = _median(done, "constraint_rmse_train")
-        pred = np.asarray(best["pred_test"], float)
+        identified = best.summary(("rmse_train", "rmse_test", "constraint_rmse_train",
+                                   "constraint_rmse_test", "seed", "qualified"))
+        median = {k: finite_median(_float(getattr(r, k)) for r in done)
+                  for k in (*metric, "constraint_rmse_train")}
+        pred = np.asarray(best.pred_test, float)
     else:
         identified = {k: nan for k in metric}
         median = {k: nan for k in metric}
         pred = np.full(len(p.test), nan)
     notes = [p.test_description, *p.notes]
-    if best is not None and not best.get("qualified", True) and not p.ladder:
+    if best is not None and not best.qualified and not p.ladder:
         notes.append(f"no run met the constraint threshold e_c^train < {cfg.gamma}: the run with "
                      f"the lowest training constraint error is reported instead")
     if errors:
@@ -899,7 +951,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
                       "rmse_validation": final["rmse_validation"],
                       "constraint_rmse_test": final["constraint_rmse_test"],
                       "constraint_rmse_train": identified.get("constraint_rmse_train", nan),
-                      "seed": done[guards["chosen_run"]]["seed"] if guards.get("chosen_run") is not None else None,
+                      "seed": done[guards["chosen_run"]].seed if guards.get("chosen_run") is not None else None,
                       "qualified": identified.get("qualified", True)}
         pred = np.asarray(final["pred_test"], float)
         if math.isfinite(final["constraint_rmse_test"]) and final["constraint_rmse_test"] > cfg.gamma:
@@ -939,20 +991,20 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[dict 
         target=p.target, inputs=list(p.train.input_names), n_train=len(p.train), n_test=len(p.test),
         test_data=p.test_description, holdout=p.holdout, prior_features=_feature_dicts(feats),
         empirical_terms=_feature_dicts(p.priors3),
-        equation=equation or (readable_equation(p.target, best["coefficients"], best["prior_coefficients"],
-                                                best["intercept"], best.get("prior_symbols")) if best else None),
+        equation=equation or (readable_equation(p.target, best.coefficients, best.prior_coefficients,
+                                                best.intercept, best.prior_symbols) if best else None),
         equation_expanded=(final["model"]["equation"] if final else
-                           f"{p.target} = {best.get('equation_expanded') or best['equation']}" if best else None),
+                           f"{p.target} = {best.equation_expanded or best.equation}" if best else None),
         coefficients=({k: v for k, v in final["terms"].items() if not k.startswith("⟨")} if final
-                      else dict(best["coefficients"]) if best else {}),
+                      else dict(best.coefficients) if best else {}),
         prior_coefficients=({k.strip("⟨⟩"): v for k, v in final["terms"].items() if k.startswith("⟨")}
-                            if final else dict(best["prior_coefficients"]) if best else {}),
-        intercept=final.get("intercept") if final else best["intercept"] if best else None,
+                            if final else dict(best.prior_coefficients) if best else {}),
+        intercept=final.get("intercept") if final else best.intercept if best else None,
         identified=identified, identified_median=median,
         empirical=dict(p.empirical), empirical_refit=dict(p.empirical_refit), improvement_pct=imp,
-        runs=[{k: r.get(k) for k in RUN_KEYS} for r in done],
+        runs=[r.summary() for r in done],
         best_run=best_i, failed_runs={str(k): v for k, v in (errors or {}).items()},
-        model=best["model"] if best else None, test_series=series, notes=notes)
+        model=best.model if best else None, test_series=series, notes=notes)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -1,15 +1,23 @@
 """Small numerical helpers shared by the engine, identification, prediction and diagnosis."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["rmse", "lstsq"]
+__all__ = ["rmse", "lstsq", "finite_median"]
 
 
 def rmse(a, b) -> float:
     """Root-mean-square of ``a - b`` (their units); nan for empty input."""
     d = np.asarray(a, float) - np.asarray(b, float)
     return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
+
+
+def finite_median(values) -> float:
+    """Median of the finite numbers among ``values`` (None, NaN and inf skipped); NaN for none."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], float)
+    return float(np.median(v)) if v.size else float("nan")
 
 
 def lstsq(A: np.ndarray, y: np.ndarray, rcond: float = 1e-12) -> np.ndarray:

@@ -21,6 +21,7 @@ from .errors import DataError
 from .identify import (IdentifyConfig, make_jobs, prepare_target, run_job, select_best, versions,
                        flight_provenance)
 from .io_util import to_jsonable
+from .numerics import finite_median
 
 __all__ = ["study", "SCENARIOS", "PRIOR_VARIANTS", "variant_key", "prior_label"]
 
@@ -44,11 +45,6 @@ def _ranksum_p(a, b) -> float:
     if a.size < 2 or b.size < 2:
         return float("nan")
     return float(ranksums(a, b).pvalue)
-
-
-def _median(vals) -> float:
-    v = np.asarray([x for x in vals if x is not None and math.isfinite(x)], float)
-    return float(np.median(v)) if v.size else float("nan")
 
 
 def study(train_flights: Sequence, test_flights: Sequence | None, config: IdentifyConfig,
@@ -75,7 +71,7 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
     outcome = runner.run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
                               label="SNGP run")
     keep = ("seed", "rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test",
-            "qualified", "wall_s", "equation")
+            "qualified", "wall_s", "equation")   # per run in study.json: errors, not the archive
     targets = {}
     for t in cfg.targets:
         p = problems[t]
@@ -89,11 +85,11 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
                 variants[v] = {
                     "scenario": scenario, "prior_features": k, "n_runs": len(runs),
                     "failed": [outcome.errors[i] for i in idx if i in outcome.errors],
-                    "median_rmse_train": _median(r["rmse_train"] for r in runs),
-                    "median_rmse_test": _median(r["rmse_test"] for r in runs),
-                    "median_constraint_rmse_test": _median(r["constraint_rmse_test"] for r in runs),
-                    "best_equation": runs[best]["equation"] if best is not None else None,
-                    "runs": [{key: r.get(key) for key in keep} for r in runs]}
+                    "median_rmse_train": finite_median(r.rmse_train for r in runs),
+                    "median_rmse_test": finite_median(r.rmse_test for r in runs),
+                    "median_constraint_rmse_test": finite_median(r.constraint_rmse_test for r in runs),
+                    "best_equation": runs[best].equation if best is not None else None,
+                    "runs": [r.summary(keep) for r in runs]}
         for scenario, _ in SCENARIOS:
             ref = [r["rmse_test"] for r in variants[variant_key(scenario, 0)]["runs"]]
             for k in PRIOR_VARIANTS:

@@ -4,13 +4,14 @@ from __future__ import annotations
 import json
 import re
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.identify import (IdentificationResult, IdentifyConfig, improvement_pct, readable_equation,
-                              run_seeds, select_best)
+from droneid.identify import (IdentificationResult, IdentifyConfig, RunRecord, improvement_pct,
+                              readable_equation, run_seeds, select_best)
 from droneid.report.identify import error_rows, pareto_front, write
 from droneid.report.identify import text as render_text
 
@@ -88,12 +89,12 @@ def test_result_round_trips_through_from_dict():
 
 
 def test_select_best_uses_training_error_of_qualified_runs_only():
-    runs = [{"rmse_train": 0.1, "rmse_test": 9.0, "qualified": False, "constraint_rmse_train": 1.0},
-            {"rmse_train": 0.3, "rmse_test": 0.1, "qualified": True, "constraint_rmse_train": 0.01},
-            {"rmse_train": 0.2, "rmse_test": 5.0, "qualified": True, "constraint_rmse_train": 0.04},
+    runs = [RunRecord(rmse_train=0.1, rmse_test=9.0, qualified=False, constraint_rmse_train=1.0),
+            RunRecord(rmse_train=0.3, rmse_test=0.1, qualified=True, constraint_rmse_train=0.01),
+            RunRecord(rmse_train=0.2, rmse_test=5.0, qualified=True, constraint_rmse_train=0.04),
             None]
     assert select_best(runs[:3]) == 2        # lowest train error among qualified, test ignored
-    none_ok = [dict(r, qualified=False) for r in runs[:3]]
+    none_ok = [replace(r, qualified=False) for r in runs[:3]]
     assert select_best(none_ok) == 1         # none qualified: lowest training constraint error
     assert select_best([None, None]) is None
 
@@ -255,3 +256,17 @@ def test_prior_feature_legend_is_readable():
     assert shown.count("2.566e-10") == 1 and "rpm1**2 + rpm2**2 + rpm3**2 + rpm4**2" in shown
     assert readable_expr("-0.28*vx") == "-0.28*vx"
     assert readable_expr("9**9**9*vx") == "9**9**9*vx"  # refused by the parser: shown as is
+
+
+def test_a_run_record_survives_json_and_keeps_its_summary_keys():
+    r = RunRecord(target="vx_dot", index=2, seed=7, rmse_train=0.25, rmse_test=0.5, equation="vx_dot = P1",
+                  archive=({"rmse_train": 0.3, "constraint_rmse_train": 0.1},), model={"equation": "P1"},
+                  pred_test=np.array([1.0, 2.0]), prior_symbols={"P1": "tilt"})
+    back = RunRecord.from_dict(json.loads(json.dumps(r.to_dict())))
+    assert back.to_dict() == r.to_dict() and np.array_equal(back.pred_test, r.pred_test)
+    assert math.isnan(back.constraint_rmse_test) and back.archive == r.archive  # null -> NaN, list -> tuple
+    s = r.summary()
+    assert set(s) == set(RunRecord.SUMMARY_KEYS) and "pred_test" not in s and "model" not in s
+    assert s["archive"] == [{"rmse_train": 0.3, "constraint_rmse_train": 0.1}]
+    with pytest.raises(Exception, match="not a run record"):
+        RunRecord.from_dict([1, 2])

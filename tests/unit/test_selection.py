@@ -3,7 +3,7 @@ import math
 
 from hypothesis import given, strategies as st
 
-from droneid.identify import select_best
+from droneid.identify import RunRecord, select_best
 from droneid.sngp.selection import best_index, nan_last, rank
 
 err = st.one_of(st.floats(0, 1e3), st.just(math.nan))
@@ -29,10 +29,10 @@ def test_best_index_is_the_minimum_of_the_rule(rows):
 
 
 def test_identify_picks_runs_by_training_error_with_the_same_rule():
-    runs = [{"rmse_train": 0.1, "constraint_rmse_train": 0.9, "qualified": False},
-            {"rmse_train": 0.5, "constraint_rmse_train": 0.01, "qualified": True},
+    runs = [RunRecord(rmse_train=0.1, constraint_rmse_train=0.9, qualified=False),
+            RunRecord(rmse_train=0.5, constraint_rmse_train=0.01, qualified=True),
             None,
-            {"rmse_train": 0.3, "constraint_rmse_train": 0.02, "qualified": True, "rmse_test": 0.0}]
+            RunRecord(rmse_train=0.3, constraint_rmse_train=0.02, qualified=True, rmse_test=0.0)]
     assert select_best(runs) == 3
     assert select_best([None]) is None
-    assert select_best([runs[0], {"rmse_train": 0.05, "constraint_rmse_train": 2.0, "qualified": False}]) == 0
+    assert select_best([runs[0], RunRecord(rmse_train=0.05, constraint_rmse_train=2.0, qualified=False)]) == 0
