@@ -48,16 +48,16 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     res = study([train], [test], cfg)
     wall = time.perf_counter() - t0
-    n_runs = res["runs_finished"]
-    run_walls = [r["wall_s"] for tr in res["targets"].values() for v in tr["variants"].values() for r in v["runs"]]
+    n_runs = res.runs_finished
+    run_walls = [r.wall_s for tr in res.targets.values() for v in tr.variants.values() for r in v.runs]
     per_run = sum(run_walls) / max(len(run_walls), 1)
     full_runs = 2 * 2 * 3 * 50
     extrap = wall * full_runs / max(n_runs, 1)
     print(study_report.text(res))
     print()
-    n_tr = next(iter(res["targets"].values()))["n_train"]
-    n_te = next(iter(res["targets"].values()))["n_test"]
-    print(f"machine: {os.cpu_count()} cores, {workers} worker(s), backend {res['backend']}; "
+    first = next(iter(res.targets.values()))
+    n_tr, n_te = first.n_train, first.n_test
+    print(f"machine: {os.cpu_count()} cores, {workers} worker(s), backend {res.backend}; "
           f"{n_tr} training / {n_te} test samples; {args.generations} generations, population {args.population}")
     print(f"MEASURED: {n_runs} runs in {wall:.1f} s wall ({wall / max(n_runs, 1):.2f} s wall per run with "
           f"{workers} workers; mean single-run time {per_run:.2f} s)")

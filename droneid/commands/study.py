@@ -54,11 +54,11 @@ def run(args) -> int:
     result = study(train, test, cfg, progress=bar)
     study_report.write(result, args.out)
     if args.json:
-        print_json(result)
+        print_json(result.to_dict())
     else:
         print(study_report.text(result))
         print(f"\nstudy written to {args.out}/ (study.json, study.md, study.html)")
-    if result["interrupted"]:
+    if result.interrupted:
         print("droneid study: interrupted; the finished runs are reported", file=sys.stderr)
         return 130
     return 0
