@@ -46,18 +46,13 @@ from .differentiation import DIFFERENTIATORS, get_differentiator
 from .errors import ConfigError, DataError, MissingSignalError, check_choice
 from .flight import CANONICAL_SIGNALS, Flight, Signal, is_canonical
 from .frames import quat_to_euler, wrap_angle
+from .targets import TARGETS, state_of
 
-__all__ = ["DatasetBuilder", "PAPER_INPUTS", "split_time_block", "split_by_flight", "subsample",
+__all__ = ["DatasetBuilder", "split_time_block", "split_by_flight", "subsample",
            "resample_signal", "in_flight_intervals"]
 
 log = logging.getLogger(__name__)
 
-#: The inputs the paper uses per target (``throttle`` for vz_dot only when the flights have it).
-PAPER_INPUTS = {
-    "vx_dot": ("vx", "pitch", "roll", "yaw"),
-    "vy_dot": ("vy", "pitch", "roll", "yaw"),
-    "vz_dot": ("vz", "roll", "pitch", "throttle"),
-}
 _POSITION_OF = {"vx": "x", "vy": "y", "vz": "z"}
 _QUAT = ("qw", "qx", "qy", "qz")
 _EULER = ("roll", "pitch", "yaw")
@@ -398,9 +393,10 @@ class DatasetBuilder:
     def build(self, flights, target: str = "vx_dot", inputs=None, extras=None) -> Dataset:
         """The dataset for ``target`` from one flight or a sequence of flights.
 
-        ``inputs``: signal names (default: :data:`PAPER_INPUTS` for the target). ``extras``: further
-        signals resampled on the same grid into ``Dataset.extra`` (default: every canonical signal
-        all flights have; ``()`` for none). Raises MissingSignalError, ConfigError or DataError.
+        ``inputs``: signal names (default: the target's ``paper_inputs`` in
+        :data:`droneid.targets.TARGETS`). ``extras``: further signals resampled on the same grid
+        into ``Dataset.extra`` (default: every canonical signal all flights have; ``()`` for
+        none). Raises MissingSignalError, ConfigError or DataError.
         """
         diff, windows = self._validate()
         if isinstance(flights, Flight):
@@ -411,7 +407,7 @@ class DatasetBuilder:
         if not isinstance(target, str) or not target.endswith("_dot") or len(target) <= 4:
             raise ConfigError(f"The 'target' parameter must name a derivative such as 'vx_dot'. "
                               f"Got {target!r} instead.")
-        source = target[:-4]
+        source = state_of(target)
         prepared, prep_notes = [], []
         for f in flights:
             g, n = _with_euler_from_quaternion(f)
@@ -423,10 +419,10 @@ class DatasetBuilder:
                 or (name in _QUAT and f.has(*_QUAT))
 
         if inputs is None:
-            if target not in PAPER_INPUTS:
+            if target not in TARGETS:
                 raise ConfigError(f"no default inputs for target {target!r}: pass inputs "
-                                  f"(defaults exist for {', '.join(PAPER_INPUTS)})")
-            inputs = [n for n in PAPER_INPUTS[target]
+                                  f"(defaults exist for {', '.join(TARGETS)})")
+            inputs = [n for n in TARGETS[target].paper_inputs
                       if n != "throttle" or all(f.has("throttle") for f in prepared)]
         elif isinstance(inputs, str):
             inputs = [s.strip() for s in inputs.split(",") if s.strip()]

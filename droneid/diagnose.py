@@ -38,13 +38,14 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import sympy as sp
 
-from priors.effects import AXIS, CATALOGUE, EffectContext, is_measured_derivative
+from priors.effects import CATALOGUE, EffectContext, is_measured_derivative
 from priors.models import PriorFeature, PriorModel, prior_for, resolve_prior
 
 from .data import Dataset
@@ -57,6 +58,7 @@ from .io_util import to_jsonable
 from .ladder import block_ids
 from .numerics import lstsq, rmse
 from .sngp import SNGPRegressor
+from .targets import TARGETS, velocity_of
 
 log = logging.getLogger(__name__)
 
@@ -290,8 +292,8 @@ def _prior_terms(prior, target: str) -> _PriorTerms:
     names = tuple(str(f.name) for f in feats)
     exprs = tuple(f.expr if isinstance(f.expr, sp.Basic) else sp.sympify(f.expr) for f in feats)
     roles = [getattr(f, "role", "other") for f in feats]
-    axis = AXIS.get(target)
-    vsym = symbol(f"v{axis}") if axis else None
+    vel = velocity_of(target)
+    vsym = symbol(vel) if vel else None
     angle_syms = {symbol(a) for a in _ANGLES}
     if any(r in _G_ROLES for r in roles):
         g_parts = [(n, e) for n, e, r in zip(names, exprs, roles) if r in _G_ROLES]
@@ -306,7 +308,7 @@ def _prior_terms(prior, target: str) -> _PriorTerms:
         drag = tuple(n for n, e in zip(names, exprs)
                      if vsym is not None and vsym in e.free_symbols and not e.free_symbols & angle_syms)
     return _PriorTerms(names, exprs, sp.Add(*[e for _, e in g_parts]) if g_parts else None,
-                       f"v{axis}" if drag else None, role, drag, tuple(g_parts))
+                       vel if drag else None, role, drag, tuple(g_parts))
 
 
 # -- the stacked least-squares problem ------------------------------------------------------------
@@ -479,7 +481,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     train_flights = list(train_flights)
     pr, label = choose_diagnose_prior(prior, train_flights)
     if targets is None:
-        targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in AXIS)
+        targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in TARGETS)
     check_prior_data(train_flights, pr, targets, cfg.ts, "training")
     if test_flights:
         check_prior_data(test_flights, pr, targets, cfg.ts, "test")
@@ -868,7 +870,6 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
 
 def _equation_names(o: dict) -> list[str]:
     """The offered signals that the open-ended equation actually uses."""
-    import re
     words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", str(o.get("equation", ""))))
     return [n for n in o.get("signals", ()) if n in words]
 

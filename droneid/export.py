@@ -30,6 +30,7 @@ from . import __version__
 from .errors import ConfigError, MissingSignalError, check_choice
 from .flight import canonical_unit
 from .identified import IdentifiedModel
+from .targets import state_of
 
 __all__ = ["FORMATS", "export_models", "CONVENTIONS"]
 
@@ -147,7 +148,7 @@ def _latex(models, header) -> str:
     out = [("% " + h).rstrip() for h in header] + [""]
     for m in models:
         names = {x: _LATEX_NAMES.get(x.name, _latex_name(x.name)) for x in m.expr.free_symbols}
-        lhs = _LATEX_NAMES.get(m.target[:-4], _latex_name(m.target[:-4]))
+        lhs = _LATEX_NAMES.get(state_of(m.target), _latex_name(state_of(m.target)))
         lhs = rf"\dot{{{lhs}}}" if m.target.endswith("_dot") else _latex_name(m.target)
         out += [r"\begin{equation}", f"  {lhs} = {sp.latex(m.expr, symbol_names=names)}", r"\end{equation}", ""]
     return "\n".join(out)

@@ -41,6 +41,7 @@ import numpy as np
 from .dataset import in_flight_intervals, resample_signal
 from .errors import DataError, check_choice
 from .flight import VEHICLE_TYPES, Flight
+from .targets import state_of
 
 __all__ = ["assess", "check_prior_data", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS", "ROTOR_THRUST_SIGNALS"]
 
@@ -293,7 +294,7 @@ def check_prior_data(flights, prior, targets, ts: float, role: str = "training")
     if kind not in ("multirotor", "fixed-wing"):
         return None
     targets = [t for t in targets if t in prior.targets]
-    needed = sorted({s for t in targets for s in prior.signals(t)} | {t[:-4] for t in targets})
+    needed = sorted({s for t in targets for s in prior.signals(t)} | {state_of(t) for t in targets})
     fit = assess(list(flights), needed_signals=needed, ts=ts, prior_kind=kind)
     if fit.problems:
         more = f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""

@@ -11,6 +11,7 @@ import math
 import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import PurePath
 from types import MappingProxyType
 
 import numpy as np
@@ -335,8 +336,7 @@ class Flight:
     def name(self) -> str:
         """A short label: the first file's stem, or the format."""
         if self.provenance.files:
-            import os
-            return os.path.splitext(os.path.basename(self.provenance.files[0]))[0]
+            return PurePath(self.provenance.files[0]).stem
         return self.provenance.format
 
     # -- derivation -----------------------------------------------------------------------

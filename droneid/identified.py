@@ -67,7 +67,7 @@ class IdentifiedModel:
 
     def text(self, sig: int = 4) -> str:
         """The expression with numbers to ``sig`` significant figures."""
-        from .sngp.model import round_expr, to_text
+        from .sngp.model import round_expr, to_text   # lazy: droneid.sngp imports numba (~0.5 s)
         return to_text(round_expr(self.expr, sig))
 
     def to_dict(self) -> dict:

@@ -51,12 +51,13 @@ from .sngp import SNGPRegressor
 from .sngp.model import SymbolicModel, round_expr, to_text
 from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
-from .plan import (TARGETS, Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
+from .targets import HORIZONTAL, TARGETS, velocity_of
+from .plan import (Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "RunRecord", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
-           "run_seeds", "PAPER_BUDGET", "QUICK_BUDGET", "TARGETS", "SCHEMA"]
+           "run_seeds", "PAPER_BUDGET", "QUICK_BUDGET", "SCHEMA"]
 
 log = logging.getLogger(__name__)
 
@@ -275,7 +276,6 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
     inputs spanning 0 to their training maximum) for rotor-thrust. Inputs no constraint names
     are held at their training median. Unconstrained runs are still measured against that set.
     """
-    from dataclasses import replace as _replace
     name = getattr(prior, "name", cfg.prior)
 
     def own():
@@ -291,8 +291,8 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
     def _extend(cs, level):
         """+ drag-sign constraints up to 1.5 x the training speed along the axis (not in the
         paper's protocol, which ``--effects none --delays none`` keeps)."""
-        v = f"v{target[1]}"
-        if train is None or target not in ("vx_dot", "vy_dot") or v not in train.input_names:
+        v = velocity_of(target)
+        if train is None or target not in HORIZONTAL or v not in train.input_names:
             return cs
         vmax = 1.5 * float(np.max(np.abs(train.columns()[v])))
         return pc.extended(cs, vmax, level) if vmax > 0 else cs
@@ -301,7 +301,7 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
         if cs is None or train is None:
             return cs
         med = {n: float(np.median(train.X[:, i])) for i, n in enumerate(train.input_names)}
-        return _replace(cs, defaults={**med, **dict(cs.defaults)})
+        return replace(cs, defaults={**med, **dict(cs.defaults)})
     try:
         paper = with_medians(own())
     except ConfigError as exc:
@@ -818,7 +818,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
         ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
         ec_limit = max(cfg.gamma, 1.1 * ec_phys)
         guards["constraint_limit"] = ec_limit
-    vel = f"v{p.target[1]}" if p.target in ("vx_dot", "vy_dot", "vz_dot") else None
+    vel = velocity_of(p.target)
     slope_limit, rows, v_max = math.inf, {}, 0.0
     if vel in p.train.input_names:
         pick = np.random.default_rng(cfg.seed).choice(len(p.train), size=min(50, len(p.train)), replace=False)

@@ -22,12 +22,10 @@ from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .fitness import MIN_RATE_STEPS
 from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
+from .targets import TARGETS
 
 __all__ = ["Plan", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
-           "thrust_signals", "split_terms", "dataset_builder", "TARGETS"]
-
-#: the targets identify knows (world-frame accelerations, m/s²)
-TARGETS = ("vx_dot", "vy_dot", "vz_dot")
+           "thrust_signals", "split_terms", "dataset_builder"]
 
 
 @dataclass(frozen=True)

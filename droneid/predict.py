@@ -22,9 +22,9 @@ from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
 from .fitness import assess
 from .identified import IdentifiedModel
-from .identify import TARGETS
+from .targets import TARGETS, state_of
 from .numerics import rmse
-from .rollout import AXES, rollout_errors, sample_inputs
+from .rollout import rollout_errors, sample_inputs
 from .sngp import SymbolicModel
 
 __all__ = ["load_models", "predict_flights", "model_sets"]
@@ -87,7 +87,7 @@ def _entry(path, target: str, tr: dict) -> dict:
 def model_sets(models: dict) -> dict:
     """{"identified"|"empirical"|"refit": {target: IdentifiedModel}} of the translational targets
     of :func:`load_models` output that hold final models (what multi-step prediction integrates)."""
-    targets = {tgt for tgt, _ in AXES.values()}
+    targets = set(TARGETS)
     sets: dict = {}
     for target, m in models.items():
         if target in targets and "identified" in m:
@@ -163,7 +163,7 @@ def _fitness(models: dict, flights, ts: float):
     for target, m in models.items():
         if target.startswith("_"):
             continue
-        needed.add(target[:-4])
+        needed.add(state_of(target))
         for k in ("identified", "empirical", "refit"):
             if k in m:
                 needed |= set(m[k].signals)
@@ -181,7 +181,7 @@ def _predict_final(builder, flights, target: str, m: dict):
     ``t − delay`` from each flight)."""
     ims = {k: m[k] for k in ("identified", "empirical", "refit") if k in m}
     signals = sorted({s for im in ims.values() for s in im.signals})
-    ds = builder.build(flights, target=target, inputs=tuple(signals) or (target[:-4],), extras=())
+    ds = builder.build(flights, target=target, inputs=tuple(signals) or (state_of(target),), extras=())
     cols = ds.columns()
     preds, notes = {}, []
     for name, im in ims.items():

@@ -38,15 +38,16 @@ from .errors import ConfigError, DataError, MissingSignalError
 from .expressions import compile_expression
 from .flight import Flight
 from .identified import IdentifiedModel
+from .targets import TARGETS
 
 __all__ = ["RolloutResult", "RolloutSegment", "rollout_errors", "sample_inputs", "horizon_section",
            "horizon_figures", "CONSTANT_VELOCITY", "AXES"]
 
 #: name of the baseline model set that keeps the start velocity
 CONSTANT_VELOCITY = "constant velocity"
-#: the translational axes: velocity signal -> (target, position signal)
-AXES = {"vx": ("vx_dot", "x"), "vy": ("vy_dot", "y"), "vz": ("vz_dot", "z")}
-_TARGET_AXIS = {t: v for v, (t, _) in AXES.items()}
+#: the translational axes, as rollout walks them: velocity signal -> (target, position signal)
+#: (a view of :data:`droneid.targets.TARGETS`)
+AXES = {t.velocity: (t.name, t.position) for t in TARGETS.values()}
 
 
 def sample_inputs(flight: Flight, names: Sequence[str], t, delays_s: Mapping[str, float] | None = None,
@@ -131,8 +132,8 @@ def _check_models(models) -> dict[str, dict[str, IdentifiedModel]]:
         if not per:
             raise ConfigError(f"model set {name!r} holds no model")
         for target, m in per.items():
-            if target not in _TARGET_AXIS:
-                raise ConfigError(f"rollout integrates translational models ({', '.join(_TARGET_AXIS)}); "
+            if target not in TARGETS:
+                raise ConfigError(f"rollout integrates translational models ({', '.join(TARGETS)}); "
                                   f"model set {name!r} has {target!r}")
             if not isinstance(m, IdentifiedModel) or m.target != target:
                 raise ConfigError(f"model set {name!r}: {target} must be an IdentifiedModel of {target}")

@@ -78,8 +78,8 @@ def startup_message() -> str:
 def sngp_kernels_cached() -> bool:
     """True when the SNGP kernels are compiled in this process or in numba's cache
     (:func:`droneid.sngp.precompile.kernels_ready`, the engine's own answer)."""
-    from .sngp.precompile import kernels_ready
-    return kernels_ready()
+    from .sngp import precompile   # lazy: importing the engine imports numba (~0.5 s)
+    return precompile.kernels_ready()
 
 
 def _call(fn, index, job):

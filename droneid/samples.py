@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from parsers.csv_writer import write_flat_csv
 from parsers.mcap_writer import write_mcap
 from parsers.motive_writer import write_motive_csv
 from parsers.tlog_writer import write_tlog
@@ -120,11 +121,6 @@ def _writer(fmt: str):
         return write_mcap
     if fmt == "csv":
         return write_motive_csv
-    try:  # lazy: an optional module (its ImportError is reported below), not a cycle
-        from parsers.csv_writer import write_flat_csv
-    except ImportError:   # the flat CSV writer lives in parsers/csv_writer.py (branch parsers)
-        raise ConfigError("output format 'flatcsv' needs parsers/csv_writer.py, which this "
-                          "installation lacks") from None
     return write_flat_csv
 
 

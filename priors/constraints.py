@@ -51,6 +51,9 @@ from droneid.constraints import ConstraintSamples
 from droneid.io_util import load_toml
 from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression
+from droneid.targets import HORIZONTAL, velocity_of
+
+from .models import PRIORS
 
 __all__ = ["Constraint", "ConstraintSet", "get_constraints", "load_constraints", "paper_drone",
            "paper_turtlebot", "rotor_thrust", "drag_sign", "extended", "CONSTRAINT_SETS"]
@@ -265,7 +268,7 @@ def drag_sign(target: str, v_max: float, level: Mapping[str, float | tuple] | No
     ``v̇ ≤ 0`` for v ∈ [0.1 v_max, v_max] and ``v̇ ≥ 0`` for v ∈ [−v_max, −0.1 v_max]. Drag opposes
     motion; a model whose evolved terms turn over or blow up outside the data breaks them.
     ``level`` gives further inputs' domains (e.g. the thrust inputs' span)."""
-    axis = {"vx_dot": "vx", "vy_dot": "vy"}.get(target)
+    axis = velocity_of(target) if target in HORIZONTAL else None
     if axis is None:
         raise ConfigError(f"the drag-sign constraints are for vx_dot and vy_dot, not {target!r}")
     if not (isinstance(v_max, (int, float)) and math.isfinite(v_max) and v_max > 0):
@@ -280,15 +283,24 @@ def drag_sign(target: str, v_max: float, level: Mapping[str, float | tuple] | No
 def extended(base: ConstraintSet, v_max: float, level: Mapping[str, float | tuple] | None = None
              ) -> ConstraintSet:
     """``base`` plus the drag-sign constraints (:func:`drag_sign`) for its target, if it has them."""
-    if base.target not in ("vx_dot", "vy_dot"):
+    if base.target not in HORIZONTAL:
         return base
     return ConstraintSet(base.target, base.constraints + drag_sign(base.target, v_max, level),
                          base.defaults, name=f"{base.name}+drag-sign")
 
 
-#: set name -> {prior name -> factory(target)}
+#: set name -> {prior name -> factory(target)}; a prior names its set (``PriorModel.constraints``)
 CONSTRAINT_SETS = {"paper": {"tilt-drag": paper_drone, "unicycle": paper_turtlebot}}
-_TARGET_PRIOR = {"vx_dot": "tilt-drag", "vy_dot": "tilt-drag", "x_dot": "unicycle", "y_dot": "unicycle"}
+
+
+def _priors_with(name: str, target: str) -> list[str]:
+    """The built-in priors that declare constraint set ``name`` and model ``target``."""
+    out = []
+    for prior in CONSTRAINT_SETS.get(name, {}):
+        model = PRIORS[prior]()
+        if model.constraints == name and target in model.targets:
+            out.append(prior)
+    return out
 
 
 def get_constraints(name: str = "paper", target: str = "vx_dot", prior: str | None = None
@@ -300,10 +312,12 @@ def get_constraints(name: str = "paper", target: str = "vx_dot", prior: str | No
                           f"built-in sets: {', '.join(CONSTRAINT_SETS)} (user sets: load_constraints(path))")
     by_prior = CONSTRAINT_SETS[name]
     if prior is None:
-        prior = _TARGET_PRIOR.get(target)
-        if prior is None:
+        found = _priors_with(name, target)
+        if not found:
+            known = sorted({t for p in by_prior for t in PRIORS[p]().targets})
             raise ConfigError(f"constraint set {name!r} has no constraints for {target!r}; targets: "
-                              f"{', '.join(_TARGET_PRIOR)}")
+                              f"{', '.join(known)}")
+        prior = found[0]
     if prior not in by_prior:
         raise ConfigError(f"constraint set {name!r} has nothing for prior {prior!r}"
                           f"{did_you_mean(str(prior), by_prior)}; priors: {', '.join(by_prior)}")

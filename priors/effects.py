@@ -82,20 +82,18 @@ from droneid.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
 from droneid.expressions import compile_expression, parse_expression, safe_format, symbol
 from droneid.flight import CANONICAL_SIGNALS
+from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
 __all__ = [
     "Effect", "EffectContext", "Interpretation", "CATALOGUE", "TILT", "get_effect",
-    "load_effects", "time_derivative", "AXIS", "HORIZONTAL", "MEASURED_DERIVATIVES",
+    "load_effects", "time_derivative", "MEASURED_DERIVATIVES",
     "is_measured_derivative", "thrust_proxy",
 ]
 
 #: Pseudo-signal meaning "the prior has thrust-direction terms for this target".
 TILT = "@tilt"
-#: Targets the catalogue knows, and their axis letter.
-AXIS = {"vx_dot": "x", "vy_dot": "y", "vz_dot": "z"}
-HORIZONTAL = ("vx_dot", "vy_dot")
 #: Signals that are a measured derivative of the modelled velocity (never causal inputs).
-MEASURED_DERIVATIVES = ("ax", "ay", "az", "vx_dot", "vy_dot", "vz_dot")
+MEASURED_DERIVATIVES = ("ax", "ay", "az", *TARGETS)
 #: Names user expressions may use besides canonical signals.
 DERIVED = {
     "G": "the prior's thrust-direction terms for the target, m/s²",
@@ -177,9 +175,9 @@ class EffectContext:
             cols["vz_dot"] = time_derivative(cols["vz"], t, flight)
         if "vx" in cols and "vy" in cols:
             cols["speed"] = np.hypot(cols["vx"], cols["vy"])
-        ax = AXIS.get(target)
-        if ax and f"v{ax}" in cols:
-            cols["v_axis"] = cols[f"v{ax}"]
+        vel = velocity_of(target)
+        if vel in cols:
+            cols["v_axis"] = cols[vel]
         ctx = cls(target, cols, t, flight, tilt, g, dict(options or {}), tilt_role,
                   allow_measured_derivatives)
         if tilt is not None and ctx._can_eval(tilt):
@@ -188,7 +186,7 @@ class EffectContext:
 
     @property
     def axis(self) -> str | None:
-        return AXIS.get(self.target)
+        return axis_of(self.target)
 
     def available(self) -> set[str]:
         """Names of usable columns, plus ``"@tilt"`` when the prior's G terms are computable."""

@@ -25,148 +25,22 @@ User priors come from TOML files (:func:`load_priors`, see :mod:`priors.user`).
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass, field
-from types import MappingProxyType
+import inspect
 
 import numpy as np
 import sympy as sp
 
-from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
-from droneid.expressions import compile_expression, symbol
+from droneid.errors import ConfigError, did_you_mean
+from droneid.expressions import symbol
+
+from .base import ROLES, PriorFeature, PriorModel
+from .user import load_priors
 
 __all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "THRUST_SOURCES", "get_prior",
            "load_priors", "tilt_drag", "rotor_thrust", "unicycle", "resolve_prior", "choose_prior", "prior_for",
            "body_z_world", "thrust_columns", "motor_count"]
 
 
-#: values beyond this are treated as non-finite (as the SNGP engine does: tan near ±90°)
-_MAX_ABS = 1e12
-
-
-#: What a prior term stands for physically; effects and the identify pipeline read it.
-ROLES = ("tilt", "thrust", "drag", "gravity", "kinematic", "other")
-
-
-@dataclass(frozen=True)
-class PriorFeature:
-    """One prior feature: ``name`` (an identifier), ``expr`` (sympy over signal symbols),
-    ``description`` (what it means) and ``role`` (one of :data:`ROLES`: ``tilt`` = the thrust
-    direction at hover balance (tilt-drag), ``thrust`` = logged thrust along the body z axis,
-    ``drag``, ``gravity`` (a constant), ``kinematic``, ``other``)."""
-    name: str
-    expr: sp.Expr
-    description: str = ""
-    role: str = "other"
-
-    @property
-    def signals(self) -> tuple[str, ...]:
-        """The signal names the expression uses, sorted."""
-        return tuple(sorted(s.name for s in self.expr.free_symbols))
-
-
-@dataclass(frozen=True)
-class PriorModel:
-    """A named prior model.
-
-    terms : mapping target -> tuple of :class:`PriorFeature` (the equation's terms, summed)
-    input_names : mapping target -> the inputs a model of that target is given (paper's choice)
-    params : the parameters the terms were built with (numbers; a rotor-thrust source name)
-    vehicle : the kind of vehicle the model describes ("multirotor", "ground", "any")
-    constraints : name of its built-in constraint set (:func:`priors.constraints.get_constraints`)
-    """
-    name: str
-    description: str
-    terms: Mapping[str, tuple[PriorFeature, ...]]
-    input_names: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
-    params: Mapping[str, float] = field(default_factory=dict)
-    vehicle: str = "any"
-    constraints: str = "paper"
-
-    def __post_init__(self):
-        object.__setattr__(self, "terms", MappingProxyType({k: tuple(v) for k, v in self.terms.items()}))
-        object.__setattr__(self, "input_names",
-                           MappingProxyType({k: tuple(v) for k, v in self.input_names.items()}))
-        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
-
-    @property
-    def targets(self) -> tuple[str, ...]:
-        return tuple(self.terms)
-
-    def _terms(self, target: str) -> tuple[PriorFeature, ...]:
-        try:
-            return self.terms[target]
-        except KeyError:
-            raise ConfigError(f"prior '{self.name}' has no model of {target!r}"
-                              f"{did_you_mean(str(target), self.terms)}; it models "
-                              f"{', '.join(self.terms)}") from None
-
-    def features(self, target: str, n_features: int | None = None) -> tuple[PriorFeature, ...]:
-        """The prior features for ``target``: one per term (``n_features`` None or the number of
-        terms), or the whole equation as one feature (``n_features=1``)."""
-        terms = self._terms(target)
-        if n_features is None or n_features == len(terms):
-            return terms
-        if n_features == 1:
-            desc = f"{self.name} model of {target}: " + " + ".join(t.name for t in terms)
-            return (PriorFeature(f"{self.name.replace('-', '_')}_{target}",
-                                 sp.Add(*[t.expr for t in terms]), desc),)
-        raise ConfigError(f"The 'n_features' parameter of prior '{self.name}' for {target} must be "
-                          f"1 or {len(terms)}. Got {n_features!r} instead.")
-
-    def inputs(self, target: str) -> tuple[str, ...]:
-        """The inputs a model of ``target`` gets (the paper's; otherwise the signals the
-        prior uses)."""
-        terms = self._terms(target)
-        if target in self.input_names:
-            return self.input_names[target]
-        return tuple(sorted({s for t in terms for s in t.signals}))
-
-    def signals(self, target: str) -> tuple[str, ...]:
-        """The signals the prior's expressions for ``target`` use."""
-        return tuple(sorted({s for t in self._terms(target) for s in t.signals}))
-
-    def evaluate(self, columns: Mapping[str, np.ndarray], target: str,
-                 n_features: int | None = None) -> np.ndarray:
-        """The prior features on data: an (n, k) array, one column per feature.
-
-        ``columns`` maps signal names to (n,) arrays (e.g. ``Dataset.columns()``; a ``t``
-        column, when present, is used to say where values are bad). Raises
-        :class:`MissingSignalError` naming the prior and the signal when a column is missing,
-        and :class:`DataError` with the count and location of non-finite values (tan near ±90°).
-        """
-        feats = self.features(target, n_features)
-        lengths = {len(np.asarray(v)) for v in columns.values()}
-        if len(lengths) > 1:
-            raise DataError(f"prior '{self.name}': columns of different lengths {sorted(lengths)}")
-        n = lengths.pop() if lengths else 0
-        for s in self.signals(target):
-            if s not in columns:
-                raise MissingSignalError(s, [k for k in columns if k != "t"],
-                                         where=f"the data given to prior '{self.name}' ({target})")
-        out = np.empty((n, len(feats)))
-        for j, f in enumerate(feats):
-            names = f.signals
-            out[:, j] = compile_expression(f.expr, names)({k: columns[k] for k in names}) \
-                if n else np.empty(0)
-            with np.errstate(invalid="ignore"):
-                bad = ~(np.abs(out[:, j]) <= _MAX_ABS)  # also catches nan
-            if bad.any():
-                idx = np.flatnonzero(bad)
-                where = f"sample {idx[0]}"
-                if "t" in columns:
-                    tt = np.asarray(columns["t"], dtype=float)
-                    where = f"t = {tt[idx[0]]:.3f} s"
-                    if idx.size > 1:
-                        where += f" .. {tt[idx[-1]]:.3f} s"
-                raise DataError(f"prior '{self.name}' feature '{f.name}' is non-finite (or beyond "
-                                f"±{_MAX_ABS:g}) on "
-                                f"{idx.size} of {n} samples (first at {where}); e.g. tan near "
-                                f"±90° or division by zero: trim those samples")
-        return out
-
-
-# -- built-in models ----------------------------------------------------------------------------
 def tilt_drag(g: float = 9.81, k_D: float = 0.28) -> PriorModel:
     """The paper's empirical drone model (eqs. 18-19): thrust tilt in the world frame plus
     linear drag, in droneid's angles (roll φ, pitch θ positive nose down, yaw ψ CCW from east)."""
@@ -357,19 +231,12 @@ def get_prior(name: str, **params) -> PriorModel:
     if name not in PRIORS:
         raise ConfigError(f"unknown prior {name!r}{did_you_mean(str(name), PRIORS)}; "
                           f"built-in priors: {', '.join(PRIORS)} (user priors: load_priors(path))")
-    import inspect
     accepted = list(inspect.signature(PRIORS[name]).parameters)
     for k in params:
         if k not in accepted:
             raise ConfigError(f"prior '{name}' has no parameter {k!r}{did_you_mean(k, accepted)}; "
                               f"its parameters: {', '.join(accepted) or 'none'}")
     return PRIORS[name](**params)
-
-
-def load_priors(path) -> dict[str, PriorModel]:
-    """User prior models from a TOML file, by name (see :mod:`priors.user` for the format)."""
-    from .user import load_priors as _load  # lazy: priors.user imports priors.models
-    return _load(path)
 
 
 def prior_for(spec: str | PriorModel, signals) -> tuple[PriorModel, str]:

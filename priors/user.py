@@ -35,7 +35,7 @@ from droneid.errors import ConfigError, did_you_mean
 from droneid.expressions import ALLOWED_FUNCTIONS, parse_expression
 from droneid.flight import CANONICAL_SIGNALS
 
-from .models import PriorFeature, PriorModel
+from .base import PriorFeature, PriorModel
 
 __all__ = ["load_priors", "priors_from_dict"]
 

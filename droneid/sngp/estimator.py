@@ -25,13 +25,13 @@ from ..expressions import compile_expression, parse_expression, symbol
 from ..numerics import lstsq as _lstsq
 from ..numerics import rmse
 from . import kernels as K
+from .kernels import kernels_ready
 from . import population as popmod
 from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
 from .population import Population, Problem
 from .selection import best_index
 from .search import run_search
-from .precompile import kernels_ready
 
 log = logging.getLogger(__name__)
 

@@ -1033,3 +1033,28 @@ def evaluate_all(op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
     mutated, stamp, dirty, d_valid, d_const, d_fit = _undo_log(lay[L_P])
     _propagate(np.int64(0), lay[L_P], np.int64(1), np.int64(0), mutated, stamp, dirty, d_valid,
                d_const, d_fit, op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy)
+
+
+# ------------------------------------------------------------------------------------------------
+# the compiled-code cache
+
+
+#: The kernels Python calls (everything else is compiled into them).
+ENTRY_KERNELS = ("init_population", "run_chunk", "solve_fresh", "evaluate_all", "_archive_insert")
+
+
+def kernels_ready() -> bool:
+    """Whether every entry kernel is compiled in this process or cached on disk for this source.
+
+    Reads numba's cache index (an internal of numba; on any surprise the answer is False, which
+    only makes the caller say "compiling" when it might merely be loading)."""
+    for name in ENTRY_KERNELS:
+        dispatcher = globals()[name]
+        if dispatcher.signatures:
+            continue
+        try:
+            if not dispatcher._cache._cache_file._load_index():
+                return False
+        except Exception:   # noqa: BLE001 - a numba internal: unknown means "not ready"
+            return False
+    return True

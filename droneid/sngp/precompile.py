@@ -12,35 +12,14 @@ import time
 
 import numpy as np
 
-from . import kernels as K
+from ..constraints import ConstraintSamples
+from .estimator import SNGPRegressor
+from .kernels import ENTRY_KERNELS, kernels_ready
 
 __all__ = ["ENTRY_KERNELS", "kernels_ready", "warmup"]
 
-#: The kernels Python calls (everything else is compiled into them).
-ENTRY_KERNELS = ("init_population", "run_chunk", "solve_fresh", "evaluate_all", "_archive_insert")
-
-
-def kernels_ready() -> bool:
-    """Whether every entry kernel is compiled in this process or cached on disk for this source.
-
-    Reads numba's cache index (an internal of numba; on any surprise the answer is False, which
-    only makes the caller say "compiling" when it might merely be loading)."""
-    for name in ENTRY_KERNELS:
-        dispatcher = getattr(K, name)
-        if dispatcher.signatures:
-            continue
-        try:
-            if not dispatcher._cache._cache_file._load_index():
-                return False
-        except Exception:   # noqa: BLE001 - a numba internal: unknown means "not ready"
-            return False
-    return True
-
-
 def warmup() -> float:
     """Compile (or load from the cache) every SNGP kernel; returns the seconds it took."""
-    from ..constraints import ConstraintSamples
-    from .estimator import SNGPRegressor
     t0 = time.perf_counter()
     rng = np.random.default_rng(0)
     X = rng.uniform(-1.0, 1.0, (160, 2))

@@ -1,0 +1,47 @@
+"""The one target table: every module that needs a target's axis, velocity or default inputs
+reads it from droneid.targets, and the core package never imports parsers or priors."""
+import subprocess
+import sys
+
+import pytest
+
+from droneid.errors import ConfigError
+from droneid.targets import HORIZONTAL, TARGETS, axis_of, by_velocity, get_target, state_of, velocity_of
+
+
+def test_each_target_is_the_derivative_of_its_velocity_along_its_axis():
+    for name, t in TARGETS.items():
+        assert name == t.name == f"{t.velocity}_dot" and t.velocity == f"v{t.axis}" == state_of(name)
+        assert t.position == t.axis and by_velocity(t.velocity) is t
+        assert t.paper_inputs[0] == t.velocity
+    assert HORIZONTAL == ("vx_dot", "vy_dot")
+    assert axis_of("x_dot") is None and velocity_of("x_dot") is None and state_of("x_dot") == "x"
+
+
+def test_an_unknown_target_is_refused_with_a_hint():
+    with pytest.raises(ConfigError, match="did you mean 'vx_dot'"):
+        get_target("vx_dt")
+
+
+def test_the_modules_that_used_their_own_copies_agree_with_the_table():
+    from droneid.rollout import AXES
+    from priors.effects import EffectContext
+    from priors.constraints import drag_sign
+    assert AXES == {t.velocity: (t.name, t.position) for t in TARGETS.values()}
+    import numpy as np
+    ctx = EffectContext.build("vy_dot", {"vx": np.ones(3), "vy": 2 * np.ones(3)}, np.arange(3.0), np.zeros(3))
+    assert ctx.axis == "y" and np.all(ctx.columns["v_axis"] == 2)
+    assert all(c.target == "vx_dot" and "vx" in c.domain for c in drag_sign("vx_dot", 2.0))
+    with pytest.raises(ConfigError):
+        drag_sign("vz_dot", 2.0)
+
+
+CORE = ("droneid.flight", "droneid.frames", "droneid.errors", "droneid.numerics", "droneid.expressions",
+        "droneid.io_util", "droneid.constraints", "droneid.targets")
+
+
+def test_the_core_modules_import_neither_parsers_nor_priors():
+    code = ("import sys; import " + ", ".join(CORE) +
+            "; print(sorted(m for m in sys.modules if m.split('.')[0] in ('parsers', 'priors')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
