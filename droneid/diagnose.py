@@ -268,10 +268,6 @@ class _PriorTerms:
         return replace(self, tilt=g)
 
 
-def _resolve_prior(prior):
-    return resolve_prior(prior)
-
-
 def _prior_features(prior, target: str) -> tuple:
     """All the prior's terms for ``target`` (one feature per term)."""
     for args in ((), (3,), (1,)):
@@ -494,7 +490,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
 def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
     """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``)."""
     if not isinstance(prior, str):
-        return _resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
+        return resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
     sets = [set(getattr(f, "signals", ())) for f in flights]
     pr, why = prior_for(prior, set.intersection(*sets) if sets else set())
     if prior not in ("auto", "rotor-thrust"):
@@ -715,7 +711,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     cfg = (config or DiagnoseConfig()).validate()
     if not train:
         raise DataError("no training datasets")
-    pr = _resolve_prior(prior)
+    pr = resolve_prior(prior)
     targets = list(train)
     if test is not None and set(test) != set(targets):
         raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")

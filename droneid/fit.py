@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from priors.constraints import load_constraints
-from priors.models import PRIORS, resolve_prior
+from priors.models import is_prior_spec, resolve_prior
 
 from .constraints import ConstraintSamples
 from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
@@ -166,7 +166,7 @@ def check_supports_model(X: np.ndarray, y: np.ndarray, inputs, target: str, n_co
 def prior_features(spec: str, inputs: Sequence[str], target: str) -> list:
     """The prior feature(s) one prior spec gives: a built-in prior name or ``FILE.toml:NAME``
     (every term of that model for ``target``), else an expression over ``inputs``."""
-    if spec in PRIORS or (":" in spec and spec.split(":", 1)[0].endswith(".toml")):
+    if is_prior_spec(spec):
         exprs = [f.expr for f in resolve_prior(spec).features(target)]
         for e in exprs:
             unknown = sorted(s.name for s in e.free_symbols if s.name not in inputs)

@@ -33,7 +33,7 @@ import numpy as np
 import sympy as sp
 
 from priors import constraints as pc
-from priors.models import resolve_prior, thrust_columns, tilt_drag
+from priors.models import thrust_columns, tilt_drag
 
 from . import __version__, runner
 from .constraints import constraint_rmse
@@ -52,7 +52,7 @@ from .sngp.model import SymbolicModel, round_expr, to_text
 from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
 from .targets import HORIZONTAL, TARGETS, velocity_of
-from .plan import (Plan, dataset_builder, holdout_cuts, plan_identification, resolve_plan_prior,
+from .plan import (Plan, dataset_builder, fixed_plan, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
 
 __all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "RunRecord", "TargetResult", "IdentificationResult",
@@ -320,8 +320,7 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     """Build the train/test datasets, priors, constraint samples and empirical baselines
     (``cuts``: the hold-out starts of :func:`holdout_cuts`, without test flights)."""
     if plan is None:
-        prior = resolve_prior("tilt-drag" if cfg.prior == "auto" else cfg.prior)
-        plan = Plan(prior, "named by the user", (target,))
+        plan = fixed_plan(cfg, (target,))
     if not test_flights and cfg.test_fraction > 0 and cuts is None:
         cuts = holdout_cuts(train_flights, cfg, target, plan.prior)
     prior = plan.prior

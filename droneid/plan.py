@@ -9,12 +9,12 @@ The result is a frozen :class:`Plan`; :mod:`droneid.identify` builds the target 
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from priors.models import PriorFeature, get_prior, prior_for
+from priors.models import PriorFeature, get_prior, prior_for, resolve_prior
 
 from .data import Dataset
 from .dataset import DatasetBuilder, split_time_block
@@ -25,7 +25,10 @@ from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
 from .targets import TARGETS
 
 __all__ = ["Plan", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
-           "thrust_signals", "split_terms", "dataset_builder"]
+           "thrust_signals", "split_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
+
+#: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
+PAPER_PRIOR = "tilt-drag"
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,28 @@ def split_terms(prior, target: str) -> tuple:
     return tuple(f for f in prior.features(target) if f.expr.free_symbols)
 
 
+def _targets(prior, requested) -> tuple:
+    """The targets to identify: ``requested`` (each must be one the prior models), else every
+    vehicle target the prior models. ConfigError naming the choices otherwise."""
+    targets = tuple(requested) if requested else tuple(t for t in prior.targets if t in TARGETS)
+    if not targets:
+        raise ConfigError(f"prior '{prior.name}' models none of {', '.join(TARGETS)}")
+    for t in targets:
+        if t not in prior.targets:
+            raise ConfigError(f"prior '{prior.name}' has no model of {t}; it models "
+                              f"{', '.join(prior.targets)} (choose another --prior or --target)")
+    return targets
+
+
+def fixed_plan(cfg, targets: Sequence[str] | None = None) -> Plan:
+    """The plan of the paper's protocol, decided without looking at data: the named prior
+    (``auto``: :data:`PAPER_PRIOR`), no input delays, no folded effects; ``targets`` (default:
+    the config's, else every vehicle target the prior models)."""
+    prior = resolve_prior(PAPER_PRIOR if cfg.prior == "auto" else cfg.prior)
+    why = "the paper's prior" if cfg.prior == "auto" else "named by the user"
+    return Plan(prior, why, _targets(prior, targets or cfg.targets))
+
+
 def plan_identification(train_flights, cfg, progress: Callable | None = None,
                         cuts: dict | None = None) -> Plan:
     """Choose the prior, the thrust input delay and the effects from the training flights only
@@ -105,13 +130,7 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
     prior, reason = resolve_plan_prior(cfg, train_flights)
     if prior.name == "rotor-thrust":
         prior = _hover_calibrated(prior, train_flights, cfg, cuts)
-    targets = tuple(cfg.targets) if cfg.targets else tuple(t for t in prior.targets if t in TARGETS)
-    if not targets:
-        raise ConfigError(f"prior '{prior.name}' models none of {', '.join(TARGETS)}")
-    for t in targets:
-        if t not in prior.targets:
-            raise ConfigError(f"prior '{prior.name}' has no model of {t}; it models "
-                              f"{', '.join(prior.targets)} (choose another --prior or --target)")
+    targets = _targets(prior, cfg.targets)
     notes = []
     thrust = sorted({s for t in targets for s in thrust_signals(prior, t)})
     delays, scores = {}, {}

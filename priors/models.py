@@ -37,7 +37,7 @@ from .base import ROLES, PriorFeature, PriorModel
 from .user import load_priors
 
 __all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "THRUST_SOURCES", "get_prior",
-           "load_priors", "tilt_drag", "rotor_thrust", "unicycle", "resolve_prior", "choose_prior", "prior_for",
+           "load_priors", "tilt_drag", "rotor_thrust", "unicycle", "resolve_prior", "is_prior_spec", "choose_prior", "prior_for",
            "body_z_world", "thrust_columns", "motor_count"]
 
 
@@ -249,14 +249,26 @@ def prior_for(spec: str | PriorModel, signals) -> tuple[PriorModel, str]:
     return resolve_prior(spec), "named by the user"
 
 
+def is_prior_spec(spec) -> bool:
+    """Whether ``spec`` names a prior model (a built-in name or ``FILE.toml:NAME``) rather than,
+    say, an expression."""
+    return isinstance(spec, str) and (spec in PRIORS or _toml_spec(spec) is not None)
+
+
+def _toml_spec(spec: str) -> tuple[str, str] | None:
+    """(path, name) of ``FILE.toml:NAME``, else None."""
+    path, sep, name = spec.partition(":")
+    return (path, name) if sep and path.endswith(".toml") else None
+
+
 def resolve_prior(spec: str | PriorModel, **params) -> PriorModel:
     """A PriorModel from a built-in name or ``file.toml:name``."""
     if isinstance(spec, PriorModel) or (not isinstance(spec, str) and hasattr(spec, "features")):
         return spec  # a PriorModel, or an object that behaves as one (features, inputs, targets)
     if not isinstance(spec, str):
         raise ConfigError(f"a prior must be a name, FILE.toml:NAME or a PriorModel; got {type(spec).__name__}")
-    if ":" in spec and spec.split(":", 1)[0].endswith(".toml"):
-        path, name = spec.split(":", 1)
+    if _toml_spec(spec) is not None:
+        path, name = _toml_spec(spec)
         models = load_priors(path)
         if name not in models:
             raise ConfigError(f"{path}: no prior {name!r}{did_you_mean(name, models)}; "

@@ -45,3 +45,20 @@ def test_the_core_modules_import_neither_parsers_nor_priors():
             "; print(sorted(m for m in sys.modules if m.split('.')[0] in ('parsers', 'priors')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_a_target_the_prior_does_not_model_is_refused_before_any_work(tmp_path):
+    """`--prior tilt-drag --target vz_dot`: one line naming the prior and what it models."""
+    from droneid.identify import IdentifyConfig
+    from droneid.plan import fixed_plan
+    with pytest.raises(ConfigError, match="prior 'tilt-drag' has no model of vz_dot; it models vx_dot, vy_dot"):
+        fixed_plan(IdentifyConfig.make(prior="tilt-drag", targets=("vz_dot",)))
+    plan = fixed_plan(IdentifyConfig.make(prior="auto"))
+    assert plan.prior.name == "tilt-drag" and plan.targets == ("vx_dot", "vy_dot")
+    assert fixed_plan(IdentifyConfig.make(prior="rotor-thrust")).targets == tuple(TARGETS)
+
+
+def test_prior_specs_are_told_from_expressions():
+    from priors.models import is_prior_spec
+    assert is_prior_spec("tilt-drag") and is_prior_spec("my.toml:quad")
+    assert not is_prior_spec("vx*pitch") and not is_prior_spec("a:b") and not is_prior_spec(3)
