@@ -2,6 +2,7 @@
 
 Not a flight simulator: signals are smooth analytic functions of time and the target is the
 planted law evaluated exactly (plus white noise), so the selection logic is tested on known truth.
+Also :func:`decisions`: the part of a diagnosis result that two runs are compared on.
 """
 from __future__ import annotations
 
@@ -160,3 +161,21 @@ def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, no
                            np.zeros(t.size, int), (f"rotor{seed}",),
                            {k: v for k, v in cols.items() if k not in ins})
     return out
+
+
+def decisions(r) -> dict:
+    """Everything a diagnosis result's choices depend on or produce, without the test-flight
+    report fields: equal for two runs that differ only in their test flights."""
+    drop = {"test_rmse_before", "test_rmse_after", "test_rel_improvement", "test_rmse_after"}
+    cand = [{**c, "scores": [{k: v for k, v in s.items() if k not in drop} for s in c["scores"]]}
+            for c in r.candidates]
+    steps = [{"effect": s["effect"], "coefficients": s["coefficients"],
+              "evidence": {k: v for k, v in s["evidence"].items() if k not in drop},
+              "train": {t: (e["train"], e["cv"]) for t, e in s["rmse"].items()}} for s in r.steps]
+    fin = [{"effect": f["effect"], "coefficients": f["coefficients"], "foldable": f["foldable"],
+            "features": {t: [(x["name"], str(x["expr"]), x["coefficient"]) for x in fs]
+                         for t, fs in f["features"].items()}} for f in r.final_effects]
+    return {"added": r.effects_added, "conclusion": r.conclusion, "candidates": cand,
+            "steps": steps, "final": fin, "untestable": r.untestable,
+            "not_applicable": r.not_applicable, "not_detected": r.not_detected,
+            "train": {t: (v["rmse_after"]["train"], v["rmse_after"]["cv"]) for t, v in r.targets.items()}}

@@ -123,8 +123,7 @@ def test_progress_never_names_a_run_beside_a_count_it_does_not_match():
 
 def test_predict_given_a_log_as_the_model_is_one_line(capsys):
     log = ROOT / "sample_logs" / "paper_test_square.tlog"
-    if not log.is_file():
-        pytest.skip("sample_logs/paper_test_square.tlog is not in this checkout")
+    assert log.is_file(), f"{log} is missing: sample_logs/ is committed"
     rc = main(["predict", str(log), str(log)])
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err

@@ -1,28 +1,21 @@
 """``droneid dataset`` on the shipped sample logs, and the tilt-drag prior against the sample
-logs (planted k_D) and the real Crazyflie flights."""
+logs (planted k_D). Against the real Crazyflie flights: tests/real_logs/test_dataset_real.py."""
 import json
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import SAMPLE_LOGS, real_log
+from _physics import tilt_drag_coefficients
+from conftest import SAMPLE_LOGS
 from droneid.cli import main
 from droneid.dataset import DatasetBuilder
-from priors.models import get_prior
 
 
 def _sample(name):
     p = SAMPLE_LOGS / name
-    if not p.is_file():
-        pytest.skip(f"sample log {p} is absent (make sample-logs)")
+    assert p.is_file(), f"sample log {p} is missing: sample_logs/ is committed (make sample-logs)"
     return p
-
-
-def _ls(ds, target):
-    F = get_prior("tilt-drag").evaluate(ds.columns(), target, 3)
-    A = np.column_stack([F, np.ones(len(ds))])
-    return np.linalg.lstsq(A, ds.y, rcond=None)[0]
 
 
 def test_cli_exports_the_table(tmp_path, capsys):
@@ -72,27 +65,14 @@ def test_sample_logs_recover_g_scale_and_k_drag(fmt):
     from parsers import read_flight
     f = read_flight(log)
     for target in ("vx_dot", "vy_dot"):
-        beta = _ls(DatasetBuilder(method="central").build(f, target, extras=()), target)
+        beta = tilt_drag_coefficients(DatasetBuilder(method="central").build(f, target, extras=()), target)
         assert beta[0] == pytest.approx(1.0, abs=0.03)       # g-scale, pitch term
         assert beta[1] == pytest.approx(1.0, abs=0.03)       # g-scale, roll term
         assert beta[2] * 0.28 == pytest.approx(k_true, abs=0.02)
         # the paper's forward differences: same g-scale, k_D biased up by the half-step lag
-        beta = _ls(DatasetBuilder(method="forward").build(f, target, extras=()), target)
+        beta = tilt_drag_coefficients(DatasetBuilder(method="forward").build(f, target, extras=()), target)
         assert beta[0] == pytest.approx(1.0, abs=0.03) and beta[1] == pytest.approx(1.0, abs=0.03)
         assert beta[2] * 0.28 == pytest.approx(k_true, abs=0.07)
-
-
-@pytest.mark.real_logs
-def test_crazyflie_gravity_coefficient_is_positive_and_of_order_one():
-    from parsers import read_flight
-    flights = [read_flight(real_log(f"mocap/crazyflie_nanodrone/square_run{i}.csv")) for i in range(1, 6)]
-    # the dominant tilt term at yaw ≈ 0: pitch for vx_dot (cosψ tanθ/cosφ), roll for vy_dot (−cosψ tanφ)
-    for target, k in (("vx_dot", 0), ("vy_dot", 1)):
-        ds = DatasetBuilder().build(flights, target, extras=())
-        assert len(ds) > 2000 and len(ds.sources) == 5
-        beta = _ls(ds, target)
-        assert 0.3 < beta[k] < 2.0, beta
-        assert beta[2] > 0  # drag opposes velocity
 
 
 @pytest.mark.parametrize("other", ["tlog", "mcap"])

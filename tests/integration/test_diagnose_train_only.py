@@ -18,23 +18,6 @@ CFG = DiagnoseConfig(generations=0)
 ROTOR = get_prior("rotor-thrust", source="rpm", motors=4)
 
 
-def _decisions(r) -> dict:
-    """Everything a choice depends on or produces, without the test-flight report fields."""
-    drop = {"test_rmse_before", "test_rmse_after", "test_rel_improvement", "test_rmse_after"}
-    cand = [{**c, "scores": [{k: v for k, v in s.items() if k not in drop} for s in c["scores"]]}
-            for c in r.candidates]
-    steps = [{"effect": s["effect"], "coefficients": s["coefficients"],
-              "evidence": {k: v for k, v in s["evidence"].items() if k not in drop},
-              "train": {t: (e["train"], e["cv"]) for t, e in s["rmse"].items()}} for s in r.steps]
-    fin = [{"effect": f["effect"], "coefficients": f["coefficients"], "foldable": f["foldable"],
-            "features": {t: [(x["name"], str(x["expr"]), x["coefficient"]) for x in fs]
-                         for t, fs in f["features"].items()}} for f in r.final_effects]
-    return {"added": r.effects_added, "conclusion": r.conclusion, "candidates": cand,
-            "steps": steps, "final": fin, "untestable": r.untestable,
-            "not_applicable": r.not_applicable, "not_detected": r.not_detected,
-            "train": {t: (v["rmse_after"]["train"], v["rmse_after"]["cv"]) for t, v in r.targets.items()}}
-
-
 @pytest.mark.parametrize("effect,params", [("quadratic_drag", {"c": 0.1}), (None, {}),
                                            ("attitude_delay", {"tau_s": 0.05})])
 def test_same_model_with_and_without_test_flights(effect, params):
@@ -42,7 +25,7 @@ def test_same_model_with_and_without_test_flights(effect, params):
     test = S.make(effect, params, seed=104, phase=1.0)
     a = diagnose_datasets(train, None, prior=S.TiltDragStub(), config=CFG)
     b = diagnose_datasets(train, test, prior=S.TiltDragStub(), config=CFG)
-    assert _decisions(a) == _decisions(b)
+    assert S.decisions(a) == S.decisions(b)
     assert a.targets["vx_dot"]["rmse_after"]["test"] is None
     assert b.targets["vx_dot"]["rmse_after"]["test"] is not None        # test errors are reported
     if effect:
@@ -64,7 +47,7 @@ def test_test_flights_lacking_a_signal_change_nothing_but_the_test_report():
     test = S.make(None, seed=106, phase=1.0, drop=("z", "battery_voltage", "throttle"))
     a = diagnose_datasets(train, None, prior=S.TiltDragStub(), config=CFG)
     b = diagnose_datasets(train, test, prior=S.TiltDragStub(), config=CFG)
-    assert _decisions(a) == _decisions(b) and "ground_effect" in b.not_detected
+    assert S.decisions(a) == S.decisions(b) and "ground_effect" in b.not_detected
 
 
 # -- overlapping effects --------------------------------------------------------------------------

@@ -5,31 +5,24 @@ the test writer, a minimal ULog) are mutated with a fixed seed: byte flips, trun
 garbage, zeroed regions, header damage. ``droneid inspect`` runs in-process on each, in a daemon
 thread with a per-file time limit; it must exit 0, or exit 2 with exactly ONE stderr line, and
 never print a traceback or more than one warning line. Regression tests pin each case of the
-issue. A ``slow`` variant mutates the real logs.
+issue. A ``slow`` variant mutates the real logs: tests/real_logs/test_fuzz_real.py.
 """
 from __future__ import annotations
 
-import contextlib
-import io
-import logging
 import random
 import struct
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from droneid.cli import main
 from droneid.errors import LogFormatError
 from droneid.flight import Flight, Signal
 from parsers import read_flight
 
-from conftest import REAL_LOGS
 from dataflash_fixture import DataFlashWriter
-
-PER_FILE_S = 20.0
+from fuzz_check import check_inspect, inspect_in_process, mutate
 
 
 # ------------------------------------------------------------------------------ small logs
@@ -97,85 +90,16 @@ def small_logs(tmp_path_factory) -> dict[str, bytes]:
     return out
 
 
-def _mutate(data: bytes, rng: random.Random) -> tuple[str, bytes]:
-    b = bytearray(data)
-    kind = rng.choice(["flip", "truncate", "garbage", "zero", "header"])
-    if kind == "flip":
-        for _ in range(rng.randint(1, 40)):
-            i = rng.randrange(len(b))
-            b[i] ^= 1 << rng.randrange(8)
-    elif kind == "truncate":
-        b = b[:rng.randrange(1, len(b))]
-    elif kind == "garbage":
-        i = rng.randrange(len(b))
-        b[i:i] = bytes(rng.randrange(256) for _ in range(rng.randint(1, 400)))
-    elif kind == "zero":
-        i = rng.randrange(len(b))
-        n = rng.randint(1, 1500)
-        b[i:i + n] = bytes(len(b[i:i + n]))
-    else:
-        for _ in range(rng.randint(1, 4)):
-            b[rng.randrange(min(len(b), 400))] = rng.randrange(256)
-    return kind, bytes(b)
-
-
-# ------------------------------------------------------------------------------ running
-def inspect_in_process(path, *args) -> tuple[int | None, list[str], float]:
-    """``droneid inspect PATH`` in a daemon thread: (exit code or None on timeout, stderr lines
-    incl. logged warnings, seconds)."""
-    err = io.StringIO()
-    handler = logging.StreamHandler(err)
-    handler.setLevel(logging.WARNING)
-    result = {}
-
-    def run():
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-            try:
-                result["rc"] = main(["inspect", str(path), *args])
-            except SystemExit as exc:  # argparse
-                result["rc"] = exc.code
-            except BaseException as exc:  # noqa: BLE001 - a traceback is the failure we look for
-                import traceback
-                err.write("Traceback (in-process)\n" + "".join(traceback.format_exception(exc)))
-                result["rc"] = 1
-
-    root = logging.getLogger()
-    root.addHandler(handler)
-    t0 = time.perf_counter()
-    try:
-        th = threading.Thread(target=run, daemon=True)
-        th.start()
-        th.join(PER_FILE_S)
-    finally:
-        root.removeHandler(handler)
-    return result.get("rc"), [ln for ln in err.getvalue().splitlines() if ln.strip()], \
-        time.perf_counter() - t0
-
-
-def _check(path, what):
-    rc, lines, dt = inspect_in_process(path)
-    assert rc is not None, f"{what}: inspect did not finish within {PER_FILE_S} s (hang)"
-    text = "\n".join(lines)
-    assert "Traceback" not in text, f"{what}: traceback\n{text}"
-    assert rc in (0, 2), f"{what}: exit {rc}\n{text}"
-    if rc == 2:
-        assert len(lines) == 1, f"{what}: exit 2 needs ONE stderr line, got {len(lines)}:\n{text[:2000]}"
-        assert str(path) in lines[0], f"{what}: the error line must name the file: {lines[0]}"
-    else:
-        assert len(lines) <= 1, f"{what}: exit 0 with {len(lines)} stderr lines:\n{text[:2000]}"
-    return rc
-
-
 def test_fuzz_small_logs_of_every_format(small_logs, tmp_path):
     rng = random.Random(20261123)
     seen = {0: 0, 2: 0}
     t0 = time.perf_counter()
     for ext, data in sorted(small_logs.items()):
-        assert _check(_write(tmp_path / f"intact{ext}", data), f"intact {ext}") == 0
+        assert check_inspect(_write(tmp_path / f"intact{ext}", data), f"intact {ext}") == 0
         for k in range(30):
-            kind, bad = _mutate(data, rng)
+            kind, bad = mutate(data, rng)
             p = _write(tmp_path / f"m{k}{ext}", bad)
-            seen[_check(p, f"{ext} #{k} ({kind})")] += 1
+            seen[check_inspect(p, f"{ext} #{k} ({kind})")] += 1
     assert seen[0] and seen[2], seen       # the mutations exercise both outcomes
     assert time.perf_counter() - t0 < 60
 
@@ -247,23 +171,6 @@ def _tlog_of(flight) -> bytes:
     from parsers.tlog_writer import write_tlog
     with tempfile.TemporaryDirectory() as d:
         return Path(write_tlog(flight, Path(d) / "f.tlog")).read_bytes()
-
-
-# ------------------------------------------------------------------------------ real logs
-@pytest.mark.slow
-@pytest.mark.real_logs
-def test_fuzz_real_logs(tmp_path):
-    if not REAL_LOGS.is_dir():
-        pytest.skip(f"real logs folder {REAL_LOGS} is absent")
-    rng = random.Random(14)
-    logs = sorted(p for p in REAL_LOGS.rglob("*") if p.suffix in (".bin", ".tlog", ".ulg", ".mcap", ".csv")
-                  and p.stat().st_size < 3_000_000)
-    for src in logs:
-        data = src.read_bytes()
-        for k in range(4):
-            kind, bad = _mutate(data, rng)
-            suffix = ".motive.csv" if "motive" in src.name else src.suffix
-            _check(_write(tmp_path / f"r{k}{suffix}", bad), f"{src.name} #{k} ({kind})")
 
 
 def test_csv_extra_fields_and_absurd_time_are_counted(tmp_path):

@@ -7,8 +7,8 @@ import pytest
 from conftest import real_log
 from droneid.dataset import DatasetBuilder
 from droneid.diagnose import DiagnoseConfig, diagnose, diagnose_datasets
+from diag_synth import decisions
 from priors.models import get_prior
-from test_diagnose_train_only import _decisions
 
 pytestmark = [pytest.mark.slow, pytest.mark.real_logs]
 CF = "mocap/crazyflie_nanodrone/"
@@ -25,7 +25,7 @@ def test_crazyflie_squares_same_result_with_and_without_melon():
     test = _flights(["melon_run1.csv", "melon_run4.csv"])
     a = diagnose(train, None, prior="tilt-drag", config=CFG)
     b = diagnose(train, test, prior="tilt-drag", config=CFG)
-    assert _decisions(a) == _decisions(b)
+    assert decisions(a) == decisions(b)
     assert all(v["rmse_after"]["test"] is not None for v in b.targets.values())
     # the finding, now from causal inputs: thrust variation, built from the logged
     # motor speeds (not from v̇z or az); more thrust, more acceleration (gain > 0)
@@ -52,4 +52,4 @@ def test_identify_call_with_the_rotor_thrust_prior_on_the_squares():
         for fs in fe["features"].values():
             for f in fs:
                 assert f["name"].startswith(fe["effect"] + "_") and hasattr(f["expr"], "free_symbols")
-    assert _decisions(r) == _decisions(diagnose_datasets(train, test, prior=prior, config=CFG))
+    assert decisions(r) == decisions(diagnose_datasets(train, test, prior=prior, config=CFG))

@@ -1,6 +1,7 @@
 """Rotor signals (issue 11): rpm1..16 (rpm), motor1..16 (0..1), throttle (0..1), thrust (N),
 battery_voltage (V) from every format, pinned against planted truth (units, motor order,
-normalisation), written and read back by the project's writers, and listed for the real logs."""
+normalisation), written and read back by the project's writers. Listed for the real logs:
+tests/real_logs/test_rotor_signals_real.py."""
 from __future__ import annotations
 
 import struct
@@ -13,7 +14,6 @@ from droneid.errors import ConfigError
 from droneid.flight import Flight, Signal, canonical_unit, is_canonical
 from parsers import read_flight
 
-from conftest import real_log
 from dataflash_fixture import DataFlashWriter
 from tlog_fixture import tlog_bytes
 
@@ -241,38 +241,6 @@ def test_writers_carry_motor_commands_and_speeds(rotor_flight, tmp_path, fmt):
         assert inside.sum() >= len(r) - 1
         np.testing.assert_allclose(gr.values[inside], np.interp(gr.t[inside], r.t, r.values),
                                    atol=tol[1], err_msg=f"rpm{k}")
-
-
-# ------------------------------------------------------------------------------ real logs
-#: real logs that record motor data -> the rotor signals `inspect` must list
-REAL_ROTOR = {
-    "ardupilot/copter33_quad_log171.bin": ["motor1", "motor2", "motor3", "motor4", "throttle"],
-    "ardupilot/copter462_quad_first80k.bin": ["motor1", "motor4", "throttle"],
-    "mavlink/copter357_quad_mission1.tlog": ["motor1", "motor4", "throttle"],
-    "mavlink/copter34_quad_bench_battery.tlog": ["motor1", "motor4", "battery_voltage"],
-    "px4/x500_sitl_events.ulg": ["rpm1", "rpm2", "rpm3", "rpm4", "motor1", "motor4", "throttle"],
-    "px4/quad_fmuv5_ground.ulg": ["motor1", "motor4"],
-    "px4/vtol_short_hop.ulg": ["motor1", "motor8"],
-    "mocap/crazyflie_nanodrone/square_run1.csv": ["rpm1", "rpm2", "rpm3", "rpm4", "motor1", "motor4",
-                                                  "throttle", "battery_voltage"],
-}
-
-
-@pytest.mark.real_logs
-@pytest.mark.parametrize("rel", sorted(REAL_ROTOR))
-def test_real_logs_list_rotor_signals(rel, capsys):
-    path = real_log(rel)
-    assert main(["inspect", str(path), "--json"]) == 0
-    import json
-    out = json.loads(capsys.readouterr().out)
-    sig = {s["name"]: s for s in out["signals"]}
-    for name in REAL_ROTOR[rel]:
-        assert name in sig, (rel, name)
-        assert sig[name]["unit"] == canonical_unit(name)
-        if name.startswith("rpm"):
-            assert "rpm" in sig[name]["unit"]
-        if name.startswith("motor"):
-            assert "0..1" in sig[name]["source"], sig[name]["source"]
 
 
 def test_mcap_topic_override_maps_a_topic_element_to_a_signal(rotor_flight, tmp_path):

@@ -3,7 +3,8 @@ signals within each format's precision.
 
 The readers here are deliberately minimal and independent of droneid's parsers (pymavlink's own
 mavutil, mcap_ros2's own reader, pandas); ``test_read_flight_round_trip`` also runs the project
-readers (``parsers.read_flight``) when they are present.
+readers (``parsers.read_flight``) when they are present. The Motive header against a real
+Motive export: tests/real_logs/test_writers_real.py.
 """
 from __future__ import annotations
 
@@ -18,8 +19,6 @@ from droneid.simulate import simulate
 from parsers.mcap_writer import write_mcap
 from parsers.motive_writer import motive_to_enu, write_motive_csv
 from parsers.tlog_writer import write_tlog
-
-from conftest import real_log
 
 
 @pytest.fixture(scope="module")
@@ -200,23 +199,6 @@ def test_motive_axes_are_y_up_and_right_handed(tmp_path):
     fwd = R @ np.array([1.0, 0.0, 0.0])
     assert fwd[1] < -0.15      # nose points down in Motive (Y up)
     assert abs(fwd[2]) < 1e-6
-
-
-def test_motive_header_matches_real_export(flight, tmp_path):
-    real = real_log("mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv")
-    with open(real, newline="") as fh:
-        real_lines = [fh.readline() for _ in range(7)]
-    path = write_motive_csv(flight, tmp_path / "f.csv")
-    with open(path, newline="") as fh:
-        ours = [fh.readline() for _ in range(7)]
-    assert all(ln.endswith("\r\n") for ln in ours) and all(ln.endswith("\r\n") for ln in real_lines)
-    real_keys = real_lines[0].split(",")[0::2]
-    assert ours[0].split(",")[0::2] == real_keys
-    for a, b in zip(ours[1:], real_lines[1:]):
-        assert a.split(",")[:2] == b.split(",")[:2]
-    assert ours[5].rstrip() == real_lines[5].rstrip().split(",Rotation,Rotation,Rotation,Rotation,Position")[0] + \
-        ",Rotation,Rotation,Rotation,Rotation,Position,Position,Position,Mean Marker Error"
-    assert ours[6].rstrip() == ",".join(real_lines[6].rstrip().split(",")[:10])
 
 
 def test_writers_are_deterministic(flight, tmp_path):
