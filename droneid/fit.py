@@ -26,6 +26,9 @@ from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
 from .expressions import parse_expression
 from .sngp import SNGPRegressor
 
+#: the engine's own defaults (its signature), which fit keeps
+_ENGINE = SNGPRegressor.default_params()
+
 __all__ = ["FitConfig", "FitResult", "TableProblem", "prepare", "fit", "fit_table", "read_table",
            "check_supports_model", "prior_features", "NOT_INPUTS"]
 
@@ -57,11 +60,11 @@ class FitConfig:
     priors: tuple[str, ...] = ()
     constraints: str | Path | None = None
     n_constraint_samples: int = 50
-    generations: int = 60000
-    population_size: int = 500
-    n_features: int = 10
-    max_depth: int = 7
-    gamma: float = 0.05
+    generations: int = _ENGINE["generations"]
+    population_size: int = _ENGINE["population_size"]
+    n_features: int = _ENGINE["n_features"]
+    max_depth: int = _ENGINE["max_depth"]
+    gamma: float = _ENGINE["gamma"]
     seed: int = 0
     functions: tuple[str, ...] | None = None
 

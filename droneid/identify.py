@@ -68,6 +68,8 @@ SCHEMA = "droneid.identify/1"
 PAPER_BUDGET = {"generations": 60000, "population_size": 500, "runs": 4}
 #: a fast look: a few seconds per run on ~200 samples
 QUICK_BUDGET = {"generations": 3000, "population_size": 200, "runs": 4}
+#: the engine's own defaults (its signature) for what neither budget sets
+_ENGINE = SNGPRegressor.default_params()
 METHODS = ("forward", "central", "savgol", "spline")
 
 
@@ -118,9 +120,9 @@ class IdentifyConfig:
     scheduler: str | None = None
     generations: int = PAPER_BUDGET["generations"]
     population_size: int = PAPER_BUDGET["population_size"]
-    n_features: int = 10
-    max_depth: int = 7
-    gamma: float = 0.05
+    n_features: int = _ENGINE["n_features"]
+    max_depth: int = _ENGINE["max_depth"]
+    gamma: float = _ENGINE["gamma"]
     n_constraint_samples: int = 50
     seed: int = 0
     ts: float = 0.05
@@ -691,7 +693,8 @@ def improvement_pct(reference: float, value: float) -> float:
 
 @dataclass
 class TargetResult:
-    """The identification of one target, as plain data (the ``result.json`` schema: docs/)."""
+    """The identification of one target, as plain data (the ``result.json`` schema:
+    docs/result-json.md)."""
     target: str
     inputs: list
     n_train: int

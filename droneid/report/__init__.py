@@ -1,9 +1,12 @@
 """Reports for people, one package: :mod:`.document` (the Markdown/HTML :class:`Document`, number
 formats, text tables, the atomic report-set writer) and one renderer per result kind,
-:mod:`.identify`, :mod:`.diagnose` and :mod:`.study`. Each renderer takes the result as plain data
-(what its JSON file holds) and offers the same three verbs: ``text(result) -> str`` for the
-terminal, ``document(result) -> Document`` and ``write(result, directory) -> {name: Path}``.
-Nothing here recomputes from logs, so a saved result can be re-rendered anywhere.
+:mod:`.identify`, :mod:`.diagnose` and :mod:`.study`. Each renderer offers the same three verbs:
+``text(result) -> str`` for the terminal, ``document(result) -> Document`` and
+``write(result, directory) -> {name: Path}``. The identify and study renderers take the result's
+JSON document (``to_dict()``; study also its :class:`~droneid.study.StudyResult`), so a saved
+result can be re-rendered anywhere; the diagnose renderer takes the
+:class:`~droneid.diagnose.DiagnosisResult`, whose figures need its time series, which
+``diagnosis.json`` does not hold. Nothing here recomputes from logs.
 """
 from .document import Document, efmt, fmt, text_table, write_report_set
 

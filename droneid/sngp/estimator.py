@@ -100,6 +100,12 @@ class SNGPRegressor:
         configs (``IdentifyConfig``, ``DiagnoseConfig``) take their engine names from."""
         return tuple(_PARAMS)
 
+    @classmethod
+    def default_params(cls) -> dict:
+        """The estimator's parameter defaults by name, read from its signature (configs that
+        do not choose otherwise take theirs from here)."""
+        return dict(_PARAMS)
+
     def get_params(self, deep: bool = True) -> dict:
         return {k: getattr(self, k) for k in _PARAMS}
 
