@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .dataset import _with_euler_from_quaternion
+from .dataset import with_euler_from_quaternion
 from .errors import ConfigError, DataError, MissingSignalError
 from .flight import Diagnostics, Flight, Provenance
 
@@ -49,7 +49,7 @@ def _series(f: Flight, name: str):
         return None
     if name == "yaw_rate":
         if not f.has("yaw"):
-            f = _with_euler_from_quaternion(f)[0]
+            f = with_euler_from_quaternion(f)[0]
         if f.has("yaw") and len(f["yaw"]) > 2:
             return f["yaw"].t, np.gradient(np.unwrap(f["yaw"].values), f["yaw"].t)
         return None

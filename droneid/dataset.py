@@ -49,7 +49,7 @@ from .frames import quat_to_euler, wrap_angle
 from .targets import TARGETS, state_of
 
 __all__ = ["DatasetBuilder", "split_time_block", "split_by_flight", "subsample",
-           "resample_signal", "in_flight_intervals"]
+           "resample_signal", "in_flight_intervals", "with_euler_from_quaternion", "signal_gaps"]
 
 log = logging.getLogger(__name__)
 
@@ -142,7 +142,9 @@ def _resample_quaternion(flight: Flight, t: np.ndarray) -> dict[str, np.ndarray]
     return {n: out[:, i] for i, n in enumerate(_QUAT)}
 
 
-def _with_euler_from_quaternion(flight: Flight) -> tuple[Flight, list[str]]:
+def with_euler_from_quaternion(flight: Flight) -> tuple[Flight, list[str]]:
+    """(flight, notes): the flight with roll, pitch, yaw (rad, Z-Y-X) derived from its quaternion
+    when it has a quaternion but no Euler angles; unchanged (and no notes) otherwise."""
     if flight.has(*_EULER) or not flight.has(*_QUAT):
         return flight, []
     ref = flight["qw"]
@@ -295,7 +297,9 @@ def in_flight_intervals(flight: Flight, *, ts: float = 0.05, detect: _Detect | N
     return ivs, notes
 
 
-def _gaps(sig: Signal, max_gap_s: float) -> list[Interval]:
+def signal_gaps(sig: Signal, max_gap_s: float) -> list[Interval]:
+    """The time intervals (s) where ``sig`` has no sample for longer than ``max_gap_s`` or five
+    median sample steps, whichever is longer."""
     if len(sig) < 2:
         return []
     dt = np.diff(sig.t)
@@ -410,7 +414,7 @@ class DatasetBuilder:
         source = state_of(target)
         prepared, prep_notes = [], []
         for f in flights:
-            g, n = _with_euler_from_quaternion(f)
+            g, n = with_euler_from_quaternion(f)
             prepared.append(g)
             prep_notes.append(n)
 
@@ -507,7 +511,7 @@ class DatasetBuilder:
                 for q in _QUAT:
                     need[q] = f[q]
         for n, sig in need.items():
-            ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]), _gaps(sig, self.max_gap_s))
+            ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]), signal_gaps(sig, self.max_gap_s))
             if len(sig) > 1 and sig.rate_hz < 1.0 / ts * 0.999:
                 notes.append(f"signal '{n}' is sampled at {sig.rate_hz:.3g} Hz, below the grid rate "
                              f"{1 / ts:.3g} Hz: interpolated")

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .dataset import _gaps, _with_euler_from_quaternion, in_flight_intervals, resample_signal
+from .dataset import signal_gaps, with_euler_from_quaternion, in_flight_intervals, resample_signal
 from .errors import ConfigError, DataError, MissingSignalError
 from .expressions import compile_expression
 from .flight import Flight
@@ -194,7 +194,7 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
     notes, segments = [], []
     pos_axes: dict[str, tuple[str, ...]] = {}
     for fi, f0 in enumerate(flights):
-        f, _ = _with_euler_from_quaternion(f0)
+        f, _ = with_euler_from_quaternion(f0)
         for a in union:
             if not f.has(a):
                 raise MissingSignalError(a, f.names, where=f"flight '{f.name}' (the rollout state)")
@@ -233,7 +233,7 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
                     raise MissingSignalError(s, f.names, where=f"flight '{f.name}' (a model input)")
                 sig = f[s]
                 ok[h] &= (t0 - d >= sig.start_s - tol) & (t1 - d <= sig.end_s + tol)
-                for g0, g1 in _gaps(sig, 0.0):
+                for g0, g1 in signal_gaps(sig, 0.0):
                     ok[h] &= ~((t0 - d < g1 - tol) & (t1 - d > g0 + tol))
             n_starts[h] += int(ok[h].sum())
             skipped[h] += int((~ok[h]).sum())

@@ -21,7 +21,8 @@ log = logging.getLogger(__name__)
 MAX_TIME_S = 1e8
 
 __all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit",
-           "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS", "command_to_unit"]
+           "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS", "ARDUCOPTER_FRAME_MOTORS", "frame_motors",
+           "command_to_unit"]
 
 
 def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:
@@ -44,6 +45,16 @@ def command_to_unit(v) -> tuple[np.ndarray, str]:
 
 #: ArduPilot SERVOn_FUNCTION values of motors: 33..40 = motor1..8, 82..85 = motor9..12
 ARDUPILOT_MOTOR_FUNCTIONS = {**{33 + i: i + 1 for i in range(8)}, **{82 + i: 9 + i for i in range(4)}}
+
+
+#: motors of an ArduCopter frame, by the name in the log's "Frame: QUAD" message (lower case)
+ARDUCOPTER_FRAME_MOTORS = {"quad": 4, "hexa": 6, "octa": 8, "octaquad": 8, "y6": 6, "tri": 3, "deca": 10,
+                           "dodecahexa": 12}
+
+
+def frame_motors(frame: str | None) -> int:
+    """Motors of an ArduCopter frame name (default 4: a quad)."""
+    return ARDUCOPTER_FRAME_MOTORS.get((frame or "").lower(), 4)
 
 
 def ardupilot_motor_channels(params, channels, n_default: int = 4):

@@ -35,7 +35,7 @@ from droneid.errors import LogFormatError
 from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
-from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, ardupilot_motor_channels, frame_motors, intervals_from_bool, pwm_to_unit
 from ._registry import Reader
 
 log = logging.getLogger(__name__)
@@ -288,7 +288,7 @@ def read_dataflash(path) -> Flight:
     if "RCOU" in data:
         t, c = data["RCOU"]
         field = {int(re.sub(r"^Ch?", "", f)): f for f, v in c.items() if np.any(v > 0)}
-        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, field, _frame_motors(b.vehicle)):
+        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, field, frame_motors(b.vehicle)):
             b.add(f"motor{motor}", t, pwm_to_unit(c[field[ch]], lo, hi), "1", f"RCOU.{field[ch]} ({how})")
 
     if "ESC" in data:
@@ -337,8 +337,6 @@ def read_dataflash(path) -> Flight:
     return b.build()
 
 
-_FRAME_MOTORS = {"quad": 4, "hexa": 6, "octa": 8, "octaquad": 8, "y6": 6, "tri": 3, "deca": 10,
-                 "dodecahexa": 12}
 
 
 def _vehicle_type(firmware: str | None, frame: str | None, params) -> tuple[str, str | None]:
@@ -361,11 +359,6 @@ def _vehicle_type(firmware: str | None, frame: str | None, params) -> tuple[str,
     if what == "Rover":
         return "rover", decl
     return "unknown", decl
-
-
-def _frame_motors(frame: str | None) -> int:
-    """Motors of an ArduCopter frame name from the log's "Frame: QUAD" message (default 4)."""
-    return _FRAME_MOTORS.get((frame or "").lower(), 4)
 
 
 def _pick_ekf(data, params):

@@ -42,9 +42,8 @@ from droneid.errors import LogFormatError
 from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
-from ._build import FlightBuilder, ardupilot_motor_channels, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, ardupilot_motor_channels, frame_motors, intervals_from_bool, pwm_to_unit
 from ._registry import Reader
-from .dataflash_log import _frame_motors
 
 log = logging.getLogger(__name__)
 
@@ -275,7 +274,7 @@ def _convert(b: FlightBuilder, t, get):
         ms, tt = get["SERVO_OUTPUT_RAW"], t["SERVO_OUTPUT_RAW"]
         port0 = ms["port"] == 0
         present = [i for i in range(1, 17) if np.any(ms[f"servo{i}_raw"][port0] > 0)]
-        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, present, _frame_motors(b.vehicle)):
+        for ch, motor, lo, hi, how in ardupilot_motor_channels(params, present, frame_motors(b.vehicle)):
             attr = f"servo{ch}_raw"
             b.add(f"motor{motor}", tt[port0], pwm_to_unit(ms[attr][port0], lo, hi), "1",
                   f"SERVO_OUTPUT_RAW.{attr} ({how})")
