@@ -26,7 +26,6 @@ The metric (``docs/use-the-model.md`` states it for comparison with other benchm
 """
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -41,7 +40,7 @@ from .identified import IdentifiedModel
 from .targets import TARGETS
 
 __all__ = ["RolloutResult", "RolloutSegment", "rollout_errors", "sample_inputs", "horizon_section",
-           "horizon_figures", "CONSTANT_VELOCITY", "AXES"]
+           "CONSTANT_VELOCITY", "AXES"]
 
 #: name of the baseline model set that keeps the start velocity
 CONSTANT_VELOCITY = "constant velocity"
@@ -351,7 +350,7 @@ def horizon_section(models: Mapping[str, IdentifiedModel], empirical: Mapping[st
                     horizons: Sequence[int] = (1, 10, 50), dt_s: float | None = None) -> dict:
     """The multi-step prediction section of a report as data: :meth:`RolloutResult.to_dict` of the
     identified models ({target: IdentifiedModel}), the empirical model as given and its refit (either
-    may be None) and the constant-velocity baseline on ``flights``. Render with :func:`horizon_figures`."""
+    may be None) and the constant-velocity baseline on ``flights``. Render with :func:`droneid.report.rollout.horizon_figures`."""
     sets = {"identified": models}
     if empirical:
         sets["empirical"] = empirical
@@ -359,52 +358,3 @@ def horizon_section(models: Mapping[str, IdentifiedModel], empirical: Mapping[st
         sets["refit"] = refit
     return rollout_errors(sets, flights, horizons, dt_s).to_dict()
 
-
-def horizon_figures(section: Mapping) -> dict[str, bytes]:
-    """PNG bytes of ``{"rollout_error_vs_horizon": ..., "rollout_traces": ...}`` from the data of
-    :func:`horizon_section` (or ``RolloutResult.to_dict()``); the traces only when it holds some."""
-    from .report.document import new_figure
-    out = {}
-    models = list(section["rmse"])
-    keys = [k for k in ("vx", "vy", "vz", "position")
-            if any(k in e for per in section["rmse"].values() for e in per.values())]
-    fig = new_figure(3.0 * len(keys), 3.2)
-    axs = fig.subplots(1, len(keys), squeeze=False)[0]
-    secs = section["seconds"]
-    for ax, k in zip(axs, keys):
-        for m in models:
-            y = [section["rmse"][m][str(h)].get(k, math.nan) for h in section["steps"]]
-            if not all(v is None or v != v for v in y):
-                ax.plot(secs, [math.nan if v is None else v for v in y], "o-", label=m)
-        ax.set_xscale("log")
-        ax.set_xlabel("horizon (s)")
-        ax.set_ylabel("position RMSE (m)" if k == "position" else f"{k} RMSE (m/s)")
-        ax.set_title(k)
-        ax.grid(True, alpha=0.3)
-    axs[0].legend(fontsize=7)
-    out["rollout_error_vs_horizon"] = _png(fig)
-    segs = section.get("segments") or []
-    if segs:
-        axes_ = [a for a in AXES if a in segs[0]["measured"]]
-        fig = new_figure(7.0, 1.9 * len(axes_) + 0.6)
-        axs = fig.subplots(len(axes_), 1, squeeze=False, sharex=True)[:, 0]
-        colors = {m: f"C{i}" for i, m in enumerate(models)}   # as in the error plot
-        for ax, a in zip(axs, axes_):
-            for si, s in enumerate(segs):   # one line per trace: gaps between traces are not bridged
-                ax.plot(s["t"], s["measured"][a], color="k", lw=1.4, label="log" if si == 0 else None)
-                for m in models:
-                    if a in s["predicted"].get(m, {}):
-                        ax.plot(s["t"], s["predicted"][m][a], color=colors[m], lw=1,
-                                label=m if si == 0 else None)
-            ax.set_ylabel(f"{a} (m/s)")
-            ax.grid(True, alpha=0.3)
-        axs[-1].set_xlabel("time from log start (s)")
-        axs[0].legend(fontsize=7, ncol=len(models) + 1)
-        out["rollout_traces"] = _png(fig)
-    return out
-
-
-def _png(fig) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()

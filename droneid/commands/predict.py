@@ -56,7 +56,7 @@ def run(args) -> int:
         from pathlib import Path
 
         from ..io_util import atomic_write_bytes
-        from ..rollout import horizon_figures
+        from ..report.rollout import horizon_figures
         for name, png in horizon_figures(rollout.to_dict()).items():
             written.append(atomic_write_bytes(Path(args.plot) / f"{name}.png", png))
     if args.json:

@@ -28,8 +28,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
 
-__all__ = ["Document", "new_figure", "fmt", "efmt", "to_float", "text_table", "md_escape", "write_report_set",
-           "break_gaps"]
+__all__ = ["Document", "new_figure", "png_bytes", "fmt", "efmt", "to_float", "text_table", "md_escape",
+           "write_report_set", "break_gaps"]
 
 
 #: characters that Markdown may read as syntax anywhere in a line
@@ -120,7 +120,8 @@ def text_table(header, rows) -> str:
     return "\n".join([line(header), "  ".join("-" * w for w in widths)] + [line(r) for r in rows])
 
 
-def _png(fig) -> bytes:
+def png_bytes(fig) -> bytes:
+    """The matplotlib figure as PNG bytes."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
@@ -155,7 +156,7 @@ class Document:
     def side_by_side(self, *items) -> "Document":
         """Figures shown beside each other (wrapping on narrow pages); each item is
         ``(fig_or_png_bytes, name, caption)``; ``name`` becomes ``name.png``."""
-        self.blocks.append(("row", [_Figure(n, f if isinstance(f, (bytes, bytearray)) else _png(f), c)
+        self.blocks.append(("row", [_Figure(n, f if isinstance(f, (bytes, bytearray)) else png_bytes(f), c)
                                     for f, n, c in items]))
         return self
 
@@ -174,7 +175,7 @@ class Document:
 
     def figure(self, fig, name: str, caption: str = "") -> "Document":
         """Add a matplotlib figure; ``name`` becomes ``name.png`` beside the report."""
-        self.blocks.append(("fig", _Figure(name, _png(fig), caption)))
+        self.blocks.append(("fig", _Figure(name, png_bytes(fig), caption)))
         return self
 
     def _figs(self):

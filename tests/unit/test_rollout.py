@@ -16,7 +16,8 @@ import sympy as sp
 from droneid.errors import ConfigError, DataError
 from droneid.flight import Flight, Signal
 from droneid.identified import IdentifiedModel
-from droneid.rollout import CONSTANT_VELOCITY, horizon_figures, horizon_section, rollout_errors
+from droneid.report.rollout import horizon_figures
+from droneid.rollout import CONSTANT_VELOCITY, horizon_section, rollout_errors
 
 DT, T_END = 0.01, 20.0
 K_TRUE, V0, A_TRUE = 0.3, 2.0, 0.2
