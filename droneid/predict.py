@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -23,11 +24,46 @@ from .expressions import compile_expression, parse_expression
 from .fitness import assess
 from .identified import IdentifiedModel
 from .targets import TARGETS, state_of
+from .io_util import to_jsonable
 from .numerics import rmse
-from .rollout import rollout_errors, sample_inputs
+from .rollout import RolloutResult, rollout_errors, sample_inputs
 from .sngp import SymbolicModel
 
-__all__ = ["load_models", "predict_flights", "model_sets"]
+__all__ = ["load_models", "predict_flights", "model_sets", "PredictionResult"]
+
+
+@dataclass(frozen=True)
+class PredictionResult:
+    """What :func:`predict_flights` measured.
+
+    ts : sampling period (s) and method : differentiator of the targets (as identified with);
+    targets : {target: {"equation", "inputs", "sources", "errors": {"all"|flight: {"n",
+    "rmse_identified", "rmse_empirical", "rmse_refit" | "rmse_empirical_refit"}}, "notes"?}},
+    errors in m/s²; fitness / warnings : the data-fitness check of the logs (None / () when the
+    models name no signals); horizons : {model: {steps: {"vx", "vy", "vz" (m/s), "position"
+    (m)}}} of multi-step prediction and horizon_info its step (s), counts and notes (None
+    without ``horizons``); rollout : the :class:`~droneid.rollout.RolloutResult` behind them,
+    with its traces (for figures; not part of :meth:`to_dict`).
+    """
+    ts: float
+    method: str
+    targets: dict
+    fitness: dict | None = None
+    warnings: tuple = ()
+    horizons: dict | None = None
+    horizon_info: dict | None = None
+    rollout: RolloutResult | None = field(default=None, repr=False, compare=False)
+
+    def to_dict(self) -> dict:
+        """The JSON document of ``droneid predict --json``."""
+        out = {"ts": self.ts, "method": self.method, "targets": self.targets}
+        if self.fitness is not None:
+            out["fitness"] = self.fitness
+            out["warnings"] = list(self.warnings)
+        if self.horizons is not None:
+            out["horizons"] = self.horizons
+            out["horizon_info"] = self.horizon_info
+        return to_jsonable(out)
 
 
 def load_models(path, targets: Sequence[str] | None = None) -> dict:
@@ -100,14 +136,14 @@ def model_sets(models: dict) -> dict:
 
 
 def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
-                    method: str | None = None, horizons: Sequence[int] | None = None) -> dict:
+                    method: str | None = None, horizons: Sequence[int] | None = None) -> PredictionResult:
     """Per target and per flight (and all together): samples and the RMSE (m/s²) of the
     identified model (``rmse_identified``), of the empirical model as given (``rmse_empirical``)
     and of its refit (``rmse_refit`` for final models, ``rmse_empirical_refit`` for older results).
 
-    ``horizons`` (steps): adds ``"horizons"`` = {model: {h: {vx, vy, vz, position}}} (m/s, m) of
+    ``horizons`` (steps): adds ``horizons`` = {model: {h: {vx, vy, vz, position}}} (m/s, m) of
     multi-step prediction (:func:`droneid.rollout.rollout_errors`, at the log's rate) and
-    ``"horizon_info"`` (step, counts, notes); needs final models."""
+    ``horizon_info`` (step, counts, notes); needs final models. See :class:`PredictionResult`."""
     cfg = models.get("_config", {})
     ts = ts or cfg.get("ts") or 0.05
     method = method or cfg.get("method") or "forward"
@@ -117,11 +153,8 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
     if horizons and not sets:
         raise ConfigError("multi-step prediction (--horizons) needs the final models of vx_dot / vy_dot / "
                           "vz_dot (targets.<t>.final in result.json); this result has none")
-    out = {"ts": ts, "method": method, "targets": {}}
+    results = {}
     fit = _fitness(models, flights, ts)
-    if fit is not None:
-        out["fitness"] = fit.to_dict()
-        out["warnings"] = list(fit.warnings)
     for target, m in models.items():
         if target.startswith("_"):
             continue
@@ -145,14 +178,14 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
                          f"(e.g. a delayed input read before its signal starts)")
         if notes:
             r["notes"] = notes
-        out["targets"][target] = r
+        results[target] = r
+    roll, table, info = None, None, None
     if horizons:
-        res = rollout_errors(sets, flights, horizons)
-        d = res.to_dict(segments=False)
-        out["horizons"] = d.pop("rmse")
-        out["horizon_info"] = d
-        out["_rollout"] = res
-    return out
+        roll = rollout_errors(sets, flights, horizons)
+        info = roll.to_dict(segments=False)
+        table = info.pop("rmse")
+    return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
+                            tuple(fit.warnings) if fit is not None else (), table, info, roll)
 
 
 def _fitness(models: dict, flights, ts: float):

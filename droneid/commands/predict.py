@@ -4,10 +4,6 @@ from __future__ import annotations
 from ._common import print_json
 from .identify import read_logs
 
-_LABELS = {"rmse_identified": "e_d identified", "rmse_empirical": "e_d empirical",
-           "rmse_refit": "e_d empirical refit", "rmse_empirical_refit": "e_d empirical refit"}
-
-
 def _horizons(text: str) -> tuple[int, ...]:
     import argparse
     try:
@@ -43,51 +39,25 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..errors import ConfigError
     from ..predict import load_models, predict_flights
-    from ..report import fmt, text_table
+    from ..report import predict as predict_report
     if args.plot and not args.horizons:
         raise ConfigError("--plot draws the multi-step prediction: give --horizons too (e.g. --horizons 1,10,50)")
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
     models = load_models(args.model, targets)
     flights = read_logs(args.logs)
     res = predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons)
-    rollout = res.pop("_rollout", None)
     written = []
-    if args.plot and rollout is not None:
+    if args.plot and res.rollout is not None:
         from pathlib import Path
 
         from ..io_util import atomic_write_bytes
         from ..report.rollout import horizon_figures
-        for name, png in horizon_figures(rollout.to_dict()).items():
+        for name, png in horizon_figures(res.rollout.to_dict()).items():
             written.append(atomic_write_bytes(Path(args.plot) / f"{name}.png", png))
     if args.json:
-        from ..io_util import to_jsonable
-        print_json(to_jsonable(res))
+        print_json(res.to_dict())
         return 0
-    for w in res.get("warnings", ()):
-        print(f"warning: {w}")
-    for t, r in res["targets"].items():
-        print(f"== {t}: {r['equation'] or '(model)'}")
-        keys = [k for k in _LABELS if k in next(iter(r["errors"].values()))]
-        header = ["data", "samples"] + [_LABELS[k] for k in keys]
-        rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
-        print(text_table(header, rows))
-        for note in r.get("notes", ()):
-            print(f"note: {note}")
-        print(f"errors: RMSE in m/s²; targets by {res['method']} differences at Ts = {res['ts']} s "
-              f"(as at identification)\n")
-    if rollout is not None:
-        info = res["horizon_info"]
-        print(f"== multi-step prediction: RK4 at dt = {fmt(info['dt_s'])} s; velocities of the modelled axes "
-              f"integrated, every other signal from the log")
-        cols = [k for k in ("vx", "vy", "vz", "position")
-                if any(k in e for per in res["horizons"].values() for e in per.values())]
-        header = ["model", "steps", "s", "starts"] + [f"{k} (m)" if k == "position" else f"{k} (m/s)" for k in cols]
-        rows = [[m, str(h), fmt(h * info["dt_s"]), str(info["n_starts"][str(h)])]
-                + [fmt(e.get(k)) for k in cols]
-                for m, per in res["horizons"].items() for h, e in ((int(h), e) for h, e in per.items())]
-        print(text_table(header, rows))
-        print("errors: RMSE at the horizon over every start (skipped starts: "
-              + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
+    print(predict_report.text(res))
     for p in written:
         print(f"wrote {p}")
     return 0

@@ -1,0 +1,39 @@
+"""``droneid predict`` for people: per target the error table (m/s²) of the identified model next to
+the empirical model's, then the multi-step prediction table, from a
+:class:`~droneid.predict.PredictionResult`."""
+from __future__ import annotations
+
+from .document import fmt, text_table
+
+__all__ = ["text"]
+
+_LABELS = {"rmse_identified": "e_d identified", "rmse_empirical": "e_d empirical",
+           "rmse_refit": "e_d empirical refit", "rmse_empirical_refit": "e_d empirical refit"}
+
+
+def text(res) -> str:
+    """The terminal report: warnings, one table per target, the horizon table when measured."""
+    out = [f"warning: {w}" for w in res.warnings]
+    for t, r in res.targets.items():
+        out.append(f"== {t}: {r['equation'] or '(model)'}")
+        keys = [k for k in _LABELS if k in next(iter(r["errors"].values()))]
+        header = ["data", "samples"] + [_LABELS[k] for k in keys]
+        rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
+        out.append(text_table(header, rows))
+        out += [f"note: {note}" for note in r.get("notes", ())]
+        out.append(f"errors: RMSE in m/s²; targets by {res.method} differences at Ts = {res.ts} s "
+                   f"(as at identification)\n")
+    if res.horizons is not None:
+        info = res.horizon_info
+        out.append(f"== multi-step prediction: RK4 at dt = {fmt(info['dt_s'])} s; velocities of the modelled "
+                   f"axes integrated, every other signal from the log")
+        cols = [k for k in ("vx", "vy", "vz", "position")
+                if any(k in e for per in res.horizons.values() for e in per.values())]
+        header = ["model", "steps", "s", "starts"] + [f"{k} (m)" if k == "position" else f"{k} (m/s)" for k in cols]
+        rows = [[m, str(h), fmt(h * info["dt_s"]), str(info["n_starts"][str(h)])]
+                + [fmt(e.get(k)) for k in cols]
+                for m, per in res.horizons.items() for h, e in ((int(h), e) for h, e in per.items())]
+        out.append(text_table(header, rows))
+        out.append("errors: RMSE at the horizon over every start (skipped starts: "
+                   + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
+    return "\n".join(out)

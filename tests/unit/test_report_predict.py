@@ -1,0 +1,28 @@
+"""droneid predict's result is typed and its report is rendered by the report package."""
+import json
+import math
+
+from droneid.predict import PredictionResult
+from droneid.report import predict as predict_report
+
+
+def _result(**kw):
+    targets = {"vx_dot": {"equation": "vx_dot = -0.3·vx", "inputs": ["vx"], "sources": ["a"],
+                          "errors": {"all": {"n": 10, "rmse_identified": 0.25, "rmse_empirical": math.nan}}}}
+    return PredictionResult(0.05, "central", targets, **kw)
+
+
+def test_the_json_document_holds_only_what_was_measured():
+    d = _result().to_dict()
+    assert list(d) == ["ts", "method", "targets"]
+    assert d["targets"]["vx_dot"]["errors"]["all"]["rmse_empirical"] is None   # strict JSON
+    json.dumps(d, allow_nan=False)
+    d = _result(fitness={"ok": True}, warnings=("slow signal",)).to_dict()
+    assert d["warnings"] == ["slow signal"] and "horizons" not in d
+
+
+def test_the_text_report_has_a_table_per_target_and_the_warnings_first():
+    out = predict_report.text(_result(fitness={}, warnings=("slow signal",)))
+    lines = out.splitlines()
+    assert lines[0] == "warning: slow signal" and lines[1] == "== vx_dot: vx_dot = -0.3·vx"
+    assert "e_d identified" in lines[2] and "0.25" in out and "multi-step" not in out
