@@ -275,13 +275,18 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
     """(training constraint set or None, evaluation constraint set or None) for a target.
 
     ``paper`` means the prior's own set: the paper's for tilt-drag, the rotor-thrust set (thrust
-    inputs spanning 0 to their training maximum) for rotor-thrust. Inputs no constraint names
+    inputs spanning 0 to their training maximum) for rotor-thrust, the declared constraints TOML
+    for a user prior that names one (:mod:`priors.user`). Inputs no constraint names
     are held at their training median. Unconstrained runs are still measured against that set.
     """
     name = getattr(prior, "name", cfg.prior)
 
     def own():
-        if getattr(prior, "constraints", "paper") == "rotor-thrust":
+        declared = getattr(prior, "constraints", "paper")
+        if declared.endswith(".toml"):   # a user prior's own constraint file
+            cs = pc.load_constraints(declared, target=target)
+            return cs if cfg.effects == "none" and cfg.delays == "none" else _extend(cs, {})
+        if declared == "rotor-thrust":
             thrust = thrust_signals(prior, target)
             cols = train.columns()
             span = {s: float(np.max(cols[s])) for s in thrust}

@@ -52,7 +52,8 @@ class PriorModel:
     input_names : mapping target -> the inputs a model of that target is given (paper's choice)
     params : the parameters the terms were built with (numbers; a rotor-thrust source name)
     vehicle : the kind of vehicle the model describes ("multirotor", "ground", "any")
-    constraints : name of its built-in constraint set (:func:`priors.constraints.get_constraints`)
+    constraints : its constraint set: a built-in set's name (:func:`priors.constraints.get_constraints`,
+        ``rotor-thrust``: built from the data's thrust span) or the path of a constraints TOML
     """
     name: str
     description: str

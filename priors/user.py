@@ -9,6 +9,9 @@ Format (one table per prior under ``prior``)::
     names = ["tilt", "quadratic_drag"]               # optional, one identifier per feature
     inputs = ["vx", "pitch", "roll", "yaw"]          # optional: the model's inputs
     signals = ["v_f"]                                # optional: non-canonical signal names used
+    vehicle = "multirotor"                           # optional: multirotor, fixed-wing, ground, any
+    constraints = "mydrag_constraints.toml"          # optional: its constraint set (a constraints
+                                                     # TOML, relative to this file)
     [prior.mydrag.params]
     g = 9.81
     k_D = 0.3
@@ -23,6 +26,11 @@ keyed by target instead of ``target`` + a list::
 Expressions go through :func:`droneid.expressions.parse_expression`: numbers, the canonical
 signal names (plus those listed in ``signals``), the params, ``pi``, ``e``, ``+ - * / ** ^`` and
 the whitelisted functions only. Anything else is a :class:`ConfigError` naming the file and prior.
+
+``vehicle`` makes identify and diagnose check the logs against the prior (a multirotor prior on a
+fixed-wing log is refused; ``any``, the default, skips the check). ``constraints`` is the prior's
+own constraint set, used where the built-in priors use theirs (``--constraints paper``, the
+default); without it a user prior's runs go unconstrained unless ``--constraints FILE`` is given.
 """
 from __future__ import annotations
 
@@ -40,7 +48,10 @@ from .base import PriorFeature, PriorModel
 __all__ = ["load_priors", "priors_from_dict"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_KEYS = {"description", "target", "features", "names", "inputs", "signals", "params"}
+_KEYS = {"description", "target", "features", "names", "inputs", "signals", "params", "vehicle",
+         "constraints"}
+#: what a prior's ``vehicle`` may say
+VEHICLES = ("multirotor", "fixed-wing", "ground", "any")
 _SIGNALS = (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)))
 
 
@@ -48,21 +59,22 @@ def load_priors(path) -> dict[str, PriorModel]:
     """Every prior defined in the TOML file at ``path``, by name."""
     path = Path(path)
     data = load_toml(path, "priors file")
-    return priors_from_dict(data, where=str(path))
+    return priors_from_dict(data, where=str(path), base=path.parent)
 
 
-def priors_from_dict(data: dict, where: str = "priors") -> dict[str, PriorModel]:
-    """Prior models from a parsed TOML document (``where`` names it in errors)."""
+def priors_from_dict(data: dict, where: str = "priors", base: Path | None = None) -> dict[str, PriorModel]:
+    """Prior models from a parsed TOML document (``where`` names it in errors; ``base`` is the
+    folder a relative ``constraints`` path is read from, default the working directory)."""
     unknown = [k for k in data if k != "prior"]
     if unknown:
         raise ConfigError(f"{where}: unknown top-level key {unknown[0]!r}; priors go in [prior.NAME] tables")
     table = data.get("prior")
     if not isinstance(table, dict) or not table:
         raise ConfigError(f"{where}: no [prior.NAME] table found")
-    return {name: _one(name, spec, where) for name, spec in table.items()}
+    return {name: _one(name, spec, where, Path(base or ".")) for name, spec in table.items()}
 
 
-def _one(name: str, spec, where: str) -> PriorModel:
+def _one(name: str, spec, where: str, base: Path) -> PriorModel:
     ctx = f"{where}: prior '{name}'"
     if not isinstance(spec, dict):
         raise ConfigError(f"{ctx}: must be a table")
@@ -145,7 +157,20 @@ def _one(name: str, spec, where: str) -> PriorModel:
     desc = spec.get("description", f"user prior from {where}")
     if not isinstance(desc, str):
         raise ConfigError(f"{ctx}: description must be a string")
-    return PriorModel(name, desc, terms, input_names, {k: float(v) for k, v in params.items()})
+    vehicle = spec.get("vehicle", "any")
+    if vehicle not in VEHICLES:
+        raise ConfigError(f"{ctx}: vehicle must be one of {', '.join(VEHICLES)}; got {vehicle!r}"
+                          f"{did_you_mean(str(vehicle), VEHICLES)}")
+    extra = {"vehicle": vehicle}
+    if "constraints" in spec:
+        cpath = spec["constraints"]
+        if not isinstance(cpath, str) or not cpath.endswith(".toml"):
+            raise ConfigError(f"{ctx}: constraints must name a constraints TOML file; got {cpath!r}")
+        cpath = base / cpath
+        if not cpath.is_file():
+            raise ConfigError(f"{ctx}: constraints file {str(cpath)!r} not found")
+        extra["constraints"] = str(cpath)
+    return PriorModel(name, desc, terms, input_names, {k: float(v) for k, v in params.items()}, **extra)
 
 
 def _str_list(v, what: str) -> list[str]:

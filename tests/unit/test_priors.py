@@ -167,3 +167,20 @@ def test_shipped_example_files_load():
     from droneid.constraints import constraint_rmse
     pred = get_prior("tilt-drag").evaluate(cols, "vx_dot", 1)[:, 0]
     assert constraint_rmse(pred, s) < 1e-12  # the paper's model meets these too
+
+
+def test_a_user_prior_declares_its_vehicle_and_its_constraint_file(tmp_path):
+    (tmp_path / "c.toml").write_text('target = "vx_dot"\n[[constraint]]\n'
+                                     'domain = { vx = 0, pitch = 0, roll = 0, yaw = ["-pi", "pi"] }\n')
+    (tmp_path / "p.toml").write_text('[prior.t]\nvehicle = "multirotor"\nconstraints = "c.toml"\n'
+                                     'target = "vx_dot"\nfeatures = ["9.81*tan(pitch)", "-0.3*vx"]\n')
+    p = load_priors(tmp_path / "p.toml")["t"]
+    assert p.vehicle == "multirotor" and p.constraints == str(tmp_path / "c.toml")   # relative to the file
+    from droneid.identify import _constraint_set_for, IdentifyConfig
+    train_cs, eval_cs = _constraint_set_for(IdentifyConfig.make(effects="none", delays="none"), "vx_dot", p)
+    assert train_cs is not None and len(train_cs.constraints) == 1
+    for bad, msg in (('vehicle = "boat"', "vehicle must be one of"), ('constraints = "nope.toml"', "not found"),
+                     ('constraints = "paper"', "must name a constraints TOML")):
+        (tmp_path / "b.toml").write_text(f'[prior.t]\n{bad}\ntarget = "vx_dot"\nfeatures = ["-0.3*vx"]\n')
+        with pytest.raises(ConfigError, match=msg):
+            load_priors(tmp_path / "b.toml")
