@@ -57,7 +57,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..identify import IdentifyConfig, identify
     from ..report import identify as identify_report
-    from .identify import read_logs
+    from ._common import read_logs
     t0 = time.perf_counter()
     train_path, test_path = find_sample_logs(Path(args.logs) if args.logs else None)
     print(f"droneid demo: train on {train_path.name} (eight), test on {test_path.name} (square); "

@@ -4,14 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._common import ProgressBar, add_log_options, print_json
-
-
-def read_logs(paths, args=None) -> list:
-    """Read every log with the format detected from its content (errors name the file), with
-    the reader options of ``args`` (see :func:`._common.add_log_options`) when given."""
-    from ._common import read_logs as _read
-    return _read(paths, args)
+from ._common import ProgressBar, add_log_options, print_json, read_logs
 
 
 def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,

@@ -1,8 +1,8 @@
 """``droneid predict``: apply a saved model (identify's result.json) to other logs, report its error."""
 from __future__ import annotations
 
-from ._common import print_json
-from .identify import read_logs
+from ._common import print_json, read_logs
+
 
 def _horizons(text: str) -> tuple[int, ...]:
     import argparse

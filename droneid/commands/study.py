@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import sys
 
-from ._common import ProgressBar, print_json
-from .identify import add_budget_arguments, config_from_args, read_logs
+from ._common import ProgressBar, print_json, read_logs
+from .identify import add_budget_arguments, config_from_args
 
 
 def register(sub) -> None:
