@@ -6,6 +6,7 @@ import sys
 import time
 
 from ..errors import ConfigError
+from ..flight import VEHICLE_TYPES
 
 
 class ProgressBar:
@@ -77,8 +78,8 @@ def add_log_options(p, *, with_format: bool = True) -> None:
     ``--body``, ``--column``, ``--sysid``, ``--vehicle``) to a subcommand parser."""
     if with_format:
         p.add_argument("--format", dest="log_format", default=None,
-                       help="skip format detection: a format name (dataflash, tlog, ulog, mcap, motive_csv, csv, "
-                            "or a plug-in's; docs/logs.md)")
+                       help="skip format detection: a reader's format name (docs/logs.md; an unknown "
+                            "name lists the installed readers, plug-ins included)")
     p.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
                    help="MCAP: use TOPIC for ROLE (pose, twist, odom, imu, battery, rc) or for a "
                         "canonical signal (throttle=/rc[2], rpm1=/esc/rpm1); repeatable")
@@ -88,7 +89,7 @@ def add_log_options(p, *, with_format: bool = True) -> None:
                         "from COLUMN; repeatable")
     p.add_argument("--sysid", type=int, default=None, help="tlog: the vehicle's MAVLink system id")
     p.add_argument("--vehicle", default=None,
-                   choices=("multirotor", "fixed-wing", "vtol", "rover", "unknown"),
+                   choices=VEHICLE_TYPES,
                    help="the vehicle type, when the log does not declare it (mocap CSV, MCAP) or "
                         "to override its declaration")
 
