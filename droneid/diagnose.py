@@ -421,24 +421,22 @@ def _terms_for(effect, parts: Sequence[_Part], consts: Mapping[str, dict] | None
     return terms
 
 
-def _air_update(tr_parts, te_parts, fit, k_d) -> None:
-    """Set ``vx_air``, ``vy_air``, ``speed_air`` in every part's context from the per-flight wind
-    estimate (offset / k_D); drag-type effects then act on the air velocity."""
-    for parts, betas in ((tr_parts, fit["beta"]), (te_parts or [], fit.get("test_local_beta", {}))):
-        for p in parts:
-            c = p.ctx.columns
-            if "vx" not in c or "vy" not in c:
-                continue
-            w = {"x": np.zeros(p.y.size), "y": np.zeros(p.y.size)}
-            for f in np.unique(p.flight):
-                lab = p.flight_label(int(f))
-                for ax in ("x", "y"):
-                    off, k = betas.get(f"wind.offset_{ax}@{lab}"), k_d.get(f"v{ax}_dot")
-                    if off is not None and k is not None and k > 1e-6:
-                        w[ax][p.flight == f] = off / k
-            c["vx_air"] = c["vx"] - w["x"]
-            c["vy_air"] = c["vy"] - w["y"]
-            c["speed_air"] = np.hypot(c["vx_air"], c["vy_air"])
+def _refine(refiners, tr_parts, te_parts, fit, base) -> None:
+    """Let each added effect with a refine hook (:meth:`priors.effects.Effect.refine`) update every
+    part's context from ``fit``: its coefficients per flight (test flights: their own per-flight
+    estimates, else the training ones) and ``base`` (``k_D`` in 1/s). E.g. the wind sets the air
+    velocity that drag effects act on."""
+    for parts, betas in ((tr_parts, fit["beta"]),
+                         (te_parts or [], {**fit["beta"], **fit.get("test_local_beta", {})})):
+        for e in refiners:
+            own = _split_flight_params({k: v for k, v in betas.items() if k.startswith(e.id + ".")})
+            shared = own.get(None, {})
+            for p in parts:
+                coef = {int(f): {**shared, **own.get(p.flight_label(int(f)), {})}
+                        for f in np.unique(p.flight)}
+                cols = e.refine(p.ctx, coef, base)
+                if cols:
+                    p.ctx = p.ctx.with_columns(cols)
 
 
 def _split_flight_params(coef: Mapping[str, float]) -> dict[str | None, dict]:
@@ -815,10 +813,12 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         plot_steps.extend(plot for _ in group)      # one entry per step (a pair: the joint term)
         added.extend(e.id for e in group)
         cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
-        if "wind" in added:
-            # drag acts on the air velocity v − w: refresh it from the wind estimate and refit
+        refiners = [effects[eid] for eid in added if effects[eid].refine_fn is not None]
+        if refiners:
+            # an effect may refine itself after a fit (e.g. the wind sets the air velocity v − w
+            # that drag acts on): refresh the contexts and refit, twice (a fixed point)
             for _ in range(2):
-                _air_update(tr_parts, te_parts, cur, model.base_info(cur)["k_D"])
+                _refine(refiners, tr_parts, te_parts, cur, model.base_info(cur))
                 cur_terms, cur_test = model.terms_of(added, effects)
                 cur = model.fit(cur_terms, cur_test)
         if len(added) >= cfg.max_steps:

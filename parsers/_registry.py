@@ -7,13 +7,12 @@ readers claiming one format name is a :class:`ConfigError` naming both modules.
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 from droneid.errors import ConfigError
+from droneid.plugins import public_modules
 
 __all__ = ["Reader", "discover", "clear_cache"]
 
@@ -58,14 +57,10 @@ def discover(package: str = "parsers") -> Mapping[str, Reader]:
     """Format name -> :class:`Reader`, from every public module of ``package`` (cached)."""
     global _CACHE
     if _CACHE is None:
-        pkg = importlib.import_module(package)
         table: dict[str, Reader] = {}
-        for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda i: i.name):
-            if info.name.startswith("_"):
-                continue
-            mod = importlib.import_module(f"{package}.{info.name}")
+        for mod in public_modules(package):
             for r in _module_readers(mod):
-                here = getattr(mod, "__file__", info.name)
+                here = getattr(mod, "__file__", mod.__name__)
                 if r.name in table:
                     raise ConfigError(f"log format {r.name!r} is defined twice: in "
                                       f"{table[r.name].module} and in {here}")

@@ -27,43 +27,31 @@ Every effect states
 * ``interpret(coef, base) -> Interpretation``: the fitted coefficients in physical terms;
 * ``per_flight``: a condition of the flight rather than of the vehicle (wind, attitude bias): its
   parameters are estimated separately for every flight; on a test flight they are estimated by
-  blocked cross-validation on that flight, with everything else fixed from training.
+  blocked cross-validation on that flight, with everything else fixed from training;
+* ``refine(ctx, coef, base) -> {column: array}`` (optional ``refine_fn``): an effect may refine
+  itself after a fit. The diagnosis calls it after every fit that includes the effect, for every
+  target's context on the training and the test flights, with the effect's fitted coefficients
+  per flight and the base model's linear drag ``k_D`` (1/s); the columns it returns are set in the
+  context and the model is refitted (twice: a fixed point). The wind uses it to set the air
+  velocity ``vx_air``, ``vy_air``, ``speed_air`` (m/s) that drag effects then act on;
+* ``order``: where a built-in effect stands in the catalogue (the order the diagnosis tries them).
 
 Causal inputs only: effects are built from states and inputs (velocity, attitude, height, logged
 thrust / motor signals, battery voltage), never from a measured derivative (``vz_dot`` from
 differencing, IMU ``ax ay az``). Those columns exist in an :class:`EffectContext` only when it is
 built with ``allow_measured_derivatives=True``; a model using them cannot be simulated.
 
-Conventions (droneid frames: world ENU, Z-Y-X Euler, positive pitch = nose down). ``G`` below is
-the prior's thrust-direction term for the target at the scale of the base refit on the training
+Conventions (droneid frames: world ENU, Z-Y-X Euler, positive pitch = nose down). ``G`` is the
+prior's thrust-direction term for the target at the scale of the base refit on the training
 flights (Σ β_term · term): the sum of its terms with role ``tilt``
 (tilt-drag: ``G_x = g cosψ tanθ/cosφ + g sinψ tanφ``) or ``thrust`` (rotor-thrust: logged thrust
 along body z), or for priors without roles the terms containing roll or pitch. ``k_D`` is the
-fitted linear drag coefficient of the base model (from the role ``drag`` terms).
+fitted linear drag coefficient of the base model in 1/s (from the role ``drag`` terms).
 
-==================  ==========================================================================
-id                  feature(s) for v̇x (v̇y analogous), coefficient -> physical meaning
-==================  ==========================================================================
-quadratic_drag      −sqrt(vx²+vy²)·vx (shared c) -> c_D/m in 1/m; once wind is in the model,
-                    the fit uses the air velocity v − ŵ (also for anisotropic_drag); the
-                    folded expression uses v (wind is a condition of the flight)
-vertical_drag       v̇z only: −|vz|·vz (c_z) -> vertical c_D/m in 1/m
-wind                1 (offset_x) -> wind w_x = offset_x / k_D (drag acts on v − w); per flight
-attitude_bias       ∂G/∂roll, ∂G/∂pitch (shared) -> bias = −coef (logged − true); per flight
-attitude_delay      dG/dt from the logged attitude (shared τ) -> "attitude lags by τ"
-anisotropic_drag    −(cos2ψ vx + sin2ψ vy)/2 (shared Δk) -> k_x = k̄ + Δk/2, k_y = k̄ − Δk/2
-thrust_variation    G·(T/T̄ − 1), T the logged thrust proxy (thrust N, else Σ(rpm/10⁴)², else
-                    mean motor command, else throttle), T̄ its training mean -> gain (1 = thrust
-                    proportional to T); not applicable when G is the logged thrust already
-thrust_direction    G_exact − G, G_exact = g(cosψ tanθ + sinψ tanφ/cosθ) -> weight (1 = exact)
-thrust_curve        G·((Σω/S̄)/(Σω²/W̄) − 1) (rotor-thrust from rpm) -> thrust ∝ ω^(2−a);
-                    not applicable when G is the logged thrust (exact rotation already)
-ground_effect       G·exp(−(z − z_ground)/h0), z_ground the 2nd percentile of the training
-                    heights, h0 = ``ground_h0_m`` (also v̇z) -> thrust gain at the ground
-battery_sag         G·(u/ū)·(V − V̄)/V̄, u the command (throttle, else mean motor command), ū and
-                    V̄ training means (also v̇z) -> relative thrust change per relative voltage;
-                    not applicable when G comes from measured rotor speeds or thrust
-==================  ==========================================================================
+The built-in effects (:data:`CATALOGUE`) are the modules of :mod:`priors.effect_catalogue`, one
+per effect, each exporting ``EFFECT = Effect(...)`` and documenting its features and their
+physical reading in its docstring; they are found on first use and ordered by ``Effect.order``.
+Adding one is one new module there (docs/extending.md).
 
 User effects: :func:`load_effects` reads TOML (see docs/diagnosis.md); expressions are
 parsed only with :func:`droneid.expressions.parse_expression`.
@@ -72,7 +60,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -82,12 +70,13 @@ from droneid.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
 from droneid.expressions import compile_expression, parse_expression, safe_format, symbol
 from droneid.flight import CANONICAL_SIGNALS
+from droneid.plugins import public_modules
 from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
 __all__ = [
     "Effect", "EffectContext", "Interpretation", "CATALOGUE", "TILT", "get_effect",
     "load_effects", "time_derivative", "MEASURED_DERIVATIVES",
-    "is_measured_derivative", "thrust_proxy",
+    "is_measured_derivative", "thrust_proxy", "mean_k_drag", "PER_FLIGHT_REASON", "clear_cache",
 ]
 
 #: Pseudo-signal meaning "the prior has thrust-direction terms for this target".
@@ -188,6 +177,10 @@ class EffectContext:
     def axis(self) -> str | None:
         return axis_of(self.target)
 
+    def with_columns(self, columns: Mapping[str, np.ndarray]) -> "EffectContext":
+        """A copy with ``columns`` added (or replacing columns of the same name)."""
+        return replace(self, columns={**self.columns, **columns})
+
     def available(self) -> set[str]:
         """Names of usable columns, plus ``"@tilt"`` when the prior's G terms are computable."""
         names = set(self.columns)
@@ -236,7 +229,10 @@ class Effect:
     ``column_fn(ctx, constants) -> {param: column}`` computes the features;
     ``constants_fn(ctx) -> {name: float}`` fixes numbers from the training data;
     ``applicable_fn(ctx) -> reason or None`` says when the effect makes no sense for the prior;
-    ``data_fn(ctx) -> reason or None`` when the (training) data cannot identify it.
+    ``data_fn(ctx) -> reason or None`` when the (training) data cannot identify it;
+    ``refine_fn(ctx, coef, base) -> {column: array}`` refines the effect after a fit (see
+    :meth:`refine`); ``order``: its place in the catalogue (built-in effects; the diagnosis tries
+    effects in increasing order, ties by id).
     """
     id: str
     description: str
@@ -252,6 +248,8 @@ class Effect:
     user: bool = False
     per_flight: bool = False
     fold_reason: str = ""
+    refine_fn: Callable[[EffectContext, dict, dict], Mapping[str, np.ndarray]] | None = None
+    order: int = 0
 
     @property
     def foldable(self) -> bool:
@@ -319,108 +317,44 @@ class Effect:
         """Physical terms from ``coef`` ({param: value}) and ``base`` info (``k_D``: {target: k})."""
         return self.interpret_fn(dict(coef), dict(base))
 
+    def refine(self, ctx: EffectContext, coef: Mapping[int, Mapping[str, float]], base: Mapping
+               ) -> dict[str, np.ndarray]:
+        """Columns to set in ``ctx`` after a fit that includes the effect ({} without ``refine_fn``).
+
+        ``ctx``: one target's context on the training or the test flights (every target's, whether
+        or not the effect applies to it); ``coef``: {flight code as in ``ctx.flight``: {param:
+        fitted value}} for every flight of ``ctx`` (a per-flight effect's own values, else the
+        shared ones; {} for a flight without them), in the units of the effect's coefficients;
+        ``base``: base-model info, ``k_D``: {target: fitted linear drag in 1/s or None}.
+        Returns {column name: array on ctx's grid} (e.g. the wind's ``vx_air`` in m/s); drag-type
+        effects read ``vx_air``, ``vy_air`` through ``EffectContext.evaluate(..., air=True)``.
+        """
+        if self.refine_fn is None:
+            return {}
+        n = ctx.t.size
+        return {k: np.broadcast_to(np.asarray(v, float), (n,)).copy()
+                for k, v in (self.refine_fn(ctx, {int(f): dict(c) for f, c in coef.items()},
+                                            dict(base)) or {}).items()}
+
 
 def _need_label(name: str) -> str:
     return "thrust-direction (tilt or thrust) terms of the prior" if name == TILT else name
 
 
 # -- the catalogue ------------------------------------------------------------------------------
-_ALL = ("vx_dot", "vy_dot", "vz_dot")
+#: The reason a per-flight effect is not foldable (built-in and user effects).
+PER_FLIGHT_REASON = "a condition of one flight (estimated per flight), not of the vehicle"
+#: The package whose modules are the built-in effects.
+_CATALOGUE_PACKAGE = "priors.effect_catalogue"
+_CACHE: dict[str, Effect] | None = None
 
 
-def _k_mean(base) -> float:
+def mean_k_drag(base: Mapping) -> float:
+    """Mean fitted linear drag k_D (1/s) of the horizontal targets in ``base`` (``k_D``:
+    {target: k}); NaN without a finite one."""
     ks = [k for t, k in (base.get("k_D") or {}).items()
           if t in HORIZONTAL and k is not None and math.isfinite(k)]
     return float(np.mean(ks)) if ks else float("nan")
-
-
-def _sym(name):
-    return symbol(name)
-
-
-def _quadratic_drag(ctx, k):
-    return {"c": -sp.sqrt(_sym("vx") ** 2 + _sym("vy") ** 2) * _sym(f"v{ctx.axis}")}
-
-
-def _quadratic_drag_text(coef, base):
-    c = coef.get("c", float("nan"))
-    return Interpretation(f"quadratic drag c_D/m = {c:.3g} 1/m", {"c_D_over_m_per_m": c})
-
-
-def _vertical_drag(ctx, k):
-    vz = _sym("vz")
-    return {"c_z": -sp.Abs(vz) * vz}
-
-
-def _vertical_drag_text(coef, base):
-    c = coef.get("c_z", float("nan"))
-    return Interpretation(f"vertical quadratic drag c_Dz/m = {c:.3g} 1/m", {"c_D_z_over_m_per_m": c})
-
-
-def _wind(ctx, k):
-    return {f"offset_{ctx.axis}": np.ones(ctx.t.size)}
-
-
-def _wind_text(coef, base):
-    kd = base.get("k_D") or {}
-    w, parts = {}, []
-    for ax, tgt in (("x", "vx_dot"), ("y", "vy_dot")):
-        if f"offset_{ax}" not in coef:
-            continue
-        k = kd.get(tgt)
-        off = coef[f"offset_{ax}"]
-        w[f"w_{ax}_m_s"] = off / k if k and k > 1e-6 else float("nan")
-        w[f"offset_{ax}_m_s2"] = off
-        parts.append(w[f"w_{ax}_m_s"])
-    if len(parts) == 1:
-        ax = "x" if "offset_x" in coef else "y"
-        txt = f"wind along {ax} ({'east' if ax == 'x' else 'north'}) ≈ {parts[0]:.2g} m/s"
-    else:
-        txt = "wind ≈ (" + ", ".join(f"{p:.2g}" for p in parts) + ") m/s"
-    if any(not math.isfinite(p) for p in parts):
-        txt += " (linear drag k_D not positive: wind undetermined; constant offset " + ", ".join(
-            f"{v:.3g}" for k, v in w.items() if k.startswith("offset")) + " m/s²)"
-    return Interpretation(txt, w)
-
-
-def _attitude_bias(ctx, k):
-    return {"d_roll": ctx.tilt_partial("roll"), "d_pitch": ctx.tilt_partial("pitch")}
-
-
-def _attitude_bias_text(coef, base):
-    # acceleration = G(logged + δ) ≈ G + δ ∂G; bias = logged − true = −δ
-    br = -math.degrees(coef.get("d_roll", float("nan")))
-    bp = -math.degrees(coef.get("d_pitch", float("nan")))
-    return Interpretation(f"roll bias {br:+.2f}°, pitch bias {bp:+.2f}° (logged − true)",
-                          {"roll_bias_deg": br, "pitch_bias_deg": bp})
-
-
-def _attitude_delay(ctx, k):
-    return {"tau": ctx.d_dt(ctx.columns["G"])}
-
-
-def _attitude_delay_text(coef, base):
-    tau = coef.get("tau", float("nan"))
-    word = "lags" if tau >= 0 else "leads"
-    return Interpretation(f"attitude {word} acceleration by {abs(tau) * 1000:.0f} ms",
-                          {"delay_ms": tau * 1000.0})
-
-
-def _anisotropic_drag(ctx, k):
-    psi, vx, vy = _sym("yaw"), _sym("vx"), _sym("vy")
-    c2, s2 = sp.cos(2 * psi), sp.sin(2 * psi)
-    if ctx.axis == "x":
-        return {"dk": -(c2 * vx + s2 * vy) / 2}
-    return {"dk": -(s2 * vx - c2 * vy) / 2}
-
-
-def _anisotropic_drag_text(coef, base):
-    k = _k_mean(base)
-    dk = coef.get("dk", float("nan"))
-    kx, ky = k + dk / 2, k - dk / 2
-    return Interpretation(f"anisotropic drag k_x = {kx:.3g} 1/s (body forward), "
-                          f"k_y = {ky:.3g} 1/s (body left)",
-                          {"k_x_per_s": kx, "k_y_per_s": ky, "dk_per_s": dk})
 
 
 def thrust_proxy(available: Iterable[str]) -> tuple[str, sp.Expr] | None:
@@ -429,227 +363,77 @@ def thrust_proxy(available: Iterable[str]) -> tuple[str, sp.Expr] | None:
     else the mean motor command, else ``throttle``."""
     have = set(available)
     if "thrust" in have:
-        return "thrust", _sym("thrust")
+        return "thrust", symbol("thrust")
     for src, label in (("rpm", "Σ(rpm/10⁴)²"), ("motor", "mean motor command")):
         n = 0
         while f"{src}{n + 1}" in have:
             n += 1
         if n:
             if src == "rpm":
-                return label, sp.Add(*[(_sym(f"rpm{i}") / 10_000) ** 2 for i in range(1, n + 1)])
-            return label, sp.Add(*[_sym(f"motor{i}") for i in range(1, n + 1)]) / n
+                return label, sp.Add(*[(symbol(f"rpm{i}") / 10_000) ** 2 for i in range(1, n + 1)])
+            return label, sp.Add(*[symbol(f"motor{i}") for i in range(1, n + 1)]) / n
     if "throttle" in have:
-        return "throttle", _sym("throttle")
+        return "throttle", symbol("throttle")
     return None
 
 
-def _command(available: Iterable[str]) -> tuple[str, sp.Expr] | None:
-    """The collective COMMAND (what the battery's voltage scales into thrust): throttle, else
-    the mean motor command; None without either."""
-    have = set(available)
-    if "throttle" in have:
-        return "throttle", _sym("throttle")
-    motors = [f"motor{i}" for i in range(1, 17) if f"motor{i}" in have]
-    if motors:
-        return "mean motor command", sp.Add(*[_sym(m) for m in motors]) / len(motors)
-    return None
+def _discover() -> dict[str, Effect]:
+    """{id: Effect} from every public module of :mod:`priors.effect_catalogue` (each exports
+    ``EFFECT`` and is named after its id, so ids are unique), in increasing ``order``, ties
+    by id."""
+    found: list[Effect] = []
+    for mod in public_modules(_CATALOGUE_PACKAGE):
+        name = mod.__name__.rsplit(".", 1)[-1]
+        here = getattr(mod, "__file__", name)
+        eff = getattr(mod, "EFFECT", None)
+        if not isinstance(eff, Effect):
+            got = "no EFFECT" if eff is None else f"EFFECT of type {type(eff).__name__}"
+            raise ConfigError(f"{here}: a module of {_CATALOGUE_PACKAGE} must export EFFECT = "
+                              f"Effect(...); got {got} instead (helper modules start with '_')")
+        if eff.id != name:
+            raise ConfigError(f"{here}: exports effect '{eff.id}'; name the module after its id "
+                              f"({eff.id}.py)")
+        found.append(eff)
+    return {e.id: e for e in sorted(found, key=lambda e: (e.order, e.id))}
 
 
-def _needs_measured_thrust(ctx) -> str | None:
-    if ctx.tilt_role == "thrust":
-        return ("the prior's thrust term is the logged thrust already (rotor-thrust): thrust "
-                "variation is in the prior")
-    return None
+def _discovered() -> dict[str, Effect]:
+    global _CACHE
+    if _CACHE is None:
+        _CACHE = _discover()
+    return _CACHE
 
 
-def _thrust_variation_consts(ctx):
-    _, e = thrust_proxy(ctx.columns)
-    return {"T_mean": float(np.mean(ctx.evaluate(e)))}
+def clear_cache() -> None:
+    """Forget the discovered built-in effects (tests that add a plug-in module call this)."""
+    global _CACHE
+    _CACHE = None
 
 
-def _thrust_variation(ctx, k):
-    _, e = thrust_proxy(ctx.columns)
-    if not abs(k.get("T_mean", 0.0)) > 1e-12:
-        return {}
-    return {"s": ctx.tilt * (e / sp.Float(k["T_mean"]) - 1)}
+class _Catalogue(Mapping):
+    """The built-in effects, id -> :class:`Effect` (read-only, in the order the diagnosis tries
+    them): the modules of :mod:`priors.effect_catalogue`, discovered on first use."""
+
+    def __getitem__(self, effect_id: str) -> Effect:
+        return _discovered()[effect_id]
+
+    def __iter__(self):
+        return iter(_discovered())
+
+    def __len__(self) -> int:
+        return len(_discovered())
+
+    def __repr__(self) -> str:
+        return f"CATALOGUE({', '.join(self)})"
 
 
-def _thrust_variation_text(coef, base):
-    s = coef.get("s", float("nan"))
-    return Interpretation(f"thrust departs from hover balance: the fitted tilt terms scale with "
-                          f"(1 + {s:.2f}·(T/T̄ − 1)), T the logged thrust proxy (1 = thrust "
-                          "proportional to it)", {"gain": s})
-
-
-def _rpm_sums(available):
-    """(Σ ω_i, Σ ω_i²) over the logged motor speeds rpm1..rpmN, in 10⁴ rpm; None without them."""
-    have, n = set(available), 0
-    while f"rpm{n + 1}" in have:
-        n += 1
-    if not n:
-        return None
-    w = [_sym(f"rpm{i}") / 10_000 for i in range(1, n + 1)]
-    return sp.Add(*w), sp.Add(*[x ** 2 for x in w])
-
-
-def _thrust_curve_applies(ctx) -> str | None:
-    if ctx.tilt_role != "thrust":
-        return "needs a prior whose thrust term comes from motor speeds (rotor-thrust)"
-    if _rpm_sums(ctx.columns) is None:
-        return "needs motor speeds rpm1..rpmN"
-    return None
-
-
-def _thrust_curve_consts(ctx):
-    s, w = _rpm_sums(ctx.columns)
-    return {"S_mean": float(np.mean(ctx.evaluate(s))), "W_mean": float(np.mean(ctx.evaluate(w)))}
-
-
-def _thrust_curve(ctx, k):
-    sums = _rpm_sums(ctx.columns)
-    if sums is None or not (k.get("S_mean", 0.0) > 0 and k.get("W_mean", 0.0) > 0):
-        return {}
-    s, w = sums
-    return {"a": ctx.tilt * ((s / sp.Float(k["S_mean"])) / (w / sp.Float(k["W_mean"])) - 1)}
-
-
-def _thrust_curve_text(coef, base):
-    a = coef.get("a", float("nan"))
-    return Interpretation(f"rotor thrust grows as ω^{2 - a:.2f} rather than ω² (thrust curve; "
-                          f"a = {a:.2f})", {"a": a, "exponent": 2 - a})
-
-
-def _exact_geometry(ctx) -> str | None:
-    if ctx.tilt_role == "thrust":
-        return "the prior's thrust term uses the exact rotation already (rotor-thrust)"
-    return None
-
-
-def _thrust_direction(ctx, k):
-    r, p, y, g = _sym("roll"), _sym("pitch"), _sym("yaw"), sp.Float(ctx.g)
-    if ctx.axis == "x":
-        exact = g * (sp.cos(y) * sp.tan(p) + sp.sin(y) * sp.tan(r) / sp.cos(p))
-    else:
-        exact = g * (sp.sin(y) * sp.tan(p) - sp.cos(y) * sp.tan(r) / sp.cos(p))
-    return {"w_exact": exact - ctx.tilt}
-
-
-def _thrust_direction_text(coef, base):
-    w = coef.get("w_exact", float("nan"))
-    return Interpretation(f"exact Z-Y-X thrust direction: weight {w:.2f} on (exact − small-angle) "
-                          "tilt terms (1 = exact geometry)", {"weight": w})
-
-
-def _ground_consts(ctx):
-    return {"z_ground": float(np.percentile(ctx.columns["z"], 2)),
-            "h0": float(ctx.options.get("ground_h0_m", 0.5))}
-
-
-def _ground_heights(ctx) -> str | None:
-    """Ground effect is identifiable only when the heights span at least h0 above the lowest
-    one: at a nearly constant height exp(−(z − z_ground)/h0) is G plus a tiny G·Δz term that
-    fits whatever correlates with height-hold errors, not a ground effect."""
-    z = ctx.columns["z"]
-    span = float(np.percentile(z, 98) - np.percentile(z, 2))
-    h0 = float(ctx.options.get("ground_h0_m", 0.5))
-    if span < h0:
-        return (f"the training heights span only {span:.2g} m (< h0 = {h0:g} m): a ground "
-                "effect cannot be told from a constant thrust gain")
-    return None
-
-
-def _ground_effect(ctx, k):
-    return {"k_ge": ctx.tilt * sp.exp(-(_sym("z") - sp.Float(k["z_ground"])) / sp.Float(k["h0"]))}
-
-
-def _ground_effect_text(coef, base):
-    k = coef.get("k_ge", float("nan"))
-    return Interpretation(f"thrust gain near the ground: {100 * k:+.0f} % at the training flights' "
-                          "ground height (decaying with height)", {"gain_at_ground": k})
-
-
-def _battery_applicable(ctx) -> str | None:
-    if ctx.tilt is not None and ctx.tilt_role == "thrust" and any(
-            s.name == "thrust" or s.name.startswith("rpm") for s in ctx.tilt.free_symbols):
-        return ("the prior's thrust comes from measured rotor speeds or thrust, which already "
-                "include the battery's voltage")
-    return None
-
-
-def _battery_consts(ctx):
-    _, u = _command(ctx.columns)
-    return {"u_mean": float(np.mean(ctx.evaluate(u))),
-            "V_mean": float(np.mean(ctx.columns["battery_voltage"]))}
-
-
-def _battery_sag(ctx, k):
-    _, u = _command(ctx.columns)
-    ub, vb = k.get("u_mean", 0.0), k.get("V_mean", 0.0)
-    if not (abs(ub) > 1e-9 and abs(vb) > 1e-9):
-        return {}
-    v = _sym("battery_voltage")
-    return {"kappa": ctx.tilt * (u / sp.Float(ub)) * (v - sp.Float(vb)) / sp.Float(vb)}
-
-
-def _battery_sag_text(coef, base):
-    k = coef.get("kappa", float("nan"))
-    return Interpretation(f"thrust per command changes by {k:.2f} × ΔV/V̄ (battery sag; "
-                          "1 = thrust proportional to voltage)", {"kappa": k})
-
-
-_THRUST_SIGNALS = ("thrust", "rpm1", "motor1", "throttle")
-_CMD = ("throttle", "motor1")
-_PER_FLIGHT = "a condition of one flight (estimated per flight), not of the vehicle"
-
-#: The built-in effects, by id.
-CATALOGUE: dict[str, Effect] = {e.id: e for e in (
-    Effect("quadratic_drag", "aerodynamic drag growing with speed squared: −c|v|v",
-           (("vx",), ("vy",)), _quadratic_drag_text, expr_fn=_quadratic_drag,
-           explain_signal="|v| v_axis"),
-    Effect("vertical_drag", "vertical aerodynamic drag growing with climb rate squared: −c_z|vz|vz",
-           (("vz",),), _vertical_drag_text, expr_fn=_vertical_drag, targets=("vz_dot",),
-           explain_signal="vz"),
-    Effect("wind", "constant world-frame wind w: linear drag acts on v − w, a constant k_D·w "
-           "per axis (the base refit has no intercept, so the offset is not absorbed)",
-           (("vx", "vy"),), _wind_text, column_fn=_wind, explain_signal="yaw", per_flight=True,
-           fold_reason=_PER_FLIGHT),
-    Effect("attitude_bias", "constant roll/pitch offsets of the logged attitude (rotate with "
-           "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",)), _attitude_bias_text,
-           column_fn=_attitude_bias, targets=_ALL, explain_signal="yaw", per_flight=True,
-           fold_reason=_PER_FLIGHT),
-    Effect("attitude_delay", "logged attitude lags the acceleration it causes by τ: "
-           "G(att(t + τ)) ≈ G + τ dG/dt", ((TILT,),), _attitude_delay_text,
-           column_fn=_attitude_delay, targets=_ALL, explain_signal="dG/dt",
-           fold_reason="needs dG/dt, a time derivative of the logged attitude (not an "
-                       "instantaneous function of states and inputs)"),
-    Effect("anisotropic_drag", "different linear drag along body x and body y",
-           (("vx",), ("vy",), ("yaw",)), _anisotropic_drag_text, expr_fn=_anisotropic_drag,
-           explain_signal="yaw"),
-    Effect("thrust_variation", "thrust departs from hover balance (climbs, descents): the tilt "
-           "terms scale with the logged thrust relative to its training mean",
-           ((TILT,), _THRUST_SIGNALS), _thrust_variation_text, expr_fn=_thrust_variation,
-           constants_fn=_thrust_variation_consts, applicable_fn=_needs_measured_thrust,
-           explain_signal="thrust"),
-    Effect("thrust_curve", "rotor thrust is not exactly ∝ ω² (inflow, motor and propeller "
-           "curves): the thrust terms scale with (1 + a·((Σω/S̄)/(Σω²/W̄) − 1)), i.e. T ∝ ω^(2−a) "
-           "near the training mean", ((TILT,), ("rpm1",)), _thrust_curve_text, expr_fn=_thrust_curve,
-           constants_fn=_thrust_curve_consts, applicable_fn=_thrust_curve_applies, targets=_ALL,
-           explain_signal="thrust"),
-    Effect("thrust_direction", "exact Z-Y-X thrust geometry instead of the paper's small-angle "
-           "tilt terms", ((TILT,), ("roll",), ("pitch",), ("yaw",)), _thrust_direction_text,
-           expr_fn=_thrust_direction, applicable_fn=_exact_geometry, explain_signal="pitch"),
-    Effect("ground_effect", "thrust gain near the ground (needs height z)", ((TILT,), ("z",)),
-           _ground_effect_text, expr_fn=_ground_effect, constants_fn=_ground_consts,
-           data_fn=_ground_heights,
-           targets=_ALL, explain_signal="z"),
-    Effect("battery_sag", "thrust per command falls with battery voltage (needs a command and "
-           "the voltage)", ((TILT,), _CMD, ("battery_voltage",)), _battery_sag_text,
-           expr_fn=_battery_sag, constants_fn=_battery_consts, applicable_fn=_battery_applicable,
-           targets=_ALL, explain_signal="battery_voltage"),
-)}
+#: The built-in effects by id, in the order the diagnosis tries them (discovered on first use).
+CATALOGUE: Mapping[str, Effect] = _Catalogue()
 
 
 def get_effect(effect_id: str, effects: Mapping[str, Effect] | None = None) -> Effect:
+    """The effect ``effect_id`` of ``effects`` (default: the built-in catalogue); ConfigError
+    with the nearest id for an unknown one."""
     effects = CATALOGUE if effects is None else effects
     try:
         return effects[effect_id]
@@ -761,7 +545,7 @@ def _user_effect(tab, where) -> Effect:
     def interpret_fn(coef, base, _meaning=meaning, _params=tuple(sorted(params))):
         vals = {k: coef.get(k, float("nan")) for k in _params}
         if _meaning:
-            text = safe_format(_meaning, {**vals, "k_D": _k_mean(base)}, what=f"effect {eid}: 'meaning'")
+            text = safe_format(_meaning, {**vals, "k_D": mean_k_drag(base)}, what=f"effect {eid}: 'meaning'")
         else:
             text = f"{eid}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items())
         return Interpretation(text, vals)
@@ -770,9 +554,9 @@ def _user_effect(tab, where) -> Effect:
     if not isinstance(per_flight, bool):
         raise ConfigError(f"{where}: 'per_flight' must be true or false, got {per_flight!r}")
     derivative = sorted(u for u in used if is_measured_derivative(u))
-    reason = (_PER_FLIGHT if per_flight else
+    reason = (PER_FLIGHT_REASON if per_flight else
               f"uses {', '.join(derivative)}, a measured derivative (cannot be simulated)"
               if derivative else "")
     return Effect(eid, str(desc), tuple(needs), interpret_fn, expr_fn=expr_fn,
-                  targets=tuple(t for t in _ALL if t in parsed), user=True, per_flight=per_flight,
+                  targets=tuple(t for t in TARGETS if t in parsed), user=True, per_flight=per_flight,
                   fold_reason=reason)

@@ -1,0 +1,26 @@
+"""Attitude delay: the logged attitude lags the acceleration it causes by τ.
+
+Feature (v̇x, v̇y, v̇z): dG/dt from the logged attitude (smoothed derivative, coefficient ``tau``
+in s, shared) -> "attitude lags by τ": G(att(t + τ)) ≈ G + τ dG/dt. Not foldable: it needs a
+time derivative.
+"""
+from droneid.targets import TARGETS
+from priors.effects import TILT, Effect, Interpretation
+
+
+def _features(ctx, consts):
+    return {"tau": ctx.d_dt(ctx.columns["G"])}
+
+
+def _interpret(coef, base):
+    tau = coef.get("tau", float("nan"))
+    word = "lags" if tau >= 0 else "leads"
+    return Interpretation(f"attitude {word} acceleration by {abs(tau) * 1000:.0f} ms",
+                          {"delay_ms": tau * 1000.0})
+
+
+EFFECT = Effect("attitude_delay", "logged attitude lags the acceleration it causes by τ: "
+                "G(att(t + τ)) ≈ G + τ dG/dt", ((TILT,),), _interpret,
+                column_fn=_features, targets=tuple(TARGETS), explain_signal="dG/dt",
+                fold_reason="needs dG/dt, a time derivative of the logged attitude (not an "
+                            "instantaneous function of states and inputs)", order=50)
