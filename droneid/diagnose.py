@@ -153,7 +153,7 @@ class DiagnosisResult:
         foldable). ``to_dict()`` writes the expressions as strings.
     simulable: False when the added effects or a passing open-ended term use a measured
         derivative (only possible with ``allow_measured_derivatives``); notes: such warnings.
-    series: per-target arrays for the plots (not in diagnosis.json).
+    series: per-target arrays for the plots (not in diagnosis.json unless asked for).
     """
     targets: dict
     steps: list
@@ -184,6 +184,26 @@ class DiagnosisResult:
         if include_series:
             d["series"] = self.series
         return to_jsonable(d)
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "DiagnosisResult":
+        """The result back from :meth:`to_dict` (``diagnosis.json``): feature expressions stay
+        text; without ``series`` (not saved by default) the report has no time-series figures.
+        DataError for a document that is not a diagnosis."""
+        if not isinstance(d, Mapping) or not isinstance(d.get("targets"), Mapping) \
+                or "effects_added" not in d:
+            raise DataError("not a diagnosis result (it needs 'targets' and 'effects_added')")
+        sources = d.get("sources") or {}
+        return cls(targets=dict(d["targets"]), steps=list(d.get("steps") or []),
+                   effects_added=list(d["effects_added"] or []),
+                   untestable=dict(d.get("untestable_reasons") or {}),
+                   not_detected=list(d.get("not_detected") or []), conclusion=str(d.get("conclusion") or ""),
+                   open_ended=dict(d.get("open_ended") or {}), config=dict(d.get("config") or {}),
+                   prior=str(d.get("prior") or ""),
+                   sources={"train": list(sources.get("train") or []), "test": list(sources.get("test") or [])},
+                   candidates=list(d.get("candidates") or []), final_effects=list(d.get("final_effects") or []),
+                   not_applicable=dict(d.get("not_applicable") or {}), simulable=bool(d.get("simulable", True)),
+                   notes=list(d.get("notes") or []), series=dict(d.get("series") or {}))
 
 
 def _final_effect_json(fe: dict) -> dict:

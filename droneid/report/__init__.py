@@ -2,11 +2,11 @@
 formats, text tables, the atomic report-set writer) and one renderer per result kind,
 :mod:`.identify`, :mod:`.diagnose` and :mod:`.study`. Each renderer offers the same three verbs:
 ``text(result) -> str`` for the terminal, ``document(result) -> Document`` and
-``write(result, directory) -> {name: Path}``. The identify and study renderers take the result's
-JSON document (``to_dict()``; study also its :class:`~droneid.study.StudyResult`), so a saved
-result can be re-rendered anywhere; the diagnose renderer takes the
-:class:`~droneid.diagnose.DiagnosisResult`, whose figures need its time series, which
-``diagnosis.json`` does not hold. Nothing here recomputes from logs.
+``write(result, directory) -> {name: Path}``. The identify renderer takes the result's JSON
+document (``to_dict()``); study and diagnose take their result object or its JSON document
+(read back through ``from_dict``), so a saved result can be re-rendered anywhere (a saved
+diagnosis without the time-series figures: ``diagnosis.json`` does not hold the series).
+Nothing here recomputes from logs.
 """
 from .document import Document, efmt, fmt, text_table, write_report_set
 

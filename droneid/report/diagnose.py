@@ -11,6 +11,7 @@ import numpy as np
 
 from priors.effects import CATALOGUE
 
+from ..diagnose import DiagnosisResult
 from ..errors import MissingSignalError
 from ..flight import canonical_unit
 from .document import Document, break_gaps, fmt, new_figure
@@ -36,9 +37,14 @@ def _evidence_text(ev) -> str:
     return ", ".join(parts)
 
 
+def _result(result) -> DiagnosisResult:
+    """The one input kind: a DiagnosisResult as given, a diagnosis.json document read back."""
+    return result if isinstance(result, DiagnosisResult) else DiagnosisResult.from_dict(result)
+
+
 def text(result) -> str:
-    """The terminal summary of a diagnosis."""
-    r = result
+    """The terminal summary of a diagnosis (a DiagnosisResult or its diagnosis.json)."""
+    r = _result(result)
     lines = [f"diagnosis of prior '{r.prior}' on train {', '.join(r.sources['train']) or '—'}"
              + (f" / test {', '.join(r.sources['test'])}" if r.sources.get("test") else " (no test flight)")]
     lines.append("residual before (prior refit by least squares, no intercept), RMSE m/s²:")
@@ -133,8 +139,8 @@ def _thin(n):
 
 def document(result) -> Document:
     """The Markdown/HTML report with plots (residual over time, residual vs explaining signals,
-    RMSE bars per step)."""
-    r = result
+    RMSE bars per step; the time-series figures only when the result holds its series)."""
+    r = _result(result)
     doc = Document("Diagnosis: what the model lacks")
     doc.paragraph(f"Prior: {r.prior}. Training flights: {', '.join(r.sources['train'])}. Test flights: "
                   f"{', '.join(r.sources.get('test') or []) or 'none (cross-validation only)'}.")
@@ -285,4 +291,5 @@ def _figures(doc, r):
 
 def write(result, directory) -> dict[str, Path]:
     """Write diagnosis.json, diagnosis.md, diagnosis.html and PNGs into ``directory`` (atomic)."""
-    return document(result).write(directory, "diagnosis", data={"diagnosis.json": result.to_dict()})
+    r = _result(result)
+    return document(r).write(directory, "diagnosis", data={"diagnosis.json": r.to_dict()})

@@ -67,3 +67,19 @@ def test_residual_plot_is_not_bridged_across_ground_time_or_between_flights():
 def test_axis_labels_of_explaining_signals_carry_units():
     from droneid.report.diagnose import _with_unit
     assert _with_unit("t") == "t (s)" and _with_unit("vz") == "vz (m/s)" and _with_unit("yaw") == "yaw (rad)"
+
+
+def test_a_saved_diagnosis_reads_back_and_renders_the_same_summary(tmp_path):
+    import pytest
+
+    from droneid.diagnose import DiagnosisResult
+    from droneid.errors import DataError
+    r = _result()
+    d = json.loads(json.dumps(r.to_dict()))
+    back = DiagnosisResult.from_dict(d)
+    assert back.to_dict() == d and back.series == {}
+    assert render_text(d) == render_text(r)          # the JSON document renders as the object does
+    paths = write(d, tmp_path / "rep")                # no series: a report without time-series figures
+    assert json.loads((tmp_path / "rep" / "diagnosis.json").read_text()) == d and paths
+    with pytest.raises(DataError, match="not a diagnosis result"):
+        DiagnosisResult.from_dict({"targets": {}})
