@@ -21,11 +21,12 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/python -m droneid demo
 
+# -n auto: one pytest worker per core (pytest-xdist); the tests are independent processes' work
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -n auto -m "not slow"
 
 sample-logs: $(STAMP)
 	$(BIN)/python -m droneid sample-logs --out sample_logs
