@@ -33,7 +33,8 @@ import numpy as np
 import sympy as sp
 
 from priors import constraints as pc
-from priors.models import thrust_columns, tilt_drag
+from priors.models import tilt_drag
+from priors.thrust import thrust_columns
 
 from . import __version__, runner
 from .constraints import constraint_rmse

@@ -46,7 +46,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from priors.models import RPM_SCALE
+from priors.thrust import RPM_SCALE
 
 from .errors import ConfigError, check_choice, did_you_mean
 from .flight import Flight, Provenance, Signal, canonical_unit

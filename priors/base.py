@@ -14,9 +14,9 @@ import numpy as np
 import sympy as sp
 
 from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
-from droneid.expressions import compile_expression, symbol
+from droneid.expressions import compile_expression
 
-__all__ = ["PriorFeature", "PriorModel", "ROLES"]
+__all__ = ["PriorFeature", "PriorModel", "ROLES", "check_param"]
 
 
 #: values beyond this are treated as non-finite (as the SNGP engine does: tan near ±90°)
@@ -147,3 +147,12 @@ class PriorModel:
 
 
 # -- built-in models ----------------------------------------------------------------------------
+
+
+def check_param(prior: str, name: str, value) -> float:
+    """``value`` as a float; ConfigError naming the prior and the parameter unless it is a finite
+    number."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise ConfigError(f"The '{name}' parameter of prior '{prior}' must be a finite number. "
+                          f"Got {value!r} instead.")
+    return float(value)

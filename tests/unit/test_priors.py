@@ -184,3 +184,23 @@ def test_a_user_prior_declares_its_vehicle_and_its_constraint_file(tmp_path):
         (tmp_path / "b.toml").write_text(f'[prior.t]\n{bad}\ntarget = "vx_dot"\nfeatures = ["-0.3*vx"]\n')
         with pytest.raises(ConfigError, match=msg):
             load_priors(tmp_path / "b.toml")
+
+
+def test_a_new_module_in_the_prior_catalogue_is_a_built_in_prior(tmp_path, monkeypatch):
+    """Adding a built-in prior is one module: NAME, ORDER, FACTORY (docs/extending.md)."""
+    import sys
+
+    import priors.prior_catalogue as package
+    from priors import models
+    (tmp_path / "hover_only.py").write_text(
+        "from droneid.expressions import symbol\n"
+        "from priors.base import PriorFeature, PriorModel\n"
+        "NAME, ORDER = 'hover-only', 40\n"
+        "def FACTORY():\n"
+        "    return PriorModel('hover-only', 'drag only', {'vx_dot': (PriorFeature('d', -0.3 * symbol('vx')),)})\n")
+    monkeypatch.setattr(package, "__path__", [*package.__path__, str(tmp_path)])
+    try:
+        found = models._discover()
+    finally:
+        sys.modules.pop("priors.prior_catalogue.hover_only", None)
+    assert list(found) == [*PRIORS, "hover-only"] and found["hover-only"]().targets == ("vx_dot",)

@@ -1,0 +1,66 @@
+"""``rotor-thrust``: logged thrust along the body z axis, gravity and linear drag (see
+:func:`rotor_thrust`); the thrust terms come from :mod:`priors.thrust`.
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+from droneid.errors import ConfigError
+from droneid.expressions import symbol
+
+from ..base import PriorFeature, PriorModel, check_param
+from ..thrust import RPM_SCALE, THRUST_SOURCES, body_z_world, thrust_columns
+
+#: the prior's name and its place among the built-in priors
+NAME, ORDER = "rotor-thrust", 20
+
+
+def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D: float = 0.28,
+                 g: float = 9.81, rotor_drag: bool = False) -> PriorModel:
+    """Rotor-thrust quadrotor model: logged thrust along the body z axis, gravity, linear drag::
+
+        v̇ = (k_T · thrust(source)) R(roll, pitch, yaw) e3 − g e3 − k_D v   (world ENU)
+
+    ``thrust(source)`` from :data:`THRUST_SOURCES` (``rpm``: Σ(ω_i/10⁴)²). The exact rotation,
+    no hover-balance or small-angle assumption, so it models v̇z too. ``k_T`` (m/s² per unit of
+    the thrust term: for ``rpm`` per (10⁴ rpm)²) is the nominal scale of the 1-feature form;
+    split into terms (the default), least squares tunes every scale. ``rotor_drag`` adds the
+    rotor-drag law −k_r (Σ ω_i/10⁴) v (blade flapping and induced drag grow with rotor speed).
+    """
+    for name, v in (("k_T", k_T), ("k_D", k_D), ("g", g)):
+        check_param("rotor-thrust", name, v)
+    if not isinstance(motors, int) or isinstance(motors, bool) or not 1 <= motors <= 16:
+        raise ConfigError(f"The 'motors' parameter of prior 'rotor-thrust' must be an integer in 1..16. "
+                          f"Got {motors!r} instead.")
+    cols = thrust_columns(source, motors)
+    roll, pitch, yaw = (symbol(n) for n in ("roll", "pitch", "yaw"))
+    b = dict(zip("xyz", body_z_world(roll, pitch, yaw)))
+    signals = sorted({s.name for _, e, _ in cols for s in e.free_symbols},
+                     key=lambda n: (len(n), n))
+    terms, inputs = {}, {}
+    for axis in "xyz":
+        v = symbol(f"v{axis}")
+        feats = [PriorFeature(f"{cname}_{axis}", sp.Float(k_T) * e * b[axis],
+                              f"{THRUST_SOURCES[source][2].split(':')[0]} ({cname}) along world {axis}, "
+                              f"coefficient in {unit}", "thrust")
+                 for cname, e, unit in cols]
+        if axis == "z":
+            feats.append(PriorFeature("minus_g", sp.Float(-g), "gravity, m/s²", "gravity"))
+        feats.append(PriorFeature(f"minus_kD_v{axis}", -sp.Float(k_D) * v, f"linear drag along world {axis}",
+                                  "drag"))
+        if rotor_drag and source == "rpm":
+            s1 = sp.Add(*[symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)])
+            feats.append(PriorFeature(f"rotor_drag_{axis}", -sp.Float(0.01) * s1 * v,
+                                      f"rotor drag −k_r Σ(ω/10⁴) v{axis}", "drag"))
+        terms[f"v{axis}_dot"] = tuple(feats)
+        inputs[f"v{axis}_dot"] = (f"v{axis}", "roll", "pitch", "yaw", *signals)
+    return PriorModel(
+        "rotor-thrust",
+        f"Rotor-thrust model: {THRUST_SOURCES[source][2]}, along the body z axis rotated by the "
+        f"full attitude, minus gravity, minus linear drag k_D v.",
+        terms, inputs, {"source": source, "motors": motors, "k_T": k_T, "k_D": k_D, "g": g,
+                        "rotor_drag": rotor_drag},
+        vehicle="multirotor", constraints="rotor-thrust")
+
+
+FACTORY = rotor_thrust

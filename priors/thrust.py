@@ -1,0 +1,68 @@
+"""Rotor thrust as prior features: where the thrust comes from in a log (motor speeds, motor
+commands, collective thrust or throttle), its magnitude terms, and the thrust direction.
+
+Shared by the rotor-thrust prior (:mod:`priors.prior_catalogue.rotor_thrust`), the choice of
+prior for ``auto`` (:func:`priors.models.choose_prior`), identify and the simulator.
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+from droneid.errors import ConfigError, did_you_mean
+from droneid.expressions import symbol
+
+__all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count"]
+
+
+#: Where the rotor-thrust prior takes the thrust from, most physically direct first:
+#: source -> (the signals it needs (``{i}`` = motor index), unit, description)
+THRUST_SOURCES = {
+    "rpm": ("rpm{i}", "rpm", "motor speeds: thrust = k_T Σ ω_i² (rotor momentum theory)"),
+    "motor": ("motor{i}", "1", "motor commands u_i (0..1): thrust = a Σ u_i² + b Σ u_i (a fitted map)"),
+    "thrust": ("thrust", "N", "collective thrust T (N): specific thrust = T / m"),
+    "throttle": ("throttle", "1", "collective command u (0..1): thrust = a u² + b u (a fitted map)"),
+}
+#: rpm are scaled by this before squaring so coefficients read as numbers near one (1/s² per (10⁴ rpm)²)
+RPM_SCALE = 1e4
+
+
+def body_z_world(roll, pitch, yaw) -> tuple:
+    """The body z axis (thrust direction) in the ENU world, exact Z-Y-X rotation (droneid's
+    angles: positive pitch = nose down): components (x, y, z), no small-angle form."""
+    return (sp.cos(yaw) * sp.sin(pitch) * sp.cos(roll) + sp.sin(yaw) * sp.sin(roll),
+            sp.sin(yaw) * sp.sin(pitch) * sp.cos(roll) - sp.cos(yaw) * sp.sin(roll),
+            sp.cos(roll) * sp.cos(pitch))
+
+
+def thrust_columns(source: str, motors: int = 4) -> tuple[tuple[str, sp.Expr, str], ...]:
+    """The thrust magnitude terms of a source: ((name, expr, unit of its coefficient), ...).
+
+    ``rpm``: Σ (ω_i/10⁴)²; ``motor``: Σ u_i² and Σ u_i; ``throttle``: u² and u; ``thrust``: T.
+    """
+    if source == "rpm":
+        w = [symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)]
+        return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), "m/s² per (10⁴ rpm)²"),)
+    if source == "motor":
+        u = [symbol(f"motor{i}") for i in range(1, motors + 1)]
+        return (("sum_cmd_sq", sp.Add(*[x ** 2 for x in u]), "m/s²"),
+                ("sum_cmd", sp.Add(*u), "m/s²"))
+    if source == "throttle":
+        u = symbol("throttle")
+        return (("throttle_sq", u ** 2, "m/s²"), ("throttle_lin", u, "m/s²"))
+    if source == "thrust":
+        return (("thrust_N", symbol("thrust"), "1/kg"),)
+    raise ConfigError(f"unknown thrust source {source!r}{did_you_mean(str(source), THRUST_SOURCES)}; "
+                      f"sources: {', '.join(THRUST_SOURCES)}")
+
+
+def motor_count(signals) -> dict[str, int]:
+    """{source: number of consecutive motors 1..N available} for the per-motor sources."""
+    have = set(signals)
+    out = {}
+    for src in ("rpm", "motor"):
+        n = 0
+        while f"{src}{n + 1}" in have:
+            n += 1
+        if n:
+            out[src] = n
+    return out
