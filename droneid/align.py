@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .dataset import with_euler_from_quaternion
+from .dataset_builder import with_euler_from_quaternion
 from .errors import ConfigError, DataError, MissingSignalError
 from .flight import Diagnostics, Flight, Provenance
 

@@ -49,7 +49,7 @@ from priors.effects import CATALOGUE, EffectContext, is_measured_derivative
 from priors.models import PriorFeature, PriorModel, prior_for, resolve_prior
 
 from .data import Dataset
-from .dataset import DatasetBuilder
+from .dataset_builder import DatasetBuilder
 from .differentiation import DIFFERENTIATORS
 from .errors import ConfigError, DataError, MissingSignalError, check_choice, did_you_mean
 from .expressions import compile_expression, symbol

@@ -21,7 +21,7 @@ import pandas as pd
 from priors.constraints import load_constraints
 from priors.models import is_prior_spec, resolve_prior
 
-from .constraints import ConstraintSamples
+from .constraint_samples import ConstraintSamples
 from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
 from .expressions import parse_expression
 from .sngp import SNGPRegressor

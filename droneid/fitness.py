@@ -38,7 +38,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .dataset import in_flight_intervals, resample_signal
+from .dataset_builder import in_flight_intervals, resample_signal
 from .errors import DataError, check_choice
 from .flight import VEHICLE_TYPES, Flight
 from .targets import state_of

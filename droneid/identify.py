@@ -37,7 +37,7 @@ from priors.models import tilt_drag
 from priors.thrust import thrust_columns
 
 from . import __version__, runner
-from .constraints import constraint_rmse
+from .constraint_samples import constraint_rmse
 from .data import Dataset
 from .errors import ConfigError, DataError, check_choice
 from .expressions import compile_expression, symbol

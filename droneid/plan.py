@@ -17,7 +17,7 @@ import numpy as np
 from priors.models import PriorFeature, get_prior, prior_for, resolve_prior
 
 from .data import Dataset
-from .dataset import DatasetBuilder, split_time_block
+from .dataset_builder import DatasetBuilder, split_time_block
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .fitness import MIN_RATE_STEPS

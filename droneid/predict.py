@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import DatasetBuilder
+from .dataset_builder import DatasetBuilder
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
 from .fitness import assess

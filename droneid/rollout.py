@@ -8,7 +8,7 @@ The metric (``docs/use-the-model.md`` states it for comparison with other benchm
   voltage, the velocity of an axis the set does not model, ...) is TAKEN FROM THE LOG at the
   time it is needed, linearly interpolated (angles unwrapped), at ``t − delays_s[signal]``.
 * **Starts.** Every sample of the reference velocity signal (the first modelled axis, at its
-  native rate) inside the in-flight intervals of :func:`droneid.dataset.in_flight_intervals`.
+  native rate) inside the in-flight intervals of :func:`droneid.dataset_builder.in_flight_intervals`.
   The initial velocity is the logged one at the start; the initial position is the logged one.
 * **Integration.** Classic RK4 with step ``dt_s`` (default: the median period of the
   reference velocity signal, 0.01 s for a 100 Hz log); inputs at the step's start, middle and end.
@@ -16,7 +16,7 @@ The metric (``docs/use-the-model.md`` states it for comparison with other benchm
   the log at that time (interpolated when ``dt_s`` is not the native period). A start counts for
   horizon ``h`` when ``[t0, t0 + h·dt_s]`` lies inside one in-flight interval and inside the span
   of every signal used (shifted by its delay) and crosses no gap of any of them (a gap: more than
-  5 median periods between samples, as :class:`droneid.dataset.DatasetBuilder` with
+  5 median periods between samples, as :class:`droneid.dataset_builder.DatasetBuilder` with
   ``max_gap_s=0``); other starts are skipped and counted.
 * **Errors.** Per axis: ``sqrt(mean_k (v̂_a(t_k + h·dt) − v_a(t_k + h·dt))²)`` in m/s over the
   starts ``k`` valid for ``h``, all flights pooled. Position: ``sqrt(mean_k ‖p̂ − p‖²)`` in m over
@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .dataset import signal_gaps, with_euler_from_quaternion, in_flight_intervals, resample_signal
+from .dataset_builder import signal_gaps, with_euler_from_quaternion, in_flight_intervals, resample_signal
 from .errors import ConfigError, DataError, MissingSignalError
 from .expressions import compile_expression
 from .flight import Flight

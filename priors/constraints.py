@@ -4,7 +4,7 @@ A :class:`Constraint` is a domain (per input: a fixed value or an interval ``(lo
 relation (``eq``, ``le``, ``ge``) and a value ``c``: on every point of the domain the model must
 satisfy ``f(x) = c`` (or ``<=``/``>=``). A :class:`ConstraintSet` groups the constraints of one
 target; :meth:`ConstraintSet.sample` draws points uniformly over each domain and returns a
-:class:`droneid.constraints.ConstraintSamples` for the engine. Draw the training and the test
+:class:`droneid.constraint_samples.ConstraintSamples` for the engine. Draw the training and the test
 samples with different seeds (:meth:`ConstraintSet.train_test`; paper: 50 + 50 per constraint).
 
 Inputs a constraint does not name are fixed at the set's ``defaults`` value, or 0 when the set
@@ -47,7 +47,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from droneid.constraints import ConstraintSamples
+from droneid.constraint_samples import ConstraintSamples
 from droneid.io_util import load_toml
 from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression

@@ -62,7 +62,7 @@ def run(args) -> int:
     from parsers import read_flight
 
     from ..align import merge_flights
-    from ..dataset import DatasetBuilder, subsample
+    from ..dataset_builder import DatasetBuilder, subsample
     from ..io_util import atomic_write_text
 
     if args.merge and len(args.merge) != len(args.logs):

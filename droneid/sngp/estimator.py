@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from ..constraints import ConstraintSamples, constraint_rmse
+from ..constraint_samples import ConstraintSamples, constraint_rmse
 from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
                       did_you_mean)
 from ..expressions import compile_expression, parse_expression, symbol

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ..constraints import ConstraintSamples
+from ..constraint_samples import ConstraintSamples
 from .estimator import SNGPRegressor
 from .kernels import ENTRY_KERNELS, kernels_ready
 

@@ -9,7 +9,7 @@ import pytest
 from _physics import tilt_drag_coefficients
 from conftest import SAMPLE_LOGS
 from droneid.cli import main
-from droneid.dataset import DatasetBuilder
+from droneid.dataset_builder import DatasetBuilder
 
 
 def _sample(name):

@@ -52,7 +52,7 @@ def run_cli(capsys, *argv):
 
 
 def test_predict_evaluates_the_final_model(result, log, capsys):
-    from droneid.dataset import DatasetBuilder
+    from droneid.dataset_builder import DatasetBuilder
     from droneid.numerics import rmse
     from parsers import read_flight
     code, out, _ = run_cli(capsys, "predict", result, log, "--json")
@@ -99,7 +99,7 @@ def test_predict_horizons_table_json_and_plots(result, log, capsys, tmp_path):
 def test_delayed_inputs_equal_a_shifted_log(result, log):
     """A model reading pitch at t − 0.1 s on the log == the undelayed model on a log whose pitch is
     shifted 0.1 s later, sample by sample where both exist."""
-    from droneid.dataset import DatasetBuilder
+    from droneid.dataset_builder import DatasetBuilder
     from droneid.predict import _predict_final
     from parsers import read_flight
     f = read_flight(log)

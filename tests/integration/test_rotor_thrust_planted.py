@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.dataset import DatasetBuilder
+from droneid.dataset_builder import DatasetBuilder
 from droneid.simulate import simulate
 from priors.models import RPM_SCALE, get_prior
 

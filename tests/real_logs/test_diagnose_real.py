@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import real_log
-from droneid.dataset import DatasetBuilder
+from droneid.dataset_builder import DatasetBuilder
 from droneid.diagnose import DiagnoseConfig, diagnose, diagnose_datasets
 from diag_synth import decisions
 from priors.models import get_prior

@@ -17,7 +17,7 @@ def test_exported_code_matches_predict_on_a_real_crazyflie_log(tmp_path):
     """The rotor-thrust prior summed, on the Crazyflie square_run2 log at its 100 Hz: the values
     ``predict`` computes (IdentifiedModel.evaluate on the dataset it builds), the exported Python
     and the compiled C agree to 1e-9 relative."""
-    from droneid.dataset import DatasetBuilder
+    from droneid.dataset_builder import DatasetBuilder
     from droneid.predict import _predict_final
     from parsers import read_flight
     flight = read_flight(real_log("mocap/crazyflie_nanodrone/square_run2.csv"))

@@ -3,7 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from droneid.dataset import (DatasetBuilder, resample_signal, split_by_flight, split_time_block,
+from droneid.dataset_builder import (DatasetBuilder, resample_signal, split_by_flight, split_time_block,
                              subsample)
 from droneid.errors import ConfigError, DataError, MissingSignalError
 from droneid.flight import Event, Flight, Signal
@@ -245,7 +245,7 @@ def test_other_derivative_targets(flight):
 def test_span_ending_a_hair_below_a_grid_point_keeps_its_last_sample():
     """A log whose time stamps end at 12.7999999999 s (float round-off of 12.8) must still build
     with the central differentiator (the grid must not step past the signal's end)."""
-    from droneid.dataset import DatasetBuilder
+    from droneid.dataset_builder import DatasetBuilder
     from droneid.flight import Flight, Signal
     t = np.arange(257) * 0.05
     t[-1] = 12.799999999999999

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from droneid.align import estimate_clock_offset, merge_flights
-from droneid.dataset import DatasetBuilder
+from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import DataError, MissingSignalError
 
 from synth_flights import tilt_drag_flight

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.dataset import DatasetBuilder
+from droneid.dataset_builder import DatasetBuilder
 from droneid.simulate import simulate
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from droneid.constraints import ConstraintSamples, EQ, GE, LE, constraint_rmse, violations
+from droneid.constraint_samples import ConstraintSamples, EQ, GE, LE, constraint_rmse, violations
 from droneid.errors import ConfigError
 from droneid.expressions import compile_expression, parse_expression, symbol
 

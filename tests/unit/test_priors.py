@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from droneid.dataset import DatasetBuilder
+from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError, MissingSignalError
 from droneid.expressions import symbol
 from priors.models import PRIORS, PriorFeature, get_prior, load_priors, resolve_prior
@@ -164,7 +164,7 @@ def test_shipped_example_files_load():
     assert len(cs) == 3 and cs.target == "vx_dot"
     s = cs.sample(("vx", "pitch", "roll", "yaw", "throttle"), 10, seed=0)
     cols = {n: s.X[:, i] for i, n in enumerate(s.input_names)}
-    from droneid.constraints import constraint_rmse
+    from droneid.constraint_samples import constraint_rmse
     pred = get_prior("tilt-drag").evaluate(cols, "vx_dot", 1)[:, 0]
     assert constraint_rmse(pred, s) < 1e-12  # the paper's model meets these too
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from droneid.constraints import EQ, GE, LE, constraint_rmse
+from droneid.constraint_samples import EQ, GE, LE, constraint_rmse
 from droneid.errors import ConfigError, MissingSignalError
 from priors.constraints import (CONSTRAINT_SETS, Constraint, ConstraintSet, get_constraints,
                                 load_constraints)

@@ -43,7 +43,7 @@ def test_rotor_thrust_as_given_meets_its_own_constraints():
         samples = cs.sample(list(prior.inputs(t)), n_per_constraint=40, seed=3)
         cols = {n: samples.X[:, i] for i, n in enumerate(samples.input_names)}
         pred = prior.evaluate(cols, t, 1)[:, 0]
-        from droneid.constraints import constraint_rmse
+        from droneid.constraint_samples import constraint_rmse
         assert constraint_rmse(pred, samples) < 1e-9, t
 
 

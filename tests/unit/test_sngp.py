@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from droneid.constraints import ConstraintSamples
+from droneid.constraint_samples import ConstraintSamples
 from droneid.errors import ConfigError, DataError, MissingSignalError, NotFittedError
 from droneid.sngp import OPERATORS, SNGPRegressor, SymbolicModel
 from droneid.sngp import kernels as K
