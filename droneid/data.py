@@ -1,7 +1,8 @@
 """Regression data exchanged between stages: the :class:`Dataset`.
 
 Built by :mod:`droneid.dataset_builder` from flights, consumed by the SNGP engine,
-identification and diagnosis. Columns use canonical signal names; the target is e.g. ``vx_dot`` (m/s², world ENU).
+identification and diagnosis. Columns use canonical signal names; the target is e.g.
+``vx_dot`` (m/s², world ENU).
 """
 from __future__ import annotations
 
