@@ -53,7 +53,7 @@ from .dataset_builder import DatasetBuilder
 from .differentiation import DIFFERENTIATORS
 from .errors import ConfigError, DataError, MissingSignalError, check_choice, did_you_mean
 from .expressions import compile_expression, symbol
-from .fitness import check_prior_data
+from .fitness import check_prior_data, usable_signals
 from .io_util import to_jsonable
 from .ladder import block_ids
 from .numerics import lstsq, rmse
@@ -488,12 +488,12 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     """Diagnose ``prior`` on flights: build the datasets, then :func:`diagnose_datasets`.
 
     ``prior``: a PriorModel, a name (``file.toml:name`` for user priors) or ``"auto"``
-    (:func:`priors.models.choose_prior` on the signals every training flight has). ``targets``
+    (:func:`priors.models.choose_prior` on the signals every training flight has at a usable rate). ``targets``
     None: the prior's targets among vx_dot, vy_dot, vz_dot.
     """
     cfg = (config or DiagnoseConfig()).validate()
     train_flights = list(train_flights)
-    pr, label = choose_diagnose_prior(prior, train_flights)
+    pr, label = choose_diagnose_prior(prior, train_flights, cfg.ts)
     if targets is None:
         targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in TARGETS)
     check_prior_data(train_flights, pr, targets, cfg.ts, "training")
@@ -505,12 +505,13 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
                              user_effects=user_effects, progress=progress)
 
 
-def choose_diagnose_prior(prior, flights) -> tuple[object, str]:
-    """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``)."""
+def choose_diagnose_prior(prior, flights, ts: float) -> tuple[object, str]:
+    """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``,
+    which chooses among the signals every flight has at a usable rate for a grid of ``ts`` s,
+    as identify does: :func:`droneid.fitness.usable_signals`)."""
     if not isinstance(prior, str):
         return resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
-    sets = [set(getattr(f, "signals", ())) for f in flights]
-    pr, why = prior_for(prior, set.intersection(*sets) if sets else set())
+    pr, why = prior_for(prior, usable_signals(flights, ts))
     if prior not in ("auto", "rotor-thrust"):
         return pr, prior
     args = ", ".join(f"{k}={pr.params[k]}" for k in ("source", "motors") if k in pr.params)

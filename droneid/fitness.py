@@ -43,7 +43,8 @@ from .errors import DataError, check_choice
 from .flight import VEHICLE_TYPES, Flight
 from .targets import state_of
 
-__all__ = ["assess", "check_prior_data", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS", "ROTOR_THRUST_SIGNALS"]
+__all__ = ["assess", "check_prior_data", "usable_signals", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
+           "ROTOR_THRUST_SIGNALS"]
 
 MIN_RATE_STEPS = 0.25
 SLOW_DYNAMICS_HZ = 5.0
@@ -300,3 +301,15 @@ def check_prior_data(flights, prior, targets, ts: float, role: str = "training")
         more = f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""
         raise DataError(f"the {role} data cannot identify the {prior.name} model: {fit.problems[0]}{more}")
     return fit
+
+
+def usable_signals(flights, ts: float) -> set:
+    """The signals every flight has at a rate the data-fitness check accepts for a grid of
+    ``ts`` (≥ :data:`MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
+    4 Hz ESC telemetry does not win over 100 Hz motor commands."""
+    names = None
+    for f in flights:
+        n = {name for name, sig in getattr(f, "signals", {}).items()
+             if len(sig) < 2 or sig.rate_hz >= MIN_RATE_STEPS / ts}
+        names = n if names is None else names & n
+    return names or set()

@@ -20,7 +20,7 @@ from .data import Dataset
 from .dataset_builder import DatasetBuilder, split_time_block
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
-from .fitness import MIN_RATE_STEPS
+from .fitness import usable_signals
 from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
 from .targets import TARGETS
 
@@ -66,18 +66,6 @@ def _hover_calibrated(prior, flights, cfg, cuts=None):
         return prior
     params = {k: v for k, v in prior.params.items() if k != "k_T"}
     return get_prior("rotor-thrust", k_T=float(prior.params.get("g", 9.81)) / med, **params)
-
-
-def usable_signals(flights, ts: float) -> set:
-    """The signals every flight has at a rate the data-fitness check accepts for a grid of
-    ``ts`` (≥ :data:`droneid.fitness.MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
-    4 Hz ESC telemetry does not win over 100 Hz motor commands."""
-    names = None
-    for f in flights:
-        n = {name for name, sig in getattr(f, "signals", {}).items()
-             if len(sig) < 2 or sig.rate_hz >= MIN_RATE_STEPS / ts}
-        names = n if names is None else names & n
-    return names or set()
 
 
 def resolve_plan_prior(cfg, flights) -> tuple:

@@ -83,3 +83,20 @@ def test_identified_model_round_trips_through_its_dict():
     cols = _columns(50)
     assert np.allclose(back.evaluate(cols), m.evaluate(cols), rtol=1e-12)
     assert back.signals == m.signals
+
+
+def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_too_slow():
+    """4 Hz ESC telemetry must not win over 100 Hz motor commands, in either pipeline."""
+    from droneid.diagnose import choose_diagnose_prior
+    from droneid.flight import Signal
+    from droneid.identify import IdentifyConfig
+    from droneid.plan import resolve_plan_prior
+    from droneid.simulate import simulate
+    f = simulate(path="eight", duration_s=10.0, rate_hz=100.0, seed=3).flight
+    assert f.has("rpm1", "motor1")
+    slow = [Signal(n, f[n].t[::25], f[n].values[::25], f[n].unit) for n in ("rpm1", "rpm2", "rpm3", "rpm4")]
+    f = f.with_signals(*slow)
+    cfg = IdentifyConfig.make(prior="auto")
+    plan_prior, _ = resolve_plan_prior(cfg, [f])
+    diag_prior, label = choose_diagnose_prior("auto", [f], cfg.ts)
+    assert plan_prior.params["source"] == diag_prior.params["source"] == "motor", label
