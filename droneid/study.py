@@ -30,7 +30,7 @@ from .identify import (IdentifyConfig, RunRecord, make_jobs, prepare_target, run
                        flight_provenance)
 from .io_util import to_jsonable
 from .numerics import finite_median
-from .plan import fixed_plan
+from .plan import PAPER_PRIOR, fixed_plan
 
 __all__ = ["study", "StudyResult", "StudyTarget", "StudyVariant", "SCENARIOS", "PRIOR_VARIANTS",
            "STUDY_SCHEMA", "RUN_KEYS", "variant_key", "prior_label"]
@@ -308,10 +308,12 @@ def study(train_flights: Sequence, test_flights: Sequence | None, config: Identi
     cfg = replace(cfg, simplify_s=0.0)
     # the paper's protocol: its prior, constraints and data as given (no thrust delay, no folded
     # effects, no drag-sign constraints), whatever identify's defaults are
-    plan = fixed_plan(replace(cfg, effects="none", delays="none"))
-    cfg = replace(cfg, effects="none", delays="none", prior=plan.prior.name, targets=plan.targets)
+    cfg = replace(cfg, effects="none", delays="none")
+    plan = fixed_plan(cfg)                 # the prior as given (auto: the paper's), resolved once
+    cfg = replace(cfg, targets=plan.targets, prior=PAPER_PRIOR if cfg.prior == "auto" else cfg.prior)
     t0 = time.perf_counter()
-    problems = {t: prepare_target(train_flights, test_flights, t, cfg) for t in cfg.targets}
+    problems = {t: prepare_target(train_flights, test_flights, t, cfg, replace(plan, targets=(t,)))
+                for t in cfg.targets}
     jobs = []
     for t in cfg.targets:
         for scenario, constrained in SCENARIOS:
