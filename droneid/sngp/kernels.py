@@ -359,7 +359,15 @@ def _propagate(lo, hi, force, gen_id, mutated, stamp, dirty, d_valid, d_const, d
         valid[n] = vn
         isconst[n] = cn
         fit[n] = fn
-        if _changed(V, n, valid[n], d_valid[nd - 1]):
+        # did the output change? (validity, else the two rows; an invalid node's rows do not
+        # matter). Written out here for the reason above.
+        changed = vn != d_valid[nd - 1]
+        if not changed and vn != 0:
+            for t in range(N):
+                if V[0, n, t] != V[1, n, t]:
+                    changed = True
+                    break
+        if changed:
             stamp[n] = gen_id
             if n >= id0:
                 id_changed = True
@@ -428,19 +436,6 @@ def _raise_bounds(m, s, a, b, lay, depth, ltr, stack):
                 ltr[c] = lp
                 stack[top] = c
                 top += 1
-
-
-@njit(cache=True, inline="always")
-def _changed(V, n, valid_now, valid_before):
-    """Whether a re-evaluated node's output differs from its previous one (its two rows)."""
-    if valid_now != valid_before:
-        return True
-    if valid_now == 0:
-        return False
-    for t in range(V.shape[2]):
-        if V[0, n, t] != V[1, n, t]:
-            return True
-    return False
 
 
 @njit(cache=True)
