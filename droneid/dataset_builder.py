@@ -53,7 +53,7 @@ __all__ = ["DatasetBuilder", "split_time_block", "split_by_flight", "subsample",
 
 log = logging.getLogger(__name__)
 
-_POSITION_OF = {"vx": "x", "vy": "y", "vz": "z"}
+_POSITION_OF = {t.velocity: t.position for t in TARGETS.values()}   # a view of the target table
 _QUAT = ("qw", "qx", "qy", "qz")
 _EULER = ("roll", "pitch", "yaw")
 

@@ -58,7 +58,7 @@ from .io_util import to_jsonable
 from .ladder import block_ids
 from .numerics import lstsq, rmse
 from .sngp import SNGPRegressor
-from .targets import TARGETS, velocity_of
+from .targets import targets_for, velocity_of
 
 log = logging.getLogger(__name__)
 
@@ -495,7 +495,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     train_flights = list(train_flights)
     pr, label = choose_diagnose_prior(prior, train_flights, cfg.ts)
     if targets is None:
-        targets = tuple(t for t in getattr(pr, "targets", ("vx_dot", "vy_dot")) if t in TARGETS)
+        targets = targets_for(pr)
     check_prior_data(train_flights, pr, targets, cfg.ts, "training")
     if test_flights:
         check_prior_data(test_flights, pr, targets, cfg.ts, "test")

@@ -52,7 +52,7 @@ from .sngp import SNGPRegressor
 from .sngp.model import SymbolicModel, round_expr, to_text
 from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
-from .targets import HORIZONTAL, TARGETS, velocity_of
+from .targets import HORIZONTAL, TARGETS, targets_for, velocity_of
 from .plan import (Plan, dataset_builder, fixed_plan, holdout_cuts, plan_identification, resolve_plan_prior,
                    split_terms, thrust_signals, train_rows)
 
@@ -1083,13 +1083,13 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
         raise DataError("no training flights")
     t0 = time.perf_counter()
     prior, _ = resolve_plan_prior(cfg, train_flights)
-    targets = cfg.targets or tuple(t for t in prior.targets if t in TARGETS)
+    targets = targets_for(prior, cfg.targets)
     fitness = {"train": check_prior_data(train_flights, prior, targets, cfg.ts, "training")}
     if test_flights:
         fitness["test"] = check_prior_data(test_flights, prior, targets, cfg.ts, "test")
     cuts = None
     if not test_flights and cfg.test_fraction > 0:
-        first = (cfg.targets or tuple(t for t in prior.targets if t in TARGETS))[0]
+        first = targets[0]
         cuts = holdout_cuts(train_flights, cfg, first, prior)
     plan = plan_identification(train_flights, cfg, progress, cuts)
     cfg = replace(cfg, targets=plan.targets)

@@ -22,7 +22,7 @@ from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .fitness import usable_signals
 from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
-from .targets import TARGETS
+from .targets import targets_for
 
 __all__ = ["Plan", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "thrust_signals", "split_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
@@ -88,26 +88,13 @@ def split_terms(prior, target: str) -> tuple:
     return tuple(f for f in prior.features(target) if f.expr.free_symbols)
 
 
-def _targets(prior, requested) -> tuple:
-    """The targets to identify: ``requested`` (each must be one the prior models), else every
-    vehicle target the prior models. ConfigError naming the choices otherwise."""
-    targets = tuple(requested) if requested else tuple(t for t in prior.targets if t in TARGETS)
-    if not targets:
-        raise ConfigError(f"prior '{prior.name}' models none of {', '.join(TARGETS)}")
-    for t in targets:
-        if t not in prior.targets:
-            raise ConfigError(f"prior '{prior.name}' has no model of {t}; it models "
-                              f"{', '.join(prior.targets)} (choose another --prior or --target)")
-    return targets
-
-
 def fixed_plan(cfg, targets: Sequence[str] | None = None) -> Plan:
     """The plan of the paper's protocol, decided without looking at data: the named prior
     (``auto``: :data:`PAPER_PRIOR`), no input delays, no folded effects; ``targets`` (default:
     the config's, else every vehicle target the prior models)."""
     prior = resolve_prior(PAPER_PRIOR if cfg.prior == "auto" else cfg.prior)
     why = "the paper's prior" if cfg.prior == "auto" else "named by the user"
-    return Plan(prior, why, _targets(prior, targets or cfg.targets))
+    return Plan(prior, why, targets_for(prior, targets or cfg.targets))
 
 
 def plan_identification(train_flights, cfg, progress: Callable | None = None,
@@ -118,7 +105,7 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
     prior, reason = resolve_plan_prior(cfg, train_flights)
     if prior.name == "rotor-thrust":
         prior = _hover_calibrated(prior, train_flights, cfg, cuts)
-    targets = _targets(prior, cfg.targets)
+    targets = targets_for(prior, cfg.targets)
     notes = []
     thrust = sorted({s for t in targets for s in thrust_signals(prior, t)})
     delays, scores = {}, {}

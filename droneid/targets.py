@@ -18,7 +18,7 @@ from types import MappingProxyType
 from .errors import ConfigError, did_you_mean
 
 __all__ = ["Target", "TARGETS", "HORIZONTAL", "get_target", "state_of", "axis_of", "velocity_of",
-           "by_velocity"]
+           "by_velocity", "targets_for"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,21 @@ def velocity_of(target: str) -> str | None:
     """The velocity signal of a vehicle target's axis (``vx_dot`` -> ``vx``), None for others."""
     t = TARGETS.get(target)
     return t.velocity if t else None
+
+
+def targets_for(prior, requested=None) -> tuple[str, ...]:
+    """The vehicle targets to model with ``prior`` (anything with ``name`` and ``targets``):
+    ``requested`` when given (each must be one the prior models), else every vehicle target the
+    prior models, in table order. ConfigError naming the prior and what it models otherwise."""
+    name, has = getattr(prior, "name", "prior"), tuple(getattr(prior, "targets", ()))
+    targets = tuple(requested) if requested else tuple(t for t in TARGETS if t in has)
+    if not targets:
+        raise ConfigError(f"prior '{name}' models none of {', '.join(TARGETS)}")
+    for t in targets:
+        if t not in has:
+            raise ConfigError(f"prior '{name}' has no model of {t}; it models "
+                              f"{', '.join(has)} (choose another --prior or --target)")
+    return targets
 
 
 def by_velocity(signal: str) -> Target | None:

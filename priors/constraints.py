@@ -51,7 +51,7 @@ from droneid.constraint_samples import ConstraintSamples
 from droneid.io_util import load_toml
 from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression
-from droneid.targets import HORIZONTAL, velocity_of
+from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
 from .models import PRIORS
 
@@ -241,12 +241,12 @@ def rotor_thrust(target: str, thrust_signals: Mapping[str, float], g: float = 9.
     * tilted only across the axis (vx_dot: pitch = 0, yaw = 0, roll within ±30°; vy_dot: roll = 0,
       yaw = 0, pitch within ±30°), any thrust: none along it (the thrust has no component there).
     """
-    axis = {"vx_dot": "x", "vy_dot": "y", "vz_dot": "z"}.get(target)
+    axis = axis_of(target)
     if axis is None:
-        raise ConfigError(f"the rotor-thrust constraints are for vx_dot, vy_dot and vz_dot, not {target!r}")
+        raise ConfigError(f"the rotor-thrust constraints are for {', '.join(TARGETS)}, not {target!r}")
     if not thrust_signals:
         raise ConfigError("the rotor-thrust constraints need at least one thrust input")
-    a, v = math.pi / 6, f"v{axis}"
+    a, v = math.pi / 6, velocity_of(target)
     zero = {s: 0.0 for s in thrust_signals}
     span = {s: (0.0, float(hi)) for s, hi in thrust_signals.items()}
     cs = [Constraint(f"{target} = {'-g' if axis == 'z' else '0'} with no thrust at rest",

@@ -502,9 +502,9 @@ def _user_effect(tab, where) -> Effect:
     params: set[str] = set()
     used: set[str] = set()
     for target, table in feats.items():
-        if target not in ("vx_dot", "vy_dot", "vz_dot"):
-            raise ConfigError(f"{where}: unknown target '{target}'"
-                              f"{did_you_mean(target, ['vx_dot', 'vy_dot', 'vz_dot'])}")
+        if target not in TARGETS:
+            raise ConfigError(f"{where}: unknown target '{target}'{did_you_mean(target, TARGETS)}; "
+                              f"known: {', '.join(TARGETS)}")
         if not isinstance(table, dict) or not table:
             raise ConfigError(f"{where}: features.{target} must be a table of param = expression")
         parsed[target] = {}
@@ -537,7 +537,7 @@ def _user_effect(tab, where) -> Effect:
         if not exprs:
             return {}
         sub = {symbol("speed"): sp.sqrt(symbol("vx") ** 2 + symbol("vy") ** 2),
-               symbol("v_axis"): symbol(f"v{ctx.axis}")}
+               symbol("v_axis"): symbol(velocity_of(ctx.target))}
         if ctx.tilt is not None:
             sub[symbol("G")] = ctx.tilt
         return {k: e.subs(sub) for k, e in exprs.items()}

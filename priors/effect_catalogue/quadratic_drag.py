@@ -7,11 +7,12 @@ the wind effect's refine hook); the folded expression uses v (wind is a conditio
 import sympy as sp
 
 from droneid.expressions import symbol
+from droneid.targets import velocity_of
 from priors.effects import Effect, Interpretation
 
 
 def _features(ctx, consts):
-    return {"c": -sp.sqrt(symbol("vx") ** 2 + symbol("vy") ** 2) * symbol(f"v{ctx.axis}")}
+    return {"c": -sp.sqrt(symbol("vx") ** 2 + symbol("vy") ** 2) * symbol(velocity_of(ctx.target))}
 
 
 def _interpret(coef, base):

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from droneid.targets import HORIZONTAL, axis_of
 from priors.effects import PER_FLIGHT_REASON, Effect, Interpretation
 
 #: the smallest linear drag (1/s) from which a wind is computed (below: no wind, w = 0)
@@ -53,8 +54,9 @@ def _air_velocity(ctx, coef, base):
     kd = base.get("k_D") or {}
     w = {"x": np.zeros(ctx.t.size), "y": np.zeros(ctx.t.size)}
     for f, params in coef.items():
-        for ax in ("x", "y"):
-            off, k = params.get(f"offset_{ax}"), kd.get(f"v{ax}_dot")
+        for tgt in HORIZONTAL:
+            ax = axis_of(tgt)
+            off, k = params.get(f"offset_{ax}"), kd.get(tgt)
             if off is not None and k is not None and k > _K_MIN:
                 w[ax][ctx.flight == f] = off / k
     vx_air, vy_air = c["vx"] - w["x"], c["vy"] - w["y"]

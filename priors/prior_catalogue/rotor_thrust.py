@@ -7,6 +7,7 @@ import sympy as sp
 
 from droneid.errors import ConfigError
 from droneid.expressions import symbol
+from droneid.targets import TARGETS
 
 from ..base import PriorFeature, PriorModel, check_param
 from ..thrust import RPM_SCALE, THRUST_SOURCES, body_z_world, thrust_columns
@@ -38,8 +39,8 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
     signals = sorted({s.name for _, e, _ in cols for s in e.free_symbols},
                      key=lambda n: (len(n), n))
     terms, inputs = {}, {}
-    for axis in "xyz":
-        v = symbol(f"v{axis}")
+    for tgt in TARGETS.values():
+        axis, v = tgt.axis, symbol(tgt.velocity)
         feats = [PriorFeature(f"{cname}_{axis}", sp.Float(k_T) * e * b[axis],
                               f"{THRUST_SOURCES[source][2].split(':')[0]} ({cname}) along world {axis}, "
                               f"coefficient in {unit}", "thrust")
@@ -52,8 +53,8 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
             s1 = sp.Add(*[symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)])
             feats.append(PriorFeature(f"rotor_drag_{axis}", -sp.Float(0.01) * s1 * v,
                                       f"rotor drag −k_r Σ(ω/10⁴) v{axis}", "drag"))
-        terms[f"v{axis}_dot"] = tuple(feats)
-        inputs[f"v{axis}_dot"] = (f"v{axis}", "roll", "pitch", "yaw", *signals)
+        terms[tgt.name] = tuple(feats)
+        inputs[tgt.name] = (tgt.velocity, "roll", "pitch", "yaw", *signals)
     return PriorModel(
         "rotor-thrust",
         f"Rotor-thrust model: {THRUST_SOURCES[source][2]}, along the body z axis rotated by the "
