@@ -60,7 +60,7 @@ def default_jobs() -> int:
 
 
 #: how long numba takes to compile the SNGP kernels on a first run, for the message below
-#: (benchmarks/bench_compile.py: 10-14 s on an idle 2-core machine; more when it is loaded)
+#: (benchmarks/bench_compile.py: 10-15 s on an idle 2-core machine; more when it is loaded)
 _COMPILE_S = "15 s"
 
 
