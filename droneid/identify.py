@@ -284,16 +284,16 @@ def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dat
 
     def own():
         declared = getattr(prior, "constraints", "paper")
-        if declared.endswith(".toml"):   # a user prior's own constraint file
-            cs = pc.load_constraints(declared, target=target)
-            return cs if cfg.effects == "none" and cfg.delays == "none" else _extend(cs, {})
-        if declared == "rotor-thrust":
+        if declared == "rotor-thrust":   # built from the training data's thrust span
             thrust = thrust_signals(prior, target)
             cols = train.columns()
             span = {s: float(np.max(cols[s])) for s in thrust}
             cs = pc.rotor_thrust(target, span, g=float(prior.params.get("g", 9.81)))
             return _extend(cs, {s: (0.0, v) for s, v in span.items()})
-        cs = pc.get_constraints("paper", target=target, prior=name)
+        if declared.endswith(".toml"):   # the prior's own constraints file
+            cs = pc.load_constraints(declared, target=target)
+        else:                            # a built-in set, in the prior's vehicle's version
+            cs = pc.get_constraints(declared, target=target, prior=name)
         return cs if cfg.effects == "none" and cfg.delays == "none" else _extend(cs, {})
 
     def _extend(cs, level):
