@@ -940,7 +940,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
     if best is not None:
         identified = best.summary(("rmse_train", "rmse_test", "constraint_rmse_train",
                                    "constraint_rmse_test", "seed", "qualified"))
-        median = {k: finite_median(_float(getattr(r, k)) for r in done)
+        median = {k: finite_median(getattr(r, k) for r in done)
                   for k in (*metric, "constraint_rmse_train")}
         pred = np.asarray(best.pred_test, float)
     else:

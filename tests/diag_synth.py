@@ -166,7 +166,7 @@ def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, no
 def decisions(r) -> dict:
     """Everything a diagnosis result's choices depend on or produce, without the test-flight
     report fields: equal for two runs that differ only in their test flights."""
-    drop = {"test_rmse_before", "test_rmse_after", "test_rel_improvement", "test_rmse_after"}
+    drop = {"test_rmse_before", "test_rmse_after", "test_rel_improvement"}
     cand = [{**c, "scores": [{k: v for k, v in s.items() if k not in drop} for s in c["scores"]]}
             for c in r.candidates]
     steps = [{"effect": s["effect"], "coefficients": s["coefficients"],
