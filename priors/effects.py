@@ -73,6 +73,8 @@ from droneid.flight import CANONICAL_SIGNALS
 from droneid.plugins import public_modules
 from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
+from .thrust import RPM_SCALE, motor_count
+
 __all__ = [
     "Effect", "EffectContext", "Interpretation", "CATALOGUE", "TILT", "get_effect",
     "load_effects", "time_derivative", "MEASURED_DERIVATIVES",
@@ -364,13 +366,12 @@ def thrust_proxy(available: Iterable[str]) -> tuple[str, sp.Expr] | None:
     have = set(available)
     if "thrust" in have:
         return "thrust", symbol("thrust")
+    counts = motor_count(have)
     for src, label in (("rpm", "Σ(rpm/10⁴)²"), ("motor", "mean motor command")):
-        n = 0
-        while f"{src}{n + 1}" in have:
-            n += 1
+        n = counts.get(src, 0)
         if n:
             if src == "rpm":
-                return label, sp.Add(*[(symbol(f"rpm{i}") / 10_000) ** 2 for i in range(1, n + 1)])
+                return label, sp.Add(*[(symbol(f"rpm{i}") / int(RPM_SCALE)) ** 2 for i in range(1, n + 1)])
             return label, sp.Add(*[symbol(f"motor{i}") for i in range(1, n + 1)]) / n
     if "throttle" in have:
         return "throttle", symbol("throttle")

@@ -25,12 +25,11 @@ from .base import ROLES, PriorFeature, PriorModel
 from .prior_catalogue.rotor_thrust import rotor_thrust
 from .prior_catalogue.tilt_drag import tilt_drag
 from .prior_catalogue.unicycle import unicycle
-from .thrust import RPM_SCALE, THRUST_SOURCES, body_z_world, motor_count, thrust_columns
+from .thrust import THRUST_SOURCES, motor_count
 from .user import load_priors
 
-__all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "THRUST_SOURCES", "RPM_SCALE", "get_prior",
-           "load_priors", "tilt_drag", "rotor_thrust", "unicycle", "resolve_prior", "is_prior_spec",
-           "choose_prior", "prior_for", "body_z_world", "thrust_columns", "motor_count"]
+__all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "get_prior", "load_priors", "tilt_drag",
+           "rotor_thrust", "unicycle", "resolve_prior", "is_prior_spec", "choose_prior", "prior_for"]
 
 
 def choose_prior(signals, requested: str = "auto") -> tuple[str, dict, str]:

@@ -11,6 +11,7 @@ import sympy as sp
 from droneid.expressions import symbol
 from droneid.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation
+from priors.thrust import motor_count
 
 _CMD = ("throttle", "motor1")
 
@@ -21,7 +22,7 @@ def _command(available):
     have = set(available)
     if "throttle" in have:
         return "throttle", symbol("throttle")
-    motors = [f"motor{i}" for i in range(1, 17) if f"motor{i}" in have]
+    motors = [f"motor{i}" for i in range(1, motor_count(have).get("motor", 0) + 1)]   # motor1..N
     if motors:
         return "mean motor command", sp.Add(*[symbol(m) for m in motors]) / len(motors)
     return None

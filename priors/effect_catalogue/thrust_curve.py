@@ -11,16 +11,15 @@ import sympy as sp
 from droneid.expressions import symbol
 from droneid.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation
+from priors.thrust import RPM_SCALE, motor_count
 
 
 def _rpm_sums(available):
     """(Σ ω_i, Σ ω_i²) over the logged motor speeds rpm1..rpmN, in 10⁴ rpm; None without them."""
-    have, n = set(available), 0
-    while f"rpm{n + 1}" in have:
-        n += 1
+    n = motor_count(available).get("rpm", 0)
     if not n:
         return None
-    w = [symbol(f"rpm{i}") / 10_000 for i in range(1, n + 1)]
+    w = [symbol(f"rpm{i}") / int(RPM_SCALE) for i in range(1, n + 1)]
     return sp.Add(*w), sp.Add(*[x ** 2 for x in w])
 
 

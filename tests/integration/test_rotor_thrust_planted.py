@@ -13,7 +13,8 @@ import pytest
 
 from droneid.dataset_builder import DatasetBuilder
 from droneid.simulate import simulate
-from priors.models import RPM_SCALE, get_prior
+from priors.models import get_prior
+from priors.thrust import RPM_SCALE
 
 KD = 0.28
 #: vertical motion (thrust ±30 %) so the thrust term does not collapse onto gravity in v̇z
