@@ -61,7 +61,8 @@ TILT_DRAG_SIGNALS = ("vx", "vy", "roll", "pitch", "yaw")
 #: signals of a rotor-thrust model of vz_dot (plus one rotor signal: rpm1, motor1 or throttle)
 ROTOR_THRUST_SIGNALS = ("vz", "roll", "pitch")
 
-#: vehicle types a prior kind accepts without comment / refuses
+#: vehicle types (flight.VEHICLE_TYPES) a prior's vehicle kind (priors.base.VEHICLE_KINDS)
+#: accepts without comment / refuses; the kinds not listed (ground, any) are not checked
 _ACCEPTS = {"multirotor": ("multirotor",), "fixed-wing": ("fixed-wing",)}
 _REFUSES = {"multirotor": ("fixed-wing", "rover"), "fixed-wing": ("multirotor", "rover")}
 
@@ -145,7 +146,7 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     if not (isinstance(ts, (int, float)) and ts > 0 and math.isfinite(ts)):
         raise DataError(f"The 'ts' parameter of assess must be a positive number of seconds. "
                         f"Got {ts!r} instead.")
-    check_choice("prior_kind", prior_kind, ("multirotor", "fixed-wing"), "assess")
+    check_choice("prior_kind", prior_kind, tuple(_ACCEPTS), "assess")
     if vehicle is not None:
         check_choice("vehicle", vehicle, VEHICLE_TYPES, "assess")
     needed = tuple(needed_signals)
@@ -292,7 +293,7 @@ def check_prior_data(flights, prior, targets, ts: float, role: str = "training")
     override it, else returns the Fitness (warnings inside). None for priors of vehicles the
     check does not know (e.g. the ground robot's unicycle). Used by identify and diagnose."""
     kind = getattr(prior, "vehicle", "multirotor")
-    if kind not in ("multirotor", "fixed-wing"):
+    if kind not in _ACCEPTS:
         return None
     targets = [t for t in targets if t in prior.targets]
     needed = sorted({s for t in targets for s in prior.signals(t)} | {state_of(t) for t in targets})

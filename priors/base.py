@@ -16,7 +16,10 @@ import sympy as sp
 from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
 from droneid.expressions import compile_expression
 
-__all__ = ["PriorFeature", "PriorModel", "ROLES", "check_param"]
+__all__ = ["PriorFeature", "PriorModel", "ROLES", "VEHICLE_KINDS", "check_param"]
+
+#: what a prior's ``vehicle`` may say (the data-fitness check knows multirotor and fixed-wing)
+VEHICLE_KINDS = ("multirotor", "fixed-wing", "ground", "any")
 
 
 #: values beyond this are treated as non-finite (as the SNGP engine does: tan near ±90°)
@@ -51,7 +54,7 @@ class PriorModel:
     terms : mapping target -> tuple of :class:`PriorFeature` (the equation's terms, summed)
     input_names : mapping target -> the inputs a model of that target is given (paper's choice)
     params : the parameters the terms were built with (numbers; a rotor-thrust source name)
-    vehicle : the kind of vehicle the model describes ("multirotor", "ground", "any")
+    vehicle : the kind of vehicle the model describes, one of :data:`VEHICLE_KINDS`
     constraints : its constraint set: a built-in set's name (:func:`priors.constraints.get_constraints`,
         ``rotor-thrust``: built from the data's thrust span) or the path of a constraints TOML
     """

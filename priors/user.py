@@ -43,15 +43,14 @@ from droneid.errors import ConfigError, did_you_mean
 from droneid.expressions import ALLOWED_FUNCTIONS, parse_expression
 from droneid.flight import CANONICAL_SIGNALS
 
-from .base import PriorFeature, PriorModel
+from .base import VEHICLE_KINDS, PriorFeature, PriorModel
 
 __all__ = ["load_priors", "priors_from_dict"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _KEYS = {"description", "target", "features", "names", "inputs", "signals", "params", "vehicle",
          "constraints"}
-#: what a prior's ``vehicle`` may say
-VEHICLES = ("multirotor", "fixed-wing", "ground", "any")
+
 _SIGNALS = (*CANONICAL_SIGNALS, *(f"motor{i}" for i in range(1, 17)))
 
 
@@ -158,9 +157,9 @@ def _one(name: str, spec, where: str, base: Path) -> PriorModel:
     if not isinstance(desc, str):
         raise ConfigError(f"{ctx}: description must be a string")
     vehicle = spec.get("vehicle", "any")
-    if vehicle not in VEHICLES:
-        raise ConfigError(f"{ctx}: vehicle must be one of {', '.join(VEHICLES)}; got {vehicle!r}"
-                          f"{did_you_mean(str(vehicle), VEHICLES)}")
+    if vehicle not in VEHICLE_KINDS:
+        raise ConfigError(f"{ctx}: vehicle must be one of {', '.join(VEHICLE_KINDS)}; got {vehicle!r}"
+                          f"{did_you_mean(str(vehicle), VEHICLE_KINDS)}")
     extra = {"vehicle": vehicle}
     if "constraints" in spec:
         cpath = spec["constraints"]
