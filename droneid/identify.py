@@ -46,7 +46,7 @@ from .identified import IdentifiedModel
 from .io_util import to_jsonable
 from .ladder import (TermModel, drag_slope, drop_negligible, evaluate_expr, plausible, trim_terms,
                      validation_blocks)
-from .numerics import finite_median, rmse
+from .numerics import finite_median, rmse, to_float
 from .rollout import horizon_section
 from .sngp import SNGPRegressor
 from .sngp.model import SymbolicModel, round_expr, to_text
@@ -626,7 +626,7 @@ class RunRecord:
         kw = {k: v for k, v in d.items() if k in names}
         for k in ("rmse_train", "rmse_test", "constraint_rmse_train", "constraint_rmse_test"):
             if k in kw:
-                kw[k] = _float(kw[k])       # JSON writes NaN as null
+                kw[k] = to_float(kw[k])       # JSON writes NaN as null
         if "archive" in kw:
             kw["archive"] = tuple(kw["archive"] or ())
         if kw.get("pred_test") is not None:
@@ -644,13 +644,13 @@ def run_job(job: RunJob) -> RunRecord:
     ec_test = float(est.constraint_rmse(job.cs_test)) if job.cs_test is not None else float("nan")
     ec_train = getattr(est, "constraint_rmse_train_", float("nan"))
     archive = tuple({"rmse_train": float(a.get("rmse_train", np.nan)),
-                     "constraint_rmse_train": _float(a.get("constraint_rmse_train"))}
+                     "constraint_rmse_train": to_float(a.get("constraint_rmse_train"))}
                     for a in (getattr(est, "archive_", None) or []))
     model = est.to_dict()
     return RunRecord(
         target=job.target, variant=job.variant, index=job.index, seed=job.seed,
         rmse_train=float(est.rmse_train_), rmse_test=rmse(pred_test, job.y_test),
-        constraint_rmse_train=_float(ec_train), constraint_rmse_test=ec_test,
+        constraint_rmse_train=to_float(ec_train), constraint_rmse_test=ec_test,
         qualified=bool(getattr(est, "qualified_", True)),
         equation=str(est.equation_), equation_expanded=_expanded(est),
         coefficients={str(k): float(v) for k, v in est.coef_.items()},
@@ -668,13 +668,6 @@ def _expanded(est) -> str:
     if expr is None:
         return str(est.equation_)
     return to_text(round_expr(expr, 4))
-
-
-def _float(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return float("nan")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -782,7 +775,7 @@ def readable_equation(target: str, coefficients: dict, prior_coefficients: dict,
             b, text = b * float(lead.group(1)), text[lead.end():]
         parts.append((b, text))
     out = [f"{'-' if b < 0 else '+'} {abs(b):.{sig}g}·{term}" for b, term in parts]
-    if intercept is not None and _float(intercept) != 0.0:
+    if intercept is not None and to_float(intercept) != 0.0:
         out.append(f"{'-' if intercept < 0 else '+'} {abs(intercept):.{sig}g}")
     body = " ".join(out) if out else "0"
     body = body[2:] if body.startswith("+ ") else "-" + body[2:] if body.startswith("- ") else body

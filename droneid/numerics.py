@@ -5,13 +5,21 @@ import math
 
 import numpy as np
 
-__all__ = ["rmse", "lstsq", "finite_median"]
+__all__ = ["rmse", "lstsq", "finite_median", "to_float"]
 
 
 def rmse(a, b) -> float:
     """Root-mean-square of ``a - b`` (their units); nan for empty input."""
     d = np.asarray(a, float) - np.asarray(b, float)
     return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
+
+
+def to_float(v) -> float:
+    """``float(v)``, or NaN for None and what is not a number (results hold None for "not measured")."""
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 def finite_median(values) -> float:

@@ -27,8 +27,9 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
+from ..numerics import to_float
 
-__all__ = ["Document", "new_figure", "png_bytes", "fmt", "efmt", "to_float", "text_table", "md_escape",
+__all__ = ["Document", "new_figure", "png_bytes", "fmt", "efmt", "text_table", "md_escape",
            "write_report_set", "break_gaps"]
 
 
@@ -95,14 +96,6 @@ def fmt(x, sig: int = 4) -> str:
     if xf != xf:
         return "—"
     return f"{xf:.{sig}g}"
-
-
-def to_float(v) -> float:
-    """``float(v)``, or NaN for None and what is not a number (results hold None for "not measured")."""
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return float("nan")
 
 
 def efmt(v) -> str:

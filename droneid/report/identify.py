@@ -17,7 +17,8 @@ from ..errors import ConfigError
 from ..expressions import parse_expression
 from ..identify import round_floats
 from .rollout import horizon_figures
-from .document import Document, break_gaps, efmt, fmt, new_figure, text_table, to_float
+from ..numerics import to_float
+from .document import Document, break_gaps, efmt, fmt, new_figure, text_table
 
 __all__ = ["error_rows", "text", "document", "write", "pareto_front", "compact",
            "ERROR_HEADER"]
