@@ -1,8 +1,9 @@
 """The ``droneid`` command line. The only place in droneid that prints or exits.
 
-Each subcommand lives in its own module under :mod:`droneid.commands` and exposes
-``register(subparsers)``, which adds its parser and sets ``func=run`` (``run(args) -> int``).
-Commands are discovered, so adding one never edits this file.
+The subcommands are listed in :data:`droneid.commands.COMMANDS` (name -> module, one-line help).
+Only the chosen command's module is imported, once it has been chosen: ``droneid --help`` and
+``droneid --version`` import no command module, and ``droneid CMD ...`` imports only CMD's
+(which adds its parser with ``register(subparsers)`` and sets ``func=run``; ``run(args) -> int``).
 """
 from __future__ import annotations
 
@@ -11,16 +12,20 @@ import importlib
 import json
 import logging
 import os
-import pkgutil
 import sys
+from collections.abc import Iterable, Sequence
 
 from . import __version__
+from .commands import COMMANDS
 from .errors import DroneIdError
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: Iterable[str] | None = None) -> argparse.ArgumentParser:
+    """The ``droneid`` parser. ``only``: the commands whose modules are imported and whose
+    parsers are built (what :func:`main` passes: the chosen command); every other command is
+    listed with its help only. None: every command is built (tests, documentation checks)."""
     parser = argparse.ArgumentParser(
         prog="droneid",
         description="Identify analytic models of drone dynamics from flight logs "
@@ -29,17 +34,40 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"droneid {__version__}")
     _add_global_options(parser, default=False)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    from . import commands
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{commands.__name__}.{info.name}")
-        module.register(sub)
+    wanted = None if only is None else set(only)
+    for name, command in COMMANDS.items():
+        if wanted is None or name in wanted:
+            importlib.import_module(command.module).register(_Subcommands(sub))
+        else:
+            sub.add_parser(name, help=command.help, add_help=False)
     for command_parser in sub.choices.values():
         # `droneid fit ... -q` as well as `droneid -q fit ...`: SUPPRESS keeps the value given
         # before the command when the option is not repeated after it
         _add_global_options(command_parser, default=argparse.SUPPRESS)
     return parser
+
+
+class _Subcommands:
+    """The subparsers action as a command module's ``register`` sees it: ``add_parser`` takes
+    the command's one-line help from :data:`COMMANDS` (its one home)."""
+
+    def __init__(self, action):
+        self._action = action
+
+    def add_parser(self, name: str, **kwargs) -> argparse.ArgumentParser:
+        kwargs["help"] = COMMANDS[name].help
+        return self._action.add_parser(name, **kwargs)
+
+
+def chosen_command(argv: Sequence[str]) -> str | None:
+    """The command named in ``argv``: the first argument that is not an option (the options
+    before a command take no values), or None (no command, or an unknown one)."""
+    for arg in argv:
+        if arg == "--":
+            break
+        if not arg.startswith("-"):
+            return arg if arg in COMMANDS else None
+    return None
 
 
 def _add_global_options(parser: argparse.ArgumentParser, default) -> None:
@@ -54,7 +82,9 @@ def _add_global_options(parser: argparse.ArgumentParser, default) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = chosen_command(argv)
+    parser = build_parser(only=() if command is None else (command,))
     args = parser.parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.debug else logging.WARNING,

@@ -4,12 +4,13 @@ from __future__ import annotations
 import sys
 
 from ..errors import ConfigError
+from . import COMMANDS
 
-HELP = "export the regression table (inputs, target, t, flight) built from logs as CSV"
+HELP = COMMANDS["dataset"].help
 
 
 def register(sub):
-    p = sub.add_parser("dataset", help=HELP, description=HELP + ". Columns use canonical signal "
+    p = sub.add_parser("dataset", description=HELP + ". Columns use canonical signal "
                        "names; the target (e.g. vx_dot) is a column; t is seconds from each log's "
                        "start and flight the log's name.")
     p.add_argument("logs", nargs="+", metavar="LOG", help="flight logs (any supported format)")

@@ -40,8 +40,7 @@ def find_sample_logs(folder: Path | None = None) -> tuple[Path, Path]:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="identify v̇x, v̇y on the shipped sample logs (train eight, test square)",
-                       description=__doc__.split("\n\n")[1])
+    p = sub.add_parser("demo", description=__doc__.split("\n\n")[1])
     p.add_argument("--out", default="out/demo_report", metavar="DIR", help="report folder (default out/demo_report)")
     p.add_argument("--jobs", type=int, default=None, help="parallel workers (default: all cores)")
     p.add_argument("--runs", type=int, default=DEMO_BUDGET["runs"], help=f"SNGP runs per target (default {DEMO_BUDGET['runs']})")

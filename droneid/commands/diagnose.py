@@ -8,7 +8,7 @@ from ._common import ProgressBar, add_log_options, print_json, read_logs
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "diagnose", help="trace a prior model's residual to the physical effects it lacks",
+        "diagnose",
         description="Fit the prior, score a catalogue of candidate effects (wind, quadratic drag, "
                     "attitude bias/delay, ...) against the residual with blocked cross-validation on "
                     "the TRAINING flights, add the significant ones in order, and search the rest of "

@@ -7,7 +7,6 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..fit import FitConfig, fit, prepare
 from ..io_util import atomic_write_json
 from ..runner import startup_message
 from ._common import ProgressBar, print_json
@@ -15,7 +14,7 @@ from ._common import ProgressBar, print_json
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "fit", help="fit an analytic model to a CSV table with SNGP (priors, constraints)",
+        "fit",
         description="SNGP symbolic regression: TARGET = b0 + sum b_i prior_i + sum b_j feature_j. "
                     "Without --inputs every column other than the target, t and flight is an input.")
     p.add_argument("train", metavar="TRAIN.csv", help="training table (one column per signal)")
@@ -52,6 +51,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..fit import FitConfig, fit, prepare   # the engine: only once the command runs
     if args.save and Path(args.save).is_dir():
         raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
                           f"{Path(args.save) / 'model.json'}")

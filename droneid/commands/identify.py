@@ -51,7 +51,7 @@ def config_from_args(args, **extra):
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "identify", help="identify models from logs and compare them with the empirical model",
+        "identify",
         description="Identify an analytic model of each target from the training logs with SNGP "
                     "(prior features + formal constraints), compare it with the empirical model as given "
                     "and refit, and write a report. Defaults: --prior auto (rotor-thrust where the logs have "

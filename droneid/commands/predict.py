@@ -17,8 +17,7 @@ def _horizons(text: str) -> tuple[int, ...]:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("predict", help="apply a saved model to other logs and report its error",
-                       description="Apply the models of an identify result.json (or a single model file "
+    p = sub.add_parser("predict", description="Apply the models of an identify result.json (or a single model file "
                                    "with --target) to other logs and report the RMSE per target and log, "
                                    "next to the empirical model's (as given and refit). --horizons adds "
                                    "multi-step prediction errors (see docs/use-the-model.md).")

@@ -3,8 +3,7 @@ from __future__ import annotations
 
 
 def register(sub):
-    p = sub.add_parser("sample-logs", help="regenerate the shipped sample logs (sample_logs/)",
-                       description="Simulate and write every sample log defined in droneid/samples.py, "
+    p = sub.add_parser("sample-logs", description="Simulate and write every sample log defined in droneid/samples.py, "
                                    "plus its README. The output is byte-identical on every run.")
     p.add_argument("--out", default="sample_logs", metavar="DIR", help="output folder (default sample_logs)")
     p.add_argument("--only", action="append", default=None, metavar="NAME",

@@ -7,7 +7,7 @@ from ..errors import ConfigError
 def register(sub):
     from ..simulate import DEFAULT_PARAMS, EFFECTS, PATHS
     p = sub.add_parser(
-        "simulate", help="simulate a quadrotor flight and write .tlog/.mcap/Motive CSV + truth JSON",
+        "simulate",
         description="Simulate a quadrotor flight (tilt-drag dynamics, PID tracking, mocap-like noise; "
                     "four rotors with thrust k_f rpm^2 logged as rpm1..4 and motor1..4, optional motor "
                     "lag motor_tau_s and rpm logging delay rpm_delay_s) and write it as logs plus "

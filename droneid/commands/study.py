@@ -9,7 +9,7 @@ from .identify import add_budget_arguments, config_from_args
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "study", help="compare no/1/3 prior features, with and without constraints, over many runs",
+        "study",
         description="Run the paper's protocol on your data: scenarios baseline and constrained x prior "
                     "features none/1/3 x R runs per target; prints and saves the median test errors and "
                     "Wilcoxon rank-sum p-values of each prior variant against no prior.")
