@@ -198,7 +198,10 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
     if power is None:
         motors = [_grid_values(flight, f"motor{i}", t) for i in range(1, 17) if flight.has(f"motor{i}")]
         if motors:
-            power = np.nanmean(np.column_stack(motors), axis=1)
+            m = np.column_stack(motors)        # mean of the motors with data (none: nan, no warning)
+            n = np.isfinite(m).sum(axis=1)
+            with np.errstate(over="ignore", invalid="ignore"):
+                power = np.where(n > 0, np.nansum(m, axis=1) / np.maximum(n, 1), np.nan)
     idle = None
     if power is not None and np.isfinite(power).any():
         top = np.nanpercentile(power, 90)
@@ -206,7 +209,8 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
             idle = np.nan_to_num(power, nan=np.inf) < p.idle_fraction * top  # no data: not a cue
     still = None
     if flight.has("vx", "vy", "vz"):
-        v = np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
+        with np.errstate(over="ignore", invalid="ignore"):   # a damaged huge value: inf, not still
+            v = np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
         still = np.nan_to_num(v, nan=np.inf) < p.still_speed
     if low is None and idle is None:
         return None, "no power signal and no climb from a lowest height: ground time not detected"

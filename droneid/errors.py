@@ -10,8 +10,18 @@ import difflib
 from collections.abc import Iterable
 
 
+def printable(text: str) -> str:
+    """``text`` with every non-printable character (control characters, line breaks, format
+    characters) escaped as Python does (``\\x07``, ``\\n``, ``\\u200b``): an error message that
+    quotes bytes taken from a file stays one readable line."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
 class DroneIdError(Exception):
-    """Base class of every error droneid raises on purpose."""
+    """Base class of every error droneid raises on purpose. Its text is :func:`printable`."""
+
+    def __str__(self) -> str:
+        return printable(super().__str__())
 
 
 class LogFormatError(DroneIdError, ValueError):
@@ -40,7 +50,7 @@ class MissingSignalError(DroneIdError, KeyError):
         super().__init__(msg)
 
     def __str__(self) -> str:  # KeyError would quote the message
-        return self.message
+        return printable(self.message)
 
 
 class ConfigError(DroneIdError, ValueError):

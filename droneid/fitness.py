@@ -1,11 +1,27 @@
-"""Is a set of flights fit for identifying a model? Checked BEFORE any fitting (issue 13).
+"""Is a set of flights fit for identifying a model? Checked BEFORE any fitting (issues 13, 29).
 
-:func:`assess` looks at each flight's declared vehicle type, airborne time, the rates of the
-signals the model needs, how many grid samples remain at the sampling period, and how much the
-flight excites the model (tilt, horizontal speed, yaw). It returns a :class:`Fitness` holding
-the measurements, ``problems`` (refusals; each one line saying how to override) and
-``warnings`` (marginal data). Pure: nothing is printed; :meth:`Fitness.raise_if_refused` raises
-a :class:`~droneid.errors.DataError` with the first problem.
+:func:`assess` looks at each flight's vehicle type (declared, or judged from the data when the
+log declares none), airborne time, the rates of the signals the model needs, how many grid
+samples remain at the sampling period, and how much the flight excites the model (tilt,
+horizontal speed, yaw). It returns a :class:`Fitness` holding the measurements, ``problems``
+(refusals, most fundamental first; each one line saying how to override) and ``warnings``
+(marginal data). Pure: nothing is printed; :meth:`Fitness.raise_if_refused` raises a
+:class:`~droneid.errors.DataError` with the first problem.
+
+:func:`prior_fitness` is the ONE verdict of a prior on a set of flights: identify, diagnose and
+``inspect`` call it (predict calls :func:`assess` with the signals of the saved models), so the
+same data get the same accept/refuse answer everywhere.
+
+Rates and counts are gap-aware (:func:`coverage`): a signal exists only in its *bursts* (runs
+of samples without a gap longer than :data:`GAP_S` or five median steps, the rule the dataset
+builder splits at); its rate is the samples per second of existence, not the median step
+(MAVLink bursts of 7 ms steps every 0.25 s are 4 Hz, not 143 Hz). The airborne time and the grid
+samples are counted over the airborne intervals minus every needed signal's gaps, as the
+dataset builder counts them.
+
+Order of the refusals (:data:`REASON_ORDER`): no airborne data (never armed, never off the
+ground), then the vehicle, then no valid state estimate, then missing signals, then rates, then
+too few samples.
 
 Thresholds (module constants, documented with their reason):
 
@@ -25,9 +41,13 @@ Thresholds (module constants, documented with their reason):
 ``MAX_SPAN_S = 172800``        a log spanning more than 2 days has damaged stamps: no airborne data
 =============================  ===============================================================
 
-Vehicle: a multirotor prior on a log that declares a fixed-wing or a rover is refused; a VTOL,
-or a log that declares nothing (mocap CSV, MCAP), is a warning. ``vehicle=`` (the user's
-``--vehicle``) replaces every flight's declaration.
+Vehicle: a multirotor prior on a log that declares a fixed-wing or a rover is refused; a VTOL is
+a warning. A log that declares nothing (mocap CSV, MCAP) is judged from its data
+(:func:`vehicle_evidence`): a multirotor hovers, and hovers level, and tilts the way it
+accelerates (a_h = g·tan(tilt)); data that never hover, hover tilted, or tilt regardless of
+their acceleration are refused for a multirotor prior, with the evidence and the override
+``--vehicle multirotor``. ``vehicle=`` (the user's ``--vehicle``) replaces every flight's
+declaration.
 """
 from __future__ import annotations
 
@@ -38,13 +58,14 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .dataset_builder import in_flight_intervals, resample_signal
+from .dataset_builder import DatasetBuilder, in_flight_intervals, resample_signal, signal_gaps
 from .errors import DataError, check_choice
-from .flight import VEHICLE_TYPES, Flight
+from .flight import VEHICLE_TYPES, Flight, Signal
 from .targets import state_of
 
-__all__ = ["assess", "check_prior_data", "usable_signals", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
-           "ROTOR_THRUST_SIGNALS"]
+__all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
+           "vehicle_evidence", "VehicleEvidence", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
+           "ROTOR_THRUST_SIGNALS", "REASON_ORDER"]
 
 MIN_RATE_STEPS = 0.25
 SLOW_DYNAMICS_HZ = 5.0
@@ -55,34 +76,214 @@ MIN_SPEED_RANGE_MS = 1.0
 MIN_YAW_SPAN_DEG = 20.0
 #: a flight longer than this (2 days) has damaged time stamps: not scanned for airborne time
 MAX_SPAN_S = 172_800.0
+#: a longer pause between samples (or five median steps, whichever is longer) is a gap: the
+#: dataset builder's default ``max_gap_s``, so fitness and identify split at the same places
+GAP_S = float(DatasetBuilder().max_gap_s)
+
+#: vehicle evidence (:func:`vehicle_evidence`), on a 0.1 s grid over the airborne data:
+#: hovering = horizontal speed below HOVER_SPEED_MS, |vz| below HOVER_SPEED_MS and horizontal
+#: acceleration below HOVER_ACCEL_MS2. Measured on the shared logs: multirotors (ArduCopter,
+#: PX4 x500, Crazyflie) hover 5-100 s, median tilt while hovering 0.2-1.4 deg, tilt vs
+#: acceleration mismatch 0.2-2.1 deg; birds (OptiTrack) hover at 13-43 deg, mismatch 16-24 deg;
+#: the fixed-wing never hovers (3.4 m/s at least).
+HOVER_SPEED_MS = 0.5
+HOVER_ACCEL_MS2 = 1.0
+MIN_HOVER_S = 1.0           # less hovering than this: "never hovers"
+MAX_HOVER_TILT_DEG = 10.0   # a multirotor hovers level: median tilt while hovering below this
+MAX_TILT_MISMATCH_DEG = 8.0  # median |tilt − atan(a_h / g)| of a multirotor is below this
+MIN_EVIDENCE_S = 3.0        # less airborne data than this: no judgement
+_G = 9.81
+_EVIDENCE_STEP_S = 0.1
 
 #: signals of the tilt-drag prior (vx_dot, vy_dot from tilt and velocity)
 TILT_DRAG_SIGNALS = ("vx", "vy", "roll", "pitch", "yaw")
 #: signals of a rotor-thrust model of vz_dot (plus one rotor signal: rpm1, motor1 or throttle)
 ROTOR_THRUST_SIGNALS = ("vz", "roll", "pitch")
 
+#: the kinds of refusal, most fundamental first (problems are listed in this order)
+REASON_ORDER = ("airborne", "vehicle", "state", "missing", "rate", "samples")
+
 #: vehicle types (flight.VEHICLE_TYPES) a prior's vehicle kind (priors.base.VEHICLE_KINDS)
 #: accepts without comment / refuses; the kinds not listed (ground, any) are not checked
 _ACCEPTS = {"multirotor": ("multirotor",), "fixed-wing": ("fixed-wing",)}
 _REFUSES = {"multirotor": ("fixed-wing", "rover"), "fixed-wing": ("multirotor", "rover")}
+_STATE = ("x", "y", "z", "vx", "vy", "vz")
 
 
+# -- gap-aware coverage of one signal -----------------------------------------------------------
+@dataclass(frozen=True)
+class Coverage:
+    """Where a signal has data: ``bursts`` ((start_s, end_s) runs without a gap), the seconds
+    they cover (``existence_s``), its ``count`` of samples and ``rate_hz``, the samples per
+    second of existence (nan with fewer than two samples in every burst)."""
+    count: int
+    bursts: tuple[tuple[float, float], ...]
+    existence_s: float
+    rate_hz: float
+
+    def describe(self, limit: int = 4) -> str:
+        """``"5 bursts: 0.0-6.3 s, 41.9-43.4 s, ... (9.3 s of data)"``; ``""`` for one burst."""
+        if len(self.bursts) <= 1:
+            return ""
+        shown = ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in self.bursts[:limit])
+        more = f", ... ({len(self.bursts) - limit} more)" if len(self.bursts) > limit else ""
+        return f"{len(self.bursts)} bursts: {shown}{more} ({self.existence_s:.1f} s of data)"
+
+
+def coverage(sig: Signal, max_gap_s: float = GAP_S) -> Coverage:
+    """The gap-aware :class:`Coverage` of ``sig`` (gaps as :func:`signal_gaps` finds them)."""
+    n = len(sig)
+    if n == 0:
+        return Coverage(0, (), 0.0, math.nan)
+    edges = [sig.start_s]
+    for a, b in signal_gaps(sig, max_gap_s):
+        edges += [a, b]
+    edges.append(sig.end_s)
+    bursts = tuple((float(edges[i]), float(edges[i + 1])) for i in range(0, len(edges), 2))
+    span = float(sum(b - a for a, b in bursts))
+    rate = (n - len(bursts)) / span if span > 0 and n > len(bursts) else math.nan
+    return Coverage(n, bursts, span, rate)
+
+
+# -- the vehicle, from the data ---------------------------------------------------------------
+@dataclass(frozen=True)
+class VehicleEvidence:
+    """What the airborne data say about the vehicle (seconds, degrees, m/s).
+
+    ``measured_s``: airborne seconds with velocity and attitude; ``hover_s``: of these, seconds
+    hovering (slow and not accelerating, see the module constants); ``hover_tilt_deg``: median
+    tilt from vertical while hovering; ``tilt_mismatch_deg``: median |tilt − atan(a_h/g)|;
+    ``speed_ms``: (min, max) horizontal speed; ``tilt_max_deg``; ``yaw_span_deg`` (unwrapped);
+    ``looks``: "multirotor", "not a multirotor" or "undecided"; ``reasons``: why (lines)."""
+    measured_s: float
+    hover_s: float
+    hover_tilt_deg: float
+    tilt_mismatch_deg: float
+    speed_ms: tuple[float, float]
+    tilt_max_deg: float
+    yaw_span_deg: float
+    looks: str
+    reasons: tuple[str, ...] = ()
+
+    def text(self) -> str:
+        """One line of the measurements (and the reasons when not a multirotor)."""
+        if self.looks == "undecided" and not self.measured_s:
+            return "; ".join(self.reasons) or "no airborne velocity and attitude"
+        parts = [f"hovers {self.hover_s:.1f} s of {self.measured_s:.1f} s"]
+        if math.isfinite(self.hover_tilt_deg):
+            parts.append(f"tilt while hovering {self.hover_tilt_deg:.1f} deg")
+        parts.append(f"horizontal speed {_fmt(self.speed_ms[0])}..{_fmt(self.speed_ms[1])} m/s")
+        if math.isfinite(self.tilt_mismatch_deg):
+            parts.append(f"tilt vs acceleration off by {self.tilt_mismatch_deg:.1f} deg")
+        if math.isfinite(self.tilt_max_deg):
+            parts.append(f"tilt up to {self.tilt_max_deg:.0f} deg")
+        if math.isfinite(self.yaw_span_deg):
+            parts.append(f"yaw turns {self.yaw_span_deg:.0f} deg")
+        return ", ".join(parts)
+
+    def to_dict(self) -> dict:
+        return {"looks": self.looks, "reasons": list(self.reasons), "text": self.text(),
+                "measured_s": _r(self.measured_s),
+                "hover_s": _r(self.hover_s), "hover_tilt_deg": _r(self.hover_tilt_deg),
+                "tilt_mismatch_deg": _r(self.tilt_mismatch_deg),
+                "speed_ms": [_r(x) for x in self.speed_ms], "tilt_max_deg": _r(self.tilt_max_deg),
+                "yaw_span_deg": _r(self.yaw_span_deg)}
+
+
+def _fmt(x, nd=2) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
+
+
+def _tilt_deg(roll, pitch):
+    """Tilt of the body z axis from vertical (deg) from Z-Y-X roll and pitch (rad)."""
+    with np.errstate(invalid="ignore"):
+        return np.degrees(np.arccos(np.clip(np.cos(roll) * np.cos(pitch), -1.0, 1.0)))
+
+
+def vehicle_evidence(flight: Flight, intervals: Sequence[tuple[float, float]]) -> VehicleEvidence:
+    """Judge from ``flight``'s data inside ``intervals`` (airborne, s) whether it flies like a
+    multirotor (see the module doc and the constants for the rule and where it comes from)."""
+    nan2 = (math.nan, math.nan)
+    if not flight.has("vx", "vy", "roll", "pitch"):
+        return VehicleEvidence(0.0, 0.0, math.nan, math.nan, nan2, math.nan, math.nan, "undecided",
+                               ("no velocity and attitude to judge from",))
+    step = _EVIDENCE_STEP_S
+    rows = []
+    for a, b in intervals:
+        t = np.arange(a, b, step)
+        if t.size < 3:
+            continue
+        vx, vy = resample_signal(flight["vx"], t), resample_signal(flight["vy"], t)
+        vz = resample_signal(flight["vz"], t) if flight.has("vz") else np.zeros(t.size)
+        with np.errstate(invalid="ignore", over="ignore"):
+            ah = np.hypot(np.gradient(vx, t), np.gradient(vy, t))
+        tilt = _tilt_deg(resample_signal(flight["roll"], t), resample_signal(flight["pitch"], t))
+        rows.append(np.column_stack([np.hypot(vx, vy), np.abs(vz), ah, tilt]))
+    A = np.vstack(rows) if rows else np.empty((0, 4))
+    A = A[np.all(np.isfinite(A), axis=1)]
+    measured = A.shape[0] * step
+    yaw_span = _yaw_span(flight, intervals)
+    if measured < MIN_EVIDENCE_S:
+        return VehicleEvidence(measured, 0.0, math.nan, math.nan, nan2, math.nan, yaw_span, "undecided",
+                               (f"only {measured:.1f} s of airborne velocity and attitude to judge from",))
+    speed, vz, ah, tilt = A.T
+    hover = (speed < HOVER_SPEED_MS) & (vz < HOVER_SPEED_MS) & (ah < HOVER_ACCEL_MS2)
+    hover_s = float(hover.sum() * step)
+    hover_tilt = float(np.median(tilt[hover])) if hover.any() else math.nan
+    mismatch = float(np.median(np.abs(tilt - np.degrees(np.arctan(ah / _G)))))
+    reasons = []
+    if hover_s < MIN_HOVER_S:
+        reasons.append(f"never hovers (horizontal speed {speed.min():.2f} m/s at least)")
+    elif hover_tilt > MAX_HOVER_TILT_DEG:
+        reasons.append(f"hovers tilted by {hover_tilt:.0f} deg (a multirotor hovers level, "
+                       f"< {MAX_HOVER_TILT_DEG:g} deg)")
+    if mismatch > MAX_TILT_MISMATCH_DEG:
+        reasons.append(f"its tilt does not follow its acceleration (off by {mismatch:.0f} deg; a "
+                       f"multirotor < {MAX_TILT_MISMATCH_DEG:g} deg)")
+    return VehicleEvidence(measured, hover_s, hover_tilt, mismatch, (float(speed.min()), float(speed.max())),
+                           float(tilt.max()), yaw_span, "not a multirotor" if reasons else "multirotor",
+                           tuple(reasons))
+
+
+def _yaw_span(f: Flight, ivs) -> float:
+    if not f.has("yaw"):
+        return math.nan
+    s = f["yaw"]
+    spans = []
+    for a, b in ivs:
+        m = (s.t >= a) & (s.t <= b)
+        if m.sum() >= 2:
+            u = np.unwrap(s.values[m])
+            spans.append(float(np.degrees(u.max() - u.min())))
+    return max(spans) if spans else math.nan
+
+
+# -- the verdict --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FlightFitness:
-    """Measurements of one flight (seconds, Hz, degrees, m/s)."""
+    """Measurements of one flight (seconds, Hz, degrees, m/s).
+
+    ``airborne_s`` and ``samples`` count the airborne intervals where every needed signal has
+    data (gaps cut out, as the dataset builder cuts them); ``airborne_basis`` says how the
+    airborne part was found; ``rates_hz`` are gap-aware (:func:`coverage`), nan when absent;
+    ``bursts`` describes signals that come in bursts; ``vehicle`` is the evidence of the data."""
     name: str
     vehicle_type: str
     vehicle_declared: str | None
     airborne_s: float
     airborne_notes: tuple[str, ...]
-    rates_hz: Mapping[str, float]           # median rate of each needed signal; nan when absent
-    samples: int                            # grid samples at ts inside the airborne intervals
-    tilt_deg: tuple[float, float]           # (min, max) of max(|roll|, |pitch|) while airborne
+    rates_hz: Mapping[str, float]
+    samples: int
+    tilt_deg: tuple[float, float]           # (min, max) tilt from vertical while airborne
     speed_ms: tuple[float, float]           # (min, max) horizontal speed while airborne
     yaw_span_deg: float                     # max - min of the unwrapped yaw while airborne
+    airborne_basis: str = ""
+    bursts: Mapping[str, str] = field(default_factory=dict)
+    vehicle: VehicleEvidence | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "rates_hz", MappingProxyType(dict(self.rates_hz)))
+        object.__setattr__(self, "bursts", MappingProxyType(dict(self.bursts)))
 
 
 @dataclass(frozen=True)
@@ -98,32 +299,40 @@ class Fitness:
         "min_rate_steps": MIN_RATE_STEPS, "slow_dynamics_hz": SLOW_DYNAMICS_HZ,
         "min_airborne_s": MIN_AIRBORNE_S, "min_samples": MIN_SAMPLES,
         "min_tilt_range_deg": MIN_TILT_RANGE_DEG, "min_speed_range_ms": MIN_SPEED_RANGE_MS,
-        "min_yaw_span_deg": MIN_YAW_SPAN_DEG}))
+        "min_yaw_span_deg": MIN_YAW_SPAN_DEG, "gap_s": GAP_S, "hover_speed_ms": HOVER_SPEED_MS,
+        "hover_accel_ms2": HOVER_ACCEL_MS2, "min_hover_s": MIN_HOVER_S,
+        "max_hover_tilt_deg": MAX_HOVER_TILT_DEG, "max_tilt_mismatch_deg": MAX_TILT_MISMATCH_DEG}))
+    prior: str = ""
 
     @property
     def ok(self) -> bool:
         """True when nothing is refused (warnings may remain)."""
         return not self.problems
 
-    def raise_if_refused(self) -> None:
-        """Raise :class:`DataError` with the first problem (and how many more) if any."""
+    def raise_if_refused(self, lead: str = "") -> None:
+        """Raise :class:`DataError` with the first problem (and how many more) if any;
+        ``lead`` goes before it (e.g. "the training data cannot identify the X model: ")."""
         if self.problems:
             more = f" (and {len(self.problems) - 1} more problem(s))" if len(self.problems) > 1 else ""
-            raise DataError(self.problems[0] + more)
+            raise DataError(lead + self.problems[0] + more)
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (non-finite numbers as None)."""
         return {
-            "ok": self.ok, "prior_kind": self.prior_kind, "ts": self.ts,
+            "ok": self.ok, "prior": self.prior, "prior_kind": self.prior_kind, "ts": self.ts,
             "needed_signals": list(self.needed_signals),
             "problems": list(self.problems), "warnings": list(self.warnings),
             "thresholds": dict(self.thresholds),
             "flights": [{
                 "name": f.name, "vehicle_type": f.vehicle_type, "vehicle_declared": f.vehicle_declared,
-                "airborne_s": _r(f.airborne_s), "airborne_notes": list(f.airborne_notes),
-                "rates_hz": {k: _r(v) for k, v in f.rates_hz.items()}, "samples": f.samples,
+                "airborne_s": _r(f.airborne_s), "airborne_basis": f.airborne_basis,
+                "airborne_notes": list(f.airborne_notes),
+                "rates_hz": {k: _r(v) for k, v in f.rates_hz.items()}, "bursts": dict(f.bursts),
+                "samples": f.samples,
                 "tilt_deg": [_r(x) for x in f.tilt_deg], "speed_ms": [_r(x) for x in f.speed_ms],
-                "yaw_span_deg": _r(f.yaw_span_deg)} for f in self.flights],
+                "yaw_span_deg": _r(f.yaw_span_deg),
+                "vehicle_evidence": f.vehicle.to_dict() if f.vehicle is not None else None}
+                for f in self.flights],
         }
 
 
@@ -132,12 +341,12 @@ def _r(x, nd=3):
 
 
 def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str], ts: float,
-           prior_kind: str = "multirotor", vehicle: str | None = None) -> Fitness:
+           prior_kind: str = "multirotor", vehicle: str | None = None, prior: str = "") -> Fitness:
     """Judge whether ``flights`` can identify a ``prior_kind`` model of ``needed_signals`` on a
-    grid of ``ts`` seconds (see the module doc for the thresholds).
+    grid of ``ts`` seconds (see the module doc for the thresholds and the order of problems).
 
     ``vehicle`` (one of :data:`droneid.flight.VEHICLE_TYPES`) overrides each flight's declared
-    vehicle type, as ``--vehicle`` does.
+    vehicle type, as ``--vehicle`` does; ``prior`` names the prior in the result (display only).
     """
     if isinstance(flights, Flight):
         flights = [flights]
@@ -150,33 +359,54 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     if vehicle is not None:
         check_choice("vehicle", vehicle, VEHICLE_TYPES, "assess")
     needed = tuple(needed_signals)
-    problems: list[str] = []
+    problems: list[tuple[int, str]] = []
     warnings: list[str] = []
     out = []
     total_samples = 0
+
+    def refuse(kind, text):
+        problems.append((REASON_ORDER.index(kind), text))
     for f in flights:
         name = f.name
         vtype = vehicle or f.provenance.vehicle_type
         declared = (f"--vehicle {vehicle}" if vehicle else f.provenance.vehicle_declared)
-        _vehicle_verdict(name, vtype, declared, prior_kind, problems, warnings)
-
-        rates = {s: (f[s].rate_hz if f.has(s) else math.nan) for s in needed}
-        for s in needed:
-            if not f.has(s):
-                problems.append(f"{name}: signal '{s}' is missing: choose other inputs or map a "
-                                f"column/topic to it (--column {s}=..., --topic {s}=...)")
-        ivs, notes = _airborne(f, ts, in_flight_intervals)
+        covs = {s: coverage(f[s]) for s in needed if f.has(s)}
+        rates = {s: (covs[s].rate_hz if s in covs else math.nan) for s in needed}
+        bursts = {s: c.describe() for s, c in covs.items() if len(c.bursts) > 1}
+        raw, notes, basis = _airborne(f, ts)
+        ivs = _with_data(raw, covs.values())
         airborne = float(sum(b - a for a, b in ivs))
-        samples = int(sum(math.floor((b - a) / ts) + 1 for a, b in ivs if b > a))
+        samples = _grid_samples(ivs, ts)
         total_samples += samples
-        if airborne <= 0:
-            problems.append(f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
-                            f"use a log of a flight, or choose the part to use (droneid dataset --in-flight all / --window)")
-        elif airborne < MIN_AIRBORNE_S:
-            warnings.append(f"{name}: only {airborne:.1f} s airborne (< {MIN_AIRBORNE_S:.0f} s): "
-                            f"expect loose estimates")
-        _rate_verdict(name, rates, ts, problems, warnings)
-        tilt, speed, yaw_span = _excitation(f, ivs, resample_signal)
+        evidence = vehicle_evidence(f, ivs or raw)
+        _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings)
+        missing = [s for s in needed if not f.has(s)]
+        invalid = _invalid_state(f, missing)
+        if invalid:
+            refuse("state", f"{name}: no valid state estimate ({invalid}): the log's "
+                            f"{', '.join(s for s in missing if s in _STATE)} are never valid; "
+                            f"use a log with a position/velocity fix")
+        for s in missing:
+            if invalid and s in _STATE:
+                continue
+            refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s)}")
+        if not raw:
+            refuse("airborne", f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
+                               f"use a log of a flight, or choose the part to use (droneid dataset "
+                               f"--in-flight all / --window)")
+        elif not ivs and not missing:
+            refuse("airborne", f"{name}: no airborne data where every needed signal has samples "
+                               f"({', '.join(needed)}): airborne {_fmt_ivs(raw)}")
+        elif 0 < airborne < MIN_AIRBORNE_S:
+            warnings.append(f"{name}: only {airborne:.1f} s airborne (< {MIN_AIRBORNE_S:.0f} s; "
+                            f"{basis}): expect loose estimates")
+        for text in dict.fromkeys(bursts.values()):
+            names = ", ".join(s for s, b in bursts.items() if b == text)
+            warnings.append(f"{name}: {names} {'come' if ',' in names else 'comes'} in {text}: "
+                            f"rates and samples count the time with data only")
+        _rate_verdict(name, rates, ts, refuse, warnings)
+        tilt, speed = _excitation(f, ivs)
+        yaw_span = evidence.yaw_span_deg
         if airborne > 0:
             if math.isfinite(tilt[1]) and tilt[1] - tilt[0] < MIN_TILT_RANGE_DEG:
                 warnings.append(f"{name}: tilt varies by {tilt[1] - tilt[0]:.1f} deg only "
@@ -188,14 +418,67 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
                 warnings.append(f"{name}: yaw spans {yaw_span:.0f} deg only (< {MIN_YAW_SPAN_DEG:g}): "
                                 f"body and world axes stay aligned")
         out.append(FlightFitness(name, vtype, declared, airborne, tuple(notes), rates, samples,
-                                 tilt, speed, yaw_span))
+                                 tilt, speed, yaw_span, basis, bursts, evidence))
     if 0 < total_samples < MIN_SAMPLES:
-        problems.append(f"only {total_samples} samples in flight at Ts = {ts:g} s "
-                        f"(< {MIN_SAMPLES}): use more or longer flights")
-    return Fitness(tuple(out), needed, float(ts), prior_kind, tuple(problems), tuple(warnings))
+        refuse("samples", f"only {total_samples} samples in flight at Ts = {ts:g} s "
+                          f"(< {MIN_SAMPLES}): use more or longer flights")
+    ordered = tuple(text for _, text in sorted(problems, key=lambda p: p[0]))
+    return Fitness(tuple(out), needed, float(ts), prior_kind, ordered, tuple(warnings), prior=prior)
 
 
-def _rate_verdict(name, rates, ts, problems, warnings) -> None:
+def _fmt_ivs(ivs) -> str:
+    return ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ivs) or "none"
+
+
+def _with_data(ivs, covs) -> list:
+    """``ivs`` cut to where every coverage has a burst (the builder's spans-minus-gaps rule)."""
+    out = list(ivs)
+    for c in covs:
+        nxt = []
+        for a, b in out:
+            for c0, c1 in c.bursts:
+                lo, hi = max(a, c0), min(b, c1)
+                if hi > lo:
+                    nxt.append((lo, hi))
+        out = nxt
+    return sorted(out)
+
+
+def _grid_samples(ivs, ts: float) -> int:
+    """Grid points at ``ts`` a forward-difference dataset keeps in ``ivs``: ``floor(len/ts) + 1``
+    per interval less the last one (no forward difference), intervals of < 3 points skipped."""
+    n = 0
+    for a, b in ivs:
+        k = int(math.floor((b - a) / ts + 1e-9)) + 1
+        if k >= 3:
+            n += k - 1
+    return n
+
+
+def _invalid_state(f: Flight, missing) -> str:
+    """The reader's count of state samples flagged invalid, when state signals are missing."""
+    if not any(s in _STATE for s in missing):
+        return ""
+    bad = [f"{k}: {n}" for k, n in f.diagnostics.skipped.items() if "valid" in k.lower()]
+    return "; ".join(bad)
+
+
+def _map_hint(f: Flight, signal: str) -> str:
+    """How to name the field holding ``signal``, in the terms of the log's format: ``--topic``
+    (MCAP), ``--column`` (CSV); nothing for formats whose fields are fixed (ULog, DataFlash)."""
+    try:
+        from parsers import READERS
+        options = READERS[f.provenance.format].options
+    except (ImportError, KeyError):
+        options = ()
+    if "topics" in options:
+        return f": map a topic to it (--topic {signal}=TOPIC) or choose other inputs"
+    if "column_map" in options:
+        return f": map a column to it (--column {signal}=COLUMN) or choose other inputs"
+    return f": the {f.provenance.format} log has no field for it; choose other inputs or another log"
+
+
+def _rate_verdict(name, rates, ts, refuse, warnings) -> None:
     """One line per kind of rate trouble, listing the signals (slowest first)."""
     known = sorted(((hz, s) for s, hz in rates.items() if math.isfinite(hz)))
     refused = [(hz, s) for hz, s in known if hz * ts < MIN_RATE_STEPS]
@@ -206,11 +489,11 @@ def _rate_verdict(name, rates, ts, problems, warnings) -> None:
         return ", ".join(f"{s} {hz:.1f} Hz" for hz, s in items)
     if refused:
         hz, s = refused[0]
-        problems.append(
-            f"{name}: {s} is logged at {hz:.1f} Hz, below 1/(4 Ts) = {MIN_RATE_STEPS / ts:.0f} Hz "
-            f"for Ts = {ts:g} s (2/Ts = {2 / ts:.0f} Hz is ideal): use --ts "
-            f"{_nice(MIN_RATE_STEPS / hz)} or more, or a log with faster {s}"
-            + (f" (also slow: {listing(refused[1:])})" if len(refused) > 1 else ""))
+        refuse("rate",
+               f"{name}: {s} is logged at {hz:.1f} Hz, below 1/(4 Ts) = {MIN_RATE_STEPS / ts:.0f} Hz "
+               f"for Ts = {ts:g} s (2/Ts = {2 / ts:.0f} Hz is ideal): use --ts "
+               f"{_nice(MIN_RATE_STEPS / hz)} or more, or a log with faster {s}"
+               + (f" (also slow: {listing(refused[1:])})" if len(refused) > 1 else ""))
     if coarse:
         warnings.append(f"{name}: logged slower than the grid (1/Ts = {1 / ts:.0f} Hz), grid values "
                         f"between samples are interpolated: {listing(coarse)}")
@@ -226,91 +509,103 @@ def _nice(x: float) -> str:
     return f"{x:.0f}"
 
 
-def _vehicle_verdict(name, vtype, declared, prior_kind, problems, warnings) -> None:
+def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings) -> None:
     said = f" ({declared})" if declared else ""
     what = {"multirotor": "multirotor (quadrotor)"}.get(prior_kind, prior_kind)
     if vtype in _REFUSES.get(prior_kind, ()):
-        problems.append(f"{name}: {what} prior on a {vtype} log{said}: pass --vehicle "
-                        f"{prior_kind} to override")
+        refuse("vehicle", f"{name}: {what} prior on a {vtype} log{said}: pass --vehicle "
+                          f"{prior_kind} to override")
+    elif vtype == "unknown" and prior_kind == "multirotor" and evidence.looks == "not a multirotor":
+        seen = [f"tilt up to {evidence.tilt_max_deg:.0f} deg"] if math.isfinite(evidence.tilt_max_deg) else []
+        seen += [f"yaw turns {evidence.yaw_span_deg:.0f} deg"] if math.isfinite(evidence.yaw_span_deg) else []
+        refuse("vehicle", f"{name}: the log does not declare its vehicle and the data do not look like a "
+                          f"multirotor: {'; '.join(evidence.reasons + tuple(seen))}: pass "
+                          f"--vehicle multirotor to use a multirotor prior anyway")
     elif vtype == "unknown":
-        warnings.append(f"{name}: vehicle type unknown{said or ' (the log does not declare it)'}: "
-                        f"a {what} is assumed; pass --vehicle to state it")
+        judged = (f"the data look like a multirotor ({evidence.text()})" if evidence.looks == "multirotor"
+                  else f"a {what} is assumed ({'; '.join(evidence.reasons) or 'undecided'})")
+        warnings.append(f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it")
     elif vtype not in _ACCEPTS.get(prior_kind, ()):
         warnings.append(f"{name}: {what} prior on a {vtype} log{said}: only its "
                         f"{'hover' if vtype == 'vtol' else 'matching'} phases follow the prior")
 
 
-def _airborne(f: Flight, ts: float, in_flight_intervals):
+def _airborne(f: Flight, ts: float):
+    """(intervals, notes, basis): the airborne, pre-crash intervals and how they were found."""
     if f.duration_s > MAX_SPAN_S:
-        return [], [f"a time span of {f.duration_s:.3g} s is not a flight (damaged time stamps?)"]
+        return [], [f"a time span of {f.duration_s:.3g} s is not a flight (damaged time stamps?)"], ""
     if "armed" in f.segments and not f.segments["armed"]:
-        return [], ["never armed (the log's armed state is false throughout)"]
+        return [], ["never armed (the log's armed state is false throughout)"], ""
     ivs, notes = in_flight_intervals(f, ts=ts)
-    return [(a, b) for a, b in ivs if b > a], list(notes)
+    seg = f.segments
+    basis = ("from the log's in-flight state" if seg.get("in_flight") else
+             "from the log's armed state" if seg.get("armed") else
+             "the log has no armed or in-flight state: all of it counts as airborne unless ground is detected")
+    return [(a, b) for a, b in ivs if b > a], list(notes), basis
 
 
-def _excitation(f: Flight, ivs, resample_signal):
+def _excitation(f: Flight, ivs):
+    """((min, max) tilt from vertical in deg, (min, max) horizontal speed in m/s) on a 0.1 s
+    grid inside ``ivs``."""
     nan2 = (math.nan, math.nan)
-    if not ivs:
-        return nan2, nan2, math.nan
-    step = 0.1
+    step = _EVIDENCE_STEP_S
     t = np.concatenate([np.arange(a, b, step) for a, b in ivs if b - a >= step] or [np.empty(0)])
     if t.size == 0:
-        return nan2, nan2, math.nan
+        return nan2, nan2
 
     def on_grid(name):
-        if not f.has(name):
-            return None
-        s = f[name]
-        inside = (t >= s.start_s) & (t <= s.end_s)
-        v = np.full(t.size, np.nan)
-        v[inside] = resample_signal(s, t[inside])
-        return v
+        return resample_signal(f[name], t) if f.has(name) else None
 
     def rng(v):
         v = v[np.isfinite(v)] if v is not None else np.empty(0)
         return (float(v.min()), float(v.max())) if v.size else nan2
-    roll, pitch, yaw = on_grid("roll"), on_grid("pitch"), on_grid("yaw")
-    tilt = rng(np.degrees(np.maximum(np.abs(roll), np.abs(pitch)))) if roll is not None and pitch is not None else nan2
+    roll, pitch = on_grid("roll"), on_grid("pitch")
+    tilt = rng(_tilt_deg(roll, pitch)) if roll is not None and pitch is not None else nan2
     vx, vy = on_grid("vx"), on_grid("vy")
-    speed = rng(np.hypot(vx, vy)) if vx is not None and vy is not None else nan2
-    yaw_span = math.nan
-    if yaw is not None and f.has("yaw"):
-        s = f["yaw"]
-        spans = []
-        for a, b in ivs:
-            m = (s.t >= a) & (s.t <= b)
-            if m.sum() >= 2:
-                u = np.unwrap(s.values[m])
-                spans.append(float(np.degrees(u.max() - u.min())))
-        yaw_span = max(spans) if spans else math.nan
-    return tilt, speed, yaw_span
+    with np.errstate(over="ignore", invalid="ignore"):
+        speed = rng(np.hypot(vx, vy)) if vx is not None and vy is not None else nan2
+    return tilt, speed
 
 
-def check_prior_data(flights, prior, targets, ts: float, role: str = "training") -> "Fitness | None":
-    """:func:`assess` of ``flights`` for ``prior`` and its ``targets`` (the signals its terms read
-    plus each target's velocity): raises :class:`DataError` naming the first problem and how to
-    override it, else returns the Fitness (warnings inside). None for priors of vehicles the
-    check does not know (e.g. the ground robot's unicycle). Used by identify and diagnose."""
+# -- one verdict per prior ------------------------------------------------------------------------
+def prior_signals(prior, targets) -> tuple[str, ...]:
+    """The signals a ``prior``'s models of ``targets`` read: their inputs, the signals of their
+    terms and each target's state (what the dataset builder will need)."""
+    targets = [t for t in targets if t in prior.targets]
+    return tuple(sorted({s for t in targets for s in (*prior.signals(t), *prior.inputs(t))}
+                        | {state_of(t) for t in targets}))
+
+
+def prior_fitness(flights, prior, targets, ts: float, vehicle: str | None = None) -> "Fitness | None":
+    """THE fitness verdict of ``flights`` for ``prior`` and its ``targets`` (never raises on a
+    refusal: see :func:`check_prior_data`); None for priors of vehicles the check does not know
+    (e.g. the ground robot's unicycle). identify, diagnose and ``inspect`` all use this."""
     kind = getattr(prior, "vehicle", "multirotor")
     if kind not in _ACCEPTS:
         return None
-    targets = [t for t in targets if t in prior.targets]
-    needed = sorted({s for t in targets for s in prior.signals(t)} | {state_of(t) for t in targets})
-    fit = assess(list(flights), needed_signals=needed, ts=ts, prior_kind=kind)
-    if fit.problems:
-        more = f" (and {len(fit.problems) - 1} more problem(s))" if len(fit.problems) > 1 else ""
-        raise DataError(f"the {role} data cannot identify the {prior.name} model: {fit.problems[0]}{more}")
+    return assess(list(flights), needed_signals=prior_signals(prior, targets), ts=ts,
+                  prior_kind=kind, vehicle=vehicle, prior=getattr(prior, "name", ""))
+
+
+def check_prior_data(flights, prior, targets, ts: float, role: str = "training") -> "Fitness | None":
+    """:func:`prior_fitness`, raising :class:`DataError` naming the first problem and how to
+    override it; else returns the Fitness (warnings inside). Used by identify and diagnose."""
+    fit = prior_fitness(flights, prior, targets, ts)
+    if fit is not None:
+        fit.raise_if_refused(f"the {role} data cannot identify the {prior.name} model: ")
     return fit
 
 
 def usable_signals(flights, ts: float) -> set:
     """The signals every flight has at a rate the data-fitness check accepts for a grid of
-    ``ts`` (≥ :data:`MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
+    ``ts`` (gap-aware rate ≥ :data:`MIN_RATE_STEPS` / Ts): ``auto`` chooses among these, so a
     4 Hz ESC telemetry does not win over 100 Hz motor commands."""
     names = None
     for f in flights:
-        n = {name for name, sig in getattr(f, "signals", {}).items()
-             if len(sig) < 2 or sig.rate_hz >= MIN_RATE_STEPS / ts}
+        n = set()
+        for name, sig in getattr(f, "signals", {}).items():
+            hz = coverage(sig).rate_hz if len(sig) >= 2 else math.nan
+            if not math.isfinite(hz) or hz >= MIN_RATE_STEPS / ts:
+                n.add(name)
         names = n if names is None else names & n
     return names or set()

@@ -62,8 +62,10 @@ _RPM_RE = re.compile(r"^rpm([1-9]|1[0-6])$")
 #: numbering): prefix -> (regex, unit, meaning).
 ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
     "motor": (_MOTOR_RE, "1", "motor N command, normalised to 0..1 (source says from which range)"),
-    "rpm": (_RPM_RE, "rpm", "motor N speed in revolutions per minute (electrical rpm where the "
-                            "source says erpm: the pole-pair factor is left to the fitted scale)"),
+    "rpm": (_RPM_RE, "rpm", "motor N speed in revolutions per minute; a reader that gets "
+                            "electrical rpm (ESC eRPM = rpm x motor pole pairs) gives the unit "
+                            "'erpm' and says so in the source (the pole-pair factor is left to "
+                            "the fitted scale unless the log states it)"),
 })
 
 
@@ -218,7 +220,9 @@ class Provenance:
 
     ``vehicle`` is free text (frame, board); ``vehicle_type`` is one of :data:`VEHICLE_TYPES`,
     from the log's own declaration (MAVLink HEARTBEAT type, ArduPilot firmware name, PX4
-    vehicle_status) or the user's ``--vehicle``; ``vehicle_declared`` says which (raw text)."""
+    vehicle_status) or the user's ``--vehicle``; ``vehicle_declared`` says which (raw text).
+    ``signal_sources``: ``(name, unit, source)`` of each signal as the reader made it (the raw
+    field, its unit and the normalisation applied), so a result records what its inputs were."""
     files: tuple[str, ...] = ()
     format: str = "unknown"
     vehicle: str | None = None
@@ -226,6 +230,7 @@ class Provenance:
     notes: tuple[str, ...] = ()
     vehicle_type: str = "unknown"
     vehicle_declared: str | None = None
+    signal_sources: tuple[tuple[str, str, str], ...] = ()
 
     def with_note(self, note: str) -> "Provenance":
         return replace(self, notes=self.notes + (note,))

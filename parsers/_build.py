@@ -32,15 +32,35 @@ def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:
 
 
 def command_to_unit(v) -> tuple[np.ndarray, str]:
-    """A motor command column to 0..1, judged by its range: 0..1 as is, PWM µs (800..2200)
-    with 1000-2000, percent (up to 100) / 100. Returns the values and how they were read."""
+    """A motor / throttle command column to 0..1, judged by the range its values SHOW (never
+    assumed): within 0..1 as is; within 0..100 (above 1) as percent; every non-zero value within
+    800..2200 as servo PWM in µs with the standard 1000-2000 µs range; integers within 0..255 as
+    8-bit counts; within 0..65535 as 16-bit counts (e.g. the Crazyflie's motor PWM); any other
+    range is kept as logged. Returns the values and a statement of the range seen and the
+    normalisation applied (for the signal's source)."""
     v = np.asarray(v, float)
     fin = v[np.isfinite(v)]
-    if not fin.size or (fin.min() >= -1e-9 and fin.max() <= 1 + 1e-9):
-        return v, "0..1"
-    if fin.max() > 100:
-        return pwm_to_unit(v), "PWM 1000-2000 us -> 0..1"
-    return v / 100.0, "0..100 % -> 0..1"
+    if not fin.size:
+        return v, "no finite values"
+    lo, hi = float(fin.min()), float(fin.max())
+    seen = f"values {lo:.6g}..{hi:.6g}"
+    eps = 1e-9
+    if lo < -eps:
+        return v, f"{seen}: negative, no known command range; kept as logged"
+    if hi <= 1 + eps:
+        return v, f"{seen}: a 0..1 command, used as is"
+    if hi <= 100 + eps:
+        return v / 100.0, f"{seen}: percent, /100 -> 0..1"
+    on = fin[fin > 0]
+    if on.size and on.min() >= 800 - eps and hi <= 2200 + eps:
+        return pwm_to_unit(v), (f"{seen}: servo PWM 1000-2000 us (the standard range; the log states "
+                                f"none), (PWM - 1000)/1000 -> 0..1")
+    integral = bool(np.all(fin == np.round(fin)))
+    if integral and hi <= 255 + eps:
+        return v / 255.0, f"{seen}: 8-bit counts, /255 -> 0..1"
+    if hi > 255 and hi <= 65535 + eps:
+        return v / 65535.0, f"{seen}: 16-bit counts, /65535 -> 0..1"
+    return v, f"{seen}: no known command range (0..1, 0..100 %, 1000-2000 us, 0..255 or 0..65535 counts); kept as logged"
 
 
 #: ArduPilot SERVOn_FUNCTION values of motors: 33..40 = motor1..8, 82..85 = motor9..12
@@ -236,7 +256,8 @@ class FlightBuilder:
         self.derive_velocity()
         prov = Provenance(files=(self.path,), format=self.format, vehicle=self.vehicle,
                           firmware=self.firmware, notes=tuple(self.notes),
-                          vehicle_type=self.vehicle_type, vehicle_declared=self.vehicle_declared)
+                          vehicle_type=self.vehicle_type, vehicle_declared=self.vehicle_declared,
+                          signal_sources=tuple((n, s.unit, s.source) for n, s in self.signals.items()))
         diag = Diagnostics(self.skipped, tuple(self.warnings))
         return Flight(self.signals, prov, diag, self.segments, tuple(self.events))
 

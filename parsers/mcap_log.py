@@ -344,7 +344,8 @@ def _convert(b: FlightBuilder, rows, chosen):
                 if role == "rc":
                     b.add(f"rc{i + 1}", t, arr[:, i], "us", f"{topic} data[{i}]")
                 else:
-                    b.add(f"motor{i + 1}", t, arr[:, i], "1", f"{topic} data[{i}]")
+                    v, how = command_to_unit(arr[:, i])
+                    b.add(f"motor{i + 1}", t, v, "1", f"{topic} data[{i}] ({how})")
             continue
         if role.startswith("scalar:"):
             m = _ELEMENT.fullmatch(role.split(":", 1)[1])

@@ -24,7 +24,7 @@ is an assumption, not checked against a Motive Euler export; quaternion exports 
     ax ay az, vbat / battery_voltage, battery_current, lat lon alt, is_armed, is_flying,
     throttle (0..1) / throttle_pct (0..100), thrust (0..1: a throttle command; else N) / thrust_N,
     motor1.. / m1 / m1_thrust (0..1, PWM or % by range), rpm1 / rpm_1 / motor_rpm_1 / esc_rpm1 /
-    m1_erpm (erpm: electrical rpm, said in the source) -- the full list: FLAT_ALIASES, docs/signals.md
+    m1_erpm (unit erpm: electrical rpm, said in the source) -- the full list: FLAT_ALIASES, docs/signals.md
 
 plus ``column_map={"x": "pos_e", ...}`` (canonical name -> column) for anything else. Values are
 taken as already in droneid's convention (ENU, FLU, SI). When both a quaternion and Euler
@@ -298,10 +298,13 @@ def read_flat_csv(path, column_map=None) -> Flight:
     t = (t_raw - t_fin[0]) * scale
     bad_rows = ~np.isfinite(t)
     b.skip("rows without a time stamp", int(bad_rows.sum()))
-    for name in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "ax", "ay", "az", "throttle",
+    for name in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "ax", "ay", "az",
                  "battery_voltage", "battery_current", "lat", "lon", "alt"):
         if name in found:
             b.add(name, t, num(name), _UNITS[name], found[name])
+    if "throttle" in found:       # normalised by the range its values show, as motor commands
+        v, how = command_to_unit(num("throttle"))
+        b.add("throttle", t, v, "1", f"{found['throttle']} ({how})")
     _rotor_columns(b, t, found, num)
     has_q = all(k in found for k in ("qw", "qx", "qy", "qz"))
     has_e = all(k in found for k in ("roll", "pitch", "yaw"))
@@ -349,8 +352,11 @@ def _rotor_columns(b: FlightBuilder, t, found, num) -> None:
             b.add(f"motor{i}", t, v, "1", f"{found[f'motor{i}']} ({how})")
         if f"rpm{i}" in found:
             col = found[f"rpm{i}"]
-            kind = "electrical rpm: erpm" if "erpm" in col.lower() else "rpm"
-            b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", f"{col} ({kind})")
+            if "erpm" in col.lower():
+                b.add(f"rpm{i}", t, num(f"rpm{i}"), "erpm",
+                      f"{col} (electrical rpm: rpm x motor pole pairs; the log states no pole-pair count)")
+            else:
+                b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", col)
 
 
 def _long_rows(path, n_columns: int) -> int:

@@ -26,6 +26,7 @@ def register(sub):
 def run(args) -> int:
     (flight,) = read_logs([args.path], args)
     summary = flight.summary()
+    summary["signals"] = with_coverage(flight, summary["signals"])
     summary["fitness"] = fitness_summary(flight, args.ts)
     if args.json:
         print_json(summary)
@@ -34,13 +35,49 @@ def run(args) -> int:
     return 0
 
 
+def with_coverage(flight, rows: list) -> list:
+    """The summary's signal rows with gap-aware rates (:func:`droneid.fitness.coverage`: samples
+    per second of the time the signal has data) and, for signals in bursts, where they are."""
+    from ..fitness import coverage
+    out = []
+    for g in rows:
+        c = coverage(flight[g["name"]])
+        g = dict(g, rate_hz=None if not math.isfinite(c.rate_hz) else round(c.rate_hz, 4))
+        if len(c.bursts) > 1:
+            g["bursts"] = c.describe()
+        out.append(g)
+    return out
+
+
+#: the built-in priors whose fitness inspect shows, as identify would resolve ``--prior NAME``
+INSPECTED_PRIORS = ("tilt-drag", "rotor-thrust")
+
+
 def fitness_summary(flight, ts: float) -> dict:
-    """The fitness of one flight for the tilt-drag model and for a rotor-thrust model (the
-    latter with the first rotor signal present: rpm1, motor1 or throttle)."""
-    from ..fitness import ROTOR_THRUST_SIGNALS, TILT_DRAG_SIGNALS, assess
-    out = {"tilt-drag": assess(flight, needed_signals=TILT_DRAG_SIGNALS, ts=ts).to_dict()}
-    rotor = next((n for n in ("rpm1", "motor1", "throttle") if flight.has(n)), "rpm1")
-    out["rotor-thrust"] = assess(flight, needed_signals=ROTOR_THRUST_SIGNALS + (rotor,), ts=ts).to_dict()
+    """The fitness of one flight for each prior of :data:`INSPECTED_PRIORS`, resolved and judged
+    exactly as identify does (:func:`priors.models.prior_for` on the usable signals, then
+    :func:`droneid.fitness.prior_fitness`), and which prior ``--prior auto`` would choose."""
+    from priors.models import prior_for
+
+    from ..errors import ConfigError
+    from ..fitness import prior_fitness, usable_signals
+    from ..targets import targets_for
+    usable = usable_signals([flight], ts)
+    out = {}
+    for spec in INSPECTED_PRIORS:
+        try:
+            prior, why = prior_for(spec, usable)
+        except ConfigError as e:
+            try:    # the signals exist but are too slow: show the rate refusal, not "none of them"
+                prior, why = prior_for(spec, set(flight.names))
+            except ConfigError:
+                out[spec] = {"ok": False, "applies": False, "ts": ts, "problems": [str(e)],
+                             "warnings": [], "flights": []}
+                continue
+        fit = prior_fitness([flight], prior, targets_for(prior), ts)
+        out[spec] = dict(fit.to_dict(), applies=True, prior_reason=why)
+    auto, why = prior_for("auto", usable)
+    out["auto"] = {"prior": auto.name, "reason": why}
     return out
 
 
@@ -72,6 +109,11 @@ def render_text(s: dict) -> str:
     lines.append(line(head))
     lines.append(line(tuple("-" * w for w in widths)))
     lines.extend(line(r) for r in rows)
+    bursty = [g for g in s["signals"] if g.get("bursts")]
+    if bursty:
+        lines.append("rates count the time a signal has data; in bursts: " + "; ".join(
+            f"{', '.join(g['name'] for g in bursty if g['bursts'] == b)} {b}"
+            for b in dict.fromkeys(g["bursts"] for g in bursty)))
     lines.append("")
     for label in ("armed", "in_flight"):
         if label in s["segments"]:
@@ -112,18 +154,42 @@ def render_text(s: dict) -> str:
 
 
 def render_fitness(fit: dict) -> list[str]:
-    """The "fitness for the tilt-drag/rotor-thrust models" block (pure)."""
-    any_fit = next(iter(fit.values()))
-    ts = any_fit["ts"]
-    fl = any_fit["flights"][0]
-    tilt, speed = fl["tilt_deg"], fl["speed_ms"]
-    out = [f"fitness for the tilt-drag/rotor-thrust models (Ts = {ts:g} s):",
-           f"  airborne {_fmt(fl['airborne_s'], 1)} s, {fl['samples']} samples; tilt "
-           f"{_fmt(tilt[0], 1)}..{_fmt(tilt[1], 1)} deg, horizontal speed {_fmt(speed[0])}.."
-           f"{_fmt(speed[1])} m/s, yaw span {_fmt(fl['yaw_span_deg'], 0)} deg"]
-    for model, f in fit.items():
-        rates = ", ".join(f"{k} {_fmt(v, 1)} Hz" for k, v in f["flights"][0]["rates_hz"].items())
-        out.append(f"  {model}: {'REFUSED' if f['problems'] else 'ok'} ({rates})")
+    """The "fitness for the tilt-drag/rotor-thrust models" block (pure): the vehicle evidence
+    and the airborne basis once, then each prior's verdict, measurements and own warnings
+    (warnings every prior shares are printed once)."""
+    models = {k: v for k, v in fit.items() if k != "auto"}
+    any_fit = next((v for v in models.values() if v.get("flights")), None)
+    ts = next(iter(models.values()))["ts"]
+    out = [f"fitness for the tilt-drag/rotor-thrust models (Ts = {ts:g} s):"]
+    if any_fit is not None:
+        fl = any_fit["flights"][0]
+        ev = fl.get("vehicle_evidence") or {}
+        tilt, speed = fl["tilt_deg"], fl["speed_ms"]
+        out.append(f"  airborne: {fl.get('airborne_basis') or '-'}; tilt {_fmt(tilt[0], 1)}..{_fmt(tilt[1], 1)} deg, "
+                   f"horizontal speed {_fmt(speed[0])}..{_fmt(speed[1])} m/s, yaw span "
+                   f"{_fmt(fl['yaw_span_deg'], 0)} deg")
+        if ev:
+            why = "; ".join(ev["reasons"]) if ev["looks"] != "multirotor" else ""
+            out.append(f"  flies like: {ev['looks']} ({ev['text']})" + (f": {why}" if why and ev["measured_s"] else ""))
+    shared = None
+    for f in models.values():
+        w = set(f.get("warnings", ()))
+        shared = w if shared is None else shared & w
+    shared = shared or set()
+    if len(models) < 2:
+        shared = set()
+    for model, f in models.items():
+        if not f.get("applies", True):
+            out.append(f"  {model}: does not apply: {f['problems'][0]}")
+            continue
+        fl = f["flights"][0]
+        rates = ", ".join(f"{k} {_fmt(v, 1)} Hz" for k, v in fl["rates_hz"].items())
+        verdict = "REFUSED" if f["problems"] else "ok"
+        out.append(f"  {model}: {verdict} (airborne {_fmt(fl['airborne_s'], 1)} s, {fl['samples']} samples; {rates})")
         out.extend(f"    problem: {p}" for p in f["problems"])
-        out.extend(f"    warning: {w}" for w in f["warnings"])
+        out.extend(f"    warning: {w}" for w in f["warnings"] if w not in shared)
+    out.extend(f"  warning: {w}" for w in sorted(shared, key=lambda w: next(
+        i for i, x in enumerate(next(iter(models.values()))["warnings"]) if x == w)))
+    if "auto" in fit:
+        out.append(f"  --prior auto chooses: {fit['auto']['prior']} ({fit['auto']['reason']})")
     return out

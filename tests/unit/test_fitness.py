@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from droneid.cli import main
+from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError
 from droneid.fitness import (MIN_AIRBORNE_S, TILT_DRAG_SIGNALS, assess)
 from droneid.flight import Flight, Provenance, Signal
@@ -44,7 +45,9 @@ def test_a_good_flight_passes_with_its_measurements():
     assert a.ok and not a.problems and not a.warnings, (a.problems, a.warnings)
     f = a.flights[0]
     assert f.airborne_s == pytest.approx(29.99, abs=0.02)
-    assert f.samples == math.floor(f.airborne_s / 0.05) + 1
+    # the grid samples a forward-difference dataset keeps: the builder's own count
+    assert f.samples == math.floor(f.airborne_s / 0.05 + 1e-9) == \
+        len(DatasetBuilder(ts=0.05).build(_flight(), "vx_dot", inputs=TILT_DRAG_SIGNALS[2:]))
     assert f.rates_hz["vx"] == pytest.approx(100.0)
     assert f.tilt_deg[1] == pytest.approx(10.0, abs=0.05)            # max(|roll|, |pitch|)
     assert f.speed_ms[1] == pytest.approx(3.0, abs=0.01) and f.speed_ms[0] == pytest.approx(0.0, abs=0.01)
@@ -67,7 +70,7 @@ def test_fixed_wing_log_is_refused_unless_overridden():
 
 def test_unknown_and_vtol_vehicles_are_warnings():
     a = _assess(_flight(vehicle="unknown", declared=None))
-    assert a.ok and any("vehicle type unknown" in w and "--vehicle" in w for w in a.warnings)
+    assert a.ok and any("vehicle type not declared" in w and "--vehicle" in w for w in a.warnings)
     v = _assess(_flight(vehicle="vtol"))
     assert v.ok and any("vtol" in w and "hover" in w for w in v.warnings)
 
@@ -138,3 +141,82 @@ def test_a_flight_spanning_days_is_not_scanned():
     late = Signal("z", np.array([0.0, 1.0, 5e6]), np.array([1.0, 1.0, 1.0]), "m")
     a = _assess(f.with_signals(late))
     assert not a.ok and any("not a flight (damaged time stamps?)" in p for p in a.problems)
+
+
+def _kinematic(kind: str, duration=40.0, rate=100.0) -> Flight:
+    """An undeclared vehicle flying east with yaw 0: 10 s of hover, then vx = 3 sin(0.8 t).
+    ``multirotor``: pitch = atan(ax / g) (a multirotor tilts the way it accelerates), level hover;
+    ``bird``: the same motion but 30 deg nose-down while still (perched / gliding, not hovering);
+    ``fixed-wing``: never slower than 6 m/s, pitch a few degrees whatever the acceleration."""
+    t = np.arange(0, duration, 1 / rate)
+    moving = t >= 10.0
+    vx = np.where(moving, 3.0 * np.sin(0.8 * (t - 10.0)), 0.0)
+    ax = np.where(moving, 2.4 * np.cos(0.8 * (t - 10.0)), 0.0)
+    pitch = np.arctan(ax / 9.81)
+    if kind == "bird":
+        pitch = np.where(moving, pitch, np.radians(30.0))
+    if kind == "fixed-wing":
+        vx = 8.0 + 2.0 * np.sin(0.6 * t)
+        pitch = np.radians(3.0) + 0 * t
+    zero = 0 * t
+    sig = [Signal("roll", t, zero, "rad"), Signal("pitch", t, pitch, "rad"),
+           Signal("yaw", t, np.radians(60.0) * np.sin(0.1 * t), "rad"), Signal("vx", t, vx, "m/s"),
+           Signal("vy", t, zero, "m/s"), Signal("vz", t, zero, "m/s"), Signal("z", t, 2 + zero, "m")]
+    prov = Provenance(files=(f"{kind}.csv",), format="csv")
+    return Flight({s.name: s for s in sig}, prov, segments={"in_flight": ((0.0, duration),)})
+
+
+def test_undeclared_vehicle_is_judged_from_its_data():
+    ok = _assess(_kinematic("multirotor"))
+    ev = ok.flights[0].vehicle
+    assert ok.ok and ev.looks == "multirotor", (ok.problems, ev)
+    assert ev.hover_s == pytest.approx(10.0, abs=0.5) and ev.hover_tilt_deg < 0.5 and ev.tilt_mismatch_deg < 1
+    assert any("look like a multirotor" in w for w in ok.warnings)
+    for kind, why in (("bird", "hovers tilted by 30 deg"), ("fixed-wing", "never hovers")):
+        a = _assess(_kinematic(kind))
+        assert not a.ok and a.flights[0].vehicle.looks == "not a multirotor"
+        assert why in a.problems[0] and "pass --vehicle multirotor" in a.problems[0], a.problems
+        assert "\n" not in a.problems[0]
+        assert _assess(_kinematic(kind), vehicle="multirotor").ok        # the override
+        assert _assess(_kinematic(kind)).to_dict()["flights"][0]["vehicle_evidence"]["looks"] == "not a multirotor"
+
+
+def test_problems_are_ordered_from_the_most_fundamental():
+    """never airborne, then no valid state estimate, then missing signals, then rates; the
+    mapping hint fits the format (no --column / --topic for a ULog)."""
+    from droneid.flight import Diagnostics
+    f = _flight(armed=False, vel_rate=1.0).without("vx")
+    f = replace(f, provenance=replace(f.provenance, format="ulog"),
+                diagnostics=Diagnostics({"vehicle_local_position samples with v_xy_valid false": 9}))
+    p = _assess(f).problems
+    assert "no airborne data" in p[0] and "no valid state estimate" in p[1]
+    assert any("logged at 1.0 Hz" in x for x in p[2:])
+    assert not any("--column" in x or "--topic" in x for x in p)
+    g = _flight().without("yaw")
+    assert "--column yaw=COLUMN" in _assess(g).problems[0]
+    mcap = replace(g, provenance=replace(g.provenance, format="mcap"))
+    assert "--topic yaw=TOPIC" in _assess(mcap).problems[0]
+    uf = replace(g, provenance=replace(g.provenance, format="ulog"))
+    assert "--" not in _assess(uf).problems[0].split("missing")[1]
+
+
+def test_rates_and_samples_are_gap_aware():
+    """A signal in bursts: its rate is per second of data, and only the bursts count as samples
+    (a 100 Hz signal logged 2 s out of every 20 s is 100 Hz over 20 % of the time, not 100 Hz over
+    all of it)."""
+    from droneid.fitness import coverage
+    f = _flight(duration=60.0)
+    keep = (f["vx"].t % 20.0) < 2.0
+    bursty = Signal("vx", f["vx"].t[keep], f["vx"].values[keep], "m/s")
+    c = coverage(bursty)
+    assert len(c.bursts) == 3 and c.existence_s == pytest.approx(6.0, abs=0.05)
+    assert c.rate_hz == pytest.approx(100.0, rel=0.01) and "3 bursts: 0.0-2.0 s, 20.0-22.0 s" in c.describe()
+    a = _assess(f.with_signals(bursty))
+    assert a.flights[0].airborne_s == pytest.approx(6.0, abs=0.1)
+    assert a.flights[0].samples == len(DatasetBuilder(ts=0.05).build(f.with_signals(bursty), "vx_dot",
+                                                                      inputs=TILT_DRAG_SIGNALS[2:]))
+    assert any("vx comes in 3 bursts" in w for w in a.warnings)
+    # bursts of samples 7 ms apart, one burst every 0.25 s: 4 samples per second, not 143
+    t = np.concatenate([k * 0.25 + np.arange(4) * 0.007 for k in range(400)])
+    mav = Signal("vx", t, np.sin(t), "m/s")
+    assert mav.rate_hz > 100 and coverage(mav).rate_hz == pytest.approx(16.0, rel=0.02)
