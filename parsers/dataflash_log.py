@@ -130,9 +130,15 @@ def _scan(path, b: FlightBuilder):
     pymavlink prints one line per damaged byte; read_flight captures that output. The damage is
     counted here from pymavlink's own index instead: the bytes no indexed record covers."""
     dflog = _open(path)
-    types = _loop(dflog, b)
-    _check_end(dflog, b)
-    _count_damage(dflog, b)
+    try:
+        types = _loop(dflog, b)
+        _check_end(dflog, b)
+        _count_damage(dflog, b)
+    finally:                    # pymavlink leaves its file and map open (a ResourceWarning)
+        try:
+            dflog.close()
+        except (OSError, ValueError, AttributeError, BufferError):
+            pass
     return types
 
 
