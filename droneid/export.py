@@ -15,9 +15,13 @@
 ``latex``
     one ``equation`` per target, roll φ, pitch θ, yaw ψ, velocities v_x, ...
 
-Each file starts with a comment that states the inputs with their units, droneid's conventions
-(ENU world, FLU body, Z-Y-X Euler, positive pitch = nose down, seconds), the input delays
-(which input to feed at t − d) and where the models come from (droneid version, source result).
+Each file starts with a comment that states the inputs with their units and, when the result
+records them (``Provenance.signal_sources``), the raw log field each input came from and the
+normalisation applied to it (e.g. ``motor1 [1]: RCOU.C1 (PWM 1100-1900 us -> 0..1)``), droneid's
+conventions (ENU world, FLU body, Z-Y-X Euler, positive pitch = nose down, seconds), the input
+delays (which input to feed at t − d) and where the models come from (droneid version, source
+result). The equations in the header are written in the file's own language (C and MATLAB
+never show Python's ``**``).
 """
 from __future__ import annotations
 
@@ -32,7 +36,7 @@ from .flight import canonical_unit
 from .identified import IdentifiedModel
 from .targets import state_of
 
-__all__ = ["FORMATS", "export_models", "CONVENTIONS"]
+__all__ = ["FORMATS", "export_models", "input_sources", "CONVENTIONS"]
 
 FORMATS = ("python", "c", "matlab", "latex")
 
@@ -53,16 +57,63 @@ def _unit(signal: str) -> str:
         return "as logged (not a canonical signal)"
 
 
-def _header(models: Sequence[IdentifiedModel], source: str) -> list[str]:
-    """The header lines (without comment markers)."""
+def _equation(m: IdentifiedModel, to: str) -> str:
+    """The model's right-hand side in the syntax of language ``to`` (4 significant figures)."""
+    if to == "python":
+        return m.text()
+    from .sngp.model import round_expr   # lazy: droneid.sngp imports numba (~0.5 s)
+    e = round_expr(m.expr, 4)
+    if to == "c":
+        return sp.ccode(e, standard="C99")
+    if to == "matlab":
+        return sp.octave_code(e)
+    return sp.latex(e)
+
+
+def input_sources(provenance) -> dict:
+    """{signal: [(unit, source), ...]} from a result's provenance (the ``train`` and ``test``
+    lists of flight provenances, each with ``signal_sources`` rows [name, unit, source]: the raw
+    log field and the normalisation the reader applied); each distinct reading once."""
+    found: dict[str, list] = {}
+    flights = []
+    if isinstance(provenance, dict):
+        for role in ("train", "test"):
+            flights += list(provenance.get(role) or ())
+    for fl in flights:
+        for row in (fl.get("signal_sources") or ()) if isinstance(fl, dict) else ():
+            if isinstance(row, (list, tuple)) and len(row) == 3 and all(isinstance(x, str) for x in row):
+                if (row[1], row[2]) not in found.setdefault(row[0], []):
+                    found[row[0]].append((row[1], row[2]))
+    return found
+
+
+def _input_unit(signal: str, sources: dict) -> str:
+    """The unit the data of ``signal`` had (as recorded; e.g. erpm), else its canonical unit."""
+    units = {u for u, _ in sources.get(signal, ())}
+    return units.pop() if len(units) == 1 else _unit(signal)
+
+
+def _input_line(signal: str, sources: dict) -> str:
+    fields = [src for _, src in sources.get(signal, ()) if src]
+    return f"{signal} [{_input_unit(signal, sources)}]" + (f" from {' | '.join(fields)}" if fields else "")
+
+
+def _header(models: Sequence[IdentifiedModel], source: str, to: str = "python",
+            sources: dict | None = None) -> list[str]:
+    """The header lines (without comment markers); equations in the syntax of ``to``."""
+    sources = sources or {}
     lines = [f"Identified models exported by droneid {__version__}"
              + (f" from {source}" if source else "") + ".",
              "Conventions: " + CONVENTIONS + ".", ""]
     for m in models:
-        lines.append(f"{m.target} ({m.unit}) = {m.text()}")
+        lines.append(f"{m.target} ({m.unit}) = {_equation(m, to)}")
         if m.description:
             lines.append(f"  what: {m.description}")
-        lines.append("  inputs: " + (", ".join(f"{s} [{_unit(s)}]" for s in m.signals) or "none (a constant)"))
+        if not m.signals:
+            lines.append("  inputs: none (a constant)")
+        else:
+            lines.append("  inputs (unit, then the log field and its normalisation when the result records it):")
+            lines.extend(f"    {_input_line(s, sources)}" for s in m.signals)
         if m.delays_s:
             lines.append("  delays: " + ", ".join(f"feed {s} at t - {d:g} s" for s, d in sorted(m.delays_s.items())))
         else:
@@ -85,16 +136,19 @@ def _check(models: Sequence[IdentifiedModel]) -> list[IdentifiedModel]:
     return models
 
 
-def export_models(models: Sequence[IdentifiedModel], to: str, source: str = "", name: str = "droneid_model") -> str:
+def export_models(models: Sequence[IdentifiedModel], to: str, source: str = "", name: str = "droneid_model",
+                  inputs: dict | None = None) -> str:
     """The text of one file holding every model, in format ``to`` (one of :data:`FORMATS`).
 
     ``source`` names where the models come from (e.g. the result.json path) for the header;
-    ``name`` is the MATLAB function name (the file must be called ``<name>.m``)."""
+    ``name`` is the MATLAB function name (the file must be called ``<name>.m``); ``inputs`` maps
+    a signal to its unit, raw log field and normalisation (:func:`input_sources` of the result's
+    provenance) for the header."""
     check_choice("to", to, FORMATS, owner="export")
     models = _check(models)
-    header = _header(models, source)
+    header = _header(models, source, to, inputs)
     if to == "python":
-        return _python(models, header)
+        return _python(models, header, inputs or {})
     if to == "c":
         return _c(models, header)
     if to == "matlab":
@@ -105,7 +159,7 @@ def export_models(models: Sequence[IdentifiedModel], to: str, source: str = "", 
     return _latex(models, header)
 
 
-def _python(models, header) -> str:
+def _python(models, header, sources) -> str:
     from sympy.printing.numpy import NumPyPrinter
     out = ['"""' + "\n".join(header).replace('"""', "'''").replace("\\", "\\\\") + '\n"""', "import numpy", ""]
     for m in models:
@@ -113,7 +167,7 @@ def _python(models, header) -> str:
         body = printer.doprint(m.expr)
         args = ", ".join(m.signals)
         sig = f"def {m.target}(*, {args}):" if args else f"def {m.target}(**_ignored):"
-        doc = f"{m.target} in {m.unit}; inputs: " + (", ".join(f"{s} [{_unit(s)}]" for s in m.signals) or "none")
+        doc = f"{m.target} in {m.unit}; inputs: " + (", ".join(f"{s} [{_input_unit(s, sources)}]" for s in m.signals) or "none")
         if m.delays_s:
             doc += "; delays: " + ", ".join(f"{s} at t - {d:g} s" for s, d in sorted(m.delays_s.items()))
         out += ["", f"{sig}", f'    """{doc}."""']

@@ -20,7 +20,7 @@ log = logging.getLogger(__name__)
 #: |time| beyond this many seconds from the log start is damage, not data (~3 years)
 MAX_TIME_S = 1e8
 
-__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit",
+__all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit", "pwm_formula",
            "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS", "ARDUCOPTER_FRAME_MOTORS", "frame_motors",
            "command_to_unit"]
 
@@ -29,6 +29,11 @@ def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:
     """Servo PWM in µs (``lo``..``hi``, default 1000..2000) to 0..1 (clipped); 0 µs (output off)
     becomes 0."""
     return np.clip((np.asarray(pwm, float) - lo) / (hi - lo), 0.0, 1.0)
+
+
+def pwm_formula(lo: float, hi: float) -> str:
+    """How :func:`pwm_to_unit` maps PWM µs to 0..1, as text: ``"(PWM - 1000)/900 -> 0..1"``."""
+    return f"(PWM - {lo:.0f})/{hi - lo:.0f} -> 0..1"
 
 
 def command_to_unit(v) -> tuple[np.ndarray, str]:
@@ -54,7 +59,7 @@ def command_to_unit(v) -> tuple[np.ndarray, str]:
     on = fin[fin > 0]
     if on.size and on.min() >= 800 - eps and hi <= 2200 + eps:
         return pwm_to_unit(v), (f"{seen}: servo PWM 1000-2000 us (the standard range; the log states "
-                                f"none), (PWM - 1000)/1000 -> 0..1")
+                                f"none), {pwm_formula(1000, 2000)}")
     integral = bool(np.all(fin == np.round(fin)))
     if integral and hi <= 255 + eps:
         return v / 255.0, f"{seen}: 8-bit counts, /255 -> 0..1"
@@ -109,7 +114,7 @@ def ardupilot_motor_channels(params, channels, n_default: int = 4):
             lo, hi, rng = params["RC3_MIN"], params["RC3_MAX"], "RC3_MIN/MAX"
         else:
             lo, hi, rng = 1000.0, 2000.0, "default"
-        out.append((c, motor, float(lo), float(hi), f"PWM {lo:.0f}-{hi:.0f} us ({rng}) -> 0..1; {mapping}"))
+        out.append((c, motor, float(lo), float(hi), f"PWM {lo:.0f}-{hi:.0f} us ({rng}): {pwm_formula(lo, hi)}; {mapping}"))
     return out
 
 

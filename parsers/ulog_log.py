@@ -29,7 +29,7 @@ from droneid.errors import LogFormatError
 from droneid.flight import Flight, vehicle_from_mav_type
 from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
-from ._build import FlightBuilder, intervals_from_bool, pwm_to_unit
+from ._build import FlightBuilder, intervals_from_bool, pwm_formula, pwm_to_unit
 from ._registry import Reader
 from ._guard import BoundedReader, ReaderLoopError
 
@@ -243,7 +243,7 @@ def _motors(b, topics, tt, params):
             if k in d and np.any(d[k] > 0):
                 lo, hi, how = _pwm_range(params, i + 1)
                 b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k], lo, hi), "1",
-                      f"actuator_outputs.{k} (PWM {lo:.0f}-{hi:.0f} us ({how}) -> 0..1)")
+                      f"actuator_outputs.{k} (PWM {lo:.0f}-{hi:.0f} us ({how}): {pwm_formula(lo, hi)})")
 
 
 def _pwm_range(params, ch: int):

@@ -32,7 +32,12 @@ def run(args) -> int:
         raise DataError(f"{args.result}: no final model to export (targets.<t>.final is written by "
                         f"droneid identify; older results hold only the engine model)")
     name = Path(args.output).stem if args.output and args.to == "matlab" else "droneid_model"
-    text = export_models(finals, args.to, source=str(args.result), name=name)
+    import json
+
+    from ..export import input_sources
+    provenance = json.loads(Path(args.result).read_text(encoding="utf-8")).get("provenance")
+    text = export_models(finals, args.to, source=str(args.result), name=name,
+                         inputs=input_sources(provenance))
     if args.output:
         from ..io_util import atomic_write_text
         atomic_write_text(args.output, text)
