@@ -167,7 +167,7 @@ class VehicleEvidence:
 
     def text(self) -> str:
         """One line of the measurements (and the reasons when not a multirotor)."""
-        if self.looks == "undecided" and not self.measured_s:
+        if self.looks == "undecided":
             return "; ".join(self.reasons) or "no airborne velocity and attitude"
         parts = [f"hovers {self.hover_s:.1f} s of {self.measured_s:.1f} s"]
         if math.isfinite(self.hover_tilt_deg):

@@ -169,8 +169,12 @@ def render_fitness(fit: dict) -> list[str]:
                    f"horizontal speed {_fmt(speed[0])}..{_fmt(speed[1])} m/s, yaw span "
                    f"{_fmt(fl['yaw_span_deg'], 0)} deg")
         if ev:
-            why = "; ".join(ev["reasons"]) if ev["looks"] != "multirotor" else ""
-            out.append(f"  flies like: {ev['looks']} ({ev['text']})" + (f": {why}" if why and ev["measured_s"] else ""))
+            why = "; ".join(ev["reasons"]) if ev["looks"] == "not a multirotor" else ""
+            out.append(f"  flies like: {ev['looks']} ({ev['text']})" + (f": {why}" if why else ""))
+    prefix = f"{any_fit['flights'][0]['name']}: " if any_fit is not None else None
+
+    def bare(text):       # one flight: its name before every line says nothing
+        return text[len(prefix):] if prefix and text.startswith(prefix) else text
     shared = None
     for f in models.values():
         w = set(f.get("warnings", ()))
@@ -186,9 +190,9 @@ def render_fitness(fit: dict) -> list[str]:
         rates = ", ".join(f"{k} {_fmt(v, 1)} Hz" for k, v in fl["rates_hz"].items())
         verdict = "REFUSED" if f["problems"] else "ok"
         out.append(f"  {model}: {verdict} (airborne {_fmt(fl['airborne_s'], 1)} s, {fl['samples']} samples; {rates})")
-        out.extend(f"    problem: {p}" for p in f["problems"])
-        out.extend(f"    warning: {w}" for w in f["warnings"] if w not in shared)
-    out.extend(f"  warning: {w}" for w in sorted(shared, key=lambda w: next(
+        out.extend(f"    problem: {bare(p)}" for p in f["problems"])
+        out.extend(f"    warning: {bare(w)}" for w in f["warnings"] if w not in shared)
+    out.extend(f"  warning: {bare(w)}" for w in sorted(shared, key=lambda w: next(
         i for i, x in enumerate(next(iter(models.values()))["warnings"]) if x == w)))
     if "auto" in fit:
         out.append(f"  --prior auto chooses: {fit['auto']['prior']} ({fit['auto']['reason']})")
