@@ -233,7 +233,9 @@ def vehicle_evidence(flight: Flight, intervals: Sequence[tuple[float, float]]) -
     mismatch = float(np.median(np.abs(tilt - np.degrees(np.arctan(ah / _G)))))
     reasons = []
     if hover_s < MIN_HOVER_S:
-        reasons.append(f"never hovers (horizontal speed {speed.min():.2f} m/s at least)")
+        reasons.append(f"never hovers (horizontal speed {speed.min():.2f} m/s at least)"
+                       if speed.min() >= HOVER_SPEED_MS else
+                       f"never hovers (slow only while accelerating: {hover_s:.1f} s slow and steady)")
     elif hover_tilt > MAX_HOVER_TILT_DEG:
         reasons.append(f"hovers tilted by {hover_tilt:.0f} deg (a multirotor hovers level, "
                        f"< {MAX_HOVER_TILT_DEG:g} deg)")
@@ -366,59 +368,62 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
 
     def refuse(kind, text):
         problems.append((REASON_ORDER.index(kind), text))
-    for f in flights:
-        name = f.name
-        vtype = vehicle or f.provenance.vehicle_type
-        declared = (f"--vehicle {vehicle}" if vehicle else f.provenance.vehicle_declared)
-        covs = {s: coverage(f[s]) for s in needed if f.has(s)}
-        rates = {s: (covs[s].rate_hz if s in covs else math.nan) for s in needed}
-        bursts = {s: c.describe() for s, c in covs.items() if len(c.bursts) > 1}
-        raw, notes, basis = _airborne(f, ts)
-        ivs = _with_data(raw, covs.values())
-        airborne = float(sum(b - a for a, b in ivs))
-        samples = _grid_samples(ivs, ts)
-        total_samples += samples
-        evidence = vehicle_evidence(f, ivs or raw)
-        _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings)
-        missing = [s for s in needed if not f.has(s)]
-        invalid = _invalid_state(f, missing)
-        if invalid:
-            refuse("state", f"{name}: no valid state estimate ({invalid}): the log's "
-                            f"{', '.join(s for s in missing if s in _STATE)} are never valid; "
-                            f"use a log with a position/velocity fix")
-        for s in missing:
-            if invalid and s in _STATE:
-                continue
-            refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s)}")
-        if not raw:
-            refuse("airborne", f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
-                               f"use a log of a flight, or choose the part to use (droneid dataset "
-                               f"--in-flight all / --window)")
-        elif not ivs and not missing:
-            refuse("airborne", f"{name}: no airborne data where every needed signal has samples "
-                               f"({', '.join(needed)}): airborne {_fmt_ivs(raw)}")
-        elif 0 < airborne < MIN_AIRBORNE_S:
-            warnings.append(f"{name}: only {airborne:.1f} s airborne (< {MIN_AIRBORNE_S:.0f} s; "
-                            f"{basis}): expect loose estimates")
-        for text in dict.fromkeys(bursts.values()):
-            names = ", ".join(s for s, b in bursts.items() if b == text)
-            warnings.append(f"{name}: {names} {'come' if ',' in names else 'comes'} in {text}: "
-                            f"rates and samples count the time with data only")
-        _rate_verdict(name, rates, ts, refuse, warnings)
-        tilt, speed = _excitation(f, ivs)
-        yaw_span = evidence.yaw_span_deg
-        if airborne > 0:
-            if math.isfinite(tilt[1]) and tilt[1] - tilt[0] < MIN_TILT_RANGE_DEG:
-                warnings.append(f"{name}: tilt varies by {tilt[1] - tilt[0]:.1f} deg only "
-                                f"(< {MIN_TILT_RANGE_DEG:g}): little excitation of the tilt terms")
-            if math.isfinite(speed[1]) and speed[1] - speed[0] < MIN_SPEED_RANGE_MS:
-                warnings.append(f"{name}: horizontal speed varies by {speed[1] - speed[0]:.2f} m/s only "
-                                f"(< {MIN_SPEED_RANGE_MS:g}): little excitation of the drag terms")
-            if math.isfinite(yaw_span) and yaw_span < MIN_YAW_SPAN_DEG:
-                warnings.append(f"{name}: yaw spans {yaw_span:.0f} deg only (< {MIN_YAW_SPAN_DEG:g}): "
-                                f"body and world axes stay aligned")
-        out.append(FlightFitness(name, vtype, declared, airborne, tuple(notes), rates, samples,
-                                 tilt, speed, yaw_span, basis, bursts, evidence))
+    # damaged values (1e308, inf) must not raise numpy warnings: they end up non-finite and
+    # are left out by the finiteness checks below
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        for f in flights:
+            name = f.name
+            vtype = vehicle or f.provenance.vehicle_type
+            declared = (f"--vehicle {vehicle}" if vehicle else f.provenance.vehicle_declared)
+            covs = {s: coverage(f[s]) for s in needed if f.has(s)}
+            rates = {s: (covs[s].rate_hz if s in covs else math.nan) for s in needed}
+            bursts = {s: c.describe() for s, c in covs.items() if len(c.bursts) > 1}
+            raw, notes, basis = _airborne(f, ts)
+            ivs = _with_data(raw, covs.values())
+            airborne = float(sum(b - a for a, b in ivs))
+            samples = _grid_samples(ivs, ts)
+            total_samples += samples
+            evidence = vehicle_evidence(f, ivs or raw)
+            _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings)
+            missing = [s for s in needed if not f.has(s)]
+            invalid = _invalid_state(f, missing)
+            if invalid:
+                refuse("state", f"{name}: no valid state estimate ({invalid}): the log's "
+                                f"{', '.join(s for s in missing if s in _STATE)} are never valid; "
+                                f"use a log with a position/velocity fix")
+            for s in missing:
+                if invalid and s in _STATE:
+                    continue
+                refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s)}")
+            if not raw:
+                refuse("airborne", f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
+                                   f"use a log of a flight, or choose the part to use (droneid dataset "
+                                   f"--in-flight all / --window)")
+            elif not ivs and not missing:
+                refuse("airborne", f"{name}: no airborne data where every needed signal has samples "
+                                   f"({', '.join(needed)}): airborne {_fmt_ivs(raw)}")
+            elif 0 < airborne < MIN_AIRBORNE_S:
+                warnings.append(f"{name}: only {airborne:.1f} s airborne (< {MIN_AIRBORNE_S:.0f} s; "
+                                f"{basis}): expect loose estimates")
+            for text in dict.fromkeys(bursts.values()):
+                names = ", ".join(s for s, b in bursts.items() if b == text)
+                warnings.append(f"{name}: {names} {'come' if ',' in names else 'comes'} in {text}: "
+                                f"rates and samples count the time with data only")
+            _rate_verdict(name, rates, ts, refuse, warnings)
+            tilt, speed = _excitation(f, ivs)
+            yaw_span = evidence.yaw_span_deg
+            if airborne > 0:
+                if math.isfinite(tilt[1]) and tilt[1] - tilt[0] < MIN_TILT_RANGE_DEG:
+                    warnings.append(f"{name}: tilt varies by {tilt[1] - tilt[0]:.1f} deg only "
+                                    f"(< {MIN_TILT_RANGE_DEG:g}): little excitation of the tilt terms")
+                if math.isfinite(speed[1]) and speed[1] - speed[0] < MIN_SPEED_RANGE_MS:
+                    warnings.append(f"{name}: horizontal speed varies by {speed[1] - speed[0]:.2f} m/s only "
+                                    f"(< {MIN_SPEED_RANGE_MS:g}): little excitation of the drag terms")
+                if math.isfinite(yaw_span) and yaw_span < MIN_YAW_SPAN_DEG:
+                    warnings.append(f"{name}: yaw spans {yaw_span:.0f} deg only (< {MIN_YAW_SPAN_DEG:g}): "
+                                    f"body and world axes stay aligned")
+            out.append(FlightFitness(name, vtype, declared, airborne, tuple(notes), rates, samples,
+                                     tilt, speed, yaw_span, basis, bursts, evidence))
     if 0 < total_samples < MIN_SAMPLES:
         refuse("samples", f"only {total_samples} samples in flight at Ts = {ts:g} s "
                           f"(< {MIN_SAMPLES}): use more or longer flights")

@@ -220,3 +220,19 @@ def test_rates_and_samples_are_gap_aware():
     t = np.concatenate([k * 0.25 + np.arange(4) * 0.007 for k in range(400)])
     mav = Signal("vx", t, np.sin(t), "m/s")
     assert mav.rate_hz > 100 and coverage(mav).rate_hz == pytest.approx(16.0, rel=0.02)
+
+
+def test_damaged_huge_values_raise_no_numpy_warning():
+    """Issue 29: "overflow encountered in square" leaked from mutated MCAPs; 1e308 in a signal
+    (a flipped exponent bit) must end up non-finite, not as a warning."""
+    import warnings
+    t = np.arange(0, 20, 0.01)
+    v = np.sin(t)
+    v[500], v[501] = 1e308, -1e308
+    sig = [Signal(n, t, v.copy(), "rad" if n in ("roll", "pitch", "yaw") else "m/s")
+           for n in ("vx", "vy", "vz", "roll", "pitch", "yaw")]
+    f = Flight({s.name: s for s in sig}, Provenance(files=("h.csv",), format="csv"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a = _assess(f)
+    json.dumps(a.to_dict())
