@@ -82,6 +82,12 @@ def _add_global_options(parser: argparse.ArgumentParser, default) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command in ``argv`` (None: this process's own arguments) and return its exit code.
+
+    As the process itself (``argv`` None), a command marked ``no_teardown`` in the registry ends
+    the process here once it is done, without the interpreter's teardown (freeing every object of
+    sympy, numba and pandas: 0.1-0.3 s that the user would wait for)."""
+    process = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     command = chosen_command(argv)
     parser = build_parser(only=() if command is None else (command,))
@@ -94,6 +100,26 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
+    code = _run(args)
+    if process and COMMANDS[args.command].no_teardown:
+        _end_process(code)
+    return code
+
+
+def _end_process(code: int) -> None:
+    """End the process now: flush what was written and exit without the interpreter's teardown
+    (for commands that leave nothing to clean up: no workers, no temporary files, files closed)."""
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):   # a closed pipe: nothing more can be written anyway
+            pass
+    os._exit(code)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command's ``run``, with droneid's errors mapped to one line on stderr and exit 2."""
     try:
         return int(args.func(args) or 0)
     except DroneIdError as exc:

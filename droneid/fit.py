@@ -18,12 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from priors.constraints import load_constraints
-from priors.models import is_prior_spec, resolve_prior
-
 from .constraint_samples import ConstraintSamples
 from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
-from .expressions import parse_expression
 from .sngp import SNGPRegressor
 
 #: the engine's own defaults (its signature), which fit keeps
@@ -169,6 +165,10 @@ def check_supports_model(X: np.ndarray, y: np.ndarray, inputs, target: str, n_co
 def prior_features(spec: str, inputs: Sequence[str], target: str) -> list:
     """The prior feature(s) one prior spec gives: a built-in prior name or ``FILE.toml:NAME``
     (every term of that model for ``target``), else an expression over ``inputs``."""
+    # sympy only with priors: without them the search starts before sympy is imported
+    from priors.models import is_prior_spec, resolve_prior
+
+    from .expressions import parse_expression
     if is_prior_spec(spec):
         exprs = [f.expr for f in resolve_prior(spec).features(target)]
         for e in exprs:
@@ -223,6 +223,7 @@ def prepare(train, config: FitConfig, test=None) -> TableProblem:
     priors = tuple(e for p in config.priors for e in prior_features(p, inputs, config.target))
     cs_train = cs_test = None
     if config.constraints:
+        from priors.constraints import load_constraints   # sympy: only with constraints
         cset = load_constraints(config.constraints, target=config.target)
         cs_train, cs_test = cset.train_test(inputs, n_per_constraint=config.n_constraint_samples,
                                             seed=config.seed)

@@ -15,10 +15,13 @@ from typing import NamedTuple
 
 
 class Command(NamedTuple):
-    """A subcommand: the module that defines it (``register``/``run``) and its one-line help,
-    shown by ``droneid --help`` without importing the module."""
+    """A subcommand: the module that defines it (``register``/``run``), its one-line help (shown
+    by ``droneid --help`` without importing the module) and whether the ``droneid`` process may
+    end without the interpreter's teardown once it is done (``no_teardown``: the command starts
+    no workers, leaves no temporary files and closes what it writes)."""
     module: str
     help: str
+    no_teardown: bool = False
 
 
 #: every subcommand by name (``droneid --help`` lists them in this order)
@@ -32,7 +35,8 @@ COMMANDS: dict[str, Command] = {
     "export": Command("droneid.commands.export",
                       "write the final models as self-contained Python, C, MATLAB or LaTeX"),
     "fit": Command("droneid.commands.fit",
-                   "fit an analytic model to a CSV table with SNGP (priors, constraints)"),
+                   "fit an analytic model to a CSV table with SNGP (priors, constraints)",
+                   no_teardown=True),
     "identify": Command("droneid.commands.identify",
                         "identify models from logs and compare them with the empirical model"),
     "inspect": Command("droneid.commands.inspect",

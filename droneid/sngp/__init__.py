@@ -7,9 +7,16 @@ JSON (``to_dict``/``from_dict``) and evaluated with numpy. The operator table is
 workers); :func:`kernels_ready` says whether the next fit would compile them first.
 """
 from .estimator import SNGPRegressor
-from .model import SymbolicModel
 from .operators import DEFAULT_FUNCTIONS, OPERATORS
 from .precompile import kernels_ready, warmup
 
 __all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS", "kernels_ready",
            "warmup"]
+
+
+def __getattr__(name: str):
+    # SymbolicModel (sympy) on first use: the search runs before sympy is imported
+    if name == "SymbolicModel":
+        from .model import SymbolicModel
+        return SymbolicModel
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -3,6 +3,11 @@
 ``__init__`` only stores keyword parameters (unknown names are rejected with a suggestion);
 ``fit`` validates, runs the compiled search (:mod:`droneid.sngp.search`), prunes dead features,
 simplifies the equation with sympy under a time limit and fills the ``*_`` attributes.
+
+sympy is imported only where the symbolic side begins (prior expressions, the final model, its
+rendering): a fit without priors runs its search before sympy is imported, and imports sympy in
+a background thread meanwhile (the search kernels release the GIL), so a fresh process such as
+``droneid fit`` does not wait for the import on top of the search.
 """
 from __future__ import annotations
 
@@ -11,23 +16,21 @@ import inspect
 import math
 import re
 import signal
+import sys
 import threading
 import time
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-import sympy as sp
 
 from ..constraint_samples import ConstraintSamples, constraint_rmse
 from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
                       did_you_mean)
-from ..expressions import compile_expression, parse_expression, symbol
 from ..numerics import lstsq as _lstsq
 from ..numerics import rmse
 from . import kernels as K
 from .kernels import kernels_ready
 from . import population as popmod
-from .model import SymbolicModel, round_expr, to_text
 from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
 from .population import Population, Problem
 from .selection import best_index
@@ -37,7 +40,6 @@ log = logging.getLogger(__name__)
 
 __all__ = ["SNGPRegressor"]
 
-_CONST_EXPR = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
 _RESERVED = {"pi", "e", "E", "I", "N", "S", "O", "Q", "oo", "nan", "zoo"}
 PRUNE_RTOL = 1e-6
 #: prune="validation": an evolved feature stays only if dropping it raises the held-out RMSE by
@@ -226,6 +228,7 @@ class SNGPRegressor:
             held = _terminal_rows(X_all[val], int(val.sum()), names, prior_syms, prior_exprs,
                                   prior_labels)
             monitor = popmod.holdout(template, held, y_all[val])
+        _import_symbolic_side()
         result = run_search(template, problem, generations=int(self.generations),
                             n_epochs=int(self.n_epochs), n_threads=int(self.n_threads),
                             identity_steps=int(self.identity_steps), gamma=float(self.gamma),
@@ -309,13 +312,18 @@ class SNGPRegressor:
     def _priors(priors, prior_names, names):
         if priors is None:
             priors = ()
-        if isinstance(priors, (str, sp.Basic)):
+        if isinstance(priors, str) or _is_sympy(priors):
             priors = (priors,)
         priors = list(priors)
         if prior_names is not None:
             prior_names = [str(p) for p in prior_names]
             if len(prior_names) != len(priors):
                 raise ConfigError(f"prior_names has {len(prior_names)} names for {len(priors)} priors")
+        if not priors:
+            return [], [], {}
+        import sympy as sp
+
+        from ..expressions import parse_expression, symbol
         exprs, syms, labels = [], [], {}
         for i, p in enumerate(priors):
             label = prior_names[i] if prior_names else f"prior{i + 1}"
@@ -366,17 +374,21 @@ class SNGPRegressor:
         return pop
 
     def _node_exprs(self, pop: Population):
+        import sympy as sp
+
+        from ..expressions import symbol
+        consts = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
         lay = pop.lay
         head_end, tail0 = int(lay[K.L_HEAD]), int(lay[K.L_TAIL])
         terminals = [symbol(n) for n in self._names] + [symbol(s) for s in self._prior_syms]
-        memo: dict[int, sp.Expr] = {}
+        memo: dict[int, "sp.Expr"] = {}
 
-        def expr(n: int) -> sp.Expr:
+        def expr(n: int) -> "sp.Expr":
             if n in memo:
                 return memo[n]
             code = int(pop.op[n])
             if code == CONST:
-                e = _CONST_EXPR[n] if n < len(_CONST_EXPR) else sp.Float(pop.cval[n])
+                e = consts[n] if n < len(consts) else sp.Float(pop.cval[n])
             elif n < head_end:
                 e = sp.Float(float(pop.current(n)[0]))
             elif n < tail0:
@@ -432,6 +444,7 @@ class SNGPRegressor:
             else:
                 terms.append(node_expr(cols[k - 1]))
                 coefs.append(float(bta))
+        from .model import SymbolicModel
         model = SymbolicModel(self._names, terms, coefs, intercept,
                               {s: self._prior_exprs[s] for s in self._prior_syms},
                               dict(self._prior_labels))
@@ -440,6 +453,7 @@ class SNGPRegressor:
     def _prune_validation(self, validation, A, At, Ac, y, cols, keep, ec, n_prior, node_expr, cs):
         """Backward elimination of evolved features on the held-out rows, then a refit of the
         kept columns on all training rows. Returns (keep, beta, e_d over all rows, e_c)."""
+        from ..expressions import compile_expression
         X_all, y_all, val = validation
         env = {n: X_all[val, i] for i, n in enumerate(self._names)}
         for sym, expr in self._prior_exprs.items():   # as SymbolicModel.predict evaluates them
@@ -481,8 +495,12 @@ class SNGPRegressor:
         ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
         return keep, beta, ed, ec
 
-    def _render(self, model: SymbolicModel) -> dict:
+    def _render(self, model: "SymbolicModel") -> dict:
         """Simplified forms of the model: equation_, expr_, expr_raw_, latex_, coef_, prior_coef_."""
+        import sympy as sp
+
+        from ..expressions import symbol
+        from .model import round_expr, to_text
         deadline = time.perf_counter() + float(self.simplify_s)
         prior_set = {symbol(s) for s in self._prior_syms}
         simple_terms = []
@@ -530,6 +548,9 @@ class SNGPRegressor:
                 for ed, ec, a, b in archive]
 
     def _archive_equation(self, a, b) -> str:
+        import sympy as sp
+
+        from .model import round_expr, to_text
         pop = self._population_from_links(a, b)
         node_expr = self._node_exprs(pop)
         expr = sp.Integer(0)
@@ -608,6 +629,7 @@ def _terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> 
     cols = {n: X[:, i] for i, n in enumerate(names)}
     prior_vals = []
     for sym, expr in zip(prior_syms, prior_exprs):
+        from ..expressions import compile_expression
         v = compile_expression(expr, names)(cols)
         if not np.isfinite(v[:n_train]).all():
             raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
@@ -640,11 +662,12 @@ class _Timeout(Exception):
     pass
 
 
-def _guarded_simplify(expr: sp.Expr, seconds: float, max_ops: int = 60) -> sp.Expr:
+def _guarded_simplify(expr: "sp.Expr", seconds: float, max_ops: int = 60) -> "sp.Expr":
     """sympy.simplify with a wall-clock limit (SIGALRM in the main thread) and a size cap.
 
     Returns ``expr`` unchanged when it is too big, time runs out, or the result is not smaller.
     """
+    import sympy as sp
     if seconds <= 0.01 or sp.count_ops(expr) > max_ops:
         return expr
     in_main = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
@@ -688,3 +711,28 @@ def _guarded_simplify(expr: sp.Expr, seconds: float, max_ops: int = 60) -> sp.Ex
 #: the estimator's parameters and their defaults, read from its signature (their one home)
 _PARAMS = {name: p.default for name, p in inspect.signature(SNGPRegressor.__init__).parameters.items()
            if p.kind is inspect.Parameter.KEYWORD_ONLY}
+
+
+def _is_sympy(obj) -> bool:
+    """Whether ``obj`` is a sympy object (without importing sympy: none exists before it is)."""
+    sympy = sys.modules.get("sympy")
+    return sympy is not None and isinstance(obj, sympy.Basic)
+
+
+def _import_symbolic_side() -> None:
+    """Import the modules of the model and its rendering (sympy, ~0.3 s) in a background thread
+    when nothing imported them yet: called as the search starts, whose kernels release the GIL,
+    so the import overlaps the search instead of adding to it. Imports only: results are the
+    same with or without it."""
+    if "sympy" in sys.modules:
+        return
+    threading.Thread(target=_import_quietly, args=(f"{__package__}.model",),
+                     name="droneid-import-sympy", daemon=True).start()
+
+
+def _import_quietly(name: str) -> None:
+    import importlib
+    try:
+        importlib.import_module(name)
+    except Exception:   # noqa: BLE001 - the main thread's own import of it reports the error
+        pass

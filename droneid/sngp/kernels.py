@@ -11,6 +11,10 @@ re-evaluated node writes into its other row and flips ``buf``; rejecting the can
 the dirtied nodes back, so nothing is ever copied per generation (the undo log is the list of
 changed links and dirtied nodes).
 
+The two long-running entry kernels (:func:`init_population`, :func:`run_chunk`) release the GIL
+(``nogil``), so another thread can work meanwhile (the estimator imports sympy for the equation
+while the search runs). nogil changes only the call wrapper, not the compiled code.
+
 ``lay`` (int64) holds the layout: see the ``L_*`` indices below.
 """
 from __future__ import annotations
@@ -787,7 +791,7 @@ def _archive_insert(ed, ec, a, b, arch_obj, arch_a, arch_b, arch_n):
     arch_n[0] = n + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def init_population(seed, op, a, b, cval, V, buf, valid, isconst, fit, lay, y, yc, syy,
                     ckind, cbound, beta, cols, obj, gram, rhs):
     """Random links for head, tail and identity nodes; evaluate everything; fit the model."""
@@ -835,7 +839,7 @@ def _is_binary(code):
     return code == ADD or code == SUB or code == MUL or code == DIV
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_chunk(seed, n_gens, identity_only, weight, op, a, b, cval, V, buf, valid, isconst, fit,
               lay, y, yc, syy, ckind, cbound, beta, cols, obj, gram, rhs,
               arch_obj, arch_a, arch_b, arch_n, stats):

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import sympy as sp
 
 __all__ = ["Operator", "OPERATORS", "HEAD_OPERATORS", "DEFAULT_FUNCTIONS", "by_name", "by_code",
            "CONST", "VAR", "IDENT"]
@@ -38,6 +37,12 @@ class Operator:
     description: str
 
 
+def _sp():
+    """sympy, imported when an equation is first built (the search itself never needs it)."""
+    import sympy
+    return sympy
+
+
 def _pdiv_np(a, b):
     with np.errstate(all="ignore"):
         return np.where(np.abs(b) > DIV_EPS, a / np.where(np.abs(b) > DIV_EPS, b, 1.0), np.nan)
@@ -49,17 +54,17 @@ OPERATORS: tuple[Operator, ...] = (
     Operator("mul", 12, 2, np.multiply, lambda a, b: a * b, 1, "a * b"),
     Operator("square", 13, 1, np.square, lambda a: a ** 2, 2, "a^2"),
     Operator("cube", 14, 1, lambda a: a * a * a, lambda a: a ** 3, 2, "a^3"),
-    Operator("sin", 15, 1, np.sin, sp.sin, 3, "sin a"),
-    Operator("cos", 16, 1, np.cos, sp.cos, 3, "cos a"),
+    Operator("sin", 15, 1, np.sin, lambda a: _sp().sin(a), 3, "sin a"),
+    Operator("cos", 16, 1, np.cos, lambda a: _sp().cos(a), 3, "cos a"),
     Operator("neg", 17, 1, np.negative, lambda a: -a, 1, "-a"),
     Operator("div", 18, 2, _pdiv_np, lambda a, b: a / b, 2,
              "a / b (invalid where |b| < 1e-12)"),
-    Operator("sqrtabs", 19, 1, lambda a: np.sqrt(np.abs(a)), lambda a: sp.sqrt(sp.Abs(a)), 3,
+    Operator("sqrtabs", 19, 1, lambda a: np.sqrt(np.abs(a)), lambda a: _sp().sqrt(_sp().Abs(a)), 3,
              "sqrt(|a|)"),
-    Operator("tan", 20, 1, np.tan, sp.tan, 3, "tan a"),
-    Operator("abs", 21, 1, np.abs, sp.Abs, 2, "|a|"),
-    Operator("exp", 22, 1, np.exp, sp.exp, 3, "exp a"),
-    Operator("tanh", 23, 1, np.tanh, sp.tanh, 3, "tanh a"),
+    Operator("tan", 20, 1, np.tan, lambda a: _sp().tan(a), 3, "tan a"),
+    Operator("abs", 21, 1, np.abs, lambda a: _sp().Abs(a), 2, "|a|"),
+    Operator("exp", 22, 1, np.exp, lambda a: _sp().exp(a), 3, "exp a"),
+    Operator("tanh", 23, 1, np.tanh, lambda a: _sp().tanh(a), 3, "tanh a"),
 )
 
 _BY_NAME = {op.name: op for op in OPERATORS}

@@ -90,3 +90,38 @@ def test_an_unknown_command_is_a_usage_error_naming_the_choices(capsys):
         main(["fitt"])
     assert exc.value.code == 2
     assert "invalid choice" in capsys.readouterr().err
+
+
+def _table(path, n=80):
+    import numpy as np
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, (n, 2))
+    y = np.sin(x[:, 0]) + 0.5 * x[:, 1]
+    np.savetxt(path, np.c_[x, y], delimiter=",", header="a,b,y", comments="")
+    return path
+
+
+def test_fit_as_a_process_writes_everything_before_it_ends_without_teardown(tmp_path):
+    """`fit` ends its process without the interpreter's teardown: its output, piped, and its
+    saved model are complete, and errors keep their exit code."""
+    table = _table(tmp_path / "t.csv")
+    model = tmp_path / "m.json"
+    r = subprocess.run([sys.executable, "-m", "droneid", "fit", str(table), "--target", "y",
+                        "--generations", "200", "--population", "60", "--save", str(model), "-q"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("y = ") and lines[-1].endswith("seed 0"), r.stdout
+    assert json.loads(model.read_text())["target"] == "y"
+    bad = subprocess.run([sys.executable, "-m", "droneid", "fit", str(tmp_path / "missing.csv"),
+                          "--target", "y"], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "missing.csv" in bad.stderr
+
+
+def test_the_engine_and_fits_pipeline_import_without_sympy():
+    """Without priors or constraints the search starts before sympy is imported (sympy is then
+    imported in a background thread while the search runs)."""
+    code = ("import sys, droneid.fit, droneid.sngp.kernels, droneid.sngp.population; "
+            "print(sorted(m for m in ('sympy', 'droneid.expressions') if m in sys.modules))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "[]", r.stdout + r.stderr
