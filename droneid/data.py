@@ -32,6 +32,9 @@ class Dataset:
         are not model inputs (e.g. ``vx`` for a ``vy_dot`` problem, ``z``, ``throttle``);
         the diagnosis uses them to test candidate effects
     notes : human-readable lines on how the data were made (Ts, differentiator, trims)
+    screened : {signal: count} of implausible samples and jumps screened out of the signals this
+        dataset uses (:mod:`droneid.screening`), summed over its flights; rows that depend on
+        them are not in the dataset
     """
     X: np.ndarray
     y: np.ndarray
@@ -42,6 +45,7 @@ class Dataset:
     sources: tuple[str, ...] = ()
     extra: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    screened: dict = field(default_factory=dict)
 
     def __post_init__(self):
         X = np.asarray(self.X, dtype=np.float64)
@@ -67,6 +71,7 @@ class Dataset:
         object.__setattr__(self, "sources", tuple(self.sources))
         object.__setattr__(self, "extra", extra)
         object.__setattr__(self, "notes", tuple(self.notes))
+        object.__setattr__(self, "screened", {str(k): int(v) for k, v in dict(self.screened).items()})
 
     def __len__(self) -> int:
         return int(self.y.size)
@@ -97,7 +102,7 @@ class Dataset:
         idx = np.asarray(mask_or_index)
         return Dataset(self.X[idx], self.y[idx], self.t[idx], self.input_names, self.target_name,
                        self.flight[idx], self.sources, {k: v[idx] for k, v in self.extra.items()},
-                       self.notes)
+                       self.notes, self.screened)
 
     def to_frame(self):
         """A pandas DataFrame: inputs, then extras, then the target, then ``t`` and ``flight``."""

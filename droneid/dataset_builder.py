@@ -46,6 +46,7 @@ from .differentiation import DIFFERENTIATORS, get_differentiator
 from .errors import ConfigError, DataError, MissingSignalError, check_choice
 from .flight import CANONICAL_SIGNALS, Flight, Signal, is_canonical
 from .frames import quat_to_euler, wrap_angle
+from .screening import screen_signal
 from .targets import TARGETS, state_of
 
 __all__ = ["DatasetBuilder", "split_time_block", "split_by_flight", "subsample",
@@ -463,9 +464,12 @@ class DatasetBuilder:
         sources = _unique_names([f.name for f in flights])
         notes = [f"grid period ts = {self.ts:g} s; target {target} by {diff!r}"]
         parts = []
+        screened: dict[str, int] = {}
         for k, f in enumerate(prepared):
-            cols, y, t, fnotes = self._build_one(f, diff, windows, source, inputs, extras,
-                                                 explicit_extras)
+            cols, y, t, fnotes, fscreened = self._build_one(f, diff, windows, source, inputs, extras,
+                                                            explicit_extras)
+            for n, c in fscreened.items():
+                screened[n] = screened.get(n, 0) + c
             notes.extend(f"{sources[k]}: {n}" for n in
                          [*(f"log: {n}" for n in f.provenance.notes), *prep_notes[k], *fnotes])
             parts.append((k, cols, y, t))
@@ -489,7 +493,7 @@ class DatasetBuilder:
         fl = np.concatenate([np.full(p[2].size, p[0]) for p in parts if p[2].size])
         extra = {n: np.concatenate([p[1][n] for p in parts if p[2].size]) for n in keep_extras}
         notes.append(f"{y.size} samples from {len(flights)} flight(s)")
-        return Dataset(X, y, t, tuple(inputs), target, fl, tuple(sources), extra, tuple(notes))
+        return Dataset(X, y, t, tuple(inputs), target, fl, tuple(sources), extra, tuple(notes), screened)
 
     def _build_one(self, f: Flight, diff, windows, source, inputs, extras, explicit_extras):
         notes: list[str] = []
@@ -514,8 +518,16 @@ class DatasetBuilder:
             elif n in _QUAT:
                 for q in _QUAT:
                     need[q] = f[q]
+        delays = dict(self.delays_s or {})
+        screened: dict[str, int] = {}
         for n, sig in need.items():
             ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]), signal_gaps(sig, self.max_gap_s))
+            sc = screen_signal(sig)          # implausible samples: holes no row may use
+            if sc.implausible:
+                d = float(delays.get(n, 0.0))  # a delayed input is read at t - d
+                ivs = _subtract(ivs, [(a + d, b + d) for a, b in sc.holes])
+                screened[n] = sc.implausible
+                notes.append(f"screened {sc.describe()}: rows that use them are left out")
             if len(sig) > 1 and sig.rate_hz < 1.0 / ts * 0.999:
                 notes.append(f"signal '{n}' is sampled at {sig.rate_hz:.3g} Hz, below the grid rate "
                              f"{1 / ts:.3g} Hz: interpolated")
@@ -550,12 +562,12 @@ class DatasetBuilder:
         used = [(float(tp[0]), float(tp[-1])) for tp in t_parts if tp.size]
         notes.append(f"used {_fmt_iv(used)}")
         if not y_parts:
-            return {}, np.empty(0), np.empty(0), notes
+            return {}, np.empty(0), np.empty(0), notes, screened
         cols = {}
         for n in dict.fromkeys([*inputs, *extras]):
             vals = [c[n] for c in cols_parts]
             cols[n] = None if any(v is None for v in vals) else np.concatenate(vals)
-        return cols, np.concatenate(y_parts), np.concatenate(t_parts), notes
+        return cols, np.concatenate(y_parts), np.concatenate(t_parts), notes, screened
 
     def _column(self, f: Flight, name: str, grid, diff, a, b):
         delay = float(dict(self.delays_s or {}).get(name, 0.0))
@@ -675,4 +687,4 @@ def subsample(ds: Dataset, n: int, seed=0) -> Dataset:
 
 def _noted(ds: Dataset, note: str) -> Dataset:
     return Dataset(ds.X, ds.y, ds.t, ds.input_names, ds.target_name, ds.flight, ds.sources,
-                   ds.extra, ds.notes + (note,))
+                   ds.extra, ds.notes + (note,), ds.screened)
