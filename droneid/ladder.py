@@ -20,15 +20,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import sympy as sp
 
 from .expressions import compile_expression
-from .numerics import lstsq, rmse
+from .numerics import rmse
+from .regression import block_bootstrap, blocked_cv, robust_fit
 
-__all__ = ["TermModel", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
+__all__ = ["TermModel", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
            "drop_negligible", "blocked_cv", "choose_delay", "trim_terms", "plausible",
            "DELAY_GRID_S", "n_blocks_for"]
 
@@ -65,22 +66,6 @@ def n_blocks_for(n: int) -> int:
     return int(np.clip(n // 150, 8, 20))
 
 
-def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray) -> np.ndarray:
-    """Held-out predictions of least squares on ``A`` (an intercept column included by the
-    caller): every block is predicted by the fit on all other blocks."""
-    pred = np.empty_like(y)
-    norms = np.sqrt((A * A).sum(axis=0))
-    norms[norms == 0] = 1.0
-    An = A / norms                       # normal equations on scaled columns: one Gram matrix,
-    G, r = An.T @ An, An.T @ y            # minus each block's share, per fold
-    for b in np.unique(blocks):
-        hold = blocks == b
-        Ah = An[hold]
-        beta, *_ = np.linalg.lstsq(G - Ah.T @ Ah, r - Ah.T @ y[hold], rcond=1e-10)
-        pred[hold] = Ah @ beta
-    return pred
-
-
 def evaluate_expr(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
     """``expr`` on data columns, broadcast to ``n`` rows (constants too); invalid values stay nan."""
     names = sorted(s.name for s in expr.free_symbols)
@@ -93,30 +78,180 @@ def evaluate_expr(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> n
 
 @dataclass(frozen=True)
 class TermModel:
-    """``y = intercept + Σ coefs[i] · terms[i]``; ``labels`` name the terms (for the report)."""
+    """``y = offset + intercept + Σ coefs[i] · terms[i]``; ``labels`` name the terms (for the
+    report). ``lo``/``hi``: each term's coefficient bounds (physics; missing = free, equal = fixed);
+    ``intercept_bounds``: the intercept's (``(0, 0)``: no intercept, e.g. free fall at zero thrust);
+    ``offset``: known physics with a fixed coefficient 1 (gravity), never fitted. :meth:`fit` is
+    the robust, bounded least squares of :func:`droneid.regression.robust_fit`."""
     terms: tuple
     labels: tuple
     coefs: tuple = ()
     intercept: float = 0.0
+    lo: tuple = ()
+    hi: tuple = ()
+    intercept_bounds: tuple = (-math.inf, math.inf)
+    offset: sp.Expr = sp.Integer(0)
+    at_bound: tuple = ()
+
+    @classmethod
+    def of(cls, features, labels=None, *, intercept_bounds=(-math.inf, math.inf),
+           offset=sp.Integer(0)) -> "TermModel":
+        """An unfitted model of prior features (:class:`priors.base.PriorFeature`, their
+        ``bounds``) or plain sympy terms (free)."""
+        feats = tuple(features)
+        terms = tuple(getattr(f, "expr", f) for f in feats)
+        labels = tuple(labels) if labels is not None else tuple(f"⟨{getattr(f, 'name', f)}⟩" for f in feats)
+        bounds = [getattr(f, "bounds", (-math.inf, math.inf)) for f in feats]
+        return cls(terms, labels, lo=tuple(b[0] for b in bounds), hi=tuple(b[1] for b in bounds),
+                   intercept_bounds=tuple(intercept_bounds), offset=sp.sympify(offset))
+
+    def extended(self, terms, labels) -> "TermModel":
+        """This model's terms (and bounds) followed by free ``terms`` (evolved ones)."""
+        k = len(self.terms)
+        lo, hi = self.bounds()
+        return TermModel(self.terms + tuple(terms), self.labels + tuple(labels),
+                         lo=tuple(lo[:k]) + (-math.inf,) * len(terms), hi=tuple(hi[:k]) + (math.inf,) * len(terms),
+                         intercept_bounds=self.intercept_bounds, offset=self.offset)
+
+    def keep(self, idx) -> "TermModel":
+        """The unfitted model of the terms ``idx`` (bounds kept)."""
+        lo, hi = self.bounds()
+        return TermModel(tuple(self.terms[i] for i in idx), tuple(self.labels[i] for i in idx),
+                         lo=tuple(lo[i] for i in idx), hi=tuple(hi[i] for i in idx),
+                         intercept_bounds=self.intercept_bounds, offset=self.offset)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of every coefficient, the intercept last."""
+        k = len(self.terms)
+        lo = np.array([*(self.lo or ()), *([-math.inf] * (k - len(self.lo or ())))], float)
+        hi = np.array([*(self.hi or ()), *([math.inf] * (k - len(self.hi or ())))], float)
+        return np.append(lo, self.intercept_bounds[0]), np.append(hi, self.intercept_bounds[1])
 
     def design(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         """(n, k+1): one column per term, then ones."""
         cols = [evaluate_expr(t, columns, n) for t in self.terms]
         return np.column_stack([*cols, np.ones(n)]) if cols else np.ones((n, 1))
 
+    def _offset(self, columns, n) -> np.ndarray:
+        return evaluate_expr(self.offset, columns, n)
+
     def fit(self, columns: Mapping[str, np.ndarray], y: np.ndarray) -> "TermModel":
-        beta = lstsq(self.design(columns, y.size), y)
-        return TermModel(self.terms, self.labels, tuple(float(b) for b in beta[:-1]), float(beta[-1]))
+        lo, hi = self.bounds()
+        f = robust_fit(self.design(columns, y.size), y - self._offset(columns, y.size), lo, hi)
+        beta = f.beta
+        return replace(self, coefs=tuple(float(b) for b in beta[:-1]), intercept=float(beta[-1]),
+                       at_bound=tuple(bool(a) for a in f.at_bound[:-1]))
 
     def predict(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-        return self.design(columns, n) @ np.array([*self.coefs, self.intercept])
+        return self.design(columns, n) @ np.array([*self.coefs, self.intercept]) + self._offset(columns, n)
+
+    def cv_predictions(self, columns, y, blocks) -> np.ndarray:
+        """Held-out predictions of the training rows (blocked CV, robust and bounded)."""
+        lo, hi = self.bounds()
+        off = self._offset(columns, y.size)
+        return blocked_cv(self.design(columns, y.size), y - off, blocks, lo, hi) + off
 
     def cv_rmse(self, columns, y, blocks) -> float:
-        return rmse(blocked_cv(self.design(columns, y.size), y, blocks), y)
+        return rmse(self.cv_predictions(columns, y, blocks), y)
+
+    def intervals(self, columns, y, blocks, *, seed: int = 0) -> dict[str, tuple[float, float]]:
+        """{label: (low, high)}: 95 % block-bootstrap interval of each coefficient ("intercept"
+        too, unless it is fixed), :func:`droneid.regression.block_bootstrap` over ``blocks``."""
+        lo, hi = self.bounds()
+        A = self.design(columns, y.size)
+        yy = y - self._offset(columns, y.size)
+        iv = block_bootstrap(A, yy, blocks, robust_fit(A, yy, lo, hi), lo, hi, seed=seed)
+        out = {lab: (float(a), float(b)) for lab, (a, b) in zip(self.labels, iv[:-1])}
+        if lo[-1] != hi[-1]:
+            out["intercept"] = (float(iv[-1, 0]), float(iv[-1, 1]))
+        return out
 
     def expr(self) -> sp.Expr:
         """The fitted model as one sympy expression."""
-        return sp.Float(self.intercept) + sp.Add(*[sp.Float(c) * t for c, t in zip(self.coefs, self.terms)])
+        return self.offset + sp.Float(self.intercept) + sp.Add(*[sp.Float(c) * t for c, t in zip(self.coefs, self.terms)])
+
+
+#: a physical coefficient whose 95 % interval is wider than ± this fraction of max(|value|, its
+#: nominal 1) is not identifiable from the flights: it is held at its nominal value
+IDENTIFIABLE_REL = 0.5
+#: a physical term whose column has a variance inflation factor above this is collinear with
+#: the others (the data cannot separate them): it is held at its nominal value
+VIF_LIMIT = 100.0
+
+
+@dataclass(frozen=True)
+class PhysicalFit:
+    """A fitted model with its evidence: ``model`` (fitted), ``intervals`` {label: (low, high)}
+    (95 %, block bootstrap), ``held`` {label: value} (not identifiable, held at the nominal
+    value), ``at_bound`` {label: bound} (the data pull the coefficient outside its physical
+    range: it sits on the bound), ``notes`` (one line per held or bounded coefficient)."""
+    model: TermModel
+    intervals: dict
+    held: dict
+    at_bound: dict
+    notes: tuple = ()
+
+
+def _vif(A: np.ndarray, j: int, with_intercept: bool) -> float:
+    others = np.delete(A, j, axis=1)
+    if not with_intercept:
+        others = others[:, :-1]
+    c = A[:, j]
+    if others.shape[1] == 0 or not np.std(c) > 0:
+        return 1.0
+    beta = np.linalg.lstsq(others, c, rcond=None)[0]
+    res = c - others @ beta
+    ss = float(np.sum((c - (c.mean() if with_intercept else 0.0)) ** 2))
+    r2 = 1.0 - float(np.sum(res * res)) / ss if ss > 0 else 0.0
+    return math.inf if r2 >= 1.0 else 1.0 / (1.0 - r2)
+
+
+def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physical: int | None = None
+                 ) -> PhysicalFit:
+    """Fit ``model`` (robust, bounded), give every coefficient its 95 % block-bootstrap interval
+    (``blocks``: time blocks of the training flights), and hold at its nominal value 1 each of the
+    first ``n_physical`` terms (default: every term with a physical bound) that the data cannot pin
+    down: interval wider than ±:data:`IDENTIFIABLE_REL` of max(|value|, 1), or collinear (VIF >
+    :data:`VIF_LIMIT`). Evolved and effect terms (free) are reported, never held."""
+    lo, hi = model.bounds()
+    k = len(model.terms)
+    phys = [i for i in range(k if n_physical is None else n_physical)
+            if (np.isfinite(lo[i]) or np.isfinite(hi[i])) and lo[i] != hi[i]]
+    fitted = model.fit(columns, y)
+    iv = fitted.intervals(columns, y, blocks, seed=seed)
+    A = model.design(columns, y.size)
+    free_int = lo[-1] != hi[-1]
+    held, notes = {}, []
+    for i in phys:
+        lab = model.labels[i]
+        a, b = iv[lab]
+        half = (b - a) / 2
+        vif = _vif(A, i, free_int)
+        if half > IDENTIFIABLE_REL * max(abs(fitted.coefs[i]), 1.0) or vif > VIF_LIMIT:
+            nominal = float(np.clip(1.0, lo[i], hi[i]))
+            held[lab] = nominal
+            why = (f"collinear with the other terms (VIF {vif:.3g} > {VIF_LIMIT:g})" if vif > VIF_LIMIT else
+                   f"its 95 % interval [{a:.3g}, {b:.3g}] is wider than ±{100 * IDENTIFIABLE_REL:.0f} %")
+            notes.append(f"{lab} is not identifiable from these flights ({why}): held at its nominal "
+                         f"value {nominal:g}")
+    if held:
+        lo2, hi2 = list(model.lo or [-math.inf] * k), list(model.hi or [math.inf] * k)
+        lo2 += [-math.inf] * (k - len(lo2))
+        hi2 += [math.inf] * (k - len(hi2))
+        for i, lab in enumerate(model.labels):
+            if lab in held:
+                lo2[i] = hi2[i] = held[lab]
+        model = replace(model, lo=tuple(lo2), hi=tuple(hi2))
+        fitted = model.fit(columns, y)
+        iv = fitted.intervals(columns, y, blocks, seed=seed)
+    at_bound = {}
+    for i, lab in enumerate(model.labels):
+        if i < len(fitted.at_bound) and fitted.at_bound[i] and lab not in held:
+            c = fitted.coefs[i]
+            at_bound[lab] = c
+            notes.append(f"{lab} sits on its physical bound {c:g}: the data pull it outside "
+                         f"[{lo[i]:g}, {hi[i]:g}] (e.g. negative drag); the bound holds")
+    return PhysicalFit(fitted, iv, held, at_bound, tuple(notes))
 
 
 def choose_delay(cv_error: Callable[[float], float], grid: Sequence[float] = DELAY_GRID_S,
@@ -187,13 +322,11 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
             notes.append(f"dropped {model.labels[i]}: " + (why or f"duplicates {model.labels[dup]}"))
 
     def cv(idx):
-        A = np.column_stack([*(cols[i] for i in idx), np.ones(n)])
-        return rmse(blocked_cv(A, y, blocks), y)
+        return model.keep(idx).cv_rmse(columns, y, blocks)
 
     def cancellation(idx):
         """Σ|b_i|·std(col_i) over the spread of their sum: ≫ 1 when terms cancel each other."""
-        A = np.column_stack([*(cols[i] for i in idx), np.ones(n)])
-        beta = lstsq(A, y)[:-1]
+        beta = model.keep(idx).fit(columns, y).coefs
         parts = [b * cols[i] for b, i in zip(beta, idx)]
         spread = float(np.std(np.sum(parts, axis=0)))
         return {i: abs(b) * float(np.std(cols[i])) for b, i in zip(beta, idx)}, spread
@@ -229,8 +362,7 @@ def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: fl
             cur = trials[i]
         else:
             break
-    trimmed = TermModel(tuple(model.terms[i] for i in keep), tuple(model.labels[i] for i in keep))
-    return trimmed.fit(columns, y), notes
+    return model.keep(keep).fit(columns, y), notes
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
 from .targets import targets_for
 
 __all__ = ["Plan", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
-           "thrust_signals", "split_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
+           "thrust_signals", "split_terms", "prior_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
 PAPER_PRIOR = "tilt-drag"
@@ -84,8 +84,16 @@ def dataset_builder(cfg, delays=None):
 
 
 def split_terms(prior, target: str) -> tuple:
-    """The prior's terms as separate features, without constant ones (the intercept holds them)."""
+    """The prior's terms as separate features, without constant ones (the intercept holds them,
+    or the prior's fixed offset when the constant is known physics: gravity)."""
     return tuple(f for f in prior.features(target) if f.expr.free_symbols)
+
+
+def prior_terms(prior, target: str, features: Sequence | None = None) -> TermModel:
+    """The unfitted refit model of ``target``: the prior's terms (or ``features``: its terms and
+    effects) with their physical bounds, its fixed offset (gravity) and its intercept bounds."""
+    feats = split_terms(prior, target) if features is None else tuple(features)
+    return TermModel.of(feats, intercept_bounds=prior.intercept_bounds(target), offset=prior.offset(target))
 
 
 def fixed_plan(cfg, targets: Sequence[str] | None = None) -> Plan:
@@ -117,7 +125,7 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
             for t in targets:
                 ds = train_rows(dataset_builder(cfg, {s: d for s in thrust}).build(
                     list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-                tm = TermModel(tuple(f.expr for f in split_terms(prior, t)), ())
+                tm = prior_terms(prior, t)
                 blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
                 e = tm.cv_rmse(ds.columns(), ds.y, blocks)
                 base = cache.setdefault(t, e)  # d = 0 comes first: errors relative to no delay

@@ -16,7 +16,7 @@ import sympy as sp
 from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
 from droneid.expressions import compile_expression
 
-__all__ = ["PriorFeature", "PriorModel", "ROLES", "VEHICLE_KINDS", "check_param"]
+__all__ = ["PriorFeature", "PriorModel", "ROLES", "ROLE_BOUNDS", "VEHICLE_KINDS", "check_param"]
 
 #: what a prior's ``vehicle`` may say (the data-fitness check knows multirotor and fixed-wing)
 VEHICLE_KINDS = ("multirotor", "fixed-wing", "ground", "any")
@@ -29,17 +29,34 @@ _MAX_ABS = 1e12
 #: What a prior term stands for physically; effects and the identify pipeline read it.
 ROLES = ("tilt", "thrust", "drag", "gravity", "kinematic", "other")
 
+#: The physical range of a term's fitted coefficient, by role. Every prior term is written at its
+#: nominal scale, so the coefficient is a relative scale (1 = nominal): a thrust or tilt (thrust
+#: direction) scale is positive, a drag term (written as −k v) has a coefficient >= 0 (drag never
+#: pushes), gravity is known physics (fixed at 1, never fitted); other terms are free. A feature's
+#: own ``bounds`` override its role's.
+ROLE_BOUNDS = MappingProxyType({
+    "tilt": (0.0, np.inf), "thrust": (0.0, np.inf), "drag": (0.0, np.inf), "gravity": (1.0, 1.0),
+    "kinematic": (-np.inf, np.inf), "other": (-np.inf, np.inf)})
+
 
 @dataclass(frozen=True)
 class PriorFeature:
     """One prior feature: ``name`` (an identifier), ``expr`` (sympy over signal symbols),
     ``description`` (what it means) and ``role`` (one of :data:`ROLES`: ``tilt`` = the thrust
     direction at hover balance (tilt-drag), ``thrust`` = logged thrust along the body z axis,
-    ``drag``, ``gravity`` (a constant), ``kinematic``, ``other``)."""
+    ``drag``, ``gravity`` (a constant), ``kinematic``, ``other``). ``limits``: the physical
+    (low, high) range of its fitted coefficient when it differs from its role's
+    (:data:`ROLE_BOUNDS`)."""
     name: str
     expr: sp.Expr
     description: str = ""
     role: str = "other"
+    limits: tuple[float, float] | None = None
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """The physical (low, high) range of this term's fitted coefficient (low == high: fixed)."""
+        return tuple(self.limits) if self.limits is not None else ROLE_BOUNDS.get(self.role, (-np.inf, np.inf))
 
     @property
     def signals(self) -> tuple[str, ...]:
@@ -57,6 +74,9 @@ class PriorModel:
     vehicle : the kind of vehicle the model describes, one of :data:`VEHICLE_KINDS`
     constraints : its constraint set: a built-in set's name (:func:`priors.constraints.get_constraints`,
         ``rotor-thrust``: built from the data's thrust span) or the path of a constraints TOML
+    intercept : mapping target -> (low, high) of the free constant a refit may add (m/s² for
+        v̇); missing targets: free. ``(0, 0)``: none (a model whose constant is known physics,
+        e.g. free fall at zero thrust)
     """
     name: str
     description: str
@@ -65,12 +85,24 @@ class PriorModel:
     params: Mapping[str, float] = field(default_factory=dict)
     vehicle: str = "any"
     constraints: str = "paper"
+    intercept: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self):
         object.__setattr__(self, "terms", MappingProxyType({k: tuple(v) for k, v in self.terms.items()}))
         object.__setattr__(self, "input_names",
                            MappingProxyType({k: tuple(v) for k, v in self.input_names.items()}))
         object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
+        object.__setattr__(self, "intercept", MappingProxyType({k: tuple(v) for k, v in self.intercept.items()}))
+
+    def intercept_bounds(self, target: str) -> tuple[float, float]:
+        """(low, high) of the constant a refit of ``target`` may add."""
+        return tuple(self.intercept.get(target, (-np.inf, np.inf)))
+
+    def offset(self, target: str) -> sp.Expr:
+        """The known physics of ``target`` that no fit touches: the sum of its constant terms
+        whose coefficient is fixed (gravity); 0 when there are none."""
+        return sp.Add(*[t.expr for t in self._terms(target)
+                        if not t.expr.free_symbols and t.bounds[0] == t.bounds[1]]) * 1
 
     @property
     def targets(self) -> tuple[str, ...]:

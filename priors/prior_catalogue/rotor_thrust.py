@@ -61,7 +61,9 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         f"full attitude, minus gravity, minus linear drag k_D v.",
         terms, inputs, {"source": source, "motors": motors, "k_T": k_T, "k_D": k_D, "g": g,
                         "rotor_drag": rotor_drag},
-        vehicle="multirotor", constraints="rotor-thrust")
+        vehicle="multirotor", constraints="rotor-thrust",
+        # free fall at zero thrust: gravity is the only constant (known, fixed), no free one
+        intercept={t: (0.0, 0.0) for t in terms})
 
 
 FACTORY = rotor_thrust
