@@ -44,8 +44,8 @@ from .expressions import compile_expression, symbol
 from .fitness import check_prior_data
 from .identified import IdentifiedModel
 from .io_util import to_jsonable
-from .ladder import (TermModel, drag_slope, drop_negligible, evaluate_expr, plausible, trim_terms,
-                     validation_blocks)
+from .ladder import (TermModel, block_ids, drag_slope, drop_negligible, evaluate_expr, n_blocks_for,
+                     physical_fit, plausible, trim_terms, validation_blocks)
 from .numerics import finite_median, rmse, to_float
 from .rollout import horizon_section
 from .sngp import SNGPRegressor
@@ -53,10 +53,10 @@ from .sngp.model import SymbolicModel, round_expr, to_text
 from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
 from .targets import HORIZONTAL, TARGETS, targets_for, velocity_of
-from .plan import (Plan, dataset_builder, fixed_plan, holdout_cuts, plan_identification, resolve_plan_prior,
-                   split_terms, thrust_signals, train_rows)
+from .plan import (Plan, dataset_builder, fixed_plan, holdout_cuts, plan_identification, prior_terms,
+                   resolve_plan_prior, split_terms, thrust_signals, train_rows)
 
-__all__ = ["IdentifyConfig", "TargetProblem", "RunJob", "RunRecord", "TargetResult", "IdentificationResult",
+__all__ = ["IdentifyConfig", "Verdict", "VERDICT_KINDS", "TargetProblem", "RunJob", "RunRecord", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
            "run_seeds", "PAPER_BUDGET", "QUICK_BUDGET", "SCHEMA"]
 
@@ -445,17 +445,23 @@ def _ec(pred_cs, cs) -> float:
 
 def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, *,
          blocks=None, fitted: bool = True, terms: dict | None = None, delays=None) -> dict:
-    """One rung of the ladder: a model (IdentifiedModel or fitted TermModel) measured on the
-    training rows (train; validation = blocked CV of the same terms refit without each block, or
-    the training error for a model with nothing fitted), the test rows and the constraints."""
+    """One rung of the ladder: a model (IdentifiedModel, or a TermModel: fitted here, robust and
+    bounded, with 95 % block-bootstrap intervals and unidentifiable physical coefficients held at
+    their nominal value, :func:`droneid.ladder.physical_fit`) measured on the training rows
+    (train; validation = blocked CV of the same terms refit without each block, or the training
+    error for a model with nothing fitted), the test rows and the constraints."""
     tr_cols, te_cols = train.columns(), test.columns()
+    evidence = None
     if isinstance(model, TermModel):
+        evidence = physical_fit(model, tr_cols, train.y, bootstrap_blocks(train))
+        model = evidence.model
         p_tr, p_te = model.predict(tr_cols, len(train)), model.predict(te_cols, len(test))
         val = model.cv_rmse(tr_cols, train.y, blocks) if fitted and blocks is not None else rmse(p_tr, train.y)
         p_cs = model.predict(_cs_columns(cs), len(cs)) if cs is not None else None
         final = IdentifiedModel(train.target_name, model.expr(), dict(delays or {}), description)
         terms = terms if terms is not None else {lab: c for lab, c in zip(model.labels, model.coefs)}
-        intercept = model.intercept
+        # the equation's constant: the fitted intercept plus the known physics no fit touches (gravity)
+        intercept = model.intercept + (float(model.offset) if model.offset.is_number else 0.0)
     else:
         final = model
         p_tr, p_te = model.evaluate(tr_cols), model.evaluate(te_cols)
@@ -466,7 +472,25 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
             "rmse_validation": val, "rmse_test": rmse(p_te, test.y),
             "constraint_rmse_test": _ec(p_cs, cs) if p_cs is not None else float("nan"),
             "terms": dict(terms or {}), "intercept": intercept, "model": final.to_dict(),
+            "intervals": {k: list(v) for k, v in evidence.intervals.items()} if evidence else {},
+            "held": dict(evidence.held) if evidence else {},
+            "at_bound": dict(evidence.at_bound) if evidence else {},
+            "evidence": list(evidence.notes) if evidence else [],
             "pred_test": p_te}
+
+
+def bootstrap_blocks(ds: Dataset) -> np.ndarray:
+    """The time blocks the intervals resample: :func:`droneid.ladder.n_blocks_for` contiguous
+    blocks per training flight (~150 samples each)."""
+    return block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
+
+
+def _physical_model(p: TargetProblem, features) -> TermModel:
+    """The unfitted physical model of ``p`` over ``features`` (prior terms and effects): bounds,
+    gravity and intercept bounds as the prior declares them."""
+    if p.plan is None:
+        return TermModel.of(features)
+    return prior_terms(p.plan.prior, p.target, features)
 
 
 def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
@@ -482,29 +506,25 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
     ladder = [rung("empirical", emp.description, emp, p.train, p.test, cs, fitted=False)]
     base = p.priors3[:p.n_base]
     prior_name = getattr(plan.prior, "name", "prior") if plan else "prior"
-    tm = TermModel(tuple(f.expr for f in base), tuple(f"⟨{f.name}⟩" for f in base))
+    tm = _physical_model(p, base)
     if plan is not None and plan.delays_s and undelayed is not None:
         tr0, te0 = undelayed
         b0, _ = validation_blocks(tr0.t, tr0.flight)
-        ladder.append(rung("refit", f"{prior_name} prior, least-squares refit", tm.fit(tr0.columns(), tr0.y),
-                           tr0, te0, cs, blocks=b0))
+        ladder.append(rung("refit", f"{prior_name} prior, robust refit", tm, tr0, te0, cs, blocks=b0))
         d = next(iter(plan.delays_s.values()))
         ladder.append(rung("delay", f"+ thrust inputs delayed by {1000 * d:.0f} ms",
-                           tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
-                           delays=plan.delays_s))
+                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
     else:
-        ladder.append(rung("refit", f"{prior_name} prior, least-squares refit",
-                           tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
-                           delays=plan.delays_s if plan else None))
+        ladder.append(rung("refit", f"{prior_name} prior, robust refit",
+                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s if plan else None))
     for e in (plan.effects if plan else ()):
         feats = e["features"].get(p.target, ())
         if not feats:
             continue
         base = base + tuple(feats)
-        tm = TermModel(tuple(f.expr for f in base), tuple(f"⟨{f.name}⟩" for f in base))
+        tm = _physical_model(p, base)
         ladder.append(rung(f"effect:{e['effect']}", f"+ {e['effect']} ({e['physical']})",
-                           tm.fit(p.train.columns(), p.train.y), p.train, p.test, cs, blocks=p.blocks,
-                           delays=plan.delays_s))
+                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
     p.ladder = ladder
     lift = _fitted_thrust(p, ladder[-1]["terms"])
     if lift is not None and not lift > 0:
@@ -724,6 +744,9 @@ class TargetResult:
     refit_model: dict | None = None      # the prior's least-squares refit (IdentifiedModel.to_dict())
     verdict: str = ""               # one sentence, first thing a user reads
     guards: dict = field(default_factory=dict)   # runs rejected as implausible, terms dropped, bound
+    intervals: dict = field(default_factory=dict)  # {coefficient: [low, high]}: the final model's 95 % intervals
+    verdict_kind: str = ""          # better / no better / worse / not to be trusted / no verdict
+    screened: dict = field(default_factory=dict)  # {"training"|"test": {signal: implausible samples}}
 
 
 _LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
@@ -803,8 +826,8 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     phys = p.ladder[-1]
     delays = p.plan.delays_s if p.plan else {}
     cols, y = p.train.columns(), p.train.y
-    base = tuple(f.expr for f in p.priors3)
-    labels = tuple(f"⟨{f.name}⟩" for f in p.priors3)
+    phys_model = _physical_model(p, p.priors3)
+    base = phys_model.terms
     bound = 2.0 * float(np.max(np.abs(y))) + 9.81
     ranges = {n: (float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i])))
               for i, n in enumerate(p.train.input_names)}
@@ -815,7 +838,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     if cset is not None:  # a training draw of constraint samples (not the e_c^test draw)
         cs_sel = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
                              seed=run_seeds(cfg.seed + 1, 0)[0])
-        phys_tm = TermModel(base, labels).fit(cols, y)
+        phys_tm = phys_model.fit(cols, y)
         ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
         ec_limit = max(cfg.gamma, 1.1 * ec_phys)
         guards["constraint_limit"] = ec_limit
@@ -825,7 +848,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
         pick = np.random.default_rng(cfg.seed).choice(len(p.train), size=min(50, len(p.train)), replace=False)
         rows = {n: p.train.X[pick, j] for j, n in enumerate(p.train.input_names)}
         v_max = 1.2 * float(np.max(np.abs(cols[vel])))
-        phys_slope = drag_slope(TermModel(base, labels).fit(cols, y).expr(), vel, rows, v_max)
+        phys_slope = drag_slope(phys_model.fit(cols, y).expr(), vel, rows, v_max)
         slope_limit = max(phys_slope, 0.0) + 0.05
         guards["drag_slope_limit"] = slope_limit
     guards["drag_not_monotone"] = 0
@@ -845,8 +868,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
             continue
         shown = [display_term(to_text(round_expr(t, 4)), {k: m.prior_labels.get(k, k) for k in m.priors})
                  for t in raw]
-        tm = TermModel(base + tuple(evolved),
-                       labels + tuple(("-" if neg else "") + txt for txt, neg in shown))
+        tm = phys_model.extended(evolved, tuple(("-" if neg else "") + txt for txt, neg in shown))
         sizes = [0] * len(base) + [int(sp.count_ops(t)) for t in raw]
         trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base), sizes=sizes)
         guards["dropped"].extend(f"run {i + 1}: {n}" for n in notes)
@@ -890,34 +912,77 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     return final, guards
 
 
+#: what a verdict says, and the colour the report gives it
+VERDICT_KINDS = {"better": "green", "no better": "grey", "worse": "red", "not to be trusted": "amber",
+                 "no verdict": "grey"}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One sentence a user reads first, and its kind (a key of :data:`VERDICT_KINDS`)."""
+    kind: str
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def _physics_problems(final: dict, reference: dict | None, gamma: float) -> list[str]:
+    """What makes a model untrustworthy as physics: coefficients the data pull outside their
+    physical bounds, and a constraint error above γ that the prior's own refit does not explain."""
+    out = [f"{k.strip('⟨⟩')} is pulled outside its physical range (held at {v:.3g})"
+           for k, v in (final.get("at_bound") or {}).items()]
+    ec = to_float(final.get("constraint_rmse_test"))
+    ref = to_float((reference or {}).get("constraint_rmse_test"))
+    if math.isfinite(ec) and ec > gamma and not (math.isfinite(ref) and ec <= 1.1 * ref):
+        out.append(f"it breaks the prior's constraints (e_c = {ec:.3g} > γ = {gamma:g})")
+    return out
+
+
 def verdict(target: str, final: dict, empirical: dict, evolved: bool, holdout: bool,
-            y_spread: float = math.inf) -> str:
-    """One sentence: how the final model compares with the empirical model as given, on the test
-    data (or, without any, on the training flights' validation blocks). A target that barely
-    varies, or an error that cannot be measured, gives no verdict (never a "+100 %")."""
+            y_spread: float = math.inf, *, reference: dict | None = None, gamma: float = math.inf) -> Verdict:
+    """How the final model compares with the empirical model as given, on the test data (or,
+    without any, on the training flights' validation blocks), with the absolute errors and the
+    target's standard deviation. "better" needs all of: better in validation, every physical
+    coefficient inside its bounds, e_c within γ (or no worse than the prior's own refit,
+    ``reference``); otherwise the verdict says what is wrong and that the model is not to be
+    trusted. A target that barely varies, or an error that cannot be measured, gives no verdict
+    (never a "+100 %")."""
     te, ee = final["rmse_test"], empirical["rmse_test"]
     va, ev = final["rmse_validation"], empirical["rmse_validation"]
     has_test = math.isfinite(te) and math.isfinite(ee)
     where = ("on the held-out block" if holdout else "on the test flights") if has_test else \
         "on validation blocks of the training flights (no test data)"
     if not y_spread > 1e-3:
-        return (f"{target}: no verdict: the measured {target} barely varies (spread {y_spread:.2g}); "
-                f"these data cannot tell models apart")
+        return Verdict("no verdict", f"{target}: no verdict: the measured {target} barely varies (spread "
+                       f"{y_spread:.2g}); these data cannot tell models apart")
     a, b = (te, ee) if has_test else (va, ev)
     if not (math.isfinite(a) and math.isfinite(b)) or b <= 0:
-        return f"{target}: no verdict: the errors could not be measured"
+        return Verdict("no verdict", f"{target}: no verdict: the errors could not be measured")
     gain, vgain = improvement_pct(b, a), improvement_pct(ev, va)
     what = "identified model (with evolved terms)" if evolved else \
         "physical model (prior + effects; no evolved term survived validation)"
-    extra = f" (validation {vgain:+.0f} %)" if has_test else ""
+    sd = f"σ({target}) {y_spread:.3g}" if math.isfinite(y_spread) else ""
+    errs = f"RMSE {a:.3g} vs {b:.3g} m/s²" + (f", {sd}" if sd else "")
+    extra = f"; validation {vgain:+.0f} %" if has_test else ""
+    problems = _physics_problems(final, reference, gamma)
+    if problems:
+        return Verdict("not to be trusted",
+                       f"{target}: the {what} is NOT TO BE TRUSTED: " + "; ".join(problems)
+                       + f" ({gain:+.0f} % vs the empirical model {where}: {errs}{extra}); keep the empirical model")
+    if gain >= 5 and (not has_test or vgain >= 5):
+        return Verdict("better", f"{target}: the {what} beats the empirical model by {gain:.0f} % {where} "
+                                 f"({errs}{extra})")
     if gain >= 5:
-        return f"{target}: the {what} beats the empirical model by {gain:.0f} % {where}{extra}"
+        return Verdict("no better", f"{target}: the {what} is better {where} ({gain:+.0f} %: {errs}) but not "
+                                    f"in validation on the training flights ({vgain:+.0f} %): keep the empirical model")
     if gain > -5:
-        return f"{target}: the {what} is no better than the empirical model {where} ({gain:+.0f} %): keep the empirical model"
+        return Verdict("no better", f"{target}: the {what} is no better than the empirical model {where} "
+                                    f"({gain:+.0f} %: {errs}): keep the empirical model")
     why = ("the training flights do not represent the test flights" if has_test else
            "its fitted terms do not hold across the validation blocks")
-    return (f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %){extra}: "
-            f"{why}; keep the empirical model")
+    return Verdict("worse", f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %: "
+                            f"{errs}{extra}): {why}; keep the empirical model")
 
 
 def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRecord | None],
@@ -970,7 +1035,11 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
     series["identified"] = pred.tolist()
     series["sources"] = list(p.test.sources)
     ladder = [{k: v for k, v in r.items() if k != "pred_test"} for r in [*p.ladder, *([final] if final else [])]]
+    if final is not None:
+        notes.extend(final.get("evidence", ()))
     evolved = bool(final and guards.get("chosen_run") is not None)
+    vd = verdict(p.target, final, p.ladder[0], evolved, p.holdout, float(np.std(p.train.y)),
+                 reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma) if final else None
     equation = None
     if final is not None:
         parts = []
@@ -979,15 +1048,14 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
             if lead:  # 1.085e-10·4*roll**2 -> 4.34e-10·roll**2
                 c, lab = c * float(lead.group(1)), lab[lead.end():]
             parts.append(f"{c:+.4g}·{lab}")
-        if final.get("intercept") is not None:
+        if final.get("intercept") is not None and final["intercept"] != 0:
             parts.append(f"{final['intercept']:+.4g}")
         equation = f"{p.target} = " + " ".join(parts).lstrip("+")
     return TargetResult(
         ladder=ladder, final=final["model"] if final else None,
         empirical_model=p.ladder[0]["model"] if p.ladder else None,
         refit_model=p.ladder[1]["model"] if len(p.ladder) > 1 else None,
-        verdict=verdict(p.target, final, p.ladder[0], evolved, p.holdout, float(np.std(p.train.y)))
-        if final else "",
+        verdict=str(vd) if vd else "", verdict_kind=vd.kind if vd else "",
         guards=guards,
         target=p.target, inputs=list(p.train.input_names), n_train=len(p.train), n_test=len(p.test),
         test_data=p.test_description, holdout=p.holdout, prior_features=_feature_dicts(feats),
@@ -1005,7 +1073,9 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         empirical=dict(p.empirical), empirical_refit=dict(p.empirical_refit), improvement_pct=imp,
         runs=[r.summary() for r in done],
         best_run=best_i, failed_runs={str(k): v for k, v in (errors or {}).items()},
-        model=best.model if best else None, test_series=series, notes=notes)
+        model=best.model if best else None, test_series=series, notes=notes,
+        intervals={k.strip("⟨⟩"): v for k, v in (final or {}).get("intervals", {}).items()},
+        screened={"training": dict(p.train.screened), "test": dict(p.test.screened)})
 
 
 # ------------------------------------------------------------------------------------------------

@@ -32,6 +32,10 @@ from ..numerics import to_float
 __all__ = ["Document", "new_figure", "png_bytes", "fmt", "efmt", "text_table", "md_escape",
            "write_report_set", "break_gaps"]
 
+#: verdict box colours: (background, border) per verdict colour
+_VERDICT_CSS = {"green": ("#eef5ee", "#2a7"), "grey": ("#f2f2f2", "#888"), "red": ("#fbeaea", "#c33"),
+                "amber": ("#fff4dd", "#e90")}
+
 
 #: characters that Markdown may read as syntax anywhere in a line
 _MD_INLINE = re.compile(r"([\\`*\[\]|!])|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
@@ -141,9 +145,11 @@ class Document:
         self.blocks.append(("p", text))
         return self
 
-    def verdict(self, text: str) -> "Document":
-        """A prominent one-sentence conclusion (bold, in a box in HTML)."""
-        self.blocks.append(("verdict", text))
+    def verdict(self, text: str, colour: str = "grey") -> "Document":
+        """A prominent one-sentence conclusion (bold, in a box in HTML, coloured by what it says:
+        ``green`` better, ``grey`` no better or no verdict, ``red`` worse, ``amber`` not to be
+        trusted)."""
+        self.blocks.append(("verdict", text, colour if colour in _VERDICT_CSS else "grey"))
         return self
 
     def side_by_side(self, *items) -> "Document":
@@ -190,7 +196,8 @@ class Document:
             elif b[0] == "p":
                 out += [esc(b[1]), ""]
             elif b[0] == "verdict":
-                out += [f"**{esc(b[1])}**", ""]
+                mark = {"green": "✅", "amber": "⚠️", "red": "❌"}.get(b[2], "➖")
+                out += [f"{mark} **{esc(b[1])}**", ""]
             elif b[0] == "row":
                 for f in b[1]:
                     out += [f"![{esc(f.caption or f.name)}]({quote(f.name)}.png)", ""]
@@ -224,8 +231,8 @@ class Document:
                "img{max-width:100%;height:auto}figure{margin:1em 0;min-width:0}"
                ".row{display:flex;flex-wrap:wrap;gap:1em;align-items:flex-start}"
                ".row figure{flex:1 1 26em;max-width:100%}"
-               ".verdict{font-size:120%;font-weight:bold;background:#eef5ee;border-left:.3em solid #2a7;"
-               "padding:.5em .8em}"
+               ".verdict{font-size:120%;font-weight:bold;padding:.5em .8em;border-left:.3em solid}"
+               + "".join(f".verdict.{k}{{background:{bg};border-left-color:{fg}}}" for k, (bg, fg) in _VERDICT_CSS.items()) +
                "figcaption{color:#555;font-size:90%}</style></head><body>", f"<h1>{e(self.title)}</h1>"]
         img = lambda f: (f"<figure><img alt='{e(f.name)}' src='data:image/png;base64,"  # noqa: E731
                          f"{base64.b64encode(f.png).decode('ascii')}'><figcaption>{e(f.caption)}</figcaption></figure>")
@@ -235,7 +242,7 @@ class Document:
             elif b[0] == "p":
                 out.append(f"<p>{e(b[1])}</p>")
             elif b[0] == "verdict":
-                out.append(f"<p class='verdict'>{e(b[1])}</p>")
+                out.append(f"<p class='verdict {b[2]}'>{e(b[1])}</p>")
             elif b[0] == "row":
                 out.append("<div class='row'>" + "".join(img(f) for f in b[1]) + "</div>")
             elif b[0] == "code":

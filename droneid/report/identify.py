@@ -15,9 +15,10 @@ import sympy as sp
 
 from ..errors import ConfigError
 from ..expressions import parse_expression
-from ..identify import round_floats
+from ..identify import VERDICT_KINDS, round_floats
 from .rollout import horizon_figures
 from ..numerics import to_float
+from ..regression import LOSS
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table
 
 __all__ = ["error_rows", "text", "document", "write", "pareto_front", "compact",
@@ -39,7 +40,7 @@ def ladder_rows(tr: dict) -> list[list[str]]:
 def method_line(cfg: dict) -> str:
     """How the errors were measured (printed with every error table)."""
     return (f"errors in m/s² (RMSE); targets by {cfg.get('method')} differences at Ts = {cfg.get('ts')} s; "
-            f"validation = least-squares refit of the same terms, {cfg.get('validation') or 'blocked CV'} "
+            f"fits and validation: {LOSS} refit of the same terms, {cfg.get('validation') or 'blocked CV'} "
             f"(training flights only); e_c = constraint RMSE")
 
 
@@ -53,6 +54,29 @@ def error_rows(tr: dict) -> list[list[str]]:
             row("empirical model refit (LS)", tr.get("empirical_refit")),
             row("identified, best run", tr.get("identified")),
             row(f"identified, median of {n} runs", tr.get("identified_median"))]
+
+
+def interval_lines(tr: dict) -> list[str]:
+    """The final model's coefficients with their 95 % intervals, one line."""
+    final = next((r for r in tr.get("ladder") or [] if r.get("name") == "final"), None)
+    if not final or not final.get("intervals"):
+        return []
+    parts = []
+    for lab, (a, b) in final["intervals"].items():
+        c = final["intercept"] if lab == "intercept" else (final.get("terms") or {}).get(lab)
+        held = " held" if lab in (final.get("held") or {}) else ""
+        parts.append(f"{lab} {efmt(c)} [{efmt(a)}, {efmt(b)}]{held}")
+    return ["  95 % intervals (block bootstrap over the training flights' time blocks): " + "; ".join(parts)]
+
+
+def screened_lines(tr: dict) -> list[str]:
+    """Implausible samples screened out of the training and test data (count per signal)."""
+    out = []
+    for where, counts in (tr.get("screened") or {}).items():
+        if counts:
+            out.append(f"SCREENED ({where}): " + ", ".join(f"{n} {c}" for n, c in counts.items())
+                       + " implausible sample(s) or jump(s); the rows that use them are left out")
+    return out
 
 
 def _pct(v) -> str:
@@ -108,6 +132,7 @@ def text(result: dict) -> str:
             out.append(tr.get("verdict") or "")
             out.append(tr.get("equation") or "")
             out += _legend(tr)
+            out += interval_lines(tr)
             if tr.get("final"):
                 out.append(f"  expanded: {tr['final']['equation']}")
                 if tr["final"].get("delays_s"):
@@ -121,6 +146,7 @@ def text(result: dict) -> str:
                        f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}; "
                        f"breaking the constraints: {g.get('constraints_broken', 0)}; "
                        f"drag not growing with speed: {g.get('drag_not_monotone', 0)}")
+            out += screened_lines(tr)
             for note in tr.get("notes") or []:
                 if note != tr["test_data"]:
                     out.append(f"NOTE: {note}")
@@ -373,7 +399,7 @@ def document(result: dict) -> Document:
     for name, tr in result["targets"].items():
         doc.heading(name)
         if tr.get("verdict"):
-            doc.verdict(tr["verdict"])
+            doc.verdict(tr["verdict"], VERDICT_KINDS.get(tr.get("verdict_kind") or "", "grey"))
         has_series = bool(tr.get("test_series", {}).get("y"))
         eq = fig_equation(name, tr)
         top = []
@@ -388,7 +414,7 @@ def document(result: dict) -> Document:
         if top:
             doc.side_by_side(*top)
         if tr.get("equation"):
-            doc.code("\n".join([tr["equation"], *_legend(tr)]
+            doc.code("\n".join([tr["equation"], *_legend(tr), *interval_lines(tr), *screened_lines(tr)]
                                + ([f"expanded: {tr['equation_expanded']}"] if tr.get("equation_expanded") else [])))
         if tr.get("ladder"):
             doc.table(LADDER_HEADER, ladder_rows(tr))

@@ -121,16 +121,34 @@ def test_negligible_addends_are_dropped_from_the_shown_equation():
 
 def test_verdicts_read_as_what_they_are():
     from droneid.identify import verdict
-    rung = lambda te, va: {"rmse_test": te, "rmse_validation": va}  # noqa: E731
+    rung = lambda te, va, **kw: {"rmse_test": te, "rmse_validation": va, **kw}  # noqa: E731
     emp = rung(1.0, 1.0)
-    assert "beats the empirical model by 40 % on the test flights" in verdict("vx_dot", rung(0.6, 0.5), emp, False, False)
-    assert "no better" in verdict("vx_dot", rung(0.98, 0.9), emp, True, False)
-    assert "WORSE" in verdict("vx_dot", rung(1.5, 0.9), emp, True, False)
+    v = verdict("vx_dot", rung(0.6, 0.5), emp, False, False, 2.0)
+    assert v.kind == "better" and "beats the empirical model by 40 % on the test flights" in v.text
+    assert "RMSE 0.6 vs 1 m/s²" in v.text and "σ(vx_dot) 2" in v.text   # absolute errors beside the %
+    assert verdict("vx_dot", rung(0.98, 0.9), emp, True, False).kind == "no better"
+    w = verdict("vx_dot", rung(1.5, 0.9), emp, True, False)
+    assert w.kind == "worse" and "WORSE" in w.text
+    # better on the test flights but not in validation: no claim
+    assert verdict("vx_dot", rung(0.6, 1.2), emp, False, False).kind == "no better"
     nan = float("nan")
     v = verdict("vx_dot", rung(nan, 0.5), rung(nan, 1.0), False, False)
-    assert "on validation blocks of the training flights (no test data)" in v and "50 %" in v
+    assert "on validation blocks of the training flights (no test data)" in v.text and "50 %" in v.text
     # the copter34 bench case: a target that does not vary is no "+100 %" success
-    assert "no verdict" in verdict("vy_dot", rung(0.0, 0.0), rung(0.0, 0.0), False, False, y_spread=0.0)
+    assert verdict("vy_dot", rung(0.0, 0.0), rung(0.0, 0.0), False, False, y_spread=0.0).kind == "no verdict"
+
+
+def test_a_model_outside_its_physics_is_not_to_be_trusted_however_well_it_fits():
+    from droneid.identify import verdict
+    emp = {"rmse_test": 1.0, "rmse_validation": 1.0}
+    pulled = {"rmse_test": 0.5, "rmse_validation": 0.5, "at_bound": {"⟨minus_kD_vz⟩": 0.0}}
+    v = verdict("vz_dot", pulled, emp, False, False)
+    assert v.kind == "not to be trusted" and "minus_kD_vz" in v.text and "+50 %" in v.text
+    broken = {"rmse_test": 0.5, "rmse_validation": 0.5, "constraint_rmse_test": 7.3}
+    assert verdict("vz_dot", broken, emp, False, False, gamma=0.05).kind == "not to be trusted"
+    # an e_c the prior's own refit has too is explained, not a fault of the model
+    assert verdict("vz_dot", broken, emp, False, False, gamma=0.05,
+                   reference={"constraint_rmse_test": 7.0}).kind == "better"
 
 
 def test_physical_terms_that_offset_each_other_do_not_cost_a_real_evolved_term():

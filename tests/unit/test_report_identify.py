@@ -174,6 +174,7 @@ def ladder_result(gap: bool = True) -> dict:
              "equation": "vx_dot = " + LONG_EXPR}
     tr["final"] = tr["empirical_model"] = tr["refit_model"] = model
     tr["verdict"] = "vx_dot: the physical model is 33 % better than the empirical model on the test flights"
+    tr["verdict_kind"] = "better"
     tr["guards"] = {}
     return r
 
@@ -185,7 +186,7 @@ def _lines(fig):
 def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_the_ladder(tmp_path):
     write(ladder_result(), tmp_path)
     html = (tmp_path / "report.html").read_text()
-    i_verdict = html.index("class='verdict'>vx_dot: the physical model is 33 %")
+    i_verdict = html.index("class='verdict green'>vx_dot: the physical model is 33 %")
     i_eq = html.index("alt='vx_dot_equation'")
     i_plot = html.index("alt='vx_dot_test_prediction'")
     i_ladder = html.index("the empirical tilt-drag model as given")
@@ -270,3 +271,15 @@ def test_a_run_record_survives_json_and_keeps_its_summary_keys():
     assert s["archive"] == [{"rmse_train": 0.3, "constraint_rmse_train": 0.1}]
     with pytest.raises(Exception, match="not a run record"):
         RunRecord.from_dict([1, 2])
+
+
+def test_the_verdict_box_colour_follows_the_verdict(tmp_path):
+    """Green only for "better"; a model not to be trusted is amber, a worse one red."""
+    for kind, colour in (("better", "green"), ("no better", "grey"), ("worse", "red"),
+                         ("not to be trusted", "amber"), ("no verdict", "grey")):
+        res = ladder_result()
+        res["targets"]["vx_dot"]["verdict_kind"] = kind
+        write(res, tmp_path)
+        html = (tmp_path / "report.html").read_text()
+        assert f"class='verdict {colour}'>" in html
+        assert html.count("class='verdict ") == 1
