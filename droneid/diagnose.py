@@ -10,15 +10,18 @@ Pipeline (:func:`diagnose` from flights, :func:`diagnose_datasets` from Datasets
    model with and without the effect is fitted on all blocks but one and predicts the held-out
    one. Effects are fitted jointly over the targets: a parameter shared by v̇x and v̇y (quadratic
    drag c, attitude biases, delay τ) is one coefficient.
-3. Add the best effect if its held-out improvement is significant (:func:`significance`):
-   relative CV-RMSE improvement ≥ ``min_rel_improvement``, AND a one-sided paired t-test on the
-   per-block relative improvements with p < ``alpha`` / (number of candidates scored). When no
-   single effect passes but the best one gains at least ``pair_min_gain`` (effects that overlap:
-   each alone explains only part, unevenly across blocks), the pairs of the ``pair_top`` best
-   candidates are tested JOINTLY, with the Bonferroni divisor raised to singles + pairs; a pair
-   is added (one step, ``"tested_jointly"``) only if it passes and beats each of its members alone
-   by ``min_rel_improvement``. Refit and repeat; otherwise stop: "no further effect is detectable
-   from these signals".
+3. Add the best effect only if the one decision rule accepts it (:func:`droneid.decide.decide`):
+   a one-sided paired t-test on the per-block differences of held-out squared error with and
+   without it, at Holm's ``alpha / (m − k + 1)`` (m: every candidate the diagnosis may try,
+   singles and pairs; k: the step), and a held-out RMSE reduction of at least
+   ``min_rel_improvement``. When no single effect passes but the best one gains at least
+   ``pair_min_gain`` (effects that overlap: each alone explains only part, unevenly across
+   blocks), the pairs of the ``pair_top`` best candidates are judged JOINTLY by the same rule; a
+   pair is added (one step, ``"tested_jointly"``) only if it passes and beats each of its members
+   alone by ``min_rel_improvement``. Refit and repeat; otherwise stop: "no further effect is
+   detectable from these signals". Every candidate's evidence, accepted or rejected, is kept.
+   An effect is tried only when its preconditions hold on the training data (``Effect.data_fn``:
+   e.g. ground effect needs time near the ground); otherwise it is untestable, with the reason.
 4. An open-ended SNGP search on the remaining residual over the available causal signals catches
    what the catalogue lacks; its term is reported only if it passes the same held-out rule
    (interleaved-block 2-fold CV).
@@ -55,6 +58,7 @@ from .errors import ConfigError, DataError, MissingSignalError, check_choice, di
 from .expressions import compile_expression, symbol
 from .fitness import check_prior_data, usable_signals
 from .io_util import to_jsonable
+from .decide import Decision, decide
 from .ladder import block_ids
 from .numerics import lstsq, rmse
 from .sngp import SNGPRegressor
@@ -62,7 +66,7 @@ from .targets import targets_for, velocity_of
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "significance",
+__all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "evidence_of",
            "block_ids", "NO_FURTHER", "fold_into_prior", "choose_diagnose_prior", "build_datasets"]
 
 NO_FURTHER = "no further effect is detectable from these signals"
@@ -81,10 +85,10 @@ class DiagnoseConfig:
     ts, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
     n_blocks: contiguous time blocks per training flight for cross-validation; None (default):
-        ``clip(n_train // 150, 8, 20)`` with n_train the training samples per target, so blocks
-        hold ~150 samples (7.5 s at 20 Hz) and long flights give the block test more blocks.
-    alpha: one-sided significance level of the paired block test (Bonferroni-divided by the
-        number of candidates scored in a step).
+        :func:`diagnose_blocks` (``clip(n_train // 100, 10, 20)``, n_train the training samples
+        per target: blocks of ~100 samples, 5 s at 20 Hz).
+    alpha: family-wise error level of the decision rule over every candidate the diagnosis may
+        try (Holm; :mod:`droneid.decide`).
     min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
     pair_min_gain: when no single effect passes, the best single's relative CV gain from which
         pairs of candidates are tested jointly (overlapping effects); pair_top: how many of the
@@ -92,6 +96,8 @@ class DiagnoseConfig:
     allow_measured_derivatives: let effects and the open-ended search use measured derivatives
         (IMU ax ay az, differenced vz_dot); the result then says the model cannot be simulated.
     max_steps: most effects added (a joint pair counts as one step).
+    ground_h0_m, ground_z_m: decay height (m) of the ground effect and the known ground height (m,
+        0: the frame's origin is on the floor or at the take-off point).
     effects: restrict the catalogue to these ids (None: all); user_effects: extra Effect objects.
     generations: budget of the open-ended search per run (0 disables it).
     """
@@ -106,6 +112,7 @@ class DiagnoseConfig:
     max_steps: int = 5
     g: float = 9.81
     ground_h0_m: float = 0.5
+    ground_z_m: float = 0.0
     effects: tuple[str, ...] | None = None
     generations: int = 5000
     population_size: int = 500
@@ -215,47 +222,16 @@ def _final_effect_json(fe: dict) -> dict:
 # -- statistics -----------------------------------------------------------------------------------
 
 
-def _block_p(mse_before, mse_after) -> tuple[float, np.ndarray]:
-    """One-sided paired t-test that the per-block relative improvements are > 0."""
-    from scipy import stats
-    d = 1.0 - mse_after / np.where(mse_before > 0, mse_before, 1.0)
-    if d.size >= 2 and np.std(d, ddof=1) > 0:
-        return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue), d
-    return (0.0 if d.size and np.all(d > 0) else 1.0), d
-
-
-def significance(mse_before: np.ndarray, mse_after: np.ndarray, n_before: np.ndarray,
-                 *, alpha: float, n_candidates: int = 1, min_rel_improvement: float = 0.01) -> dict:
-    """The held-out decision rule on TRAINING blocks; returns the evidence dict with ``passed``
-    and ``reasons``.
-
-    ``mse_before/after[k]``: held-out (cross-validated) mean squared error of training block k
-    without/with the effect; ``n_before[k]``: samples in block k. Test flights play no part
-    (callers add their errors to the evidence for the report only).
-
-    Passes when BOTH hold:
-
-    1. the pooled CV RMSE improves by at least ``min_rel_improvement`` (relative);
-    2. the per-block relative improvements ``1 − mse_after/mse_before`` are consistently > 0:
-       one-sided paired t-test p below ``alpha / n_candidates`` (Bonferroni over the candidates
-       scored in the step).
-    """
-    ok = n_before > 0
-    mb, ma, nb = mse_before[ok], mse_after[ok], n_before[ok]
-    cv_b = math.sqrt(float(np.sum(mb * nb) / np.sum(nb)))
-    cv_a = math.sqrt(float(np.sum(ma * nb) / np.sum(nb)))
-    rel = 1.0 - cv_a / cv_b if cv_b > 0 else 0.0
-    p, d = _block_p(mb, ma)
-    thr = alpha / max(n_candidates, 1)
-    reasons = []
-    if rel < min_rel_improvement:
-        reasons.append(f"CV RMSE improvement {100 * rel:.2f} % < {100 * min_rel_improvement:.2f} %")
-    if not p < thr:
-        reasons.append(f"block test p = {p:.2g} ≥ {thr:.2g}")
-    return {"cv_rmse_before": cv_b, "cv_rmse_after": cv_a, "rel_improvement": rel,
-            "p_value": p, "p_threshold": thr, "n_candidates": int(n_candidates),
-            "blocks_improved": f"{int(np.sum(d > 0))}/{d.size}",
-            "block_rel_improvements": d.tolist(), "passed": not reasons, "reasons": reasons}
+def evidence_of(dec: Decision) -> dict:
+    """The evidence dict of a diagnosis decision (reported for every candidate, accepted or
+    rejected) from a :class:`droneid.decide.Decision`."""
+    return {"cv_rmse_before": dec.rmse_without, "cv_rmse_after": dec.rmse_with,
+            "rel_improvement": dec.effect_pct / 100.0, "p_value": dec.p_value,
+            "p_threshold": dec.threshold, "statistic": dec.statistic, "n_blocks": dec.n_blocks,
+            "n_candidates": dec.family_size, "holm_rank": dec.rank,
+            "blocks_improved": f"{dec.blocks_better}/{dec.n_blocks}",
+            "block_rel_improvements": list(dec.block_differences), "passed": dec.accepted,
+            "reasons": list(dec.reasons), "text": dec.evidence}
 
 
 def _with_test(ev: dict, test_before: float | None, test_after: float | None) -> dict:
@@ -350,7 +326,7 @@ class _Part:
 def _make_part(ds: Dataset, target: str, terms: _PriorTerms, cfg: DiagnoseConfig, role: str = "train"):
     cols = ds.columns()
     ctx = EffectContext.build(target, cols, ds.t, ds.flight, terms.tilt, cfg.g,
-                              {"ground_h0_m": cfg.ground_h0_m}, terms.tilt_role,
+                              {"ground_h0_m": cfg.ground_h0_m, "ground_z_m": cfg.ground_z_m}, terms.tilt_role,
                               cfg.allow_measured_derivatives)
     base = {}
     for name, e in zip(terms.names, terms.exprs):
@@ -401,25 +377,35 @@ class _Stack:
 
 
 
+def diagnose_blocks(n: int) -> int:
+    """Default time blocks per training flight for ``n`` samples: ~100 samples (5 s at 20 Hz) a
+    block, 10 to 20 blocks. More blocks than :func:`droneid.ladder.n_blocks_for` because every
+    diagnosis decision is a t-test over blocks at a family-wise threshold (α/15 and below):
+    with 8 blocks (7 degrees of freedom) it needs t > 5, with 12 blocks t > 4."""
+    return int(np.clip(n // 100, 10, 20))
+
+
 def _lstsq(X, y):
     return lstsq(X, y, rcond=1e-10)
 
 def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
     """Held-out predictions by leave-one-block-out (weighted least squares); per-block weighted
-    MSE and sample counts."""
+    MSE and sample counts; the coefficients of every fold (rows; for block-jackknife errors)."""
     pred = np.zeros_like(stack.y)
     w = stack.w
+    folds = []
     for k in range(n_blocks):
         test = stack.block == k
         if not test.any():
             continue
         beta = _lstsq(X[~test] * w[~test, None], stack.y[~test] * w[~test])
+        folds.append(beta)
         pred[test] = X[test] @ beta
     r2 = (w * (stack.y - pred)) ** 2
     mse = np.array([np.mean(r2[stack.block == k]) if np.any(stack.block == k) else 0.0
                     for k in range(n_blocks)])
     n = np.array([np.sum(stack.block == k) for k in range(n_blocks)])
-    return pred, mse, n
+    return pred, mse, n, np.array(folds)
 
 
 def _terms_for(effect, parts: Sequence[_Part], consts: Mapping[str, dict] | None = None) -> dict:
@@ -626,8 +612,9 @@ class _Model:
         beta = _lstsq(X * tr.w[:, None], tr.y * tr.w)
         pred = X @ beta
         out = {"beta": dict(zip(cur_terms, beta.tolist())), "pred": pred, "train": tr.rmse_by_target(pred)}
-        cvp, mse, n = _cv(tr, X, nb)
-        out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp))
+        cvp, mse, n, folds = _cv(tr, X, nb)
+        out.update(cv_pred=cvp, mse=mse, n=n, cv=tr.rmse_by_target(cvp), cv_resid=tr.w * (tr.y - cvp),
+                   folds=[dict(zip(cur_terms, b.tolist())) for b in folds])
         out.update(test={t: None for t in self.targets}, test_all=None)
         if te is None:
             return out
@@ -656,14 +643,19 @@ class _Model:
         return out
 
     def base_info(self, fit) -> dict:
+        """What effects read to interpret their coefficients: ``k_D`` {target: linear drag 1/s},
+        ``jackknife``: the coefficients ({param: value}) of every leave-one-block-out fold, for
+        block-jackknife uncertainties (rows within a block are correlated, folds are not)."""
         return {"k_D": {p.target: _k_drag(self.terms[p.target], p.target, p, fit["beta"])
-                        for p in self.tr_parts}}
+                        for p in self.tr_parts}, "jackknife": fit.get("folds", [])}
 
-    def evidence(self, cur, new, n_candidates) -> dict:
-        """Training-only significance, with the test errors attached for the report."""
+    def evidence(self, cur, new, family_size: int, rank: int, what: str = "") -> dict:
+        """The decision rule (:func:`droneid.decide.decide`) on the training blocks' held-out
+        residuals (weighted, σ units), with the test errors attached for the report only."""
         cfg = self.cfg
-        ev = significance(cur["mse"], new["mse"], cur["n"], alpha=cfg.alpha, n_candidates=n_candidates,
-                          min_rel_improvement=cfg.min_rel_improvement)
+        ev = evidence_of(decide(cur["cv_resid"], new["cv_resid"], self.tr.block, alpha=cfg.alpha,
+                                family_size=family_size, rank=rank,
+                                min_effect_pct=100 * cfg.min_rel_improvement, what=what))
         ev["cv_units"] = "pooled over targets, each in units of its base residual σ"
         return _with_test(ev, cur["test_all"], new["test_all"])
 
@@ -704,8 +696,9 @@ def _uses_derivative(expr_or_names) -> list[str]:
     return sorted({n for n in names if is_measured_derivative(n)})
 
 
-def _score(model, cur, cur_terms, cur_test, cands, n_candidates):
-    """[(effects, train terms, test terms, fit, evidence)] for candidate groups of effects."""
+def _score(model, cur, cur_terms, cur_test, cands, family_size, rank):
+    """[(effects, train terms, test terms, fit, evidence)] for candidate groups of effects, each
+    judged by the one rule at Holm position ``rank`` of ``family_size``."""
     out = []
     for group in cands:
         et, ett = {}, {}
@@ -714,7 +707,8 @@ def _score(model, cur, cur_terms, cur_test, cands, n_candidates):
             et.update(a)
             ett.update(b)
         new = model.fit({**cur_terms, **et}, {**cur_test, **ett})
-        out.append((group, et, ett, new, model.evidence(cur, new, n_candidates)))
+        out.append((group, et, ett, new, model.evidence(cur, new, family_size, rank,
+                                                        "+".join(e.id for e in group))))
     return out
 
 
@@ -736,7 +730,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
     effects = _select_effects(user_effects, cfg.effects)
     if cfg.n_blocks is None:
-        cfg = replace(cfg, n_blocks=int(np.clip(min(len(d) for d in train.values()) // 150, 8, 20)))
+        cfg = replace(cfg, n_blocks=diagnose_blocks(min(len(d) for d in train.values())))
     terms = {t: _prior_terms(pr, t) for t in targets}
     tr_parts = [_make_part(train[t], t, terms[t], cfg) for t in targets]
     for p in tr_parts:
@@ -758,12 +752,54 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     cur = base_fit = model.fit(cur_terms, cur_test)
     steps, added, candidates_log, plot_steps = [], [], [], []
     total = cfg.max_steps + 1
-    for step in range(cfg.max_steps):
+    # the family of every candidate the diagnosis may try: each testable effect and each pair of
+    # the pair_top best; the k-th step accepted is judged at Holm's alpha / (family − k + 1)
+    n_top = min(cfg.pair_top, len(testable)) if cfg.pair_top >= 2 else 0
+    family = max(1, len(testable) + n_top * (n_top - 1) // 2)
+    findings = {}
+    for e in testable:
+        # effects judged on other rows than the v̇ residual (per-motor thrust: the thrust shares)
+        if e.assess_fn is None:
+            continue
+        p = next(q for q in tr_parts if e.applies_to(q.target))
+        e0, e1, rows, interp = e.assess(p.ctx, p.block)
+        ev = _with_test(evidence_of(decide(e0, e1, rows, alpha=cfg.alpha, family_size=family,
+                                           rank=min(len(added) + 1, family),
+                                           min_effect_pct=100 * cfg.min_rel_improvement, what=e.id)),
+                        None, None)
+        candidates_log.append({"step": 0, "assessed": e.id, "scores": [
+            {"effect": e.id, **{k: ev[k] for k in ("cv_rmse_after", "rel_improvement", "statistic",
+                                                   "p_value", "p_threshold", "blocks_improved",
+                                                   "test_rmse_after", "passed", "reasons", "text")}}]})
+        if not ev["passed"] or len(added) >= cfg.max_steps:
+            continue
+        findings[e.id] = interp
+        ev["indistinguishable_from"] = []
+        steps.append({"effect": e.id, "description": e.description, "coefficients": {},
+                      "physical": interp.text, "physical_values": interp.values,
+                      "physical_per_flight": {}, "per_flight": False, "tested_jointly": None,
+                      "rmse": {t: {"train": cur["train"][t], "test": cur["test"][t], "cv": cur["cv"][t]}
+                               for t in targets},
+                      "test_note": cur.get("test_note"), "evidence": ev})
+        et, ett = model.effect_terms(e)
+        new = model.fit({**cur_terms, **et}, {**cur_test, **ett})
+        plot_steps.append({q.target: {"effect": e.id, "residual": q.y - cur["pred"][tr.tidx == i],
+                                      "contrib": sum(new["beta"][k] * et[k][q.target] for k in et
+                                                     if q.target in et[k])}
+                           for i, q in enumerate(tr_parts)})
+        steps[-1]["rmse"] = {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
+                             for t in targets}
+        steps[-1]["coefficients"] = _strip({k: new["beta"][k] for k in et})
+        cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
+        added.append(e.id)
+    n_assessed = len(added)
+    for step in range(cfg.max_steps - n_assessed):
+        rank = min(len(added) + 1, family)
         if progress:
             progress(step, total, "scoring effects")
         singles = []
         for e in testable:
-            if e.id in added:
+            if e.id in added or e.assess_fn is not None:   # assessed once, on their own rows
                 continue
             et = model.effect_terms(e)[0]
             if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
@@ -771,12 +807,13 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             singles.append(e)
         if not singles:
             break
-        scores = _score(model, cur, cur_terms, cur_test, [(e,) for e in singles], len(singles))
+        scores = _score(model, cur, cur_terms, cur_test, [(e,) for e in singles], family, rank)
         scores.sort(key=lambda s: s[4]["cv_rmse_after"])
         log_entry = {"step": step + 1, "scores": [
             {"effect": "+".join(e.id for e in g), **{k: ev[k] for k in (
-                "cv_rmse_after", "rel_improvement", "p_value", "blocks_improved",
-                "test_rmse_after", "passed")}} for g, _, _, _, ev in scores]}
+                "cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold",
+                "blocks_improved", "test_rmse_after", "passed", "reasons", "text")}}
+            for g, _, _, _, ev in scores]}
         candidates_log.append(log_entry)
         best = scores[0]
         jointly = False
@@ -784,9 +821,8 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             # overlapping effects: test the best pairs jointly, Bonferroni over singles + pairs
             top = [g[0] for g, *_ in scores[:cfg.pair_top]]
             pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]]
-            n_cand = len(singles) + len(pairs)
             single_cv = {g[0].id: ev["cv_rmse_after"] for g, _, _, _, ev in scores}
-            pscores = _score(model, cur, cur_terms, cur_test, pairs, n_cand)
+            pscores = _score(model, cur, cur_terms, cur_test, pairs, family, rank)
             for g, _, _, _, ev in pscores:
                 worst_single = min(single_cv[e.id] for e in g)
                 ev["beats_members"] = ev["cv_rmse_after"] <= (1 - cfg.min_rel_improvement) * worst_single
@@ -794,10 +830,11 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                     ev["passed"] = False
                     ev["reasons"].append("the pair does not beat each of its effects alone by "
                                          f"{100 * cfg.min_rel_improvement:.2f} %")
+                    ev["text"] = ev["text"].replace(": accepted", ": rejected (" + ev["reasons"][-1] + ")")
             pscores.sort(key=lambda s: s[4]["cv_rmse_after"])
             log_entry["pairs"] = [{"effects": [e.id for e in g], **{k: ev[k] for k in (
-                "cv_rmse_after", "rel_improvement", "p_value", "p_threshold", "blocks_improved",
-                "passed")}} for g, _, _, _, ev in pscores]
+                "cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold",
+                "blocks_improved", "passed", "reasons", "text")}} for g, _, _, _, ev in pscores]
             log_entry["pairs_reason"] = (
                 f"best single {best[0][0].id} gains {100 * best[4]['rel_improvement']:.1f} % but "
                 f"fails ({'; '.join(best[4]['reasons'])}): pairs of the {len(top)} best tested jointly")
@@ -851,6 +888,13 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     info = model.base_info(cur)
     final_effects, notes = [], []
     for eid in added:
+        if eid in findings:
+            final_effects.append({"effect": eid, "physical": findings[eid].text,
+                                  "physical_values": findings[eid].values, "physical_per_flight": {},
+                                  "coefficients": _strip({k: v for k, v in cur["beta"].items()
+                                                          if k.startswith(eid + ".")}),
+                                  **_fold(effects[eid], model, cur["beta"])})
+            continue
         coef = {k: v for k, v in {**cur["beta"], **cur.get("test_local_beta", {})}.items()
                 if k.startswith(eid + ".")}
         train_coef = {k: v for k, v in cur["beta"].items() if k.startswith(eid + ".")}
@@ -971,7 +1015,7 @@ def _open_ended_all(model, cur, cfg) -> dict:
         if model.te_parts and "test_pred" in cur:
             q = model.te_parts[i]
             test = (q, q.y - cur["test_pred"][model.te.tidx == i])
-        out[p.target] = _open_ended(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg)
+        out[p.target] = _open_ended(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg, len(parts))
     return out
 
 
@@ -993,7 +1037,10 @@ def _signal_matrix(part, names):
     return np.column_stack([part.ctx.columns[n] for n in names])
 
 
-def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> dict:
+def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig, family: int = 1) -> dict:
+    """SNGP on one target's remaining residual; its term is judged by the one rule
+    (:func:`droneid.decide.decide`, interleaved-block 2-fold CV, Bonferroni over ``family``
+    targets)."""
     names = sorted(n for n, v in part.ctx.columns.items()
                    if n not in _OPEN_EXCLUDE and np.ptp(v) > 0 and n.isidentifier()
                    and not _clock_like(v, part.t, part.flight))
@@ -1018,11 +1065,6 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
         m = run(rows, cfg.seed + k)
         pred[~rows] = np.asarray(m.predict(X[~rows]), float)
     pred[~np.isfinite(pred)] = 0.0
-    nb = cfg.n_blocks
-    mse_b = np.array([np.mean(resid[part.block == k] ** 2) if np.any(part.block == k) else 0 for k in range(nb)])
-    mse_a = np.array([np.mean((resid - pred)[part.block == k] ** 2) if np.any(part.block == k) else 0
-                      for k in range(nb)])
-    n = np.array([np.sum(part.block == k) for k in range(nb)])
     final = run(np.ones(resid.size, bool), cfg.seed + 7)
     tb = ta = None
     if test is not None and all(nm in test[0].ctx.columns for nm in names):
@@ -1032,8 +1074,9 @@ def _open_ended(part: _Part, resid: np.ndarray, test, cfg: DiagnoseConfig) -> di
         tp[~np.isfinite(tp)] = 0.0
         tb = rmse(tres, 0.0)
         ta = rmse(tres, tp)
-    ev = _with_test(significance(mse_b, mse_a, n, alpha=cfg.alpha, n_candidates=1,
-                                 min_rel_improvement=cfg.min_rel_improvement), tb, ta)
+    ev = _with_test(evidence_of(decide(resid, resid - pred, part.block, alpha=cfg.alpha,
+                                       family_size=family, min_effect_pct=100 * cfg.min_rel_improvement,
+                                       what=f"open-ended term for {part.target}")), tb, ta)
     return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
             "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),
             "generations": cfg.generations, "passed": ev["passed"], "evidence": ev}

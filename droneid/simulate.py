@@ -20,7 +20,10 @@ command ``u_i`` in 0..1 gives ``T_i = (t_max_n/4) u_i²`` at the nominal voltage
 its command by ``motor_tau_s`` (default 0; with a lag the flight is integrated again with the
 speeds in the state). Either way the acceleration is ``Σ T_i R e3 / m − g e3 + D``, so the
 rotor-thrust prior ``v̇ = k_T Σ(ω_i/10⁴)² R e3 − g e3 − k_D v`` is exact on the true speeds with
-``k_T = k_f·10⁸/m`` (1.09 m/s² per (10⁴ rpm)² by default; ``truth["rotors"]``). Logged:
+``k_T = k_f·10⁸/m`` (1.09 m/s² per (10⁴ rpm)² by default; ``truth["rotors"]``). The
+``weak_motor`` effect gives one rotor ``gain·k_f`` (a damaged propeller): its command and speed
+rise so it still delivers its allocated thrust, and the prior holds with that rotor's term
+scaled by ``gain`` (``truth["rotors"]["thrust_gain"]``). Logged:
 ``motor1..4`` (the commands) and ``rpm1..4``, the speeds ``rpm_delay_s`` before they act (a
 logging delay, default 0) plus ``rpm_noise`` (30 rpm) white noise.
 
@@ -79,6 +82,9 @@ EFFECTS = MappingProxyType({
     "thrust_variation": {"amp_m": 0.5, "period_s": 4.0},
     # drag coefficients along body x, body y and body z (1/s), replacing the isotropic k_D
     "anisotropic_drag": {"kx": 0.15, "ky": 0.45, "kz": 0.28},
+    # one motor (1..4) gives `gain` of the nominal thrust per rpm² (a damaged propeller): the
+    # controller commands it harder, so its logged speed is 1/sqrt(gain) higher for its share
+    "weak_motor": {"motor": 2.0, "gain": 0.85},
 })
 
 # (effect, param) -> (lower bound, inclusive)
@@ -88,7 +94,8 @@ _EFFECT_MIN = {
     ("battery_sag", "v_start"): (0.0, False), ("battery_sag", "v_end"): (0.0, False),
     ("attitude_delay", "tau_s"): (0.0, True), ("thrust_variation", "period_s"): (0.0, False),
     ("anisotropic_drag", "kx"): (0.0, True), ("anisotropic_drag", "ky"): (0.0, True),
-    ("anisotropic_drag", "kz"): (0.0, True),
+    ("anisotropic_drag", "kz"): (0.0, True), ("weak_motor", "gain"): (0.0, False),
+    ("weak_motor", "motor"): (1.0, True),
 }
 
 #: keyword parameters of :func:`simulate` (besides path, duration_s, rate_hz, effects, seed, noise)
@@ -190,6 +197,8 @@ def parse_effects(effects) -> dict:
         for k, v in spec.items():
             if not math.isfinite(v):
                 raise ConfigError(f"effect '{eid}' parameter '{k}' must be finite, got {v}")
+            if (eid, k) == ("weak_motor", "motor") and v not in (1.0, 2.0, 3.0, 4.0):
+                raise ConfigError(f"effect 'weak_motor' parameter 'motor' must be 1, 2, 3 or 4, got {v}")
             lo = _EFFECT_MIN.get((eid, k))
             if lo is not None and not (v > lo[0] or (lo[1] and v == lo[0])):
                 raise ConfigError(f"effect '{eid}' parameter '{k}' must be {'>=' if lo[1] else '>'} "
@@ -284,7 +293,11 @@ class _Rotors:
     leave 0..1 the torque part is scaled down, never the collective.
     """
 
-    def __init__(self, P):
+    def __init__(self, P, thrust_gain=(1.0, 1.0, 1.0, 1.0)):
+        #: thrust per rpm² of each rotor relative to k_f (weak_motor); its command is raised so
+        #: that it still gives its share of the allocated thrust (the attitude loop sees to that)
+        self.gain = np.asarray(thrust_gain, float)
+        self._cmd_scale = [1.0 / math.sqrt(g) for g in self.gain.tolist()]
         a = P["arm_m"] / math.sqrt(2.0)
         x = np.array([a, -a, a, -a])
         y = np.array([-a, a, a, -a])
@@ -315,7 +328,8 @@ class _Rotors:
             elif d < 0:
                 scale = min(scale, base / -d)
         scale = max(scale, 0.0)
-        return [math.sqrt(min(max((base + scale * d) / self.t_max, 0.0), 1.0)) for d in dT]
+        return [min(k * math.sqrt(min(max((base + scale * d) / self.t_max, 0.0), 1.0)), 1.0)
+                for k, d in zip(self._cmd_scale, dT)]
 
     def commands(self, collective, dT):
         """:meth:`command` on arrays: collective (n,) N, dT (n, 4) N -> u (n, 4)."""
@@ -353,7 +367,11 @@ class _Dyn:
         self.aniso = (an["kx"], an["ky"], an["kz"]) if an else None
         ge = eff.get("ground_effect")
         self.ge_r = ge["rotor_radius_m"] if ge else 0.0
-        self.rotors = _Rotors(P)
+        wm = eff.get("weak_motor")
+        gains = [1.0, 1.0, 1.0, 1.0]
+        if wm:
+            gains[int(wm["motor"]) - 1] = wm["gain"]
+        self.rotors = _Rotors(P, gains)
         self.motor_tau = P["motor_tau_s"]
 
     def command(self, s, ref):
@@ -404,7 +422,7 @@ class _Dyn:
             k = rot.w_max * math.sqrt(gain_batt)        # settled speed per unit command (rpm)
             w = s[12:16]
             dw = [(k * c - v) / self.motor_tau for c, v in zip(rot.command(throttle * self.tmax, dT), w)]
-            thrust = ge * rot.k_f * sum(v * v for v in w)
+            thrust = ge * rot.k_f * sum(gi * v * v for gi, v in zip(rot.gain.tolist(), w))
         # --- attitude lag ---
         dr = (r_d - r) / self.tau
         dp = (p_d - p) / self.tau
@@ -697,6 +715,7 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     note_params = {k: P[k] for k in sorted(P)}
     prov = Provenance(
         files=(), format="simulated", vehicle="simulated quadrotor", firmware=None,
+        vehicle_type="multirotor",
         notes=(f"simulate(path={path!r}, duration_s={float(duration_s)}, rate_hz={float(rate_hz)}, "
                f"seed={int(seed)}, noise={bool(noise)})",
                f"effects: {eff if eff else 'none'}",
@@ -716,7 +735,7 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     m = P["mass_kg"]
     k_T = P["k_f"] * RPM_SCALE ** 2 / m
     # the rotor-thrust prior with the planted k_T, k_D on the true states and true speeds
-    rotor_model = (k_T * np.sum(np.square(rpm_true / RPM_SCALE), axis=1)[:, None] * R[:, :, 2]
+    rotor_model = (k_T * np.sum(rot.gain * np.square(rpm_true / RPM_SCALE), axis=1)[:, None] * R[:, :, 2]
                    - np.array([0.0, 0.0, P["g"]]) - P["k_drag"] * S[:, 3:6])
     rotor_err = a_world - rotor_model
 
@@ -749,6 +768,7 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
                         "sum_i (rpm_i/1e4)^2 in the rotor-thrust prior",
             "hover_rpm": math.sqrt(m * P["g"] / 4.0 / P["k_f"]), "rpm_max": rot.w_max,
             "motor_tau_s": P["motor_tau_s"], "rpm_delay_s": rpm_delay,
+            "thrust_gain": rot.gain.tolist(),
             "rpm_noise": P["rpm_noise"] if noise else 0.0,
             "command_map": "T_i = (t_max_n/4) u_i^2 at the nominal voltage; rpm_i = rpm_max u_i "
                            "sqrt(battery gain) once settled (lag motor_tau_s)",

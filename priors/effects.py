@@ -11,6 +11,11 @@ Every effect states
 * ``needs``: the signals it needs, as groups of alternatives (each group needs ONE available signal);
   ``"@tilt"`` means "the prior has thrust-direction terms for the target". An effect whose needs
   are not met is UNTESTABLE (never "absent");
+* ``data_fn(ctx) -> reason or None``: its PRECONDITIONS, checked on the training data (e.g.
+  ground effect needs time near the ground at a known height; attitude bias needs yaw
+  variation to be told from wind; quadratic drag needs speed): when one fails the effect is
+  UNTESTABLE with that reason and is never tried (a candidate that the data cannot identify
+  can only stand in for something else);
 * ``targets``: the targets it applies to (horizontal-only effects skip ``vz_dot``) and
   ``not_applicable(ctx)``: a reason when it makes no sense with this prior (e.g. thrust_variation
   when the prior's thrust is logged already);
@@ -79,6 +84,7 @@ __all__ = [
     "Effect", "EffectContext", "Interpretation", "CATALOGUE", "TILT", "get_effect",
     "load_effects", "time_derivative", "MEASURED_DERIVATIVES",
     "is_measured_derivative", "thrust_proxy", "mean_k_drag", "PER_FLIGHT_REASON", "clear_cache",
+    "spread", "high",
 ]
 
 #: Pseudo-signal meaning "the prior has thrust-direction terms for this target".
@@ -141,7 +147,7 @@ class EffectContext:
     ``allow_measured_derivatives``; measured derivatives ``ax ay az *_dot`` are dropped otherwise).
     ``tilt`` is the prior's G expression (sympy over canonical symbols) or None; ``tilt_role`` is
     ``"tilt"`` (thrust direction at hover balance) or ``"thrust"`` (logged thrust); ``options``
-    holds effect options (``ground_h0_m``, ``derivative_half_window_s``).
+    holds effect options (``ground_h0_m``, ``ground_z_m``, ``derivative_half_window_s``).
     """
     target: str
     columns: Mapping[str, np.ndarray]
@@ -233,7 +239,9 @@ class Effect:
     ``applicable_fn(ctx) -> reason or None`` says when the effect makes no sense for the prior;
     ``data_fn(ctx) -> reason or None`` when the (training) data cannot identify it;
     ``refine_fn(ctx, coef, base) -> {column: array}`` refines the effect after a fit (see
-    :meth:`refine`); ``order``: its place in the catalogue (built-in effects; the diagnosis tries
+    :meth:`refine`); ``assess_fn(ctx, blocks) -> (err_without, err_with, row_blocks,
+    Interpretation)``: an effect judged on other rows than the v̇ residual (per-motor thrust: the
+    motors' thrust shares), by the same decision rule, adding no v̇ column; ``order``: its place in the catalogue (built-in effects; the diagnosis tries
     effects in increasing order, ties by id).
     """
     id: str
@@ -252,6 +260,7 @@ class Effect:
     fold_reason: str = ""
     refine_fn: Callable[[EffectContext, dict, dict], Mapping[str, np.ndarray]] | None = None
     order: int = 0
+    assess_fn: Callable[[EffectContext, np.ndarray], tuple] | None = None
 
     @property
     def foldable(self) -> bool:
@@ -315,6 +324,13 @@ class Effect:
             out[k] = v
         return out
 
+    def assess(self, ctx: EffectContext, blocks: np.ndarray) -> tuple:
+        """``(err_without, err_with, row_blocks, Interpretation)`` from ``assess_fn`` on the
+        TRAINING context ``ctx`` with its validation ``blocks`` (ConfigError without one)."""
+        if self.assess_fn is None:
+            raise ConfigError(f"effect '{self.id}' is judged on the v̇ residual (no assess_fn)")
+        return self.assess_fn(ctx, np.asarray(blocks))
+
     def interpret(self, coef: Mapping[str, float], base: Mapping) -> Interpretation:
         """Physical terms from ``coef`` ({param: value}) and ``base`` info (``k_D``: {target: k})."""
         return self.interpret_fn(dict(coef), dict(base))
@@ -337,6 +353,21 @@ class Effect:
         return {k: np.broadcast_to(np.asarray(v, float), (n,)).copy()
                 for k, v in (self.refine_fn(ctx, {int(f): dict(c) for f, c in coef.items()},
                                             dict(base)) or {}).items()}
+
+
+def spread(x, lo: float = 2.0, hi: float = 98.0) -> float:
+    """Robust range of ``x``: its ``hi`` minus its ``lo`` percentile (0 for no data). Effects'
+    preconditions (``data_fn``) use it so a few outliers cannot make an effect testable."""
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    return float(np.percentile(x, hi) - np.percentile(x, lo)) if x.size else 0.0
+
+
+def high(x, q: float = 98.0) -> float:
+    """The ``q`` percentile of |x| (0 for no data): how far a signal robustly reaches."""
+    x = np.abs(np.asarray(x, float))
+    x = x[np.isfinite(x)]
+    return float(np.percentile(x, q)) if x.size else 0.0
 
 
 def _need_label(name: str) -> str:

@@ -27,6 +27,10 @@ def _pair(d, key="train"):
 
 
 def _evidence_text(ev) -> str:
+    if ev.get("text"):     # the decision rule's own line (droneid.decide.Decision.evidence)
+        extra = (f", test {-100 * ev['test_rel_improvement']:+.1f} % (reported, not used)"
+                 if ev.get("test_rel_improvement") is not None else "")
+        return ev["text"] + extra
     what = "CV error (σ units)" if ev.get("cv_units") else "CV RMSE"
     parts = [f"{what} {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
              f"({-100 * ev['rel_improvement']:+.1f} %)",
@@ -79,16 +83,18 @@ def text(result) -> str:
     else:
         lines.append("effects added: none")
     if r.candidates:
-        last = r.candidates[-1]
-        if len(r.candidates) > len(r.steps) and last["scores"]:
-            b = last["scores"][0]
-            lines.append(f"best remaining candidate: {b['effect']} (CV {-100 * b['rel_improvement']:+.2f} %, "
-                         f"p = {fmt(b['p_value'], 2)}, {b['blocks_improved']} blocks): not significant")
-            if last.get("pairs"):
-                pb = last["pairs"][0]
-                lines.append(f"  {last['pairs_reason']}; best pair {' + '.join(pb['effects'])}: CV "
-                             f"{-100 * pb['rel_improvement']:+.2f} %, p = {fmt(pb['p_value'], 2)} "
-                             f"(threshold {fmt(pb['p_threshold'], 2)}): not significant")
+        lines.append("every decision (one rule, droneid.decide: paired t-test over CV blocks, Holm "
+                     "over every candidate the diagnosis may try; training flights only):")
+        for c in r.candidates:
+            head = (f"  assessed on its own rows ({c['assessed']}):" if c.get("assessed")
+                    else f"  step {c['step']}:")
+            lines.append(head)
+            for sc in c["scores"]:
+                lines.append(f"    {sc.get('text') or sc['effect']}")
+            if c.get("pairs"):
+                lines.append(f"    {c['pairs_reason']}:")
+                for pb in c["pairs"]:
+                    lines.append(f"    {pb.get('text') or ' + '.join(pb['effects'])}")
     lines.append(r.conclusion)
     for note in getattr(r, "notes", []) or []:
         lines.append(f"WARNING: {note}")
@@ -107,16 +113,27 @@ def text(result) -> str:
         lines.append("not applicable to this prior / these targets:")
         for eid, why in r.not_applicable.items():
             lines.append(f"  {eid}: {why}")
-    for t, o in (r.open_ended or {}).items():
-        if not o:
-            continue
-        if not o.get("ran"):
-            lines.append(f"open-ended search {t}: not run ({o.get('reason')})")
-        else:
-            verdict = "PASSED the held-out test: unnamed term" if o["passed"] else "not significant"
-            lines.append(f"open-ended search {t}: {verdict}: {o['equation']}")
-            lines.append(f"       evidence: {_evidence_text(o['evidence'])}")
+    lines.extend(_fallback_lines(r.open_ended or {}))
     return "\n".join(lines)
+
+
+def _fallback_lines(open_ended) -> list[str]:
+    """The open-ended fallback: a significant residual left after the catalogue is said so, with
+    the SNGP term that explains it and its evidence; otherwise one line."""
+    ran = {t: o for t, o in open_ended.items() if o and o.get("ran")}
+    passed = {t: o for t, o in ran.items() if o.get("passed")}
+    if not ran:
+        why = next((o.get("reason") for o in open_ended.values() if o), "no targets")
+        return [f"open-ended search: not run ({why})"]
+    if not passed:
+        return ["open-ended search: no significant residual remains after the catalogue "
+                f"({', '.join(ran)}: no SNGP term passes the same rule)"]
+    out = ["a SIGNIFICANT RESIDUAL REMAINS after the catalogue (no catalogue effect explains it; "
+           "none was added in its place): the open-ended search explains it with"]
+    for t, o in passed.items():
+        out.append(f"  {t}: {o['equation']}")
+        out.append(f"       evidence: {_evidence_text(o['evidence'])}")
+    return out
 
 
 def _with_unit(name: str) -> str:

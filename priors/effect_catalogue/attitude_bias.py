@@ -3,11 +3,29 @@
 Features (v̇x, v̇y, v̇z): ∂G/∂roll, ∂G/∂pitch, G the prior's thrust-direction terms (coefficients
 ``d_roll``, ``d_pitch`` in rad, shared by the targets, one per flight) -> bias = −coef
 (logged − true). They rotate with yaw, unlike wind. Not foldable: a condition of the flight.
+
+Precondition: the heading varies by at least ``MIN_YAW_SPAN_RAD`` (2nd-98th percentile of the
+unwrapped yaw, 0.5 rad ≈ 30°) in every training flight: at a constant heading a roll/pitch
+offset is exactly a constant world-frame acceleration, i.e. wind, and only wind (the condition
+of a flight that needs no faulty sensor) is tried.
 """
+import numpy as np
+
 import math
 
 from droneid.targets import TARGETS
-from priors.effects import PER_FLIGHT_REASON, TILT, Effect, Interpretation
+from priors.effects import PER_FLIGHT_REASON, TILT, Effect, Interpretation, spread
+
+MIN_YAW_SPAN_RAD = 0.5
+
+
+def _preconditions(ctx):
+    yaw = np.asarray(ctx.columns["yaw"], float)
+    spans = [spread(np.unwrap(yaw[ctx.flight == f])) for f in np.unique(ctx.flight)]
+    if min(spans, default=0.0) < MIN_YAW_SPAN_RAD:
+        return (f"the heading spans only {min(spans):.2f} rad (< {MIN_YAW_SPAN_RAD} rad) in a training "
+                "flight: an attitude bias cannot be told from wind there")
+    return None
 
 
 def _features(ctx, consts):
@@ -23,6 +41,6 @@ def _interpret(coef, base):
 
 
 EFFECT = Effect("attitude_bias", "constant roll/pitch offsets of the logged attitude (rotate with "
-                "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",)), _interpret,
-                column_fn=_features, targets=tuple(TARGETS), explain_signal="yaw", per_flight=True,
+                "yaw, unlike wind)", ((TILT,), ("roll",), ("pitch",), ("yaw",)), _interpret,
+                column_fn=_features, data_fn=_preconditions, targets=tuple(TARGETS), explain_signal="yaw", per_flight=True,
                 fold_reason=PER_FLIGHT_REASON, order=40)

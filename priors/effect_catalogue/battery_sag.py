@@ -4,16 +4,28 @@ Feature (v̇x, v̇y, v̇z): G·(u/ū)·(V − V̄)/V̄, u the command (throttle,
 command), ū and V̄ (V) training means, coefficient ``kappa`` -> relative thrust change per
 relative voltage (1 = thrust proportional to voltage). Not applicable when G comes from measured
 rotor speeds or thrust (they include the voltage already).
+
+Precondition: the voltage falls by at least ``MIN_SAG`` (2 %, 2nd-98th percentile range over the
+mean) during the training flights.
 """
 import numpy as np
 import sympy as sp
 
 from droneid.expressions import symbol
 from droneid.targets import TARGETS
-from priors.effects import TILT, Effect, Interpretation
+from priors.effects import TILT, Effect, Interpretation, spread
 from priors.thrust import motor_count
 
 _CMD = ("throttle", "motor1")
+MIN_SAG = 0.02
+
+
+def _preconditions(ctx):
+    v = np.asarray(ctx.columns["battery_voltage"], float)
+    rel = spread(v) / max(abs(float(np.mean(v))), 1e-9)
+    if rel < MIN_SAG:
+        return f"the battery voltage varies by only {100 * rel:.1f} % (< {100 * MIN_SAG:g} %)"
+    return None
 
 
 def _command(available):
@@ -60,4 +72,5 @@ def _interpret(coef, base):
 EFFECT = Effect("battery_sag", "thrust per command falls with battery voltage (needs a command and "
                 "the voltage)", ((TILT,), _CMD, ("battery_voltage",)), _interpret,
                 expr_fn=_features, constants_fn=_constants, applicable_fn=_applicable,
-                targets=tuple(TARGETS), explain_signal="battery_voltage", order=110)
+                data_fn=_preconditions, targets=tuple(TARGETS), explain_signal="battery_voltage",
+                order=110)

@@ -1,32 +1,56 @@
 """Ground effect: thrust gain near the ground.
 
-Feature (v̇x, v̇y, v̇z): G·exp(−(z − z_ground)/h0), z_ground the 2nd percentile of the training
-heights (m), h0 = option ``ground_h0_m`` (default 0.5 m), coefficient ``k_ge`` -> thrust gain at
-the ground. Untestable when the training heights span less than h0.
+Feature (v̇x, v̇y, v̇z): G·exp(−(z − z_ground)/h0), z_ground the KNOWN ground height (option
+``ground_z_m``, default 0 m: mocap and local-position frames have their origin on the floor or
+at the take-off point), h0 = option ``ground_h0_m`` (default 0.5 m, about two rotor diameters of
+a small quadrotor), coefficient ``k_ge`` -> thrust gain at the ground.
+
+Preconditions (training data; untestable otherwise, with the reason):
+
+- the ground height is known: at most 2 % of the heights lie more than 0.1 m below z_ground;
+- time near the ground: at least 5 % of the samples within h0 of it (a flight that climbs and
+  descends well above the ground has no ground effect to see, and exp(−z/h0) would only stand
+  in for whatever else varies with height);
+- the ground factor exp(−(z − z_ground)/h0) varies by at least 0.1 over the flight (at a
+  constant height it cannot be told from a constant thrust gain).
 """
 import numpy as np
 import sympy as sp
 
 from droneid.expressions import symbol
 from droneid.targets import TARGETS
-from priors.effects import TILT, Effect, Interpretation
+from priors.effects import TILT, Effect, Interpretation, spread
+
+#: share of samples that must lie within h0 of the ground
+NEAR_SHARE = 0.05
+#: smallest range (2nd-98th percentile) of the ground factor exp(−(z − z_ground)/h0)
+MIN_FACTOR_RANGE = 0.1
+
+
+def _ground(ctx):
+    return float(ctx.options.get("ground_z_m", 0.0)), float(ctx.options.get("ground_h0_m", 0.5))
 
 
 def _constants(ctx):
-    return {"z_ground": float(np.percentile(ctx.columns["z"], 2)),
-            "h0": float(ctx.options.get("ground_h0_m", 0.5))}
+    zg, h0 = _ground(ctx)
+    return {"z_ground": zg, "h0": h0}
 
 
-def _heights(ctx):
-    """Ground effect is identifiable only when the heights span at least h0 above the lowest
-    one: at a nearly constant height exp(−(z − z_ground)/h0) is G plus a tiny G·Δz term that
-    fits whatever correlates with height-hold errors, not a ground effect."""
-    z = ctx.columns["z"]
-    span = float(np.percentile(z, 98) - np.percentile(z, 2))
-    h0 = float(ctx.options.get("ground_h0_m", 0.5))
-    if span < h0:
-        return (f"the training heights span only {span:.2g} m (< h0 = {h0:g} m): a ground "
-                "effect cannot be told from a constant thrust gain")
+def _preconditions(ctx):
+    z = np.asarray(ctx.columns["z"], float)
+    zg, h0 = _ground(ctx)
+    below = float(np.mean(z < zg - 0.1))
+    if below > 0.02:
+        return (f"{100 * below:.0f} % of the heights lie below the ground height z = {zg:g} m: "
+                "the ground is not at a known height (set ground_z_m)")
+    near = float(np.mean(z - zg < h0))
+    if near < NEAR_SHARE:
+        return (f"only {100 * near:.1f} % of the flight is within h0 = {h0:g} m of the ground "
+                f"(z = {zg:g} m; needs {100 * NEAR_SHARE:g} %): no time near the ground")
+    rng = spread(np.exp(-(z - zg) / h0))
+    if rng < MIN_FACTOR_RANGE:
+        return (f"the ground factor exp(−(z − {zg:g})/{h0:g}) varies by only {rng:.2g} (< "
+                f"{MIN_FACTOR_RANGE:g}): a ground effect cannot be told from a constant thrust gain")
     return None
 
 
@@ -36,10 +60,11 @@ def _features(ctx, k):
 
 def _interpret(coef, base):
     k = coef.get("k_ge", float("nan"))
-    return Interpretation(f"thrust gain near the ground: {100 * k:+.0f} % at the training flights' "
-                          "ground height (decaying with height)", {"gain_at_ground": k})
+    return Interpretation(f"thrust gain near the ground: {100 * k:+.0f} % at the ground (decaying "
+                          "with height)", {"gain_at_ground": k})
 
 
-EFFECT = Effect("ground_effect", "thrust gain near the ground (needs height z)", ((TILT,), ("z",)),
-                _interpret, expr_fn=_features, constants_fn=_constants, data_fn=_heights,
+EFFECT = Effect("ground_effect", "thrust gain near the ground (needs height z above a known ground "
+                "and time near it)", ((TILT,), ("z",)),
+                _interpret, expr_fn=_features, constants_fn=_constants, data_fn=_preconditions,
                 targets=tuple(TARGETS), explain_signal="z", order=100)

@@ -3,11 +3,26 @@
 Feature for v̇x: G_exact − G, G_exact = g(cosψ tanθ + sinψ tanφ/cosθ) (v̇y: g(sinψ tanθ −
 cosψ tanφ/cosθ)), coefficient ``w_exact`` -> weight (1 = exact geometry). Not applicable with a
 rotor-thrust prior (exact rotation already).
+
+Precondition: the tilt sqrt(roll² + pitch²) reaches ``MIN_TILT_RAD`` (0.3 rad ≈ 17°, 98th
+percentile): the two forms differ by ~g·θ·φ²/2, which below that is under 0.1 m/s².
 """
+import numpy as np
+
 import sympy as sp
 
 from droneid.expressions import symbol
-from priors.effects import TILT, Effect, Interpretation
+from priors.effects import TILT, Effect, Interpretation, high
+
+MIN_TILT_RAD = 0.3
+
+
+def _preconditions(ctx):
+    tilt = high(np.hypot(ctx.columns["roll"], ctx.columns["pitch"]))
+    if tilt < MIN_TILT_RAD:
+        return (f"the tilt reaches only {tilt:.2f} rad (< {MIN_TILT_RAD} rad): the exact and the "
+                "small-angle thrust directions do not differ there")
+    return None
 
 
 def _applicable(ctx):
@@ -33,4 +48,5 @@ def _interpret(coef, base):
 
 EFFECT = Effect("thrust_direction", "exact Z-Y-X thrust geometry instead of the paper's small-angle "
                 "tilt terms", ((TILT,), ("roll",), ("pitch",), ("yaw",)), _interpret,
-                expr_fn=_features, applicable_fn=_applicable, explain_signal="pitch", order=90)
+                expr_fn=_features, applicable_fn=_applicable, data_fn=_preconditions,
+                explain_signal="pitch", order=90)

@@ -4,13 +4,26 @@ Feature for v̇x (v̇y analogous): G·(T/T̄ − 1), T the logged thrust proxy
 (:func:`priors.effects.thrust_proxy`: thrust in N, else Σ(rpm/10⁴)², else the mean motor
 command, else throttle), T̄ its training mean (coefficient ``s``) -> gain (1 = thrust
 proportional to T). Not applicable when G is the logged thrust already (rotor-thrust).
+
+Precondition: the thrust proxy varies by at least ``MIN_VARIATION`` (5 %, 2nd-98th percentile
+range over the mean).
 """
 import numpy as np
 import sympy as sp
 
-from priors.effects import TILT, Effect, Interpretation, thrust_proxy
+from priors.effects import TILT, Effect, Interpretation, spread, thrust_proxy
 
 _THRUST_SIGNALS = ("thrust", "rpm1", "motor1", "throttle")
+MIN_VARIATION = 0.05
+
+
+def _preconditions(ctx):
+    _, e = thrust_proxy(ctx.columns)
+    T = ctx.evaluate(e)
+    rel = spread(T) / max(abs(float(np.mean(T))), 1e-12)
+    if rel < MIN_VARIATION:
+        return f"the logged thrust varies by only {100 * rel:.1f} % (< {100 * MIN_VARIATION:g} %)"
+    return None
 
 
 def _applicable(ctx):
@@ -42,5 +55,5 @@ def _interpret(coef, base):
 EFFECT = Effect("thrust_variation", "thrust departs from hover balance (climbs, descents): the tilt "
                 "terms scale with the logged thrust relative to its training mean",
                 ((TILT,), _THRUST_SIGNALS), _interpret, expr_fn=_features,
-                constants_fn=_constants, applicable_fn=_applicable,
+                constants_fn=_constants, applicable_fn=_applicable, data_fn=_preconditions,
                 explain_signal="thrust", order=70)

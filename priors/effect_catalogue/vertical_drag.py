@@ -1,11 +1,22 @@
 """Vertical drag: aerodynamic drag growing with climb rate squared.
 
 Feature for v̇z only: −|vz|·vz (coefficient ``c_z``) -> vertical c_D/m in 1/m.
+
+Precondition: the climb rate reaches ``MIN_VZ_M_S`` (0.5 m/s, 98th percentile of |vz|).
 """
 import sympy as sp
 
 from droneid.expressions import symbol
-from priors.effects import Effect, Interpretation
+from priors.effects import Effect, Interpretation, high
+
+MIN_VZ_M_S = 0.5
+
+
+def _preconditions(ctx):
+    v = high(ctx.columns["vz"])
+    if v < MIN_VZ_M_S:
+        return f"the climb rate reaches only {v:.2g} m/s (< {MIN_VZ_M_S:g} m/s)"
+    return None
 
 
 def _features(ctx, consts):
@@ -19,5 +30,5 @@ def _interpret(coef, base):
 
 
 EFFECT = Effect("vertical_drag", "vertical aerodynamic drag growing with climb rate squared: −c_z|vz|vz",
-                (("vz",),), _interpret, expr_fn=_features, targets=("vz_dot",),
+                (("vz",),), _interpret, expr_fn=_features, data_fn=_preconditions, targets=("vz_dot",),
                 explain_signal="vz", order=20)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import diag_synth as S
-from droneid.diagnose import NO_FURTHER, DiagnoseConfig, block_ids, diagnose_datasets, significance
+from droneid.diagnose import NO_FURTHER, DiagnoseConfig, block_ids, diagnose_datasets
 from droneid.errors import ConfigError
 
 CFG = DiagnoseConfig(generations=0)
@@ -67,13 +67,13 @@ def test_missing_signals_make_effects_untestable_not_absent():
     json.dumps(d, allow_nan=False)
 
 
-def test_wind_with_constant_yaw_is_flagged_as_indistinguishable_from_bias():
-    # with yaw held constant a wind offset and an attitude bias are the same constant
+def test_wind_with_constant_yaw_leaves_attitude_bias_untestable():
+    # with yaw held constant a wind offset and an attitude bias are the same constant: the bias's
+    # precondition (yaw variation) fails, so only the flight condition, wind, is tried
     data = S.make("wind", {"wx": 1.5, "wy": 1.0}, seed=1, yaw=0.3)
     r = diagnose_datasets(data, None, prior=S.TiltDragStub(), config=CFG)
-    assert r.effects_added[0] in ("wind", "attitude_bias")
-    other = {"wind": "attitude_bias", "attitude_bias": "wind"}[r.effects_added[0]]
-    assert other in r.steps[0]["evidence"]["indistinguishable_from"]
+    assert r.effects_added == ["wind"]
+    assert "told from wind" in r.untestable["attitude_bias"]
 
 
 def test_json_schema_keys():
@@ -94,22 +94,6 @@ def test_block_ids_are_contiguous_per_flight():
     assert set(b) == set(range(5))
     for k in range(2):
         assert np.all(np.diff(b[f == k]) >= 0)
-
-
-def test_significance_rule():
-    n = np.full(8, 100)
-    before = np.full(8, 1.0)
-    ev = significance(before, before * 0.8, n, alpha=0.01, n_candidates=9)
-    assert ev["passed"] and ev["blocks_improved"] == "8/8"
-    noisy = before * (1 + 0.01 * np.array([1, -1, 1, -1, 1, -1, 1, -1]))
-    assert not significance(before, noisy, n, alpha=0.01)["passed"]
-    # the rule reads training blocks only: it has no test-flight input at all
-    import inspect
-    assert not any("test" in p for p in inspect.signature(significance).parameters)
-    # a large pooled gain that varies by block (half the blocks worse) fails the block test
-    mixed = before * np.array([0.2, 0.2, 0.2, 0.2, 1.05, 1.05, 1.05, 1.05])
-    ev = significance(before, mixed, n, alpha=0.01)
-    assert ev["rel_improvement"] > 0.2 and not ev["passed"] and "block test" in ev["reasons"][0]
 
 
 def test_config_validation_and_unknown_effect():

@@ -1,0 +1,224 @@
+"""One calibrated rule for every "add it or not" decision on training data.
+
+A candidate (an effect, an effect pair, an input delay, an evolved term) is kept only when the
+model WITH it predicts held-out training data better than the model WITHOUT it, consistently
+over contiguous time blocks, at a family-wise error level over every candidate tried.
+
+The rule (:func:`decide`), on per-row held-out (cross-validated) residuals of the two models:
+
+1. **Block differences.** For every validation block b (contiguous time blocks of the training
+   flights, :func:`droneid.ladder.block_ids` / :func:`droneid.ladder.validation_blocks`):
+   ``d_b = (mse0_b − mse1_b) / mse0_b`` with ``mse*_b`` the mean squared held-out residual in
+   block b without/with the candidate (row weights optional): the difference of squared
+   validation error relative to the block's own error, so a calm block and a manoeuvre count
+   alike (raw differences let the noisiest blocks dominate the spread and cost most of the
+   power). ``d_b > 0``: the candidate helps there.
+2. **Paired one-sided test.** Student t on the block means: ``t = mean(d) / (sd(d)/√B)``,
+   ``p = P(T_{B−1} ≥ t)``. Blocks, not rows, are the units: residuals are correlated in time,
+   blocks of a few seconds are nearly independent, so the test does not count one manoeuvre
+   hundreds of times. (With B ≤ 20 blocks a sign-flip test cannot reach the small thresholds
+   that family-wise control needs: its smallest p is 2^−B.)
+3. **Family-wise error control (Holm).** With ``family_size`` = m candidates tried in all and
+   the candidate at position ``rank`` k of the step-down order (k = 1 for the first one
+   accepted), the threshold is ``alpha / (m − k + 1)`` (k = 1: Bonferroni).
+   :func:`decide_family` applies the whole Holm step-down to several candidates at once.
+4. **Size.** The pooled held-out RMSE must fall by at least ``min_effect_pct`` percent: a
+   consistent but negligible gain (a long flight makes anything significant) is not kept.
+
+Accepted when p < threshold AND the size holds. Everything is a function of plain arrays (the
+residuals or predictions of the two models and the block ids), so the diagnosis, the delay
+choice and the trimming of evolved terms share it. Test flights must never be passed here.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .errors import ConfigError
+from .ladder import blocked_cv
+
+__all__ = ["Decision", "decide", "decide_predictions", "decide_designs", "decide_family",
+           "block_differences", "paired_block_test", "holm_threshold"]
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The outcome of :func:`decide` for one candidate.
+
+    accepted: the candidate is kept. statistic: the paired t statistic of the block differences.
+    p_value: its one-sided p. threshold: the p it had to beat (Holm). n_blocks: validation blocks
+    used. effect_pct: held-out RMSE reduction in % (positive: the candidate helps). evidence:
+    one line for a report. rmse_without/rmse_with: pooled held-out RMSE of the two models (the
+    residuals' units). blocks_better: blocks where the candidate helps. block_differences:
+    ``d_b``, the relative drop of each block's held-out MSE. family_size, rank: the Holm
+    position. reasons: why it was rejected (empty when accepted).
+    """
+    accepted: bool
+    statistic: float
+    p_value: float
+    threshold: float
+    n_blocks: int
+    effect_pct: float
+    evidence: str
+    rmse_without: float = float("nan")
+    rmse_with: float = float("nan")
+    blocks_better: int = 0
+    block_differences: tuple[float, ...] = ()
+    family_size: int = 1
+    rank: int = 1
+    reasons: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["block_differences"] = list(self.block_differences)
+        d["reasons"] = list(self.reasons)
+        return d
+
+
+def holm_threshold(alpha: float, family_size: int, rank: int = 1) -> float:
+    """The p a candidate at Holm position ``rank`` (1-based) of ``family_size`` must beat:
+    ``alpha / (family_size − rank + 1)``."""
+    if not (0 < alpha < 1):
+        raise ConfigError(f"The 'alpha' parameter must be in (0, 1). Got {alpha!r} instead.")
+    if not (isinstance(family_size, (int, np.integer)) and family_size >= 1):
+        raise ConfigError(f"The 'family_size' parameter must be an int >= 1. Got {family_size!r} instead.")
+    if not (isinstance(rank, (int, np.integer)) and 1 <= rank <= family_size):
+        raise ConfigError(f"The 'rank' parameter must be an int in [1, family_size={family_size}]. "
+                          f"Got {rank!r} instead.")
+    return alpha / (family_size - rank + 1)
+
+
+def block_differences(err_without, err_with, blocks, weights=None):
+    """Per-block mean squared errors of the two models and their difference.
+
+    ``err_*``: per-row held-out residuals (any units, the same rows); ``blocks``: block id per
+    row; ``weights``: optional per-row weights (≥ 0) of the squared errors. Returns
+    ``(block ids, mse_without_b, mse_with_b, d_b, rows_b)``, ``d_b = mse_without_b − mse_with_b``.
+    Rows with a non-finite residual in either model are dropped.
+    """
+    e0 = np.asarray(err_without, float).ravel()
+    e1 = np.asarray(err_with, float).ravel()
+    b = np.asarray(blocks).ravel()
+    if not (e0.size == e1.size == b.size):
+        raise ConfigError(f"err_without, err_with and blocks must have the same length. Got "
+                          f"{e0.size}, {e1.size} and {b.size} instead.")
+    w = np.ones(e0.size) if weights is None else np.asarray(weights, float).ravel()
+    if w.size != e0.size or np.any(w < 0):
+        raise ConfigError("weights must be one non-negative number per row")
+    ok = np.isfinite(e0) & np.isfinite(e1) & np.isfinite(w)
+    e0, e1, b, w = e0[ok], e1[ok], b[ok], w[ok]
+    ids, inv = np.unique(b, return_inverse=True)
+    sw = np.bincount(inv, weights=w, minlength=ids.size)
+    rows = np.bincount(inv, minlength=ids.size)
+    keep = sw > 0
+    m0 = np.bincount(inv, weights=w * e0 * e0, minlength=ids.size)[keep] / sw[keep]
+    m1 = np.bincount(inv, weights=w * e1 * e1, minlength=ids.size)[keep] / sw[keep]
+    return ids[keep], m0, m1, m0 - m1, rows[keep]
+
+
+def paired_block_test(d) -> tuple[float, float]:
+    """(t, one-sided p) of Student's t test that the block differences ``d`` have mean > 0.
+    Zero spread: p = 0 when every d > 0, else 1 (t = ±inf or 0)."""
+    from scipy import stats
+    d = np.asarray(d, float)
+    if d.size == 0:
+        return 0.0, 1.0
+    sd = float(np.std(d, ddof=1)) if d.size >= 2 else 0.0
+    mean = float(np.mean(d))
+    if sd <= 1e-15 * max(1.0, abs(mean)):
+        if np.all(d > 0):
+            return math.inf, 0.0
+        return (-math.inf if mean < 0 else 0.0), 1.0
+    t = mean / (sd / math.sqrt(d.size))
+    return float(t), float(stats.t.sf(t, d.size - 1))
+
+
+def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: int = 1,
+           rank: int = 1, min_effect_pct: float = 1.0, weights=None, what: str = "") -> Decision:
+    """The rule of this module for one candidate (see the module docstring).
+
+    ``err_without``/``err_with``: per-row held-out residuals of the model without/with the
+    candidate on TRAINING data (e.g. ``y − blocked_cv(...)``); ``blocks``: their validation block
+    ids (at least 3 blocks); ``alpha``: family-wise level; ``family_size``/``rank``: the Holm
+    position (:func:`holm_threshold`); ``min_effect_pct``: smallest held-out RMSE reduction (%)
+    that counts; ``weights``: optional per-row weights; ``what``: a name for the evidence line.
+    """
+    if not (0 <= min_effect_pct < 100):
+        raise ConfigError(f"The 'min_effect_pct' parameter must be in [0, 100). Got {min_effect_pct!r} instead.")
+    thr = holm_threshold(alpha, family_size, rank)
+    ids, m0, m1, d, rows = block_differences(err_without, err_with, blocks, weights)
+    if ids.size < 3:
+        raise ConfigError(f"decide needs at least 3 validation blocks with data. Got {ids.size} instead.")
+    pooled0 = float(np.sum(m0 * rows) / np.sum(rows))
+    pooled1 = float(np.sum(m1 * rows) / np.sum(rows))
+    dn = np.where(m0 > 0, d / np.where(m0 > 0, m0, 1.0), 0.0)
+    t, p = paired_block_test(dn)
+    r0, r1 = math.sqrt(pooled0), math.sqrt(pooled1)
+    pct = 100.0 * (1.0 - r1 / r0) if r0 > 0 else 0.0
+    better = int(np.sum(d > 0))
+    reasons = []
+    if not p < thr:
+        reasons.append(f"block test p = {p:.2g} ≥ {thr:.2g}")
+    if pct < min_effect_pct:
+        reasons.append(f"held-out RMSE {'falls' if pct >= 0 else 'rises'} by {abs(pct):.2f} % "
+                       f"({'<' if pct >= 0 else 'not'} {min_effect_pct:g} %)")
+    accepted = not reasons
+    holm = (f"Bonferroni over {family_size}" if rank == 1 else f"Holm rank {rank} of {family_size}")
+    line = (f"{what + ': ' if what else ''}CV RMSE {r0:.4g} -> {r1:.4g} ({-pct:+.1f} %), "
+            f"t = {t:.2f} over {ids.size} blocks, p = {p:.2g} "
+            f"{'<' if p < thr else '≥'} {thr:.2g} (α = {alpha:g}, {holm}), "
+            f"{better}/{ids.size} blocks better: " + ("accepted" if accepted else
+                                                      "rejected (" + "; ".join(reasons) + ")"))
+    return Decision(accepted, float(t), float(p), float(thr), int(ids.size), float(pct), line,
+                    r0, r1, better, tuple(float(x) for x in dn), int(family_size), int(rank),
+                    tuple(reasons))
+
+
+def decide_predictions(y, pred_without, pred_with, blocks, **kwargs) -> Decision:
+    """:func:`decide` from held-out predictions of the two models of ``y`` (same rows)."""
+    y = np.asarray(y, float)
+    return decide(y - np.asarray(pred_without, float), y - np.asarray(pred_with, float), blocks, **kwargs)
+
+
+def decide_designs(A_without, A_with, y, blocks, **kwargs) -> Decision:
+    """:func:`decide` for two least-squares models given by their design matrices (include an
+    intercept column if the model has one): held-out predictions by
+    :func:`droneid.ladder.blocked_cv` over ``blocks``."""
+    y = np.asarray(y, float)
+    return decide_predictions(y, blocked_cv(np.asarray(A_without, float), y, blocks),
+                              blocked_cv(np.asarray(A_with, float), y, blocks), blocks, **kwargs)
+
+
+def decide_family(err_without, candidates: Mapping[str, np.ndarray], blocks, *, alpha: float = 0.01,
+                  family_size: int | None = None, min_effect_pct: float = 1.0, weights=None
+                  ) -> dict[str, Decision]:
+    """Holm's step-down over several candidates, each against the same model without them.
+
+    ``candidates``: {name: per-row held-out residuals with that candidate}; ``family_size``:
+    default the number of candidates (larger when others were tried elsewhere). Candidates are
+    ordered by p; the k-th is tested at ``alpha / (m − k + 1)``; after the first rejection every
+    later one is rejected too (Holm). Returns {name: Decision} in the input order; choose among
+    the accepted ones (e.g. the lowest held-out error).
+    """
+    names: Sequence[str] = list(candidates)
+    m = len(names) if family_size is None else int(family_size)
+    if m < len(names):
+        raise ConfigError(f"family_size ({m}) is smaller than the number of candidates ({len(names)})")
+    first = {n: decide(err_without, candidates[n], blocks, alpha=alpha, family_size=max(m, 1),
+                       min_effect_pct=min_effect_pct, weights=weights, what=n) for n in names}
+    order = sorted(names, key=lambda n: (first[n].p_value, n))
+    out, stopped = {}, False
+    for k, n in enumerate(order, 1):
+        dec = decide(err_without, candidates[n], blocks, alpha=alpha, family_size=m, rank=k,
+                     min_effect_pct=min_effect_pct, weights=weights, what=n)
+        if stopped and dec.accepted:
+            dec = Decision(**{**asdict(dec), "accepted": False,
+                              "reasons": dec.reasons + ("an earlier candidate of the Holm order failed",),
+                              "evidence": dec.evidence.replace(": accepted", ": rejected (an earlier "
+                                                               "candidate of the Holm order failed)")})
+        stopped = stopped or not dec.p_value < dec.threshold
+        out[n] = dec
+    return {n: out[n] for n in names}

@@ -1,0 +1,99 @@
+"""The one decision rule (droneid.decide): accepts consistent held-out gains, rejects noise at
+its stated family-wise level, Holm step-down over a family."""
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+import pytest
+
+from droneid.decide import Decision, decide, decide_designs, decide_family, holm_threshold
+from droneid.errors import ConfigError
+from droneid.ladder import block_ids
+
+
+def _blocks(n=800, k=8):
+    t = np.arange(n, dtype=float)
+    return block_ids(t, np.zeros(n, int), k)
+
+
+def test_consistent_gain_is_accepted_with_its_evidence():
+    rng = np.random.default_rng(0)
+    b = _blocks()
+    e0 = rng.normal(0, 1.0, b.size)
+    e1 = 0.8 * e0
+    d = decide(e0, e1, b, alpha=0.01, family_size=9, what="wind")
+    assert isinstance(d, Decision) and d.accepted
+    assert d.n_blocks == 8 and d.blocks_better == 8
+    assert d.threshold == pytest.approx(0.01 / 9)
+    assert d.effect_pct == pytest.approx(20.0, abs=1e-9)
+    assert d.evidence.startswith("wind: ") and "accepted" in d.evidence
+    with pytest.raises(AttributeError):
+        d.accepted = False                     # frozen
+
+
+def test_half_the_blocks_worse_is_rejected_and_says_why():
+    rng = np.random.default_rng(1)
+    b = _blocks()
+    e0 = rng.normal(0, 1.0, b.size)
+    scale = np.where(b < 4, 0.45, 1.03)          # a big gain in half the blocks, a loss elsewhere
+    d = decide(e0, e0 * scale, b, alpha=0.01)
+    assert d.effect_pct > 15 and not d.accepted
+    assert any("block test" in r for r in d.reasons) and "rejected" in d.evidence
+
+
+def test_tiny_but_consistent_gain_fails_the_size_rule():
+    rng = np.random.default_rng(2)
+    b = _blocks()
+    e0 = rng.normal(0, 1.0, b.size)
+    d = decide(e0, 0.998 * e0, b, min_effect_pct=1.0)
+    assert d.p_value < 1e-6 and not d.accepted and "RMSE falls by 0.20 %" in d.reasons[0]
+
+
+def test_rule_has_no_test_flight_input():
+    for f in (decide, decide_family, decide_designs):
+        assert not any("test" in p for p in inspect.signature(f).parameters)
+
+
+def test_null_rejection_rate_is_at_most_alpha():
+    """Calibration: an irrelevant regressor added to a least-squares model (residuals correlated
+    in time, as on flights) is accepted in at most alpha of the trials (plus Monte-Carlo slack)."""
+    rng = np.random.default_rng(3)
+    n, trials, alpha = 400, 400, 0.05
+    b = _blocks(n, 8)
+    acc = 0
+    for _ in range(trials):
+        x = np.cumsum(rng.normal(size=n)) / 10          # slow, time-correlated signals
+        z = np.cumsum(rng.normal(size=n)) / 10
+        noise = np.convolve(rng.normal(size=n + 9), np.ones(10) / 10, "valid")   # coloured noise
+        y = 0.5 * x + noise
+        A0 = np.column_stack([x, np.ones(n)])
+        A1 = np.column_stack([x, z, np.ones(n)])
+        acc += decide_designs(A0, A1, y, b, alpha=alpha, min_effect_pct=0.0).accepted
+    assert acc / trials <= alpha + 0.03, acc
+
+
+def test_holm_thresholds_and_step_down():
+    assert holm_threshold(0.01, 5, 1) == pytest.approx(0.002)
+    assert holm_threshold(0.01, 5, 5) == pytest.approx(0.01)
+    with pytest.raises(ConfigError, match="rank"):
+        holm_threshold(0.01, 3, 4)
+    rng = np.random.default_rng(4)
+    b = _blocks()
+    e0 = rng.normal(0, 1, b.size)
+    cands = {"strong": 0.7 * e0, "weak": e0 * np.where(b % 2 == 0, 0.97, 1.005),
+             "none": e0 + rng.normal(0, 0.05, b.size)}
+    out = decide_family(e0, cands, b, alpha=0.01, min_effect_pct=0.0)
+    assert list(out) == list(cands)
+    assert out["strong"].accepted and out["strong"].rank == 1
+    assert out["strong"].threshold == pytest.approx(0.01 / 3)
+    assert not out["none"].accepted
+    assert {d.rank for d in out.values()} == {1, 2, 3}
+
+
+def test_bad_input_raises_config_error():
+    b = _blocks(30, 3)
+    with pytest.raises(ConfigError, match="same length"):
+        decide(np.zeros(30), np.zeros(29), b)
+    with pytest.raises(ConfigError, match="at least 3 validation blocks"):
+        decide(np.ones(30), np.ones(30), np.zeros(30))
