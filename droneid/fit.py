@@ -11,16 +11,21 @@ The :class:`FitResult` holds the fitted estimator and its errors; the CLI only p
 from __future__ import annotations
 
 import math
+import re
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .constraint_samples import ConstraintSamples
 from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
 from .sngp import SNGPRegressor
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: the engine's own defaults (its signature), which fit keeps
 _ENGINE = SNGPRegressor.default_params()
@@ -103,8 +108,9 @@ class FitResult:
         return {**self.estimator.to_dict(), "target": self.target}
 
 
-def read_table(path) -> pd.DataFrame:
+def read_table(path) -> "pd.DataFrame":
     """A CSV table with a header row; LogFormatError naming the file when it is not one."""
+    import pandas as pd
     path = Path(path)
     if not path.is_file():
         raise LogFormatError(path, "no such file")
@@ -117,13 +123,69 @@ def read_table(path) -> pd.DataFrame:
     return df
 
 
-def _columns(df: pd.DataFrame, names, where) -> np.ndarray:
+#: a decimal number as a plain CSV table writes it (no spaces, no NaN/inf words, no thousands)
+_PLAIN_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+#: an integer token longer than this may leave int64 in pandas (uint64, object): not plain
+_MAX_INT_DIGITS = 18
+
+
+def read_plain_table(path) -> dict[str, np.ndarray | None] | None:
+    """A plain numeric CSV table read without pandas (whose import is a fifth of a ``droneid fit``
+    start-up): ``{column: float64 array}``, the columns in file order; a ``flight`` column of
+    names is kept as None. None when the file is anything else: not UTF-8, a byte-order mark,
+    quotes, blank or ragged rows, empty or repeated column names, a field that is not a plain
+    decimal number (spaces, NaN, inf, missing values) or an integer too long for int64; pandas
+    then reads it (:func:`read_table`).
+
+    The values are those pandas gives: on such fields pandas' parser and Python's ``float`` both
+    round correctly (tests/unit/test_fit_plain_table.py checks them side by side), and an integer
+    column that pandas reads as int64 converts to the same float64."""
+    try:
+        text = Path(path).read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not text or text[0] == "\ufeff" or '"' in text:
+        return None
+    lines = text.split("\n")
+    while lines and lines[-1] in ("", "\r"):
+        lines.pop()
+    lines = [ln[:-1] if ln.endswith("\r") else ln for ln in lines]
+    if len(lines) < 2 or any(not ln or "\r" in ln for ln in lines):
+        return None
+    names = lines[0].split(",")
+    if len(names) < 2 or len(set(names)) != len(names) or not all(names):
+        return None
+    rows = [ln.split(",") for ln in lines[1:]]
+    if any(len(r) != len(names) for r in rows):
+        return None
+    table: dict[str, np.ndarray | None] = {}
+    for j, name in enumerate(names):
+        tokens = [r[j] for r in rows]
+        if not all(_PLAIN_NUMBER.fullmatch(t) for t in tokens):
+            if name != "flight":
+                return None
+            table[name] = None        # log names: never an input by default
+            continue
+        integers = [t.lstrip("+-").isdigit() for t in tokens]
+        if any(i and len(t.lstrip("+-")) > _MAX_INT_DIGITS for i, t in zip(integers, tokens)):
+            return None
+        if all(integers):   # pandas: an int64 column, then float64 ("-0" is 0.0, not -0.0)
+            table[name] = np.array([float(int(t)) for t in tokens], dtype=np.float64)
+        else:
+            table[name] = np.array([float(t) for t in tokens], dtype=np.float64)
+    return table
+
+
+def _columns(table, names, where) -> np.ndarray:
+    """The ``names`` columns of ``table`` (a DataFrame or a :func:`read_plain_table` dict) as
+    float64 columns of one array."""
     out = []
     for n in names:
-        if n not in df.columns:
-            raise MissingSignalError(n, [str(c) for c in df.columns], where=str(where))
+        if n not in table:
+            raise MissingSignalError(n, [str(c) for c in table], where=str(where))
         try:
-            out.append(df[n].to_numpy(dtype=np.float64))
+            out.append(np.asarray(table[n], dtype=np.float64) if isinstance(table, dict)
+                       else table[n].to_numpy(dtype=np.float64))
         except (ValueError, TypeError):
             raise DataError(f"{where}: column '{n}' is not numeric") from None
     return np.column_stack(out)
@@ -179,10 +241,24 @@ def prior_features(spec: str, inputs: Sequence[str], target: str) -> list:
     return [parse_expression(spec, list(inputs), what=f"--prior {spec!r}")]
 
 
-def _table(data, where) -> tuple[pd.DataFrame, str]:
-    if isinstance(data, pd.DataFrame):
+def _table(data, where, needed) -> tuple:
+    """``(table, where)``: a DataFrame as given; a CSV path as a plain table when it is one and
+    the columns ``needed(columns)`` names are all numeric in it (:func:`read_plain_table`),
+    else as read by pandas (:func:`read_table`, whose errors name the file)."""
+    pd = sys.modules.get("pandas")      # no DataFrame exists before pandas is imported
+    if pd is not None and isinstance(data, pd.DataFrame):
         return data, where
+    plain = read_plain_table(data)
+    if plain is not None and all(plain.get(n, 0) is not None for n in needed(plain)):
+        return plain, str(data)
     return read_table(data), str(data)
+
+
+def _inputs(columns, config: FitConfig) -> tuple[str, ...]:
+    """The input columns: ``config.inputs``, else every column but the target and NOT_INPUTS."""
+    if config.inputs:
+        return tuple(config.inputs)
+    return tuple(str(c) for c in columns if c != config.target and c not in NOT_INPUTS)
 
 
 @dataclass(frozen=True)
@@ -205,11 +281,9 @@ class TableProblem:
 def prepare(train, config: FitConfig, test=None) -> TableProblem:
     """Read and check the tables (CSV paths or DataFrames) before any search: bad input fails
     here, in seconds, with one line naming the file and the problem."""
-    df, where = _table(train, "the training table")
-    if config.inputs:
-        inputs = tuple(config.inputs)
-    else:
-        inputs = tuple(str(c) for c in df.columns if c != config.target and c not in NOT_INPUTS)
+    df, where = _table(train, "the training table",
+                       lambda columns: (*_inputs(columns, config), config.target))
+    inputs = _inputs(df, config)
     if not inputs:
         raise ConfigError("no input columns (give --inputs)")
     if config.target in inputs:
@@ -229,7 +303,7 @@ def prepare(train, config: FitConfig, test=None) -> TableProblem:
                                             seed=config.seed)
     Xt = yt = None
     if test is not None:
-        dft, twhere = _table(test, "the test table")
+        dft, twhere = _table(test, "the test table", lambda columns: (*inputs, config.target))
         Xt, yt, _ = _finite_rows(_columns(dft, inputs, twhere), _columns(dft, [config.target], twhere)[:, 0])
     return TableProblem(inputs, X, y, priors, cs_train, cs_test, Xt, yt, dropped,
                         (warning,) if warning else (), where)

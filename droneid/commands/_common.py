@@ -6,7 +6,6 @@ import sys
 import time
 
 from ..errors import ConfigError
-from ..flight import VEHICLE_TYPES
 
 
 class ProgressBar:
@@ -76,6 +75,7 @@ def _json_default(o):
 def add_log_options(p, *, with_format: bool = True) -> None:
     """Add the reader options (``--format`` unless the command has its own, ``--topic``,
     ``--body``, ``--column``, ``--sysid``, ``--vehicle``) to a subcommand parser."""
+    from ..flight import VEHICLE_TYPES   # only the commands that read logs need droneid.flight
     if with_format:
         p.add_argument("--format", dest="log_format", default=None,
                        help="skip format detection: a reader's format name (docs/logs.md; an unknown "
