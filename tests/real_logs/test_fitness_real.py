@@ -53,7 +53,7 @@ def test_sportcub_without_vehicle_is_refused_and_inspect_shows_the_evidence(caps
 #: undeclared logs -> (read_flight options, whether the data look like a multirotor, a phrase)
 UNDECLARED = {
     "mcap/sportcub_fixedwing_qualisys.mcap": ({}, False, "never hovers"),
-    **{f"mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv#{b}": ({"body": b}, False, "hovers tilted")
+    **{f"mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv#{b}": ({"body": b}, False, "does not follow its acceleration")
        for b in ("device02", "device03", "device05")},
     **{f"mocap/crazyflie_nanodrone/square_run{i}.csv": ({}, True, None) for i in range(1, 6)},
     **{f"mocap/crazyflie_nanodrone/melon_run{i}.csv": ({}, True, None) for i in (1, 4)},

@@ -146,21 +146,26 @@ def test_a_flight_spanning_days_is_not_scanned():
 def _kinematic(kind: str, duration=40.0, rate=100.0) -> Flight:
     """An undeclared vehicle flying east with yaw 0: 10 s of hover, then vx = 3 sin(0.8 t).
     ``multirotor``: pitch = atan(ax / g) (a multirotor tilts the way it accelerates), level hover;
-    ``bird``: the same motion but 30 deg nose-down while still (perched / gliding, not hovering);
+    ``bird``: the same motion, its attitude swinging by 20-25 deg whatever it accelerates (flaps,
+    perches); ``windy``: a multirotor leaning 15 deg into a steady wind throughout (not a mismatch);
     ``fixed-wing``: never slower than 6 m/s, pitch a few degrees whatever the acceleration."""
     t = np.arange(0, duration, 1 / rate)
     moving = t >= 10.0
     vx = np.where(moving, 3.0 * np.sin(0.8 * (t - 10.0)), 0.0)
     ax = np.where(moving, 2.4 * np.cos(0.8 * (t - 10.0)), 0.0)
     pitch = np.arctan(ax / 9.81)
+    roll = 0 * t
     if kind == "bird":
-        pitch = np.where(moving, pitch, np.radians(30.0))
+        pitch = np.radians(25.0) * np.sin(1.3 * t + 1.0)
+        roll = np.radians(20.0) * np.sin(0.7 * t)
+    if kind == "windy":
+        pitch = np.arctan(ax / 9.81 + np.tan(np.radians(15.0)))
     if kind == "fixed-wing":
         vx = 8.0 + 2.0 * np.sin(0.6 * t)
         pitch = np.radians(3.0) + 0 * t
     zero = 0 * t
-    sig = [Signal("roll", t, zero, "rad"), Signal("pitch", t, pitch, "rad"),
-           Signal("yaw", t, np.radians(60.0) * np.sin(0.1 * t), "rad"), Signal("vx", t, vx, "m/s"),
+    sig = [Signal("roll", t, roll, "rad"), Signal("pitch", t, pitch, "rad"),
+           Signal("yaw", t, zero, "rad"), Signal("vx", t, vx, "m/s"),
            Signal("vy", t, zero, "m/s"), Signal("vz", t, zero, "m/s"), Signal("z", t, 2 + zero, "m")]
     prov = Provenance(files=(f"{kind}.csv",), format="csv")
     return Flight({s.name: s for s in sig}, prov, segments={"in_flight": ((0.0, duration),)})
@@ -172,7 +177,9 @@ def test_undeclared_vehicle_is_judged_from_its_data():
     assert ok.ok and ev.looks == "multirotor", (ok.problems, ev)
     assert ev.hover_s == pytest.approx(10.0, abs=0.5) and ev.hover_tilt_deg < 0.5 and ev.tilt_mismatch_deg < 1
     assert any("look like a multirotor" in w for w in ok.warnings)
-    for kind, why in (("bird", "hovers tilted by 30 deg"), ("fixed-wing", "never hovers")):
+    windy = _assess(_kinematic("windy")).flights[0].vehicle        # a steady lean is no mismatch
+    assert windy.looks == "multirotor" and windy.hover_tilt_deg > 14 and windy.tilt_mismatch_deg < 1, windy
+    for kind, why in (("bird", "its tilt does not follow its acceleration"), ("fixed-wing", "never hovers")):
         a = _assess(_kinematic(kind))
         assert not a.ok and a.flights[0].vehicle.looks == "not a multirotor"
         assert why in a.problems[0] and "pass --vehicle multirotor" in a.problems[0], a.problems
