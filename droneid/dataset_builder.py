@@ -304,12 +304,9 @@ def in_flight_intervals(flight: Flight, *, ts: float = 0.05, detect: _Detect | N
 
 def signal_gaps(sig: Signal, max_gap_s: float) -> list[Interval]:
     """The time intervals (s) where ``sig`` has no sample for longer than ``max_gap_s`` or five
-    median sample steps, whichever is longer."""
-    if len(sig) < 2:
-        return []
-    dt = np.diff(sig.t)
-    limit = max(max_gap_s, 5 * float(np.median(dt)))
-    return [(float(sig.t[i]), float(sig.t[i + 1])) for i in np.flatnonzero(dt > limit)]
+    median sample steps, whichever is longer (:meth:`Signal.gaps`, the rule rates and the
+    data-fitness check use too)."""
+    return sig.gaps(max_gap_s)
 
 
 # -- the builder --------------------------------------------------------------------------------
@@ -520,23 +517,29 @@ class DatasetBuilder:
                     need[q] = f[q]
         delays = dict(self.delays_s or {})
         screened: dict[str, int] = {}
+        holes: list[Interval] = []
         for n, sig in need.items():
             ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]), signal_gaps(sig, self.max_gap_s))
             sc = screen_signal(sig)          # implausible samples: holes no row may use
             if sc.implausible:
                 d = float(delays.get(n, 0.0))  # a delayed input is read at t - d
-                ivs = _subtract(ivs, [(a + d, b + d) for a, b in sc.holes])
+                holes += [(a + d, b + d) for a, b in sc.holes]
                 screened[n] = sc.implausible
                 notes.append(f"screened {sc.describe()}: rows that use them are left out")
             if len(sig) > 1 and sig.rate_hz < 1.0 / ts * 0.999:
                 notes.append(f"signal '{n}' is sampled at {sig.rate_hz:.3g} Hz, below the grid rate "
                              f"{1 / ts:.3g} Hz: interpolated")
+        # a row depends on the samples within its differentiator's stencil (±h): it is left out when
+        # that reaches a hole; the grid and every other row stay as they are
+        h = float(getattr(diff, "window_s", None) or 0.0) / 2 if diff.smoothing else 0.0
+        h = max(h, ts) + 1e-9
         for n in dict.fromkeys(derived):
             what = "the target" if n == source else "input"
             notes.append(f"{n} ({what}) derived from {_POSITION_OF[n]} by {diff.name} differences"
                          + (" (target: differentiated twice)" if n == source else ""))
         cols_parts, y_parts, t_parts = [], [], []
         n_dropped = n_short = 0
+        n_screened_rows = 0
         for a, b in ivs:
             grid = _uniform_grid(a, b, ts)
             if grid.size < max(3, diff.min_samples):
@@ -550,9 +553,18 @@ class DatasetBuilder:
             for n in inputs:
                 ok &= np.isfinite(cols[n])
             n_dropped += int((~ok).sum())
+            if holes:
+                hit = np.zeros(grid.size, dtype=bool)
+                for h0, h1 in holes:
+                    hit |= (grid + h > h0) & (grid - h < h1)
+                n_screened_rows += int((hit & ok).sum())
+                ok &= ~hit
             cols_parts.append({k: (v[ok] if v is not None else None) for k, v in cols.items()})
             y_parts.append(y[ok])
             t_parts.append(grid[ok])
+        if n_screened_rows:
+            notes.append(f"{n_screened_rows} grid sample(s) left out: their inputs or the target's "
+                         f"differences reach a screened sample")
         if n_short:
             notes.append(f"{n_short} interval(s) shorter than the differentiator needs were skipped")
         if n_dropped:

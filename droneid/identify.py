@@ -1075,7 +1075,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         best_run=best_i, failed_runs={str(k): v for k, v in (errors or {}).items()},
         model=best.model if best else None, test_series=series, notes=notes,
         intervals={k.strip("⟨⟩"): v for k, v in (final or {}).get("intervals", {}).items()},
-        screened={"training": dict(p.train.screened), "test": dict(p.test.screened)})
+        screened={"training": dict(p.train.screened),
+                  **({"test": dict(p.test.screened)} if len(p.test) and not p.holdout else {})})
 
 
 # ------------------------------------------------------------------------------------------------

@@ -69,21 +69,27 @@ def weighted_bounded_lstsq(A: np.ndarray, y: np.ndarray, w: np.ndarray | None = 
     r = y - A[:, fixed] @ lo[fixed] if fixed.any() else y
     if not free.any():
         return beta
-    sw = np.sqrt(np.ones(y.size) if w is None else np.asarray(w, float))
-    Af = A[:, free] * sw[:, None]
-    rf = r * sw
-    norms = np.sqrt((Af * Af).sum(axis=0))
+    ww = np.ones(y.size) if w is None else np.asarray(w, float)
+    Af = A[:, free]
+    # normal equations on normalised columns (k x k: fast for thousands of rows); an
+    # eigendecomposition gives the minimum-norm share to collinear columns
+    norms = np.sqrt(np.einsum("ij,ij,i->j", Af, Af, ww))
     zero = norms == 0
     norms[zero] = 1.0
     An = Af / norms
-    try:
-        b, *_ = np.linalg.lstsq(An, rf, rcond=1e-12)
-    except np.linalg.LinAlgError:
-        b = np.zeros(An.shape[1])
+    G = An.T @ (An * ww[:, None])
+    g = An.T @ (ww * r)
+    e, V = np.linalg.eigh(G)
+    keep = e > 1e-12 * max(float(e[-1]), 1e-300)
+    c = V.T @ g
+    b = V[:, keep] @ (c[keep] / e[keep])
     b[zero] = 0.0
     flo, fhi = lo[free] * norms, hi[free] * norms
     if np.any(b < flo - 1e-12 * np.abs(flo)) or np.any(b > fhi + 1e-12 * np.abs(fhi)):
-        b = lsq_linear(An, rf, bounds=(flo, fhi), method="bvls" if An.shape[1] <= 20 else "trf").x
+        # the same problem on M = diag(√e) Vᵀ (MᵀM = G): ||M b − diag(1/√e) Vᵀ g||² + const
+        se = np.sqrt(e[keep])
+        M = se[:, None] * V[:, keep].T
+        b = lsq_linear(M, c[keep] / se, bounds=(flo, fhi), method="bvls" if An.shape[1] <= 20 else "trf").x
     beta[free] = np.clip(b / norms, lo[free], hi[free])   # a zero column: 0, or its nearest bound
     return beta
 
@@ -95,13 +101,14 @@ def _scale(r: np.ndarray) -> float:
 
 
 def robust_fit(A: np.ndarray, y: np.ndarray, lo=None, hi=None, *, max_iter: int = 30,
-               tol: float = 1e-7) -> RobustFit:
-    """Huber-loss IRLS fit of ``y ≈ A β`` with ``lo <= β <= hi`` (see the module docstring)."""
+               tol: float = 1e-6, w0: np.ndarray | None = None) -> RobustFit:
+    """Huber-loss IRLS fit of ``y ≈ A β`` with ``lo <= β <= hi`` (see the module docstring);
+    ``w0``: starting weights (e.g. a fit on more rows), 1 by default."""
     A = np.asarray(A, float)
     y = np.asarray(y, float)
     k = A.shape[1]
     lo, hi = _bounds(k, lo, hi)
-    w = np.ones(y.size)
+    w = np.ones(y.size) if w0 is None else np.asarray(w0, float)
     beta = weighted_bounded_lstsq(A, y, w, lo, hi)
     s = 1e-12
     for _ in range(max_iter):
@@ -110,9 +117,9 @@ def robust_fit(A: np.ndarray, y: np.ndarray, lo=None, hi=None, *, max_iter: int 
         u = np.abs(r) / (HUBER_C * s)
         w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300))
         new = weighted_bounded_lstsq(A, y, w, lo, hi)
-        step = np.max(np.abs(new - beta) / (np.abs(beta) + 1e-12)) if k else 0.0
+        moved = float(np.max(np.abs(A @ (new - beta)))) if k else 0.0   # in target units
         beta = new
-        if step < tol:
+        if moved <= tol * s:
             break
     span = np.maximum(np.abs(lo), np.abs(hi))
     eps = 1e-9 * np.where(np.isfinite(span), np.maximum(span, 1.0), 1.0)
@@ -121,13 +128,16 @@ def robust_fit(A: np.ndarray, y: np.ndarray, lo=None, hi=None, *, max_iter: int 
 
 
 def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None) -> np.ndarray:
-    """Held-out predictions of :func:`robust_fit` on ``A`` (an intercept column included by the
-    caller, if any): every block is predicted by the fit on all other blocks."""
+    """Held-out predictions on ``A`` (an intercept column included by the caller, if any): every
+    block is predicted by the bounded least squares on all other blocks, with the robust (Huber)
+    weights of :func:`robust_fit` on all rows (one step per fold instead of a full IRLS: the
+    weights are a property of the training rows, and this keeps a CV at one solve per block)."""
     A = np.asarray(A, float)
     pred = np.empty_like(np.asarray(y, float))
+    w = robust_fit(A, y, lo, hi).weights
     for b in np.unique(blocks):
         hold = blocks == b
-        beta = robust_fit(A[~hold], y[~hold], lo, hi).beta
+        beta = weighted_bounded_lstsq(A[~hold], y[~hold], w[~hold], lo, hi)
         pred[hold] = A[hold] @ beta
     return pred
 

@@ -17,7 +17,8 @@ The metric (``docs/use-the-model.md`` states it for comparison with other benchm
   horizon ``h`` when ``[t0, t0 + h·dt_s]`` lies inside one in-flight interval and inside the span
   of every signal used (shifted by its delay) and crosses no gap of any of them (a gap: more than
   5 median periods between samples, as :class:`droneid.dataset_builder.DatasetBuilder` with
-  ``max_gap_s=0``); other starts are skipped and counted.
+  ``max_gap_s=0``) nor a hole of a screened implausible sample or jump (:mod:`droneid.screening`);
+  other starts are skipped and counted.
 * **Errors.** Per axis: ``sqrt(mean_k (v̂_a(t_k + h·dt) − v_a(t_k + h·dt))²)`` in m/s over the
   starts ``k`` valid for ``h``, all flights pooled. Position: ``sqrt(mean_k ‖p̂ − p‖²)`` in m over
   the modelled axes when at least the two horizontal axes are modelled and the log has positions.
@@ -36,6 +37,7 @@ from .dataset_builder import signal_gaps, with_euler_from_quaternion, in_flight_
 from .errors import ConfigError, DataError, MissingSignalError
 from .expressions import compile_expression
 from .flight import Flight
+from .screening import screen_signal
 from .identified import IdentifiedModel
 from .targets import TARGETS
 
@@ -222,6 +224,7 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
                  for s in m.signals if not (s in AXES and _is_state(per, s))}
         checked = reads | {(a, 0.0) for a in union} | {(p, 0.0) for m in names for p in pos_axes[m]}
         ok = {h: np.zeros(t0.size, bool) for h in hs}
+        holes: dict[str, list] = {}   # gaps and screened glitches (droneid.screening) of each signal
         tol = 1e-6 * dt_s   # round-off of t0 + h·dt against sample times
         for h in hs:
             t1 = t0 + h * dt_s
@@ -232,7 +235,7 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
                     raise MissingSignalError(s, f.names, where=f"flight '{f.name}' (a model input)")
                 sig = f[s]
                 ok[h] &= (t0 - d >= sig.start_s - tol) & (t1 - d <= sig.end_s + tol)
-                for g0, g1 in signal_gaps(sig, 0.0):
+                for g0, g1 in holes.setdefault(s, [*signal_gaps(sig, 0.0), *screen_signal(sig).holes]):
                     ok[h] &= ~((t0 - d < g1 - tol) & (t1 - d > g0 + tol))
             n_starts[h] += int(ok[h].sum())
             skipped[h] += int((~ok[h]).sum())

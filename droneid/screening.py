@@ -22,9 +22,9 @@ by :meth:`droneid.flight.Signal.clean` and counted in the log's diagnostics):
    Euler angles derived from them are).
 
 An implausible sample ``i`` makes the interval ``(t[i-1], t[i+1])`` a hole; a jump between ``i``
-and ``i+1`` makes ``(t[i], t[i+1])`` one. Glitches come in clusters (a marker swap makes several
-jumps in 0.1 s, with garbage between them): holes closer than ``MERGE_S`` are merged, and every
-hole is widened by ``PAD_S`` on both sides. The dataset builder subtracts holes from the in-flight
+and ``i+1`` makes ``(t[i], t[i+1])`` one. Jumps come in clusters (a marker swap makes several
+jumps in 0.1 s, with garbage between them): jump holes closer than ``MERGE_S`` are merged, and
+widened by ``PAD_S`` on both sides. The dataset builder subtracts holes from the in-flight
 intervals, so rows that depend on a screened sample (by interpolation or by a derivative) are left
 out of fitting, validation, test and prediction, never interpolated across.
 """
@@ -116,6 +116,7 @@ def screen_signal(sig: Signal) -> Screen:
     else:
         v = np.unwrap(v)
     holes = [(float(t[max(i - 1, 0)]), float(t[min(i + 1, n - 1)])) for i in np.flatnonzero(bad)]
+    jump_holes = []
     rate = np.abs(np.diff(v)) / np.maximum(np.diff(t), 1e-12)
     ok = ~(bad[1:] | bad[:-1])       # rates between plausible samples
     jumps = np.zeros(n - 1, dtype=bool)
@@ -123,18 +124,28 @@ def screen_signal(sig: Signal) -> Screen:
         q = float(np.percentile(rate[ok], 99))
         if q > 0:
             jumps = ok & (rate > JUMP_FACTOR * q)
-    holes += [(float(t[i]), float(t[i + 1])) for i in np.flatnonzero(jumps)]
-    return Screen(sig.name, n, int(bad.sum()), int(jumps.sum()), _merged(holes), (float(lo), float(hi)))
+    jump_holes = [(float(t[i]), float(t[i + 1])) for i in np.flatnonzero(jumps)]
+    return Screen(sig.name, n, int(bad.sum()), int(jumps.sum()), _merged(holes, jump_holes),
+                  (float(lo), float(hi)))
 
 
-def _merged(holes) -> tuple[Interval, ...]:
+def _merged(samples, jumps) -> tuple[Interval, ...]:
+    """Holes of bad samples as they are; holes of jumps merged into clusters (closer than
+    MERGE_S) and padded by PAD_S (a jump leaves garbage around it, a lone out-of-range sample
+    does not); then every overlap merged."""
     out: list[list[float]] = []
-    for a, b in sorted(holes):
+    for a, b in sorted(jumps):
         if out and a - out[-1][1] < MERGE_S:
             out[-1][1] = max(out[-1][1], b)
         else:
             out.append([a, b])
-    return tuple((a - PAD_S, b + PAD_S) for a, b in out)
+    merged: list[list[float]] = []
+    for a, b in sorted([*samples, *((a - PAD_S, b + PAD_S) for a, b in out)]):
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    return tuple((a, b) for a, b in merged)
 
 
 def screen_flight(flight: Flight, names=None) -> dict[str, Screen]:
