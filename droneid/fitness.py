@@ -58,9 +58,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .dataset_builder import DatasetBuilder, in_flight_intervals, resample_signal, signal_gaps
+from .dataset_builder import in_flight_intervals, resample_signal
 from .errors import DataError, check_choice
-from .flight import VEHICLE_TYPES, Flight, Signal
+from .flight import MAX_GAP_S, VEHICLE_TYPES, Flight, Signal
 from .targets import state_of
 
 __all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
@@ -76,9 +76,10 @@ MIN_SPEED_RANGE_MS = 1.0
 MIN_YAW_SPAN_DEG = 20.0
 #: a flight longer than this (2 days) has damaged time stamps: not scanned for airborne time
 MAX_SPAN_S = 172_800.0
-#: a longer pause between samples (or five median steps, whichever is longer) is a gap: the
-#: dataset builder's default ``max_gap_s``, so fitness and identify split at the same places
-GAP_S = float(DatasetBuilder().max_gap_s)
+#: a longer pause between samples (or five median steps, whichever is longer) is a gap
+#: (:data:`droneid.flight.MAX_GAP_S`, the dataset builder's default ``max_gap_s``): fitness and
+#: identify split at the same places
+GAP_S = MAX_GAP_S
 
 #: vehicle evidence (:func:`vehicle_evidence`), on a 0.1 s grid over the airborne data:
 #: hovering = horizontal speed below HOVER_SPEED_MS, |vz| below HOVER_SPEED_MS and horizontal
@@ -133,19 +134,11 @@ class Coverage:
         return f"{len(self.bursts)} bursts: {shown}{more} ({self.existence_s:.1f} s of data)"
 
 
-def coverage(sig: Signal, max_gap_s: float = GAP_S) -> Coverage:
-    """The gap-aware :class:`Coverage` of ``sig`` (gaps as :func:`signal_gaps` finds them)."""
-    n = len(sig)
-    if n == 0:
-        return Coverage(0, (), 0.0, math.nan)
-    edges = [sig.start_s]
-    for a, b in signal_gaps(sig, max_gap_s):
-        edges += [a, b]
-    edges.append(sig.end_s)
-    bursts = tuple((float(edges[i]), float(edges[i + 1])) for i in range(0, len(edges), 2))
-    span = float(sum(b - a for a, b in bursts))
-    rate = (n - len(bursts)) / span if span > 0 and n > len(bursts) else math.nan
-    return Coverage(n, bursts, span, rate)
+def coverage(sig: Signal) -> Coverage:
+    """The gap-aware :class:`Coverage` of ``sig`` (its :meth:`~droneid.flight.Signal.bursts` and
+    :attr:`~droneid.flight.Signal.rate_hz`)."""
+    bursts = sig.bursts()
+    return Coverage(len(sig), bursts, float(sum(b - a for a, b in bursts)), sig.rate_hz)
 
 
 # -- the vehicle, from the data ---------------------------------------------------------------
@@ -629,7 +622,7 @@ def usable_signals(flights, ts: float) -> set:
     for f in flights:
         n = set()
         for name, sig in getattr(f, "signals", {}).items():
-            hz = coverage(sig).rate_hz if len(sig) >= 2 else math.nan
+            hz = sig.rate_hz
             if not math.isfinite(hz) or hz >= MIN_RATE_STEPS / ts:
                 n.add(name)
         names = n if names is None else names & n

@@ -19,7 +19,7 @@ import numpy as np
 from .errors import DataError, MissingSignalError
 
 __all__ = [
-    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAX_GAP_S", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
     "canonical_unit", "is_canonical",
 ]
 
@@ -67,6 +67,11 @@ ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
                             "'erpm' and says so in the source (the pole-pair factor is left to "
                             "the fitted scale unless the log states it)"),
 })
+
+
+#: a pause between samples longer than this (or five median steps, whichever is longer) is a
+#: gap: :meth:`Signal.gaps`, and the dataset builder's default ``max_gap_s``
+MAX_GAP_S = 0.5
 
 
 def _rotor(name: str):
@@ -126,10 +131,33 @@ class Signal:
 
     @property
     def rate_hz(self) -> float:
-        """Median sample rate (Hz); nan with fewer than two samples."""
+        """Sample rate (Hz) over the time the signal has data: samples per second of its
+        :meth:`bursts` (gaps left out), so bursts of 7 ms steps every 0.25 s are 4 Hz, not 143 Hz
+        (a median step would say 143); nan without two samples in one burst."""
+        bursts = self.bursts()
+        span = float(sum(b - a for a, b in bursts))
+        n = self.t.size - len(bursts)
+        return n / span if span > 0 and n > 0 else math.nan
+
+    def gaps(self, max_gap_s: float = MAX_GAP_S) -> list[tuple[float, float]]:
+        """The time intervals (s) with no sample for longer than ``max_gap_s`` or five median
+        sample steps, whichever is longer (the dataset builder splits its data there)."""
         if self.t.size < 2:
-            return math.nan
-        return float(1.0 / np.median(np.diff(self.t)))
+            return []
+        dt = np.diff(self.t)
+        limit = max(max_gap_s, 5 * float(np.median(dt)))
+        return [(float(self.t[i]), float(self.t[i + 1])) for i in np.flatnonzero(dt > limit)]
+
+    def bursts(self, max_gap_s: float = MAX_GAP_S) -> tuple[tuple[float, float], ...]:
+        """The (start_s, end_s) runs of samples between the :meth:`gaps` (one run without gaps;
+        none for an empty signal)."""
+        if self.t.size == 0:
+            return ()
+        edges = [float(self.t[0])]
+        for a, b in self.gaps(max_gap_s):
+            edges += [a, b]
+        edges.append(float(self.t[-1]))
+        return tuple((edges[i], edges[i + 1]) for i in range(0, len(edges), 2))
 
     @property
     def start_s(self) -> float:

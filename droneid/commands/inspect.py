@@ -36,16 +36,13 @@ def run(args) -> int:
 
 
 def with_coverage(flight, rows: list) -> list:
-    """The summary's signal rows with gap-aware rates (:func:`droneid.fitness.coverage`: samples
-    per second of the time the signal has data) and, for signals in bursts, where they are."""
+    """The summary's signal rows (gap-aware rates: :attr:`droneid.flight.Signal.rate_hz`) with,
+    for signals in bursts, where they are (:func:`droneid.fitness.coverage`)."""
     from ..fitness import coverage
     out = []
     for g in rows:
         c = coverage(flight[g["name"]])
-        g = dict(g, rate_hz=None if not math.isfinite(c.rate_hz) else round(c.rate_hz, 4))
-        if len(c.bursts) > 1:
-            g["bursts"] = c.describe()
-        out.append(g)
+        out.append(dict(g, bursts=c.describe()) if len(c.bursts) > 1 else g)
     return out
 
 

@@ -142,7 +142,8 @@ def test_motive_three_bodies():
         read_flight(path)
     f = read_flight(path, body="device05")
     assert f.provenance.vehicle == "rigid body device05"
-    assert 99 < f["x"].rate_hz < 101
+    assert np.median(np.diff(f["x"].t)) == pytest.approx(0.01)     # 100 Hz capture
+    assert 95 < f["x"].rate_hz < 100    # gap-aware: occluded frames inside its bursts are missing
 
 
 @pytest.mark.parametrize("rel", CRAZYFLIE)
