@@ -65,7 +65,7 @@ from .targets import state_of
 
 __all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
            "vehicle_evidence", "VehicleEvidence", "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
-           "ROTOR_THRUST_SIGNALS", "REASON_ORDER"]
+           "ROTOR_THRUST_SIGNALS", "REASON_ORDER", "fitness_by_prior", "INSPECTED_PRIORS", "prior_signals"]
 
 MIN_RATE_STEPS = 0.25
 SLOW_DYNAMICS_HZ = 5.0
@@ -627,3 +627,40 @@ def usable_signals(flights, ts: float) -> set:
                 n.add(name)
         names = n if names is None else names & n
     return names or set()
+
+
+#: the built-in priors :func:`fitness_by_prior` judges by default (what ``droneid inspect`` shows)
+INSPECTED_PRIORS = ("tilt-drag", "rotor-thrust")
+
+
+def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIORS) -> dict:
+    """{prior name: :meth:`Fitness.to_dict` plus ``applies`` and ``prior_reason``} for each of
+    ``priors``, resolved and judged exactly as identify does (:func:`priors.models.prior_for` on
+    the :func:`usable_signals`, then :func:`prior_fitness` of every target the prior models), and
+    ``"auto"``: the prior ``--prior auto`` would choose and why. A prior whose signals exist only
+    too slowly is judged on them (the rate refusal says so) rather than called inapplicable."""
+    from priors.models import prior_for   # lazy: priors imports the engine's expression tools
+
+    from .errors import ConfigError
+    from .targets import targets_for
+    flights = list(flights)
+    usable = usable_signals(flights, ts)
+    every = set.intersection(*(set(f.names) for f in flights)) if flights else set()
+    out = {}
+    for spec in priors:
+        try:
+            prior, why = prior_for(spec, usable)
+        except ConfigError as exc:
+            try:
+                prior, why = prior_for(spec, every)
+            except ConfigError:
+                out[spec] = {"ok": False, "applies": False, "ts": ts, "problems": [str(exc)],
+                             "warnings": [], "flights": []}
+                continue
+        fit = prior_fitness(flights, prior, targets_for(prior), ts)
+        out[spec] = (dict(fit.to_dict(), applies=True, prior_reason=why) if fit is not None else
+                     {"ok": True, "applies": True, "ts": ts, "problems": [], "warnings": [], "flights": [],
+                      "prior_reason": why})
+    auto, why = prior_for("auto", usable)
+    out["auto"] = {"prior": auto.name, "reason": why}
+    return out

@@ -24,10 +24,11 @@ def register(sub):
 
 
 def run(args) -> int:
+    from ..fitness import fitness_by_prior
     (flight,) = read_logs([args.path], args)
     summary = flight.summary()
     summary["signals"] = with_coverage(flight, summary["signals"])
-    summary["fitness"] = fitness_summary(flight, args.ts)
+    summary["fitness"] = fitness_by_prior([flight], args.ts)
     if args.json:
         print_json(summary)
     else:
@@ -43,38 +44,6 @@ def with_coverage(flight, rows: list) -> list:
     for g in rows:
         c = coverage(flight[g["name"]])
         out.append(dict(g, bursts=c.describe()) if len(c.bursts) > 1 else g)
-    return out
-
-
-#: the built-in priors whose fitness inspect shows, as identify would resolve ``--prior NAME``
-INSPECTED_PRIORS = ("tilt-drag", "rotor-thrust")
-
-
-def fitness_summary(flight, ts: float) -> dict:
-    """The fitness of one flight for each prior of :data:`INSPECTED_PRIORS`, resolved and judged
-    exactly as identify does (:func:`priors.models.prior_for` on the usable signals, then
-    :func:`droneid.fitness.prior_fitness`), and which prior ``--prior auto`` would choose."""
-    from priors.models import prior_for
-
-    from ..errors import ConfigError
-    from ..fitness import prior_fitness, usable_signals
-    from ..targets import targets_for
-    usable = usable_signals([flight], ts)
-    out = {}
-    for spec in INSPECTED_PRIORS:
-        try:
-            prior, why = prior_for(spec, usable)
-        except ConfigError as e:
-            try:    # the signals exist but are too slow: show the rate refusal, not "none of them"
-                prior, why = prior_for(spec, set(flight.names))
-            except ConfigError:
-                out[spec] = {"ok": False, "applies": False, "ts": ts, "problems": [str(e)],
-                             "warnings": [], "flights": []}
-                continue
-        fit = prior_fitness([flight], prior, targets_for(prior), ts)
-        out[spec] = dict(fit.to_dict(), applies=True, prior_reason=why)
-    auto, why = prior_for("auto", usable)
-    out["auto"] = {"prior": auto.name, "reason": why}
     return out
 
 
@@ -182,6 +151,9 @@ def render_fitness(fit: dict) -> list[str]:
     for model, f in models.items():
         if not f.get("applies", True):
             out.append(f"  {model}: does not apply: {f['problems'][0]}")
+            continue
+        if not f["flights"]:
+            out.append(f"  {model}: not checked (a prior of a vehicle kind the check does not know)")
             continue
         fl = f["flights"][0]
         rates = ", ".join(f"{k} {_fmt(v, 1)} Hz" for k, v in fl["rates_hz"].items())

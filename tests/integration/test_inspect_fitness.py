@@ -8,7 +8,8 @@ import json
 import numpy as np
 
 from droneid.cli import main
-from droneid.commands.inspect import fitness_summary, render_fitness
+from droneid.commands.inspect import render_fitness
+from droneid.fitness import fitness_by_prior
 from droneid.flight import Flight, Provenance, Signal
 
 
@@ -31,7 +32,7 @@ def _quad(rpm_rate=4.0, motor_rate=50.0, duration=30.0, declared=True) -> Flight
 
 
 def test_rotor_input_is_the_one_identify_would_use():
-    fit = fitness_summary(_quad(), 0.05)
+    fit = fitness_by_prior([_quad()], 0.05)
     rt = fit["rotor-thrust"]
     assert rt["ok"], rt["problems"]
     assert "motor1" in rt["flights"][0]["rates_hz"] and "rpm1" not in rt["flights"][0]["rates_hz"]
@@ -41,7 +42,7 @@ def test_rotor_input_is_the_one_identify_would_use():
 
 
 def test_a_warning_every_prior_shares_is_printed_once():
-    text = "\n".join(render_fitness(fitness_summary(_quad(declared=False), 0.05)))
+    text = "\n".join(render_fitness(fitness_by_prior([_quad(declared=False)], 0.05)))
     assert text.count("vehicle type not declared") == 1, text
     assert "flies like: multirotor" in text
 

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.commands.inspect import fitness_summary
 from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import DroneIdError
-from droneid.fitness import check_prior_data, usable_signals
+from droneid.fitness import check_prior_data, fitness_by_prior, usable_signals
 from droneid.targets import targets_for
 from parsers import read_flight
 from priors.models import prior_for
@@ -37,7 +36,7 @@ TS = 0.05
 @pytest.mark.parametrize("rel", sorted(LOGS))
 def test_inspect_and_identify_agree(rel):
     f = read_flight(real_log(rel), **LOGS[rel])
-    shown = fitness_summary(f, TS)
+    shown = fitness_by_prior([f], TS)
     for spec in ("tilt-drag", "rotor-thrust"):
         got = shown[spec]
         try:
