@@ -172,25 +172,31 @@ class _Detect:
     ground_margin_s: float
 
 
+#: how much of a log's start and end (s) tells the height it took off from or landed at
+_END_S = 1.0
+
+
 def _grid_values(flight: Flight, name: str, t: np.ndarray):
     return resample_signal(flight[name], t) if flight.has(name) else None
+
+
+def _speed(flight: Flight, t: np.ndarray) -> np.ndarray | None:
+    """Speed (m/s) on grid ``t``, or None without vx, vy, vz."""
+    if not flight.has("vx", "vy", "vz"):
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):   # a damaged huge value: inf, not still
+        return np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
 
 
 def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarray | None, str]:
     """Ground mask on grid ``t`` (None when the flight has no cue for it) and a note.
 
-    With a height that climbs well above its lowest point, the vehicle is on the ground where it
+    With a height that climbs well above its lowest point, and a log that starts or ends still at
+    that point (before a take-off or after a landing), the vehicle is on the ground where it
     is within ``min_height_m`` of that point and either still (below ``still_speed``) or at idle
     power: resting on the ground with the motors spinning up for take-off is ground contact
     (the ground, not the thrust, holds the vehicle), whatever the power. Without such a height,
     ground is idle power and still together."""
-    low = None
-    z = _grid_values(flight, "z", t)
-    if z is not None and np.isfinite(z).any():
-        z_ground = np.nanpercentile(z, 1)
-        # only a log that climbs well above its lowest point shows where the ground is
-        if np.nanpercentile(z, 99) - z_ground > 3 * p.min_height_m:
-            low = np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m
     power = None
     for name in ("throttle", "thrust"):
         power = _grid_values(flight, name, t)
@@ -208,11 +214,23 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
         top = np.nanpercentile(power, 90)
         if top > 0:
             idle = np.nan_to_num(power, nan=np.inf) < p.idle_fraction * top  # no data: not a cue
-    still = None
-    if flight.has("vx", "vy", "vz"):
-        with np.errstate(over="ignore", invalid="ignore"):   # a damaged huge value: inf, not still
-            v = np.sqrt(sum(_grid_values(flight, n, t) ** 2 for n in ("vx", "vy", "vz")))
-        still = np.nan_to_num(v, nan=np.inf) < p.still_speed
+    v = _speed(flight, t)
+    still = None if v is None else np.nan_to_num(v, nan=np.inf) < p.still_speed
+    low = None
+    z = _grid_values(flight, "z", t)
+    if z is not None and np.isfinite(z).any():
+        z_ground = np.nanpercentile(z, 1)
+        near = np.nan_to_num(z - z_ground, nan=np.inf) < p.min_height_m
+        # only a log that climbs well above its lowest point, and rests there (starts or ends still
+        # there, or idles there: before a take-off, after a landing), shows where the ground is; a
+        # flight whose lowest point is a hover at altitude (stop-and-go legs) has no ground in it
+        first, last = t <= t[0] + _END_S, t >= t[-1] - _END_S
+        rests = [bool(np.mean(near[m]) > 0.5 and (v is None or np.nanmedian(v[m]) < p.still_speed))
+                 for m in (first, last)]
+        if idle is not None:
+            rests.append(bool((near & idle).sum() * (t[1] - t[0] if t.size > 1 else 0) >= _END_S))
+        if np.nanpercentile(z, 99) - z_ground > 3 * p.min_height_m and any(rests):
+            low = near
     if low is None and idle is None:
         return None, "no power signal and no climb from a lowest height: ground time not detected"
     if low is not None:
