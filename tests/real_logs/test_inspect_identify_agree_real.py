@@ -4,6 +4,8 @@
 dataset builder makes, within 5 %."""
 from __future__ import annotations
 
+import sys
+
 import pytest
 
 from droneid.dataset_builder import DatasetBuilder
@@ -13,29 +15,23 @@ from droneid.targets import targets_for
 from parsers import read_flight
 from priors.models import prior_for
 
-from conftest import real_log
+from conftest import ROOT, real_log
+
+sys.path.insert(0, str(ROOT / "tests" / "golden"))
+from regenerate import LOGS  # noqa: E402  (the shared real logs and their reader options)
 
 pytestmark = pytest.mark.real_logs
 
-LOGS = {
-    "ardupilot/copter33_quad_log171.bin": {},
-    "ardupilot/copter462_quad_first80k.bin": {},
-    "mavlink/copter357_quad_mission1.tlog": {},
-    "mavlink/copter34_quad_bench_battery.tlog": {},
-    "px4/vtol_short_hop.ulg": {},
-    "px4/quad_fmuv5_ground.ulg": {},
-    "px4/x500_sitl_events.ulg": {},
-    "mcap/sportcub_fixedwing_qualisys.mcap": {},
-    "mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv": {"body": "device02"},
-    "mocap/crazyflie_nanodrone/square_run1.csv": {},
-    "mocap/crazyflie_nanodrone/melon_run1.csv": {},
-}
 TS = 0.05
+#: every shared real log (the goldens' list, plus the other Crazyflie runs and Motive bodies)
+CASES = [*LOGS.items(), *((f"mocap/crazyflie_nanodrone/square_run{i}.csv", {}) for i in range(2, 6)),
+         *((f"mocap/crazyflie_nanodrone/melon_run{i}.csv", {}) for i in (1, 4)),
+         *(("mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv", {"body": b}) for b in ("device03", "device05"))]
 
 
-@pytest.mark.parametrize("rel", sorted(LOGS))
-def test_inspect_and_identify_agree(rel):
-    f = read_flight(real_log(rel), **LOGS[rel])
+@pytest.mark.parametrize("rel, opts", CASES, ids=[f"{r}{o.get('body', '')}" for r, o in CASES])
+def test_inspect_and_identify_agree(rel, opts):
+    f = read_flight(real_log(rel), **opts)
     shown = fitness_by_prior([f], TS)
     for spec in ("tilt-drag", "rotor-thrust"):
         got = shown[spec]
