@@ -418,8 +418,9 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
             elif 0 < airborne < MIN_AIRBORNE_S:
                 warnings.append(f"{name}: only {airborne:.1f} s airborne (< {MIN_AIRBORNE_S:.0f} s; "
                                 f"{basis}): expect loose estimates")
-            for text in dict.fromkeys(bursts.values()):
-                names = ", ".join(s for s, b in bursts.items() if b == text)
+            in_air = {s: b for s, b in bursts.items() if _gap_in(covs[s].bursts, raw)}
+            for text in dict.fromkeys(in_air.values()):     # gaps while airborne only
+                names = ", ".join(s for s, b in in_air.items() if b == text)
                 warnings.append(f"{name}: {names} {'come' if ',' in names else 'comes'} in {text}: "
                                 f"rates and samples count the time with data only")
             _rate_verdict(name, rates, ts, refuse, warnings)
@@ -442,6 +443,12 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
                           f"(< {MIN_SAMPLES}): use more or longer flights")
     ordered = tuple(text for _, text in sorted(problems, key=lambda p: p[0]))
     return Fitness(tuple(out), needed, float(ts), prior_kind, ordered, tuple(warnings), prior=prior)
+
+
+def _gap_in(bursts, ivs) -> bool:
+    """Whether a gap between ``bursts`` overlaps one of the intervals ``ivs`` (s)."""
+    gaps = [(a[1], b[0]) for a, b in zip(bursts, bursts[1:])]
+    return any(g0 < b and a < g1 for g0, g1 in gaps for a, b in ivs)
 
 
 def _fmt_ivs(ivs) -> str:
