@@ -107,8 +107,8 @@ def _header(models: Sequence[IdentifiedModel], source: str, to: str = "python",
              "Conventions: " + CONVENTIONS + ".", ""]
     for m in models:
         lines.append(f"{m.target} ({m.unit}) = {_equation(m, to)}")
-        if m.description:
-            lines.append(f"  what: {m.description}")
+        if m.description:     # prose, but it may quote a formula in Python's syntax
+            lines.append(f"  what: {m.description if to == 'python' else m.description.replace('**', '^')}")
         if not m.signals:
             lines.append("  inputs: none (a constant)")
         else:

@@ -78,3 +78,17 @@ def test_input_sources_lists_each_reading_once():
                       {"signal_sources": [["rpm1", "rpm", "ESC.RPM"]]}], "test": None}
     assert input_sources(prov) == {"rpm1": [("erpm", "m1_erpm (electrical rpm)"), ("rpm", "ESC.RPM")]}
     assert input_sources(None) == {} and input_sources({"train": [{"signal_sources": [["x", 1, None]]}]}) == {}
+
+
+def test_no_python_power_in_c_or_matlab_headers_even_in_a_description(tmp_path):
+    import sympy as sp
+
+    from droneid.identified import IdentifiedModel
+    vx = sp.Symbol("vx")
+    m = IdentifiedModel("vx_dot", -0.3 * vx ** 2, {}, "drag: -0.3*vx**2 fitted")
+    path = tmp_path / "result.json"
+    path.write_text(json.dumps({"targets": {"vx_dot": {"final": m.to_dict()}}, "config": {"ts": 0.01}}))
+    for to, name in (("c", "m.c"), ("matlab", "m.m")):
+        text = open(export_cli(tmp_path, str(path), to, name)).read()
+        assert "**" not in text, (to, text[:800])
+    assert "vx**2" in open(export_cli(tmp_path, str(path), "python", "m.py")).read()
