@@ -1,0 +1,377 @@
+"""A rigid-body model of the whole vehicle from its motor speeds, identified by robust least
+squares, for open-loop simulation (:mod:`droneid.openloop`) (issue 28, first prototype).
+
+Rotation (body FLU, per axis ``k`` = roll, pitch, yaw; ``s_i = (ω_i / 1000 rad/s)²`` with ``ω_i``
+the rotor speeds ``d`` steps earlier, ``P`` the layout's torque patterns, :mod:`priors.torque`)::
+
+    ω̇_k = a_k (P s)_k + e_k Σ s_i − c_k ω_k + γ_k (ω × ω)_k-term + r_k (P ω̇_rotor)_yaw + b_k
+
+* ``a_k (P s)_k``: torque from thrust differences (roll, pitch) and rotor drag (yaw), over inertia;
+* ``e_k Σ s_i``: the collective thrust acting about an offset centre (centre of gravity away from
+  the geometric centre, unequal rotors): it scales with thrust, which a constant trim cannot;
+* ``c_k ω_k``: rate damping (rotor flapping, drag); ``γ_k``: gyroscopic ``ω_j ω_l`` terms, e.g.
+  ``ω̇x ∋ (J_y − J_z)/J_x · ω_y ω_z``; ``r_k`` (yaw only): reaction to the rotors' spin-up;
+* ``b_k``: trim. It is fitted per training flight; a new flight gets their mean.
+
+Translation (world ENU)::
+
+    v̇ = R(q) e_z · k_T Σ s_i − g e_z − R D Rᵀ v,   D = diag(d_x, d_y, d_z) ≥ 0, g = 9.81 fixed
+
+Targets ``v̇`` and ``ω̇`` come from the logged velocity and body rates by the Savitzky-Golay
+differentiator of :mod:`droneid.differentiation`; rows where a motor is stopped or the vehicle is
+near the ground are screened out. Fits are Huber IRLS (:func:`droneid.regression.robust_fit`).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from priors.torque import RotorLayout, get_layout
+
+from .differentiation import get_differentiator
+from .errors import DataError
+from .frames import quat_to_matrix
+from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, StateLog
+from .regression import robust_fit
+
+__all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
+           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "derivative", "spin_rate", "ROTATION_TERMS"]
+
+#: optional rotational terms (besides the torque pattern and the trim)
+ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
+_SPEED_UNIT = 1000.0  # rad/s: s_i = (ω_i / 1000 rad/s)², coefficients near one
+
+
+def _delayed(a: np.ndarray, d: int) -> np.ndarray:
+    """``a`` delayed by ``d`` >= 0 samples, the first value held before the log starts."""
+    if d <= 0:
+        return a
+    return np.concatenate([np.repeat(a[:1], d, axis=0), a[:-d]], axis=0)
+
+
+def spin_rate(om: np.ndarray, dt_s: float) -> np.ndarray:
+    """Rotor speed rates (…/s) by backward differences: causal, so that a prediction from ``t``
+    uses no input after the step it simulates (zero at the first sample)."""
+    out = np.zeros_like(om)
+    out[1:] = np.diff(om, axis=0) / dt_s
+    return out
+
+
+def derivative(log: StateLog, cols: slice | np.ndarray, window_s: float) -> np.ndarray:
+    """Time derivative of state columns (or of an (N, K) array) by Savitzky-Golay over
+    ``window_s`` seconds, column by column."""
+    x = log.state[:, cols] if isinstance(cols, slice) else np.asarray(cols, float)
+    d = get_differentiator("savgol", window_s=window_s)
+    return np.column_stack([d(x[:, k], log.t_s) for k in range(x.shape[1])])
+
+
+def flying_mask(log: StateLog, min_height_m: float = 0.1) -> np.ndarray:
+    """Rows fit for training: every motor turning and the vehicle above ``min_height_m``."""
+    return np.all(log.rpm > 0, axis=1) & (log.state[:, 2] > min_height_m)
+
+
+def flying_segments(log: StateLog, min_steps: int = 100) -> list[StateLog]:
+    """The stretches of a log where :func:`flying_mask` holds, as logs of their own (at least
+    ``min_steps`` samples each): validation scores windows in flight only."""
+    m = flying_mask(log).astype(int)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a >= min_steps:
+            out.append(StateLog(f"{log.name}[{a}:{b}]", log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s))
+    return out
+
+
+def _mid(a: np.ndarray) -> np.ndarray:
+    """Values at the step midpoints: the mean of consecutive samples (one row fewer)."""
+    return 0.5 * (a[1:] + a[:-1])
+
+
+def _speeds(log: StateLog, rad_s_per_rpm: float) -> np.ndarray:
+    return log.rpm * (rad_s_per_rpm / _SPEED_UNIT)
+
+
+# -- rotation ------------------------------------------------------------------------------------
+def _rotation_columns(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
+                      terms: tuple[str, ...]) -> list[np.ndarray]:
+    cols = [s @ P[k]]
+    if "centre" in terms:
+        cols.append(s.sum(axis=-1))
+    if "damping" in terms:
+        cols.append(-w[:, k])
+    if "gyro" in terms:
+        i, j = [(1, 2), (2, 0), (0, 1)][k]
+        cols.append(w[:, i] * w[:, j])
+    if "spinup" in terms and k == 2:
+        cols.append(rates @ P[2])
+    return cols
+
+
+@dataclass(frozen=True)
+class RotationModel:
+    """ω̇ (rad/s², body FLU) from the state and the rotor speeds; see the module docstring.
+
+    ``coef[k]``: coefficients of axis ``k`` in the order of :func:`_rotation_columns`;
+    ``trim`` (3,) rad/s²; ``delay_steps`` of the rotor speeds; ``layout`` the torque patterns.
+    """
+    layout: RotorLayout
+    terms: tuple[str, ...]
+    coef: tuple[np.ndarray, np.ndarray, np.ndarray]
+    trim: np.ndarray
+    delay_steps: int = 0
+    rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
+    flight_trims: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def ang_accel_from(self, w: np.ndarray, s: np.ndarray, rates: np.ndarray) -> np.ndarray:
+        """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²`` and rotor speed rates."""
+        P = self.layout.patterns()
+        out = np.empty((w.shape[0], 3))
+        for k in range(3):
+            cols = _rotation_columns(k, P, s, w, rates, self.terms)
+            out[:, k] = np.column_stack(cols) @ self.coef[k] + self.trim[k]
+        return out
+
+
+def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
+                 terms: tuple[str, ...] = ROTATION_TERMS, delay_steps: int = 0,
+                 window_s: float = 0.05, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
+                 ) -> RotationModel:
+    """Fit ω̇ per axis on training flights, with one trim per flight (their mean is kept)."""
+    layout = get_layout(layout) if isinstance(layout, str) else layout
+    layout.check()
+    P = layout.patterns()
+    rows = []
+    for log in logs:
+        # rows at the step midpoints k + 1/2: the input u_k is held over [k, k+1]
+        m = _mid(flying_mask(log).astype(float)) == 1.0
+        om = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)
+        wd = _mid(derivative(log, slice(10, 13), window_s))
+        rows.append((m, om[:-1] ** 2, _mid(log.state[:, 10:13]), spin_rate(om, log.dt_s)[:-1], wd))
+    if not any(r[0].any() for r in rows):
+        raise DataError("fit_rotation: no training row with every motor turning in flight")
+    n_f = len(logs)
+    coef, trims = [], np.zeros((n_f, 3))
+    for k in range(3):
+        A, y = [], []
+        for j, (m, s, w, sr, wd) in enumerate(rows):
+            cols = _rotation_columns(k, P, s[m], w[m], sr[m], terms)
+            onehot = np.zeros((int(m.sum()), n_f))
+            onehot[:, j] = 1.0
+            A.append(np.column_stack(cols + [onehot]))
+            y.append(wd[m, k])
+        A, y = np.vstack(A), np.concatenate(y)
+        nc = A.shape[1] - n_f
+        lo = np.full(A.shape[1], -np.inf)
+        lo[0] = 0.0                       # torque along the layout's pattern: positive scale
+        if "damping" in terms:
+            lo[1 + ("centre" in terms)] = 0.0   # damping never feeds energy in
+        beta = robust_fit(A, y, lo=lo).beta
+        coef.append(beta[:nc])
+        trims[:, k] = beta[nc:]
+    return RotationModel(layout, tuple(terms), tuple(coef), trims.mean(axis=0), int(delay_steps),
+                         float(rad_s_per_rpm), trims)
+
+
+# -- translation ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TranslationModel:
+    """v̇ (m/s², world ENU) = R e_z k_T Σ s_i − g e_z − R diag(drag) Rᵀ v."""
+    k_thrust: float
+    drag: np.ndarray
+    delay_steps: int = 0
+    rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
+    g: float = G
+
+    def accel_from(self, q: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
+        R = quat_to_matrix(q)
+        a = R[:, :, 2] * (self.k_thrust * s.sum(axis=-1))[:, None]
+        vb = np.einsum("nji,nj->ni", R, v) * self.drag
+        a -= np.einsum("nij,nj->ni", R, vb)
+        a[:, 2] -= self.g
+        return a
+
+
+def fit_translation(logs: Sequence[StateLog], *, delay_steps: int = 0, window_s: float = 0.05,
+                    drag: bool = True, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
+                    ) -> TranslationModel:
+    """Fit ``k_T > 0`` and the body drag ``D ≥ 0`` on training flights (g fixed at 9.81)."""
+    A, y = [], []
+    for log in logs:
+        # rows at the step midpoints k + 1/2: the input u_k is held over [k, k+1]
+        m = _mid(flying_mask(log).astype(float)) == 1.0
+        if not m.any():
+            continue
+        s = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)[:-1][m] ** 2
+        R = _mid(quat_to_matrix(log.state[:, 6:10]))[m]
+        v = _mid(log.state[:, 3:6])[m]
+        vb = np.einsum("nji,nj->ni", R, v)
+        cols = [R[:, :, 2] * s.sum(axis=1)[:, None]]               # (n, 3) per thrust scale
+        if drag:
+            cols += [-R[:, :, j] * vb[:, j:j + 1] for j in range(3)]
+        A.append(np.stack(cols, axis=-1).reshape(-1, len(cols)))    # rows: (sample, world axis)
+        vd = _mid(derivative(log, slice(3, 6), window_s))[m]
+        vd[:, 2] += G
+        y.append(vd.reshape(-1))
+    if not A:
+        raise DataError("fit_translation: no training row with every motor turning in flight")
+    A, y = np.vstack(A), np.concatenate(y)
+    beta = robust_fit(A, y, lo=np.zeros(A.shape[1])).beta
+    return TranslationModel(float(beta[0]), np.asarray(beta[1:4]) if drag else np.zeros(3),
+                            int(delay_steps), float(rad_s_per_rpm))
+
+
+# -- the vehicle ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class VehicleModel:
+    """Translation and rotation together, for :func:`droneid.openloop.simulate`.
+
+    Its inputs (``inputs(log)``, (N, 12)): ``s`` at the translation's delay, ``s`` at the
+    rotation's delay and the rotor speed rates at the rotation's delay.
+    """
+    translation: TranslationModel
+    rotation: RotationModel
+
+    def inputs(self, log: StateLog) -> np.ndarray:
+        om = _speeds(log, self.rotation.rad_s_per_rpm)
+        om_r = _delayed(om, self.rotation.delay_steps)
+        om_t = _delayed(_speeds(log, self.translation.rad_s_per_rpm), self.translation.delay_steps)
+        return np.hstack([om_t ** 2, om_r ** 2, spin_rate(om_r, log.dt_s)])
+
+    def accel(self, state, u) -> np.ndarray:
+        m = u.shape[1] // 3
+        return self.translation.accel_from(state[:, 6:10], state[:, 3:6], u[:, :m])
+
+    def ang_accel(self, state, u) -> np.ndarray:
+        m = u.shape[1] // 3
+        return self.rotation.ang_accel_from(state[:, 10:13], u[:, m:2 * m], u[:, 2 * m:])
+
+
+def fit_vehicle(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
+                terms: tuple[str, ...] = ROTATION_TERMS, rotation_delay: int = 0,
+                translation_delay: int = 0, window_s: float = 0.05, drag: bool = True,
+                rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> VehicleModel:
+    """:func:`fit_translation` and :func:`fit_rotation` on the same training flights."""
+    tr = fit_translation(logs, delay_steps=translation_delay, window_s=window_s, drag=drag,
+                         rad_s_per_rpm=rad_s_per_rpm)
+    rot = fit_rotation(logs, layout, terms=terms, delay_steps=rotation_delay, window_s=window_s,
+                       rad_s_per_rpm=rad_s_per_rpm)
+    return VehicleModel(tr, rot)
+
+
+def identify_layout(logs: Sequence[StateLog], *, window_s: float = 0.05,
+                    rad_s_per_rpm: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The torque sign pattern from the data, for a frame whose layout is not declared.
+
+    Per axis, ``ω̇_k`` is fitted on every ``s_i`` (plus rate damping and one trim per flight);
+    the per-motor coefficients minus their mean (the part that sums to zero over the rotors, the
+    rest being the collective thrust about an offset centre) give the pattern. Returns
+    ``(signs (3, M), coefficients (3, M))``, rows roll, pitch, yaw.
+    """
+    rows = []
+    for log in logs:
+        m = flying_mask(log)
+        s = _speeds(log, rad_s_per_rpm)[m] ** 2
+        w = log.state[m, 10:13]
+        rows.append((s, w, derivative(log, slice(10, 13), window_s)[m]))
+    if not rows or not any(r[0].size for r in rows):
+        raise DataError("identify_layout: no training row with every motor turning in flight")
+    M = rows[0][0].shape[1]
+    coefs = np.zeros((3, M))
+    for k in range(3):
+        A, y = [], []
+        for j, (s, w, wd) in enumerate(rows):
+            onehot = np.zeros((s.shape[0], len(rows)))
+            onehot[:, j] = 1.0
+            A.append(np.column_stack([s, -w[:, k], onehot]))
+            y.append(wd[:, k])
+        beta = robust_fit(np.vstack(A), np.concatenate(y)).beta
+        coefs[k] = beta[:M] - beta[:M].mean()
+    return np.sign(coefs), coefs
+
+
+
+# -- simulation-error fit of the rotation --------------------------------------------------------
+#: rate damping values (1/s) tried by :func:`fit_rotation_multistep`
+DAMPING_GRID = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+
+
+def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
+                           delay_steps: int | Sequence[int] = 0, horizon: int = 50, stride: int = 4,
+                           damping_grid: Sequence[float] = DAMPING_GRID, spinup: bool = True,
+                           rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> RotationModel:
+    """Fit ω̇ per axis by its open-loop error: the body rate predicted ``1..horizon`` steps
+    ahead from every ``stride``-th start in flight, against the logged one.
+
+    Per axis the model ``ω̇_k = a (P s)_k + e Σ s − c ω_k [+ r (P ṡpin)_yaw] + b_flight`` is linear
+    in the inputs, so for a fixed damping ``c`` the ``h``-step prediction is linear in ``a, e, r,
+    b``: ``ω_{t+h} − φ^h ω_t = Σ_{j<h} φ^{h−1−j} γ f_{t+j}`` with ``φ = e^{−c·dt}`` and
+    ``γ = (1 − φ)/c`` (``dt`` at ``c = 0``), the input held over each step. Each ``c`` of the grid
+    is fitted (Huber IRLS over all windows and horizons); the lowest mean absolute error wins. Gyroscopic
+    coupling is left out (the axes decouple); trims are per training flight, their mean is kept.
+    ``delay_steps`` may list candidates: the one with the lowest mean absolute error summed over the
+    three axes (training flights only) is kept.
+    """
+    layout = get_layout(layout) if isinstance(layout, str) else layout
+    layout.check()
+    delays = [int(delay_steps)] if np.ndim(delay_steps) == 0 else [int(d) for d in delay_steps]
+    fits = [_fit_multistep_at(logs, layout.patterns(), d, int(horizon), stride, damping_grid,
+                              spinup, rad_s_per_rpm) for d in delays]
+    loss, d, coef, trims, terms = min(fits, key=lambda f: f[0])
+    return RotationModel(layout, terms, coef, trims.mean(axis=0), d, float(rad_s_per_rpm), trims)
+
+
+def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad_s_per_rpm):
+    """(summed loss, delay, coef, per-flight trims, terms) of the multi-step fit at one delay."""
+    per_log = []
+    for j, log in enumerate(logs):
+        for seg in flying_segments(log, min_steps=H + 1):
+            om = _delayed(_speeds(seg, rad_s_per_rpm), delay_steps)
+            s = om ** 2
+            feats = [s @ P.T, s.sum(axis=1), spin_rate(om, seg.dt_s) @ P[2]]
+            starts = np.arange(0, len(seg) - H, stride)
+            per_log.append((j, seg, feats, starts))
+    if not per_log:
+        raise DataError(f"fit_rotation_multistep: no flight segment longer than {H} steps")
+    dt = logs[0].dt_s
+    n_f = len(logs)
+    terms = ("centre", "damping", "spinup") if spinup else ("centre", "damping")
+    coef, trims, total = [], np.zeros((n_f, 3)), 0.0
+    for k in range(3):
+        best = None
+        for c in damping_grid:
+            phi = float(np.exp(-c * dt))
+            gam = dt if c == 0 else (1.0 - phi) / c
+            A, y = [], []
+            for j, seg, (mix, S, spin), starts in per_log:
+                idx = starts[:, None] + np.arange(H)[None, :]
+                f = [mix[:, k][idx], S[idx]] + ([spin[idx]] if spinup and k == 2 else [])
+                f.append(np.ones_like(idx, dtype=float))
+                X = np.zeros((starts.size, H, len(f)))
+                acc = np.zeros((starts.size, len(f)))
+                for h in range(H):
+                    acc = phi * acc + gam * np.stack([g[:, h] for g in f], axis=1)
+                    X[:, h] = acc
+                w0 = seg.state[starts, 10 + k]
+                target = seg.state[idx + 1, 10 + k] - (phi ** np.arange(1, H + 1))[None, :] * w0[:, None]
+                onehot = np.zeros((X.shape[0] * H, n_f))
+                onehot[:, j] = X[:, :, -1].reshape(-1)
+                A.append(np.hstack([X[:, :, :-1].reshape(-1, len(f) - 1), onehot]))
+                y.append(target.reshape(-1))
+            A, y = np.vstack(A), np.concatenate(y)
+            lo = np.full(A.shape[1], -np.inf)
+            lo[0] = 0.0
+            fit = robust_fit(A, y, lo=lo)
+            loss = float(np.mean(np.abs(y - A @ fit.beta)))   # the metric is an MAE
+            if best is None or loss < best[0]:
+                best = (loss, c, fit.beta)
+        loss, c, beta = best
+        total += loss
+        nf = A.shape[1] - n_f
+        b = beta[:nf]
+        # columns of _rotation_columns: pattern, centre, damping (−ω), [spinup on yaw]
+        ck = [b[0], b[1], c] + ([b[2]] if spinup and k == 2 else [])
+        coef.append(np.array(ck))
+        trims[:, k] = beta[nf:]
+    return total, int(delay_steps), tuple(coef), trims, terms
