@@ -174,6 +174,8 @@ class _Detect:
 
 #: how much of a log's start and end (s) tells the height it took off from or landed at
 _END_S = 1.0
+#: the shortest ground contact (s): a vehicle at rest stays there longer than a turnaround lasts
+_REST_S = 0.5
 
 
 def _grid_values(flight: Flight, name: str, t: np.ndarray):
@@ -252,7 +254,10 @@ def _ground_holes(flight: Flight, ts: float, p: _Detect) -> tuple[list[Interval]
     if ground is None:
         return None, why
     m = p.ground_margin_s
-    return [(t[i0] - step / 2 - m, t[i1 - 1] + step / 2 + m) for i0, i1 in _runs(ground)], why
+    # resting takes time: a run shorter than _REST_S is a turnaround in the air (still for an
+    # instant at low power), not ground contact
+    return [(t[i0] - step / 2 - m, t[i1 - 1] + step / 2 + m) for i0, i1 in _runs(ground)
+            if t[i1 - 1] - t[i0] + step >= _REST_S], why
 
 
 def _crash_time(flight: Flight, ivs: Sequence[Interval], p: _Detect) -> tuple[float | None, str]:
@@ -348,7 +353,8 @@ class DatasetBuilder:
         touchdown, where the ground still pushes); contact is trimmed even where the log declares
         in-flight segments (a "flying" flag is set while the vehicle still sits on the ground)
     delays_s : {signal: delay in s}: that input (or extra) is read at ``t − delay`` (an input whose
-        effect lags its logged value, e.g. motor speeds logged ahead of the thrust they make);
+        effect lags its logged value, e.g. motor speeds logged ahead of the thrust they make; a
+        negative delay reads a stream whose stamps are late at its true time);
         samples whose delayed time falls before the signal starts are dropped
     """
 
@@ -391,9 +397,9 @@ class DatasetBuilder:
                                   f"Got {v!r} instead.")
         check_choice("method", self.method, DIFFERENTIATORS, owner="DatasetBuilder")
         for name, d in dict(self.delays_s or {}).items():
-            if isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or not 0 <= d <= 5:
+            if isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or not -5 <= d <= 5:
                 raise ConfigError(f"The delay of '{name}' (DatasetBuilder delays_s) must be a number of "
-                                  f"seconds in [0, 5]. Got {d!r} instead.")
+                                  f"seconds in [-5, 5]. Got {d!r} instead.")
         check_choice("in_flight", self.in_flight, ("auto", "all"), owner="DatasetBuilder")
         if self.window_s is not None and self.method in ("forward", "central"):
             raise ConfigError(f"The 'window_s' parameter of DatasetBuilder applies to the smoothing "

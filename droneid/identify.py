@@ -512,7 +512,9 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
         b0, _ = validation_blocks(tr0.t, tr0.flight)
         ladder.append(rung("refit", f"{prior_name} prior, robust refit", tm, tr0, te0, cs, blocks=b0))
         d = next(iter(plan.delays_s.values()))
-        ladder.append(rung("delay", f"+ thrust inputs delayed by {1000 * d:.0f} ms",
+        what = (f"+ thrust inputs delayed by {1000 * d:.0f} ms" if d > 0 else
+                f"+ thrust stream clock corrected (read {1000 * -d:.0f} ms later)")
+        ladder.append(rung("delay", what,
                            tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
     else:
         ladder.append(rung("refit", f"{prior_name} prior, robust refit",
@@ -1180,6 +1182,9 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     conf = cfg.to_dict()
     conf.update(validation=next(iter(problems.values())).validation, prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
                 delays_s=dict(plan.delays_s), delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
+                offset=({"offset_s": plan.offset.offset_s, "interval_s": list(plan.offset.interval_s),
+                         "evidence": plan.offset.decision.evidence if plan.offset.decision else ""}
+                        if plan.offset is not None else None),
                 diagnosis=plan.diagnosis,
                 fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     horizons = _horizons(targets, test_flights, notes) if test_flights else {}

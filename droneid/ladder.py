@@ -7,8 +7,6 @@ and never looked at.
 
 - :class:`TermModel`: ``y = b0 + Σ b_i · term_i`` with sympy terms over canonical signals;
   :meth:`TermModel.fit` is least squares, :meth:`TermModel.cv_rmse` its blocked-CV error.
-- :func:`choose_delay`: the input delay (s) of the thrust signals that minimises the blocked-CV
-  error of the refit prior over every target; kept only when it gains ``min_gain``.
 - :func:`trim_terms`: merge near-duplicate columns (cancelling pairs) and drop evolved terms that
   do not improve the CV error by ``margin``.
 - :func:`plausible`: the model on a grid spanning the training inputs' ranges plus a margin
@@ -30,11 +28,7 @@ from .numerics import rmse
 from .regression import block_bootstrap, blocked_cv, robust_fit
 
 __all__ = ["TermModel", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
-           "drop_negligible", "blocked_cv", "choose_delay", "trim_terms", "plausible",
-           "DELAY_GRID_S", "n_blocks_for"]
-
-#: candidate input delays of the thrust signals (s)
-DELAY_GRID_S = tuple(round(0.01 * k, 2) for k in range(0, 11))
+           "drop_negligible", "blocked_cv", "trim_terms", "plausible", "n_blocks_for"]
 
 
 def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
@@ -252,18 +246,6 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
             notes.append(f"{lab} sits on its physical bound {c:g}: the data pull it outside "
                          f"[{lo[i]:g}, {hi[i]:g}] (e.g. negative drag); the bound holds")
     return PhysicalFit(fitted, iv, held, at_bound, tuple(notes))
-
-
-def choose_delay(cv_error: Callable[[float], float], grid: Sequence[float] = DELAY_GRID_S,
-                 min_gain: float = 0.01) -> tuple[float, dict]:
-    """(chosen delay s, {delay: CV error}): the delay with the lowest ``cv_error(delay)`` if it
-    beats no delay by ``min_gain`` (relative), else 0."""
-    scores = {float(d): float(cv_error(float(d))) for d in grid}
-    best = min(scores, key=lambda d: (scores[d], d))
-    base = scores.get(0.0, math.inf)
-    if best != 0.0 and scores[best] <= (1.0 - min_gain) * base:
-        return best, scores
-    return 0.0, scores
 
 
 #: an evolved term with more operations than this is not something a person can read aloud

@@ -2,8 +2,8 @@
 
 :func:`plan_identification` picks the prior (``auto``: the most physical one the logs' signals
 support, :func:`priors.models.prior_for`), sets the rotor-thrust prior's nominal thrust scale by
-hover balance, chooses the input delay of the thrust signals by blocked cross-validation
-(:func:`droneid.ladder.choose_delay`) and runs the diagnosis (:mod:`droneid.diagnose`) to find the
+hover balance, chooses the offset of the thrust signals against the state in both directions by
+the calibrated block test of :mod:`droneid.decide` (:func:`choose_offset`) and runs the diagnosis (:mod:`droneid.diagnose`) to find the
 effects to fold into the prior features. Rows held out as test data (``cuts``) are never seen.
 The result is a frozen :class:`Plan`; :mod:`droneid.identify` builds the target problems from it.
 """
@@ -18,13 +18,14 @@ from priors.models import PriorFeature, get_prior, prior_for, resolve_prior
 
 from .data import Dataset
 from .dataset_builder import DatasetBuilder, split_time_block
+from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .fitness import usable_signals
-from .ladder import TermModel, block_ids, choose_delay, n_blocks_for
+from .ladder import TermModel, block_ids, n_blocks_for
 from .targets import targets_for
 
-__all__ = ["Plan", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
+__all__ = ["Plan", "OffsetDecision", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "thrust_signals", "split_terms", "prior_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
@@ -37,7 +38,8 @@ class Plan:
 
     prior : the PriorModel the search starts from; prior_reason : why (for ``auto``)
     targets : the targets identified; delays_s : {signal: delay s} of the thrust inputs
-    delay_scores : {delay s: joint blocked-CV error of the refit prior} (the evidence)
+    delay_scores : {offset s: joint blocked-CV error of the refit prior, relative to no offset}
+    offset : the :class:`OffsetDecision` behind ``delays_s`` (its test and interval), or None
     effects : the diagnosis' folded effects: [{"effect", "physical", "features": {target:
         [PriorFeature]}}]; not_folded : [{"effect", "reason"}]; diagnosis : its summary dict
     """
@@ -50,6 +52,7 @@ class Plan:
     not_folded: tuple = ()
     diagnosis: dict = field(default_factory=dict)
     notes: tuple = ()
+    offset: "OffsetDecision | None" = None
 
 
 def _hover_calibrated(prior, flights, cfg, cuts=None):
@@ -105,6 +108,98 @@ def fixed_plan(cfg, targets: Sequence[str] | None = None) -> Plan:
     return Plan(prior, why, targets_for(prior, targets or cfg.targets))
 
 
+#: offsets of the thrust inputs against the state that are tried (s): from the input read 100 ms
+#: later (its stream's stamps late) to 100 ms earlier (logged ahead of the thrust it makes)
+OFFSET_GRID_S = tuple(round(0.01 * k, 2) for k in range(-10, 11))
+#: family-wise level of the offset decision (:mod:`droneid.decide`, Holm over the grid)
+OFFSET_ALPHA = 0.01
+#: level of the offset's interval: the offsets the best one does not beat at this level
+OFFSET_INTERVAL_ALPHA = 0.05
+
+
+@dataclass(frozen=True)
+class OffsetDecision:
+    """The input offset chosen from the training flights, with its evidence.
+
+    offset_s : chosen offset d (s; 0: none): the input is read at t − d, so d > 0 reads it earlier
+        (it leads the thrust it makes), d < 0 later (its stream's stamps are |d| late: a clock
+        correction of the merged log, not a model that needs the future)
+    interval_s : (low, high) the offsets the best one is not significantly better than (95 %)
+    scores : {d: joint held-out RMSE relative to d = 0}; decision : the Holm-controlled block test
+        (:class:`droneid.decide.Decision`) of the best candidate, or None when none was testable
+    """
+    offset_s: float
+    interval_s: tuple
+    scores: dict
+    decision: object | None
+
+    def text(self, signals) -> str:
+        names = ", ".join(signals)
+        ev = self.decision.evidence if self.decision is not None else "no testable candidate"
+        lo, hi = self.interval_s
+        if not self.offset_s:
+            return f"thrust inputs ({names}) read without offset: no offset in ±{1000 * OFFSET_GRID_S[-1]:.0f} ms " \
+                   f"passes the block test on the training flights ({ev})"
+        if self.offset_s > 0:
+            what = f"delayed by {1000 * self.offset_s:.0f} ms (they lead the thrust they make)"
+        else:
+            what = (f"read {1000 * -self.offset_s:.0f} ms later: their stream's stamps are late by "
+                    f"{1000 * -self.offset_s:.0f} ms (a clock correction of the merged log, not a model "
+                    f"that needs the future)")
+        return f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
+
+
+def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
+                  grid: Sequence[float] = OFFSET_GRID_S) -> OffsetDecision:
+    """The offset of the thrust inputs by :mod:`droneid.decide`'s rule, on the training rows only.
+
+    For each offset d of ``grid`` every target's refit prior gives held-out residuals (blocked CV,
+    :func:`droneid.ladder.n_blocks_for` time blocks per flight) on the rows all offsets share.
+    The candidates d ≠ 0 are tested against d = 0 with Holm's control at :data:`OFFSET_ALPHA` over
+    the whole grid; among the accepted the lowest held-out error wins. The interval is every
+    offset the winner does not beat at :data:`OFFSET_INTERVAL_ALPHA`."""
+    res = {}
+    for d in grid:
+        per = {}
+        for t in targets:
+            ds = train_rows(dataset_builder(cfg, {s: d for s in signals}).build(
+                list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
+            blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
+            err = ds.y - prior_terms(prior, t).cv_predictions(ds.columns(), ds.y, blocks)
+            key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
+            per[t] = (key, err, blocks)
+        res[float(d)] = per
+    # the rows every offset has, per target; targets side by side (blocks numbered per target)
+    errs, blocks = {d: [] for d in res}, []
+    for i, t in enumerate(targets):
+        common = set.intersection(*(set(res[d][t][0].tolist()) for d in res))
+        keys = np.array(sorted(common), dtype=np.int64)
+        for d in res:
+            k, e, b = res[d][t]
+            pos = np.searchsorted(k, keys) if np.all(np.diff(k) > 0) else \
+                np.array([np.flatnonzero(k == x)[0] for x in keys])
+            errs[d].append(e[pos])
+            if d == 0.0:
+                blocks.append(i * 1000 + b[pos])
+    errs = {d: np.concatenate(v) for d, v in errs.items()}
+    blocks = np.concatenate(blocks) if blocks else np.zeros(0, int)
+    rms = {d: float(np.sqrt(np.mean(e * e))) for d, e in errs.items()}
+    scores = {d: rms[d] / rms[0.0] for d in rms}
+    cands = {f"{1000 * d:+.0f} ms": errs[d] for d in errs if d != 0.0}
+    if np.unique(blocks).size < 3 or not cands:
+        return OffsetDecision(0.0, (0.0, 0.0), scores, None)
+    fam = decide_family(errs[0.0], cands, blocks, alpha=OFFSET_ALPHA)
+    by_name = {f"{1000 * d:+.0f} ms": d for d in errs if d != 0.0}
+    accepted = [n for n, dec in fam.items() if dec.accepted]
+    best_name = min(fam, key=lambda n: (rms[by_name[n]], abs(by_name[n])))
+    if accepted:
+        best_name = min(accepted, key=lambda n: (rms[by_name[n]], abs(by_name[n])))
+    best = by_name[best_name] if accepted else 0.0
+    same = [d for d in errs if d == best or not decide(errs[d], errs[best], blocks, alpha=OFFSET_INTERVAL_ALPHA,
+                                                         min_effect_pct=0.0).accepted]
+    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name])
+
+
 def plan_identification(train_flights, cfg, progress: Callable | None = None,
                         cuts: dict | None = None) -> Plan:
     """Choose the prior, the thrust input delay and the effects from the training flights only
@@ -116,34 +211,20 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
     targets = targets_for(prior, cfg.targets)
     notes = []
     thrust = sorted({s for t in targets for s in thrust_signals(prior, t)})
-    delays, scores = {}, {}
+    delays, scores, decision = {}, {}, None
     if cfg.delays == "auto" and thrust:
-        cache = {}
-
-        def cv_error(d):
-            total = 0.0
-            for t in targets:
-                ds = train_rows(dataset_builder(cfg, {s: d for s in thrust}).build(
-                    list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-                tm = prior_terms(prior, t)
-                blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
-                e = tm.cv_rmse(ds.columns(), ds.y, blocks)
-                base = cache.setdefault(t, e)  # d = 0 comes first: errors relative to no delay
-                total += e / base
-            return total / len(targets)
         if progress:
-            progress(0, 1, "choosing the thrust input delay")
-        best, scores = choose_delay(cv_error)
-        if best:
-            delays = {s: best for s in thrust}
-            notes.append(f"thrust inputs ({', '.join(thrust)}) delayed by {1000 * best:.0f} ms: blocked-CV "
-                         f"error of the refit prior {100 * (1 - scores[best] / scores[0.0]):.1f} % lower "
-                         f"than without delay (training flights only)")
+            progress(0, 1, "choosing the thrust input offset")
+        decision = choose_offset(train_flights, prior, targets, thrust, cfg, cuts)
+        scores = dict(decision.scores)
+        if decision.offset_s:
+            delays = {s: decision.offset_s for s in thrust}
+        notes.append(decision.text(thrust))
     effects, not_folded, diag = (), (), {}
     if cfg.effects == "auto":
         effects, not_folded, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts)
         notes.extend(enotes)
-    return Plan(prior, reason, targets, delays, scores, effects, not_folded, diag, tuple(notes))
+    return Plan(prior, reason, targets, delays, scores, effects, not_folded, diag, tuple(notes), decision)
 
 
 def train_rows(ds: Dataset, cuts: dict | None, test: bool = False) -> Dataset:

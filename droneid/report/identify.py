@@ -136,7 +136,7 @@ def text(result: dict) -> str:
             if tr.get("final"):
                 out.append(f"  expanded: {tr['final']['equation']}")
                 if tr["final"].get("delays_s"):
-                    out.append("  delayed inputs: " + ", ".join(f"{k}(t − {1000 * v:.0f} ms)"
+                    out.append("  offset inputs: " + ", ".join(f"{k}(t {'−' if v > 0 else '+'} {1000 * abs(v):.0f} ms)"
                                                                for k, v in tr["final"]["delays_s"].items()))
             out.append("")
             out.append(text_table(list(LADDER_HEADER), ladder_rows(tr)))

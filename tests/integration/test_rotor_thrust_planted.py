@@ -92,18 +92,23 @@ def test_least_squares_recovers_a_different_planted_kf():
 RHYTHMS = ((21, 0.2, 1.2), (22, 0.3, 2.5))
 
 
-def _delay_flights(delay_s):
-    train = [simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=delay_s,
-                      effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight
+def _late(f, late_s):
+    """The flight with its motor-speed stream stamped ``late_s`` late (a merged log's clock)."""
+    return f.with_signals(*[f[f"rpm{i}"].shifted(late_s) for i in range(1, 5)]) if late_s else f
+
+
+def _delay_flights(delay_s, late_s=0.0):
+    train = [_late(simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=delay_s,
+                            effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight, late_s)
              for s, a, p in RHYTHMS]
-    test = [simulate(path="eight", duration_s=20.0, rate_hz=100.0, seed=23, rpm_delay_s=delay_s,
-                     effects={"thrust_variation": {"amp_m": 0.25, "period_s": 1.8}}).flight]
+    test = [_late(simulate(path="eight", duration_s=20.0, rate_hz=100.0, seed=23, rpm_delay_s=delay_s,
+                           effects={"thrust_variation": {"amp_m": 0.25, "period_s": 1.8}}).flight, late_s)]
     return train, test
 
 
-def _identify_delays(delay_s):
+def _identify_delays(delay_s, late_s=0.0):
     from droneid.identify import IdentifyConfig, identify
-    train, test = _delay_flights(delay_s)
+    train, test = _delay_flights(delay_s, late_s)
     cfg = IdentifyConfig.make(runs=1, generations=200, population_size=60, jobs=1, effects="none", delays="auto")
     res = identify(train, test, cfg)
     assert res.config["prior_used"] == "rotor-thrust"
@@ -119,7 +124,26 @@ def test_identify_finds_the_planted_rpm_logging_delay():
 
 def test_identify_chooses_no_delay_where_none_is_planted():
     delays, scores = _identify_delays(0.0)
-    assert all(d <= 0.01 for d in delays.values()), (delays, scores)
+    assert not delays, (delays, scores)
+
+
+def test_identify_reads_a_late_motor_stream_later_and_keeps_the_stop_and_go_flight_airborne():
+    """The motor stream of a merged log stamped 80 ms late (issue 25): the offset is −80 ± 20 ms
+    (read later: a clock correction), with its interval and evidence, and the random path's
+    stops (hovers at altitude) stay airborne."""
+    from droneid.dataset_builder import in_flight_intervals
+    from droneid.identify import IdentifyConfig, identify
+    train, test = _delay_flights(0.0, late_s=0.08)
+    for f in train:
+        assert in_flight_intervals(f)[0] == [(f["z"].start_s, f["z"].end_s)]   # no hover cut out
+    cfg = IdentifyConfig.make(runs=1, generations=200, population_size=60, jobs=1, effects="none", delays="auto")
+    res = identify(train, test, cfg)
+    delays, off = res.config["delays_s"], res.config["offset"]
+    assert set(delays) == {"rpm1", "rpm2", "rpm3", "rpm4"}, off
+    assert all(d == pytest.approx(-0.08, abs=0.02) for d in delays.values()), off
+    lo, hi = off["interval_s"]
+    assert lo <= off["offset_s"] <= hi and "accepted" in off["evidence"]
+    assert any("stamps are late by 80 ms" in n for n in res.notes)
 
 
 def test_the_rotor_sample_log_shows_its_planted_delay():

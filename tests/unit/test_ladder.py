@@ -6,7 +6,7 @@ import pytest
 import sympy as sp
 
 from droneid.expressions import symbol
-from droneid.ladder import (TermModel, blocked_cv, choose_delay, drag_slope, plausible, trim_terms,
+from droneid.ladder import (TermModel, blocked_cv, drag_slope, plausible, trim_terms,
                             validation_blocks)
 
 v, a = symbol("vx"), symbol("pitch")
@@ -90,12 +90,6 @@ def test_drag_slope_flags_a_velocity_term_that_turns_over():
     wavy = -0.528 * v + 0.52 * v * sp.cos(v ** 2) ** 3  # found by SNGP on the Crazyflie squares
     assert drag_slope(wavy, "vx", rows, 2.0) > 0.5
     assert drag_slope(9.81 * a, "vx", rows, 2.0) == -math.inf  # no velocity: nothing to check
-
-
-def test_choose_delay_keeps_zero_unless_a_delay_gains_enough():
-    assert choose_delay(lambda d: 1.0 - 0.001 * d)[0] == 0.0
-    best, scores = choose_delay(lambda d: 1.0 + 40 * (d - 0.04) ** 2 - 0.064)
-    assert best == pytest.approx(0.04) and set(scores) == {round(0.01 * k, 2) for k in range(11)}
 
 
 def test_functions_of_functions_are_unreadable(data):
