@@ -10,8 +10,11 @@ from __future__ import annotations
 
 import logging
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import replace
+
+import numpy as np
 
 from droneid.errors import ConfigError, DroneIdError, LogFormatError, check_choice, did_you_mean
 from droneid.flight import VEHICLE_TYPES, Flight
@@ -128,7 +131,11 @@ def _guarded(reader, path: str, fmt: str, opts: dict) -> Flight:
     * one warning line is logged when the reader met damage (the details are in the Flight).
     """
     try:
-        with captured_output() as cap:
+        # damaged numbers (1e308, zero quaternions) become inf / nan, which the readers count as
+        # non-finite samples: no numpy warning; a library's Python warnings are kept as data
+        with captured_output() as cap, np.errstate(over="ignore", invalid="ignore", divide="ignore"), \
+                warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             flight = reader(path, **opts)
     except (DroneIdError, FileNotFoundError, PermissionError):
         raise
@@ -138,6 +145,10 @@ def _guarded(reader, path: str, fmt: str, opts: dict) -> Flight:
         raise LogFormatError(path, f"unreadable {fmt} log, damaged beyond what the reader "
                                    f"skips ({type(exc).__name__}: {msg}){extra}") from exc
     lines = cap.lines
+    if caught:
+        first = f"{caught[0].category.__name__}: {str(caught[0].message)[:100]}"
+        flight = replace(flight, diagnostics=flight.diagnostics.add(warnings=[
+            f"{len(caught)} warning(s) of the reader libraries suppressed (first: {first!r})"]))
     if lines:
         first = lines[0].strip()[:100]
         diag = flight.diagnostics.add(warnings=[

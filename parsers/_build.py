@@ -113,7 +113,7 @@ def ardupilot_motor_channels(params, channels, n_default: int = 4):
         elif params.get("RC3_MAX", 0) > params.get("RC3_MIN", 0) > 0:
             lo, hi, rng = params["RC3_MIN"], params["RC3_MAX"], "RC3_MIN/MAX"
         else:
-            lo, hi, rng = 1000.0, 2000.0, "default"
+            lo, hi, rng = 1000.0, 2000.0, "the standard range: the log states no MOT_PWM_MIN/MAX, SERVOn_MIN/MAX or RC3_MIN/MAX"
         out.append((c, motor, float(lo), float(hi), f"PWM {lo:.0f}-{hi:.0f} us ({rng}): {pwm_formula(lo, hi)}; {mapping}"))
     return out
 

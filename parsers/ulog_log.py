@@ -253,12 +253,16 @@ def _pwm_range(params, ch: int):
             v = params.get(key, -1)
             if v is not None and v > 0:
                 return float(v), key
-        return default, "default"
+        return default, _STANDARD
     lo, klo = get("MIN", 1000.0)
     hi, khi = get("MAX", 2000.0)
     if hi <= lo:
-        return 1000.0, 2000.0, "default"
-    return lo, hi, klo if klo == khi == "default" else f"{klo}/{khi}"
+        return 1000.0, 2000.0, _STANDARD
+    return lo, hi, klo if klo == khi == _STANDARD else f"{klo}/{khi}"
+
+
+#: what a PWM source says when the log states no PWM range (the standard one is used)
+_STANDARD = "the standard range: the log states no PWM_MAIN_MIN/MAX"
 
 
 def _status(b, topics, tt):
