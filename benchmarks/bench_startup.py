@@ -85,14 +85,19 @@ def _save(path: Path, X, y) -> Path:
     return path
 
 
-def _run(args: list[str], root: Path = ROOT) -> tuple[float, str]:
-    """Wall time and stdout of ``python ARGS`` run in ``root`` (whose droneid ``-m`` runs)."""
+def _run(args: list[str], root: Path = ROOT) -> tuple[float, str, float]:
+    """Wall time, stdout and CPU time (user + system) of ``python ARGS`` run in ``root`` (whose
+    droneid ``-m`` runs). CPU time is less inflated than wall time by other processes' load."""
+    import resource
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, *args], cwd=root, capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(args)} failed ({r.returncode}): {r.stderr.strip()[-400:]}")
-    return wall, r.stdout
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return wall, r.stdout, cpu
 
 
 def startup_table(repeats: int, previous: Path | None) -> dict:
@@ -131,11 +136,11 @@ def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> 
         for n in sizes:
             argv = ["-m", "droneid", "fit", str(tables[n]), "--target", "vx_dot",
                     "--test", str(tables["test"]), "--json", "-q"]
-            wall, out = _run(argv)
-            runs[n].append((wall, json.loads(out.strip().splitlines()[-1])))
+            wall, out, cpu = _run(argv)
+            runs[n].append((wall, {**json.loads(out.strip().splitlines()[-1]), "cpu_s": cpu}))
             if previous:
-                wall, out = _run(argv, previous)
-                before[n].append((wall, json.loads(out.strip().splitlines()[-1])))
+                wall, out, cpu = _run(argv, previous)
+                before[n].append((wall, {**json.loads(out.strip().splitlines()[-1]), "cpu_s": cpu}))
     fit_table(tables[160], FitConfig(target="vx_dot", generations=200))  # warm-up
     warm = {}
     for n in sizes:
@@ -149,9 +154,9 @@ def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> 
           "SNGPRegressor.fit in it\n(kernel loading included) | engine warm: the same fit in an "
           "already warm process | jar: its wall\ntime RECORDED on this machine kind (not run "
           "here) | x jar: jar / process, against the jar's best-worst time")
-    print(f"{'samples':>7} {'gens':>6} {'process':>8} {'engine':>7} {'start+print':>11} "
+    print(f"{'samples':>7} {'gens':>6} {'process':>8} {'cpu':>5} {'engine':>7} {'start+print':>11} "
           f"{'engine warm':>11} {'jar (rec.)':>10} {'x jar':>11} {'target':>7} {'met?':>5}"
-          + (f" {'before':>7} {'x jar':>11} {'same model':>10}" if previous else ""))
+          + (f" {'before':>7} {'cpu':>5} {'x jar':>11} {'same model':>10}" if previous else ""))
     rows = {}
     for n in sizes:
         wall = statistics.median(w for w, _ in runs[n])
@@ -162,21 +167,23 @@ def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> 
         met = "" if target is None else ("yes" if lo / wall >= target else "NO")
         jar = f"{lo:.0f}" if lo == hi else f"{lo:.0f}-{hi:.0f}"
         xjar = f"{lo / wall:.1f}x" if lo == hi else f"{lo / wall:.1f}-{hi / wall:.1f}x"
-        line = (f"{n:>7} {gens:>6} {wall:8.2f} {engine:7.2f} {wall - engine:11.2f} {warm[n][0]:11.2f} "
+        cpu = statistics.median(d["cpu_s"] for _, d in runs[n])
+        line = (f"{n:>7} {gens:>6} {wall:8.2f} {cpu:5.2f} {engine:7.2f} {wall - engine:11.2f} {warm[n][0]:11.2f} "
                 f"{jar:>10} {xjar:>11} {(f'{target:.0f}x' if target else ''):>7} {met:>5}")
         if previous:
             bw = statistics.median(w for w, _ in before[n])
+            bcpu = statistics.median(d["cpu_s"] for _, d in before[n])
             same = all((d["rmse_train"], d["rmse_test"], d["generations"])
                        == (runs[n][0][1]["rmse_train"], runs[n][0][1]["rmse_test"], gens)
                        for _, d in before[n] + runs[n])
-            line += (f" {bw:7.2f} {(f'{lo / bw:.1f}x' if lo == hi else f'{lo / bw:.1f}-{hi / bw:.1f}x'):>11}"
+            line += (f" {bw:7.2f} {bcpu:5.2f} {(f'{lo / bw:.1f}x' if lo == hi else f'{lo / bw:.1f}-{hi / bw:.1f}x'):>11}"
                      f" {'yes' if same else 'NO':>10}")
         print(line)
-        rows[n] = {"process_s": wall, "engine_s": engine, "engine_warm_s": warm[n][0],
+        rows[n] = {"process_s": wall, "process_cpu_s": cpu, "engine_s": engine, "engine_warm_s": warm[n][0],
                    "generations": gens, "jar_recorded_s": [lo, hi],
                    "x_jar": [lo / wall, hi / wall], "process_runs_s": [w for w, _ in runs[n]],
                    "rmse_train": runs[n][0][1]["rmse_train"], "rmse_test": runs[n][0][1]["rmse_test"]}
-    print("(start+print: process - engine = interpreter, imports, reading the table, the sympy "
+    print("(cpu: user + system CPU s of the process; start+print: process - engine = interpreter, imports, reading the table, the sympy "
           "simplification of the\n printed equation (a 0.5 s budget) and exit."
           + (" before: the same process from --previous, interleaved; same model: equal\n"
              " training and test errors and generations in every run of both)" if previous else ")"))
