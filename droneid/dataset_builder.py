@@ -227,7 +227,8 @@ def _detect_ground(flight: Flight, t: np.ndarray, p: _Detect) -> tuple[np.ndarra
         # there, or idles there: before a take-off, after a landing), shows where the ground is; a
         # flight whose lowest point is a hover at altitude (stop-and-go legs) has no ground in it
         first, last = t <= t[0] + _END_S, t >= t[-1] - _END_S
-        rests = [bool(np.mean(near[m]) > 0.5 and (v is None or np.nanmedian(v[m]) < p.still_speed))
+        rests = [bool(np.mean(near[m]) > 0.5 and (v is None or (np.isfinite(v[m]).any()   # no speed: not still
+                                                             and np.nanmedian(v[m]) < p.still_speed)))
                  for m in (first, last)]
         if idle is not None:
             rests.append(bool((near & idle).sum() * (t[1] - t[0] if t.size > 1 else 0) >= _END_S))
