@@ -39,6 +39,7 @@ from priors.thrust import thrust_columns
 from . import __version__, runner
 from .constraint_samples import constraint_rmse
 from .data import Dataset
+from .decide import decide
 from .errors import ConfigError, DataError, check_choice
 from .expressions import compile_expression, symbol
 from .fitness import check_prior_data
@@ -67,6 +68,8 @@ SCHEMA = "droneid.identify/1"
 #: `study` 10): the trust guards decide what survives, and on the shared Crazyflie flights 4 and 10
 #: runs give the same final models (measured), in 15 s instead of 43 s
 PAPER_BUDGET = {"generations": 60000, "population_size": 500, "runs": 4}
+#: family-wise level of keeping evolved terms (Bonferroni over the runs; :mod:`droneid.decide`)
+TERM_ALPHA = 0.01
 #: a fast look: a few seconds per run on ~200 samples
 QUICK_BUDGET = {"generations": 3000, "population_size": 200, "runs": 4}
 #: the engine's own defaults (its signature) for what neither budget sets
@@ -749,6 +752,7 @@ class TargetResult:
     intervals: dict = field(default_factory=dict)  # {coefficient: [low, high]}: the final model's 95 % intervals
     verdict_kind: str = ""          # better / no better / worse / not to be trusted / no verdict
     screened: dict = field(default_factory=dict)  # {"training"|"test": {signal: implausible samples}}
+    input_ranges: dict = field(default_factory=dict)  # {input: [min, max]} over the training rows
 
 
 _LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
@@ -814,7 +818,9 @@ def _feature_dicts(feats) -> list:
 
 def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]) -> tuple[dict, dict]:
     """(final rung, guard report): the best evolved model that survives the trust guards, or the
-    physical rung (prior + delay + effects) when none beats it on TRAINING validation blocks.
+    physical rung (prior + delay + effects) when none beats it on TRAINING validation blocks by
+    the calibrated block test of :mod:`droneid.decide` (held-out errors of both, time blocks,
+    α = :data:`TERM_ALPHA` Bonferroni over the runs, at least ``cfg.margin`` lower error).
 
     Guards, in order, per run: the run's evolved terms are added to ALL prior and effect
     features; near-duplicate columns (cancelling pairs) are merged and evolved terms that do not
@@ -824,7 +830,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     samples must stay below max(γ, 1.1 x the physical rung's); drag must grow with speed: along
     its own-axis velocity (±1.2 x the training speed, other inputs at 50 flown states) the
     model's slope may not exceed the physical rung's (or 0) by more than 0.05 1/s. The survivor with the lowest CV error replaces the
-    physical rung only if its CV error is ``cfg.margin`` lower."""
+    physical rung only if it passes that test."""
     phys = p.ladder[-1]
     delays = p.plan.delays_s if p.plan else {}
     cols, y = p.train.columns(), p.train.y
@@ -899,15 +905,22 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
         guards["candidates"] += 1
         if best is None or cv < best[0]:
             best = (cv, i, trimmed)
-    if best is not None and best[0] <= (1.0 - cfg.margin) * phys["rmse_validation"]:
+    decision = None
+    if best is not None:   # the calibrated rule of droneid.decide: held-out errors, time blocks, Bonferroni over the runs
+        err0 = y - phys_model.cv_predictions(cols, y, p.blocks)
+        err1 = y - best[2].cv_predictions(cols, y, p.blocks)
+        decision = decide(err0, err1, bootstrap_blocks(p.train), alpha=TERM_ALPHA, family_size=max(len(done), 1),
+                          min_effect_pct=100 * cfg.margin, what=f"evolved terms of run {best[1] + 1}")
+        guards["decision"] = decision.evidence
+    if decision is not None and decision.accepted:
         cv, i, tm = best
         n_ev = len(tm.terms) - len(base)
         final = rung("final", f"+ {n_ev} evolved term{'s' * (n_ev > 1)} (run {i + 1})", tm, p.train, p.test,
                      p.cs_test, blocks=p.blocks, delays=delays)
         guards["chosen_run"] = i
     else:
-        final = dict(phys, name="final", description=f"= the rung above (no evolved term beat it by "
-                     f"{100 * cfg.margin:.0f} % in validation)")
+        final = dict(phys, name="final", description=f"= the rung above (no evolved term passed the block "
+                     f"test: {100 * cfg.margin:.0f} % lower held-out error at α = {TERM_ALPHA:g})")
         guards["chosen_run"] = None
         if best is not None:
             guards["best_evolved_validation"] = best[0]
@@ -1077,6 +1090,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         best_run=best_i, failed_runs={str(k): v for k, v in (errors or {}).items()},
         model=best.model if best else None, test_series=series, notes=notes,
         intervals={k.strip("⟨⟩"): v for k, v in (final or {}).get("intervals", {}).items()},
+        input_ranges={n: [float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i]))]
+                      for i, n in enumerate(p.train.input_names)} if len(p.train) else {},
         screened={"training": dict(p.train.screened),
                   **({"test": dict(p.test.screened)} if len(p.test) and not p.holdout else {})})
 

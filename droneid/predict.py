@@ -27,6 +27,7 @@ from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
 from .rollout import RolloutResult, rollout_errors, sample_inputs
+from .screening import implausible_counts, screen_flight, screen_signal
 from .sngp import SymbolicModel
 
 __all__ = ["load_models", "predict_flights", "model_sets", "PredictionResult"]
@@ -38,7 +39,9 @@ class PredictionResult:
 
     ts : sampling period (s) and method : differentiator of the targets (as identified with);
     targets : {target: {"equation", "inputs", "sources", "errors": {"all"|flight: {"n",
-    "rmse_identified", "rmse_empirical", "rmse_refit" | "rmse_empirical_refit"}}, "notes"?}},
+    "rmse_identified", "rmse_empirical", "rmse_refit" | "rmse_empirical_refit"}}, "screened":
+    {flight: {signal: implausible samples}}, "out_of_range": {flight: {input: fraction of samples
+    outside the training range}}, "notes"?}},
     errors in m/s²; fitness / warnings : the data-fitness check of the logs (None / () when the
     models name no signals); horizons : {model: {steps: {"vx", "vy", "vz" (m/s), "position"
     (m)}}} of multi-step prediction and horizon_info its step (s), counts and notes (None
@@ -112,6 +115,7 @@ def _entry(path, target: str, tr: dict) -> dict:
                 except DroneIdError as exc:
                     raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
         out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
+        out["input_ranges"] = dict(tr.get("input_ranges") or {})
         return out
     return {"model": tr["model"], "inputs": tr["inputs"],
             "empirical_terms": tr.get("empirical_terms") or [],
@@ -172,7 +176,8 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
             mask = mask & ok
             per[name] = {"n": int(mask.sum()), **{f"rmse_{k}": rmse(v[mask], ds.y[mask]) for k, v in preds.items()}}
         r = {"equation": m.get("equation"), "inputs": list(ds.input_names), "sources": list(ds.sources),
-             "errors": per}
+             "errors": per, "screened": _screened(flights, ds, [*ds.input_names, state_of(target)]),
+             "out_of_range": _out_of_range(ds, m.get("input_ranges") or {})}
         if not ok.all():
             notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
                          f"(e.g. a delayed input read before its signal starts)")
@@ -186,6 +191,43 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         table = info.pop("rmse")
     return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
                             tuple(fit.warnings) if fit is not None else (), table, info, roll)
+
+
+def _screened(flights, ds, signals) -> dict:
+    """{flight: {signal: implausible samples}} of the signals a target's models read
+    (:mod:`droneid.screening`); rows that use them are not scored."""
+    out = {}
+    for i, f in enumerate(flights):
+        counts = implausible_counts(screen_flight(f, signals))
+        if counts:
+            out[ds.sources[i] if i < len(ds.sources) else f.name] = counts
+    return out
+
+
+#: an input counts as outside the training range beyond this fraction of the range's span
+RANGE_MARGIN = 0.05
+
+
+def _out_of_range(ds, ranges: dict) -> dict:
+    """{flight: {input: fraction of the scored samples outside the training range ± 5 % of its
+    span}} for inputs that leave it (the model extrapolates there)."""
+    out = {}
+    for i, src in enumerate(ds.sources):
+        sel = ds.flight == i
+        if not sel.any():
+            continue
+        per = {}
+        for name, (lo, hi) in ranges.items():
+            if name not in ds.input_names:
+                continue
+            pad = RANGE_MARGIN * max(hi - lo, 1e-12)
+            v = ds.X[sel, ds.input_names.index(name)]
+            frac = float(np.mean((v < lo - pad) | (v > hi + pad)))
+            if frac > 0:
+                per[name] = frac
+        if per:
+            out[src] = per
+    return out
 
 
 def _fitness(models: dict, flights, ts: float):
@@ -226,6 +268,11 @@ def _predict_final(builder, flights, target: str, m: dict):
             for i, f in enumerate(flights):
                 sel = ds.flight == i
                 v[sel] = sample_inputs(f, [s], ds.t[sel], {s: d})[s]
+                tt = ds.t[sel] - d          # a screened sample of the delayed input: no score there
+                bad = np.zeros(tt.size, bool)
+                for h0, h1 in screen_signal(f[s]).holes:
+                    bad |= (tt > h0) & (tt < h1)
+                v[np.flatnonzero(sel)[bad]] = np.nan
             c[s] = v
         preds[name] = im.evaluate(c)
         if im.delays_s:

@@ -20,6 +20,13 @@ def text(res) -> str:
         header = ["data", "samples"] + [_LABELS[k] for k in keys]
         rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
         out.append(text_table(header, rows))
+        for src, counts in (r.get("screened") or {}).items():
+            out.append(f"screened: {src}: " + ", ".join(f"{n} {c}" for n, c in counts.items())
+                       + " implausible sample(s) or jump(s); rows that use them are not scored")
+        for src, fr in (r.get("out_of_range") or {}).items():
+            out.append(f"unlike the training data: {src}: " + ", ".join(
+                f"{n} outside its training range on {100 * v:.1f} % of the samples" for n, v in fr.items())
+                + " (the model extrapolates there)")
         out += [f"note: {note}" for note in r.get("notes", ())]
         out.append(f"errors: RMSE in m/s²; targets by {res.method} differences at Ts = {res.ts} s "
                    f"(as at identification)\n")
