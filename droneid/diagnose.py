@@ -85,8 +85,8 @@ class DiagnoseConfig:
     ts, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
     n_blocks: contiguous time blocks per training flight for cross-validation; None (default):
-        :func:`diagnose_blocks` (``clip(n_train // 100, 10, 20)``, n_train the training samples
-        per target: blocks of ~100 samples, 5 s at 20 Hz).
+        :func:`diagnose_blocks` (``clip(n_train // 80, 12, 24)``, n_train the training samples
+        per target: blocks of ~80 samples, 4 s at 20 Hz).
     alpha: family-wise error level of the decision rule over every candidate the diagnosis may
         try (Holm; :mod:`droneid.decide`).
     min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
@@ -378,11 +378,11 @@ class _Stack:
 
 
 def diagnose_blocks(n: int) -> int:
-    """Default time blocks per training flight for ``n`` samples: ~100 samples (5 s at 20 Hz) a
-    block, 10 to 20 blocks. More blocks than :func:`droneid.ladder.n_blocks_for` because every
-    diagnosis decision is a t-test over blocks at a family-wise threshold (α/15 and below):
-    with 8 blocks (7 degrees of freedom) it needs t > 5, with 12 blocks t > 4."""
-    return int(np.clip(n // 100, 10, 20))
+    """Default time blocks per training flight for ``n`` samples: ~80 samples (4 s at 20 Hz) a
+    block, 12 to 24 blocks. More blocks than :func:`droneid.ladder.n_blocks_for` because every
+    diagnosis decision is a t-test over blocks at a family-wise threshold (α/13 and below):
+    with 8 blocks (7 degrees of freedom) it needs t > 5, with 12 blocks t > 4.3, with 20 t > 3.8."""
+    return int(np.clip(n // 80, 12, 24))
 
 
 def _lstsq(X, y):
@@ -712,6 +712,34 @@ def _score(model, cur, cur_terms, cur_test, cands, family_size, rank):
     return out
 
 
+def _backward(model, effects, added, findings, steps, cur_terms, cur_test, cur, family):
+    """Every added effect must still earn its place once the others are in: the same rule, the
+    model without it against the full model, at the Holm threshold it was accepted at. An effect
+    added greedily as a stand-in for one added after it (attitude bias for the part of anisotropic
+    drag that rotates with yaw) then fails and is dropped (the worst first, then re-tested);
+    its step keeps the evidence under ``dropped``. Effects judged on their own rows (per-motor
+    thrust) and effects that refine the others' inputs (wind's air velocity) are kept."""
+    while True:
+        trials = []
+        for eid in added:
+            e = effects[eid]
+            if eid in findings or e.refine_fn is not None or len(added) < 2:
+                continue
+            st = next(s for s in steps if s["effect"] == eid)
+            rank = int(st["evidence"].get("holm_rank", 1))
+            terms, test_terms = model.terms_of([a for a in added if a != eid], effects)
+            without = model.fit(terms, test_terms)
+            ev = model.evidence(without, cur, family, min(rank, family), f"keep {eid} (all others in)")
+            if not ev["passed"]:
+                trials.append((ev["p_value"], eid, ev, terms, test_terms, without))
+        if not trials:
+            return cur_terms, cur_test, cur
+        _, eid, ev, cur_terms, cur_test, cur = max(trials, key=lambda x: x[0])
+        next(s for s in steps if s["effect"] == eid)["dropped"] = ev
+        added.remove(eid)
+        log.info("dropped %s: %s", eid, ev["text"])
+
+
 def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] | None = None, *,
                       prior="tilt-drag", config: DiagnoseConfig | None = None, user_effects=None,
                       progress: Callable | None = None, prior_label: str | None = None) -> DiagnosisResult:
@@ -881,6 +909,8 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                 cur = model.fit(cur_terms, cur_test)
         if len(added) >= cfg.max_steps:
             break
+    cur_terms, cur_test, cur = _backward(model, effects, added, findings, steps, cur_terms, cur_test,
+                                         cur, family)
     if progress:
         progress(cfg.max_steps, total, "open-ended search")
     open_ended = _open_ended_all(model, cur, cfg)

@@ -125,8 +125,9 @@ K_T = 0.0257  # the rotor-thrust prior's nominal scale, m/s² per (10⁴ rpm)²
 def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, noise=0.15, phase=0.0):
     """{target: Dataset} for vx_dot, vy_dot, vz_dot under the rotor-thrust law (thrust from
     four motor speeds along the exact body z axis, gravity, linear drag) with ``effect``
-    planted: ``quadratic_drag`` (c horizontal, c_z vertical) or ``ground_effect`` (k_ge, h0,
-    z_ground = the lowest height), None: control."""
+    planted: ``quadratic_drag`` (c horizontal, c_z vertical) or ``ground_effect`` (rotor radius
+    R in m: Cheeseman-Bennett gain (R/4h)², h = max(z, 0.05) above the ground at z = 0; the
+    flight then dips to the ground), None: control."""
     p = dict(params or {})
     rng = np.random.default_rng(seed)
     t, vx, vy = _horizontal(duration_s, ts, phase)
@@ -147,7 +148,8 @@ def make_rotor(effect=None, params=None, *, seed=0, duration_s=60.0, ts=0.05, no
         acc["y"] = acc["y"] - p["c"] * s * vy
         acc["z"] = acc["z"] - p["c_z"] * np.abs(vz) * vz
     if effect == "ground_effect":
-        gain = p["k_ge"] * np.exp(-(z - p.get("z_ground", 0.0)) / p.get("h0", 0.5))
+        z = z + 0.1
+        gain = p["R"] ** 2 / (4 * np.maximum(z, 0.05)) ** 2
         for a, b in (("x", bx), ("y", by), ("z", bz)):
             acc[a] = acc[a] + gain * thrust * b
     cols = {"vx": vx, "vy": vy, "vz": vz, "z": z, "roll": roll, "pitch": pitch, "yaw": yaw,

@@ -69,6 +69,9 @@ def text(result) -> str:
                              f"test {_pair(prev[t], 'test')} -> {_pair(e, 'test')}")
                 prev[t] = e
             lines.append(f"       evidence: {_evidence_text(s['evidence'])}")
+            if s.get("dropped"):
+                lines.append(f"       DROPPED at the end (it no longer earns its place once the others "
+                             f"are in): {_evidence_text(s['dropped'])}")
             alts = s["evidence"].get("indistinguishable_from") or []
             if alts:
                 lines.append(f"       note: these data cannot tell it apart from {', '.join(alts)}")

@@ -1,9 +1,12 @@
 """Ground effect: thrust gain near the ground.
 
-Feature (v̇x, v̇y, v̇z): G·exp(−(z − z_ground)/h0), z_ground the KNOWN ground height (option
-``ground_z_m``, default 0 m: mocap and local-position frames have their origin on the floor or
-at the take-off point), h0 = option ``ground_h0_m`` (default 0.5 m, about two rotor diameters of
-a small quadrotor), coefficient ``k_ge`` -> thrust gain at the ground.
+Physics (Cheeseman & Bennett): in ground effect a rotor of radius R at height h gives
+T/T∞ = 1/(1 − (R/4h)²) ≈ 1 + (R/4h)² (h > R). Feature (v̇x, v̇y, v̇z): G·(1/(4h))², h = max(z −
+z_ground, ``H_MIN_M``) in m, z_ground the KNOWN ground height (option ``ground_z_m``, default 0 m:
+mocap and local-position frames have their origin on the floor or at the take-off point);
+coefficient ``R2`` (m²) -> rotor radius R = √R2 (the gain at height h is (R/4h)²). (An exp(−h/h0) shape would leave the rest of a 1/h² gain to stand-ins such as a
+thrust curve.) h0 = option ``ground_h0_m`` (default 0.5 m, about two rotor diameters of a small
+quadrotor) is only the reach of the preconditions.
 
 Preconditions (training data; untestable otherwise, with the reason):
 
@@ -14,6 +17,8 @@ Preconditions (training data; untestable otherwise, with the reason):
 - the ground factor exp(−(z − z_ground)/h0) varies by at least 0.1 over the flight (at a
   constant height it cannot be told from a constant thrust gain).
 """
+import math
+
 import numpy as np
 import sympy as sp
 
@@ -25,15 +30,12 @@ from priors.effects import TILT, Effect, Interpretation, spread
 NEAR_SHARE = 0.05
 #: smallest range (2nd-98th percentile) of the ground factor exp(−(z − z_ground)/h0)
 MIN_FACTOR_RANGE = 0.1
+#: heights are floored here (m) so the 1/h² feature stays finite on the ground itself
+H_MIN_M = 0.05
 
 
 def _ground(ctx):
     return float(ctx.options.get("ground_z_m", 0.0)), float(ctx.options.get("ground_h0_m", 0.5))
-
-
-def _constants(ctx):
-    zg, h0 = _ground(ctx)
-    return {"z_ground": zg, "h0": h0}
 
 
 def _preconditions(ctx):
@@ -54,14 +56,22 @@ def _preconditions(ctx):
     return None
 
 
+def _constants(ctx):
+    zg, h0 = _ground(ctx)
+    return {"z_ground": zg, "h0": h0}
+
+
 def _features(ctx, k):
-    return {"k_ge": ctx.tilt * sp.exp(-(symbol("z") - sp.Float(k["z_ground"])) / sp.Float(k["h0"]))}
+    h = sp.Max(symbol("z") - sp.Float(k["z_ground"]), sp.Float(H_MIN_M))
+    return {"R2": ctx.tilt / (4 * h) ** 2}
 
 
 def _interpret(coef, base):
-    k = coef.get("k_ge", float("nan"))
-    return Interpretation(f"thrust gain near the ground: {100 * k:+.0f} % at the ground (decaying "
-                          "with height)", {"gain_at_ground": k})
+    r2 = coef.get("R2", float("nan"))
+    radius = math.sqrt(r2) if r2 > 0 else float("nan")
+    txt = (f"ground effect 1 + (R/4h)² with rotor radius R ≈ {radius:.3g} m" if radius == radius
+           else f"ground effect with a negative (R/4h)² coefficient {r2:.3g} m² (not physical)")
+    return Interpretation(txt, {"R2_m2": r2, "rotor_radius_m": radius})
 
 
 EFFECT = Effect("ground_effect", "thrust gain near the ground (needs height z above a known ground "

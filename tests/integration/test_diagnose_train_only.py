@@ -181,7 +181,7 @@ def test_rotor_thrust_quadratic_drag_with_vertical_term_is_found_and_folds():
 
 
 def test_rotor_thrust_ground_effect_folds_to_the_planted_law():
-    planted = {"k_ge": 0.1, "z_ground": 0.2, "h0": 0.5}
+    planted = {"R": 0.15}
     train = S.make_rotor("ground_effect", planted, seed=2, duration_s=120)
     r = diagnose_datasets(train, None, prior=ROTOR, config=CFG)
     assert r.effects_added == ["ground_effect"]
@@ -191,7 +191,7 @@ def test_rotor_thrust_ground_effect_folds_to_the_planted_law():
         c = ds.columns()
         g = sum(p.expr for p in ROTOR.features(t) if p.role == "thrust")
         thrust_term = _eval(g, ds)
-        truth = planted["k_ge"] * np.exp(-(c["z"] - planted["z_ground"]) / planted["h0"]) * thrust_term
+        truth = planted["R"] ** 2 / (4 * np.maximum(c["z"], 0.05)) ** 2 * thrust_term
         got = f["coefficient"] * _eval(f["expr"], ds)
         assert np.max(np.abs(got - truth)) < 0.15 * np.max(np.abs(truth)), t
 
