@@ -513,14 +513,14 @@ def _empirical_baselines(p: TargetProblem, cfg: IdentifyConfig | None = None,
     if plan is not None and plan.delays_s and undelayed is not None:
         tr0, te0 = undelayed
         b0, _ = validation_blocks(tr0.t, tr0.flight)
-        ladder.append(rung("refit", f"{prior_name} prior, robust refit", tm, tr0, te0, cs, blocks=b0))
+        ladder.append(rung("refit", f"{prior_name} prior refit", tm, tr0, te0, cs, blocks=b0))
         d = next(iter(plan.delays_s.values()))
         what = (f"+ thrust inputs delayed by {1000 * d:.0f} ms" if d > 0 else
                 f"+ thrust stream clock corrected (read {1000 * -d:.0f} ms later)")
         ladder.append(rung("delay", what,
                            tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
     else:
-        ladder.append(rung("refit", f"{prior_name} prior, robust refit",
+        ladder.append(rung("refit", f"{prior_name} prior refit",
                            tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s if plan else None))
     for e in (plan.effects if plan else ()):
         feats = e["features"].get(p.target, ())

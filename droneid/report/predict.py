@@ -7,8 +7,10 @@ from .document import fmt, text_table
 
 __all__ = ["text"]
 
-_LABELS = {"rmse_identified": "e_d identified", "rmse_empirical": "e_d empirical",
-           "rmse_refit": "e_d empirical refit", "rmse_empirical_refit": "e_d empirical refit"}
+#: one name per model across identify, predict, the plots and the docs: the final model, the
+#: empirical model (as given) and the prior refit
+_LABELS = {"rmse_identified": "e_d final model", "rmse_empirical": "e_d empirical model",
+           "rmse_refit": "e_d prior refit", "rmse_empirical_refit": "e_d prior refit"}
 
 
 def text(res) -> str:

@@ -100,7 +100,7 @@ def test_predict_round_trip_reproduces_the_test_error(identified, logs, capsys):
         assert e["rmse_refit"] == pytest.approx(doc["targets"][t]["empirical_refit"]["rmse_test"],
                                                           rel=1e-6)
     code, out, _ = run_cli(capsys, "predict", identified / "result.json", test, "--target", "vx_dot")
-    assert code == 0 and "e_d identified" in out and "vy_dot" not in out
+    assert code == 0 and "e_d final model" in out and "vy_dot" not in out
 
 
 def test_identify_terminal_output_and_holdout_note(logs, capsys):
@@ -114,7 +114,7 @@ def test_identify_terminal_output_and_holdout_note(logs, capsys):
     head = lines.index(next(l for l in lines if l.startswith("== vx_dot")))
     assert lines[head + 1].startswith("vx_dot: ") and "empirical model" in lines[head + 1]
     assert "⟨g_cos_yaw_tan_pitch_over_cos_roll⟩" in out
-    for label in ("the empirical tilt-drag model as given", "tilt-drag prior, least-squares refit", "FINAL: ",
+    for label in ("the empirical tilt-drag model as given", "tilt-drag prior refit", "FINAL: ",
                   "e_d validation", "central differences at Ts = 0.05 s"):
         assert label in out
 

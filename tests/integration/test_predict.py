@@ -70,7 +70,7 @@ def test_predict_evaluates_the_final_model(result, log, capsys):
         # planted truth: the true k_D beats the one given
         assert e["rmse_identified"] < e["rmse_empirical"]
     code, out, _ = run_cli(capsys, "predict", result, log, "--target", "vx_dot")
-    assert code == 0 and "e_d identified" in out and "e_d empirical refit" in out and "vy_dot" not in out
+    assert code == 0 and "e_d final model" in out and "e_d prior refit" in out and "vy_dot" not in out
 
 
 PAPER = {"vx_dot": ("vx", "pitch", "roll", "yaw"), "vy_dot": ("vy", "pitch", "roll", "yaw")}

@@ -25,4 +25,4 @@ def test_the_text_report_has_a_table_per_target_and_the_warnings_first():
     out = predict_report.text(_result(fitness={}, warnings=("slow signal",)))
     lines = out.splitlines()
     assert lines[0] == "warning: slow signal" and lines[1] == "== vx_dot: vx_dot = -0.3·vx"
-    assert "e_d identified" in lines[2] and "0.25" in out and "multi-step" not in out
+    assert "e_d final model" in lines[2] and "0.25" in out and "multi-step" not in out
