@@ -29,11 +29,22 @@ def run(args) -> int:
     summary = flight.summary()
     summary["signals"] = with_coverage(flight, summary["signals"])
     summary["fitness"] = fitness_by_prior([flight], args.ts)
+    summary["implausible"] = implausible_summary(flight)
     if args.json:
         print_json(summary)
     else:
         print(render_text(summary))
     return 0
+
+
+def implausible_summary(flight) -> dict:
+    """{signal: {"count", "detail"}} of the canonical signals where screening
+    (:mod:`droneid.screening`) finds implausible samples or jumps: what identify, diagnose and
+    predict leave out."""
+    from ..flight import is_canonical
+    from ..screening import screen_flight
+    screens = screen_flight(flight, [n for n in flight.names if is_canonical(n)])
+    return {n: {"count": sc.implausible, "detail": sc.describe()} for n, sc in screens.items() if sc.implausible}
 
 
 def with_coverage(flight, rows: list) -> list:
@@ -113,6 +124,10 @@ def render_text(s: dict) -> str:
             lines.append(f"  warning: {w}")
     else:
         lines.append("diagnostics: nothing skipped")
+    bad = s.get("implausible") or {}
+    lines.append(f"implausible: {sum(v['count'] for v in bad.values())} sample(s) or jump(s) screened out "
+                 f"before any fit (docs/estimates.md)" if bad else "implausible: none")
+    lines.extend(f"  {v['detail']}" for v in bad.values())
     if s.get("fitness"):
         lines.append("")
         lines.extend(render_fitness(s["fitness"]))
