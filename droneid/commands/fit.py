@@ -52,6 +52,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..fit import FitConfig, fit, prepare   # the engine: only once the command runs
+    from ..sngp.kernels import set_up_target
     if args.save and Path(args.save).is_dir():
         raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
                           f"{Path(args.save) / 'model.json'}")
@@ -69,6 +70,7 @@ def run(args) -> int:
         print(f"droneid fit: warning: {w}", file=sys.stderr)
     bar = ProgressBar("fit", quiet=getattr(args, "quiet", False) or args.json)
     bar(0, args.generations, startup_message())
+    set_up_target(skip_blas_probe=True)   # this process runs only the SNGP kernels
     res = fit(problem, config, progress=bar)
     if args.save:
         atomic_write_json(args.save, res.model_dict())

@@ -20,6 +20,7 @@ while the search runs). nogil changes only the call wrapper, not the compiled co
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 from numba import njit
@@ -1038,8 +1039,42 @@ def evaluate_all(op, a, b, cval, V, buf, valid, isconst, fit, lay, yc, syy):
 # the compiled-code cache
 
 
+@njit(cache=True)
+def _target_probe():
+    """Nothing: its first call sets up numba's CPU target (see :func:`set_up_target`)."""
+    return 0
+
+
 #: The kernels Python calls (everything else is compiled into them).
-ENTRY_KERNELS = ("init_population", "run_chunk", "solve_fresh", "evaluate_all", "_archive_insert")
+ENTRY_KERNELS = ("init_population", "run_chunk", "solve_fresh", "evaluate_all", "_archive_insert",
+                 "_target_probe")
+
+_BLAS_PROBE = "scipy.linalg.cython_blas"
+
+
+def set_up_target(skip_blas_probe: bool = False) -> None:
+    """Set up numba's CPU target now, as the first kernel call would: numba imports its
+    implementations of Python and numpy (about a third of a ``droneid fit`` start-up).
+
+    ``skip_blas_probe``: numba's set-up imports scipy.linalg (~0.25 s, half of the set-up) only
+    to see whether BLAS is there for the inner products of ``np.correlate``/``np.convolve``;
+    no SNGP kernel uses them. With True, for a process that runs only the SNGP kernels (``droneid
+    fit``), the probe finds no BLAS, so in this process numba computes those two with its own
+    loop; ``np.dot`` and ``np.linalg`` still import scipy when first compiled. The SNGP kernels
+    are the same compiled code either way. A numba whose set-up needs scipy's BLAS outright is
+    set up the ordinary way."""
+    if not skip_blas_probe or "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        _target_probe()
+        return
+    sys.modules[_BLAS_PROBE] = None     # `import scipy.linalg.cython_blas` raises ImportError
+    try:
+        _target_probe()
+    except Exception:   # noqa: BLE001 - a numba that needs BLAS here: set up as usual below
+        pass
+    finally:
+        if sys.modules.get(_BLAS_PROBE, False) is None:
+            del sys.modules[_BLAS_PROBE]
+    _target_probe()
 
 
 def kernels_ready() -> bool:
