@@ -201,7 +201,7 @@ def mark(label):
 import droneid.cli as cli
 mark("interpreter + droneid.cli + registry")
 import droneid.fit as F
-from droneid.sngp import estimator as E, population as popmod
+from droneid.sngp import estimator as E, kernels as K, population as popmod
 
 def wrap(owner, name, before=None, after=None, once=False):
     orig = getattr(owner, name)
@@ -218,7 +218,8 @@ def wrap(owner, name, before=None, after=None, once=False):
 
 wrap(F, "prepare", "imports of the fit command (numpy, numba, the engine; no sympy, no pandas)",
      "reading and checking the table")
-wrap(popmod, "init", None, "first kernel call: numba's target set-up and the cached kernels", once=True)
+wrap(K, "set_up_target", None, "numba's target set-up (kernels.set_up_target)")
+wrap(popmod, "init", None, "first kernel call: loading the cached kernels", once=True)
 wrap(E, "run_search", "estimator set-up", "the search (sympy imported meanwhile)")
 wrap(E.SNGPRegressor, "_render", "final model, pruning, test error",
      "sympy simplification of the printed equation (0.5 s budget)")
