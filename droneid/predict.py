@@ -27,7 +27,7 @@ from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
 from .rollout import RolloutResult, rollout_errors, sample_inputs
-from .screening import implausible_counts, screen_flight, screen_signal
+from .screening import implausible_counts, screen_flight
 from .sngp import SymbolicModel
 
 __all__ = ["load_models", "predict_flights", "model_sets", "PredictionResult"]
@@ -252,27 +252,28 @@ def _fitness(models: dict, flights, ts: float):
 
 
 def _predict_final(builder, flights, target: str, m: dict):
-    """Dataset and predictions of the IdentifiedModels of one target (delayed inputs re-read at
-    ``t − delay`` from each flight)."""
+    """Dataset and predictions of the IdentifiedModels of one target. The rows are those identify
+    scores: the dataset is built with the final model's input delays (a row whose delayed input
+    reaches a screened sample is left out); a model read with other delays (the empirical model,
+    the prior refit) re-reads those inputs at ``t − its delay``."""
     ims = {k: m[k] for k in ("identified", "empirical", "refit") if k in m}
     signals = sorted({s for im in ims.values() for s in im.signals})
+    main = ims.get("identified")
+    delays = dict(main.delays_s) if main is not None else {}
+    builder = DatasetBuilder(ts=builder.ts, method=builder.method, delays_s=delays)
     ds = builder.build(flights, target=target, inputs=tuple(signals) or (state_of(target),), extras=())
     cols = ds.columns()
     preds, notes = {}, []
     for name, im in ims.items():
         c = dict(cols)
-        for s, d in im.delays_s.items():
-            if s not in im.signals:
+        for s in im.signals:
+            d = float(im.delays_s.get(s, 0.0))
+            if s not in c or d == float(delays.get(s, 0.0)):
                 continue
             v = np.empty(len(ds))
             for i, f in enumerate(flights):
                 sel = ds.flight == i
                 v[sel] = sample_inputs(f, [s], ds.t[sel], {s: d})[s]
-                tt = ds.t[sel] - d          # a screened sample of the delayed input: no score there
-                bad = np.zeros(tt.size, bool)
-                for h0, h1 in screen_signal(f[s]).holes:
-                    bad |= (tt > h0) & (tt < h1)
-                v[np.flatnonzero(sel)[bad]] = np.nan
             c[s] = v
         preds[name] = im.evaluate(c)
         if im.delays_s:
