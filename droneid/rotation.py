@@ -13,6 +13,12 @@ the rotor speeds ``d`` steps earlier, ``P`` the layout's torque patterns, :mod:`
   ``ω̇x ∋ (J_y − J_z)/J_x · ω_y ω_z``; ``r_k`` (yaw only): reaction to the rotors' spin-up;
 * ``b_k``: trim. It is fitted per training flight; a new flight gets their mean.
 
+The balance point of the torque inputs moves between flights (battery and centre of gravity: on
+the shared Crazyflie squares the hover pitch pattern ``(P s)_pitch`` of runs 1-2 differs from
+that of runs 3-5, and so do their pitch trims). With ``centre_tau_s`` the torque inputs are
+taken about their causal moving average (:func:`centred`): the model then uses motor speeds from
+before the prediction window, which the benchmark's own models do not.
+
 Translation (world ENU)::
 
     v̇ = R(q) e_z · k_T Σ s_i − g e_z − R D Rᵀ v,   D = diag(d_x, d_y, d_z) ≥ 0, g = 9.81 fixed
@@ -37,7 +43,7 @@ from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, StateLog
 from .regression import robust_fit
 
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
-           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "derivative", "spin_rate", "ROTATION_TERMS"]
+           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "centred", "derivative", "spin_rate", "ROTATION_TERMS"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
@@ -75,13 +81,26 @@ def flying_mask(log: StateLog, min_height_m: float = 0.1) -> np.ndarray:
 def flying_segments(log: StateLog, min_steps: int = 100) -> list[StateLog]:
     """The stretches of a log where :func:`flying_mask` holds, as logs of their own (at least
     ``min_steps`` samples each): validation scores windows in flight only."""
+    return [StateLog(f"{log.name}[{a}:{b}]", log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s)
+            for a, b in _segment_bounds(log, min_steps)]
+
+
+def _segment_bounds(log: StateLog, min_steps: int) -> list[tuple[int, int]]:
     m = flying_mask(log).astype(int)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
-    out = []
-    for a, b in zip(edges[::2], edges[1::2]):
-        if b - a >= min_steps:
-            out.append(StateLog(f"{log.name}[{a}:{b}]", log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s))
-    return out
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_steps]
+
+
+def centred(s: np.ndarray, dt_s: float, tau_s: float | None) -> np.ndarray:
+    """``s`` minus its causal exponential moving average (time constant ``tau_s`` seconds, the
+    first sample as its start): the torque inputs about the flight's own balance point, from past
+    motor speeds only. ``tau_s=None``: ``s`` unchanged."""
+    if tau_s is None:
+        return s
+    from scipy.signal import lfilter
+    a = min(1.0, dt_s / float(tau_s))
+    ema = lfilter([a], [1.0, a - 1.0], s, axis=0, zi=(1.0 - a) * s[:1])[0]
+    return s - ema
 
 
 def _mid(a: np.ndarray) -> np.ndarray:
@@ -123,6 +142,8 @@ class RotationModel:
     delay_steps: int = 0
     rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
     flight_trims: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    #: None, or the time constant (s) of :func:`centred` applied to ``s`` before the torque terms
+    centre_tau_s: float | None = None
 
     def ang_accel_from(self, w: np.ndarray, s: np.ndarray, rates: np.ndarray) -> np.ndarray:
         """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²`` and rotor speed rates."""
@@ -237,7 +258,8 @@ class VehicleModel:
         om = _speeds(log, self.rotation.rad_s_per_rpm)
         om_r = _delayed(om, self.rotation.delay_steps)
         om_t = _delayed(_speeds(log, self.translation.rad_s_per_rpm), self.translation.delay_steps)
-        return np.hstack([om_t ** 2, om_r ** 2, spin_rate(om_r, log.dt_s)])
+        s_r = centred(om_r ** 2, log.dt_s, self.rotation.centre_tau_s)
+        return np.hstack([om_t ** 2, s_r, spin_rate(om_r, log.dt_s)])
 
     def accel(self, state, u) -> np.ndarray:
         m = u.shape[1] // 3
@@ -300,6 +322,7 @@ DAMPING_GRID = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
 def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
                            delay_steps: int | Sequence[int] = 0, horizon: int = 50, stride: int = 4,
                            damping_grid: Sequence[float] = DAMPING_GRID, spinup: bool = True,
+                           centre_tau_s: float | None = None,
                            rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> RotationModel:
     """Fit ω̇ per axis by its open-loop error: the body rate predicted ``1..horizon`` steps
     ahead from every ``stride``-th start in flight, against the logged one.
@@ -311,25 +334,31 @@ def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str =
     is fitted (Huber IRLS over all windows and horizons); the lowest mean absolute error wins. Gyroscopic
     coupling is left out (the axes decouple); trims are per training flight, their mean is kept.
     ``delay_steps`` may list candidates: the one with the lowest mean absolute error summed over the
-    three axes (training flights only) is kept.
+    three axes (training flights only) is kept. ``centre_tau_s``: take the torque inputs about
+    their causal moving average (:func:`centred`; uses motor speeds before the window).
     """
     layout = get_layout(layout) if isinstance(layout, str) else layout
     layout.check()
     delays = [int(delay_steps)] if np.ndim(delay_steps) == 0 else [int(d) for d in delay_steps]
     fits = [_fit_multistep_at(logs, layout.patterns(), d, int(horizon), stride, damping_grid,
-                              spinup, rad_s_per_rpm) for d in delays]
+                              spinup, rad_s_per_rpm, centre_tau_s) for d in delays]
     loss, d, coef, trims, terms = min(fits, key=lambda f: f[0])
-    return RotationModel(layout, terms, coef, trims.mean(axis=0), d, float(rad_s_per_rpm), trims)
+    return RotationModel(layout, terms, coef, trims.mean(axis=0), d, float(rad_s_per_rpm), trims,
+                         centre_tau_s)
 
 
-def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad_s_per_rpm):
+def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad_s_per_rpm,
+                      centre_tau_s=None):
     """(summed loss, delay, coef, per-flight trims, terms) of the multi-step fit at one delay."""
     per_log = []
     for j, log in enumerate(logs):
-        for seg in flying_segments(log, min_steps=H + 1):
-            om = _delayed(_speeds(seg, rad_s_per_rpm), delay_steps)
-            s = om ** 2
-            feats = [s @ P.T, s.sum(axis=1), spin_rate(om, seg.dt_s) @ P[2]]
+        om_all = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)
+        s_all = centred(om_all ** 2, log.dt_s, centre_tau_s)
+        rate_all = spin_rate(om_all, log.dt_s)
+        for a, b in _segment_bounds(log, H + 1):
+            seg = StateLog(log.name, log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s)
+            s = s_all[a:b]
+            feats = [s @ P.T, s.sum(axis=1), rate_all[a:b] @ P[2]]
             starts = np.arange(0, len(seg) - H, stride)
             per_log.append((j, seg, feats, starts))
     if not per_log:

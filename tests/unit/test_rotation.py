@@ -10,7 +10,7 @@ import pytest
 
 from droneid.errors import ConfigError
 from droneid.openloop import StateLog, open_loop, simulate
-from droneid.rotation import (RotationModel, TranslationModel, VehicleModel, fit_rotation,
+from droneid.rotation import (RotationModel, TranslationModel, VehicleModel, centred, fit_rotation,
                               fit_rotation_multistep, fit_translation, flying_segments,
                               identify_layout)
 from priors.torque import LAYOUTS, RotorLayout, get_layout
@@ -111,3 +111,14 @@ def test_flying_segments_cut_out_stopped_motors():
     cut = StateLog("cut", log.t_s, log.state, rpm, DT)
     segs = flying_segments(cut, min_steps=100)
     assert [len(s) for s in segs] == [200, 300]
+
+
+def test_centring_is_causal_and_removes_a_flight_offset():
+    rng = np.random.default_rng(4)
+    s = 2.0 + 0.1 * rng.standard_normal((2000, 4))
+    c = centred(s + np.array([0.3, -0.2, 0.0, 0.1]), DT, 1.0)
+    np.testing.assert_allclose(c[1000:].mean(axis=0), 0.0, atol=0.02)   # after ~10 time constants
+    later = s.copy()
+    later[1500:] += 5.0
+    np.testing.assert_array_equal(centred(later, DT, 1.0)[:1500], centred(s, DT, 1.0)[:1500])
+    assert centred(s, DT, None) is s
