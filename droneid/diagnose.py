@@ -11,10 +11,11 @@ Pipeline (:func:`diagnose` from flights, :func:`diagnose_datasets` from Datasets
    one. Effects are fitted jointly over the targets: a parameter shared by v̇x and v̇y (quadratic
    drag c, attitude biases, delay τ) is one coefficient.
 3. Add the best effect only if the one decision rule accepts it (:func:`droneid.decide.decide`):
-   a one-sided paired t-test on the per-block differences of held-out squared error with and
-   without it, at Holm's ``alpha / (m − k + 1)`` (m: every candidate the diagnosis may try,
-   singles and pairs; k: the step), and a held-out RMSE reduction of at least
-   ``min_rel_improvement``. When no single effect passes but the best one gains at least
+   a one-sided paired sign-flip test on the per-block relative differences of held-out squared
+   error with and without it, at Holm's ``alpha / (m − k + 1)`` (m: every candidate the diagnosis
+   may try, singles and pairs; k: the step), a held-out RMSE reduction of at least
+   ``min_rel_improvement``, and physically possible fitted values (``Effect.plausible_fn``). After
+   the last step every added effect is judged again with all the others in (:func:`_backward`). When no single effect passes but the best one gains at least
    ``pair_min_gain`` (effects that overlap: each alone explains only part, unevenly across
    blocks), the pairs of the ``pair_top`` best candidates are judged JOINTLY by the same rule; a
    pair is added (one step, ``"tested_jointly"``) only if it passes and beats each of its members
@@ -85,8 +86,8 @@ class DiagnoseConfig:
     ts, method: dataset grid step and differentiator (central differences by default: forward
         differences shift the target by Ts/2, which would look like an attitude delay).
     n_blocks: contiguous time blocks per training flight for cross-validation; None (default):
-        :func:`diagnose_blocks` (``clip(n_train // 80, 12, 24)``, n_train the training samples
-        per target: blocks of ~80 samples, 4 s at 20 Hz).
+        :func:`diagnose_blocks` (``clip(n_train // 60, 16, 30)``, n_train the training samples
+        per target: blocks of ~60 samples, 3 s at 20 Hz).
     alpha: family-wise error level of the decision rule over every candidate the diagnosis may
         try (Holm; :mod:`droneid.decide`).
     min_rel_improvement: minimum relative CV-RMSE improvement for an effect to count.
@@ -378,11 +379,12 @@ class _Stack:
 
 
 def diagnose_blocks(n: int) -> int:
-    """Default time blocks per training flight for ``n`` samples: ~80 samples (4 s at 20 Hz) a
-    block, 12 to 24 blocks. More blocks than :func:`droneid.ladder.n_blocks_for` because every
-    diagnosis decision is a t-test over blocks at a family-wise threshold (α/13 and below):
-    with 8 blocks (7 degrees of freedom) it needs t > 5, with 12 blocks t > 4.3, with 20 t > 3.8."""
-    return int(np.clip(n // 80, 12, 24))
+    """Default time blocks per training flight for ``n`` samples: ~60 samples (3 s at 20 Hz) a
+    block, 16 to 30 blocks. More blocks than :func:`droneid.ladder.n_blocks_for` because every
+    diagnosis decision is a sign-flip test over blocks at a family-wise threshold (α/13 and
+    below, 7.7e-4 at α = 0.01): its p is at least 2^−B (2.4e-4 with 12 blocks, which then must
+    ALL improve; 1.5e-5 with 16, which leaves room for a block or two that does not)."""
+    return int(np.clip(n // 60, 16, 30))
 
 
 def _lstsq(X, y):
@@ -707,8 +709,20 @@ def _score(model, cur, cur_terms, cur_test, cands, family_size, rank):
             et.update(a)
             ett.update(b)
         new = model.fit({**cur_terms, **et}, {**cur_test, **ett})
-        out.append((group, et, ett, new, model.evidence(cur, new, family_size, rank,
-                                                        "+".join(e.id for e in group))))
+        ev = model.evidence(cur, new, family_size, rank, "+".join(e.id for e in group))
+        info = model.base_info(new)
+        for e in group:
+            # an effect that fits only with impossible values stands in for something else
+            coef = {k: v for k, v in new["beta"].items() if k.startswith(e.id + ".")}
+            why = e.implausible(_physical(e, coef, info)["physical_values"]) if coef else None
+            if why:
+                ev["reasons"].append(why)
+                if ev["passed"]:
+                    ev["passed"] = False
+                    ev["text"] = ev["text"].replace(": accepted", f": rejected ({why})")
+                else:
+                    ev["text"] = ev["text"][:-1] + f"; {why})"
+        out.append((group, et, ett, new, ev))
     return out
 
 
@@ -718,14 +732,15 @@ def _backward(model, effects, added, findings, steps, cur_terms, cur_test, cur, 
     added greedily as a stand-in for one added after it (attitude bias for the part of anisotropic
     drag that rotates with yaw) then fails and is dropped (the worst first, then re-tested);
     its step keeps the evidence under ``dropped``. Effects judged on their own rows (per-motor
-    thrust) and effects that refine the others' inputs (wind's air velocity) are kept."""
+    thrust), effects that refine the others' inputs (wind's air velocity) and the members of a pair
+    added jointly (they overlap by design: each alone is weaker with the other in) are kept."""
     while True:
         trials = []
         for eid in added:
             e = effects[eid]
-            if eid in findings or e.refine_fn is not None or len(added) < 2:
-                continue
             st = next(s for s in steps if s["effect"] == eid)
+            if eid in findings or e.refine_fn is not None or len(added) < 2 or st.get("tested_jointly"):
+                continue
             rank = int(st["evidence"].get("holm_rank", 1))
             terms, test_terms = model.terms_of([a for a in added if a != eid], effects)
             without = model.fit(terms, test_terms)
@@ -782,8 +797,13 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     total = cfg.max_steps + 1
     # the family of every candidate the diagnosis may try: each testable effect and each pair of
     # the pair_top best; the k-th step accepted is judged at Holm's alpha / (family − k + 1)
-    n_top = min(cfg.pair_top, len(testable)) if cfg.pair_top >= 2 else 0
-    family = max(1, len(testable) + n_top * (n_top - 1) // 2)
+    # effects whose signals exist but whose preconditions fail may become testable once another
+    # effect refines the inputs (the wind's air speed for quadratic drag): re-checked every step
+    pending = [effects[eid] for eid in untestable
+               if not any(effects[eid].missing(p.ctx.available()) for p in tr_parts
+                          if effects[eid].applies_to(p.target))]
+    n_top = min(cfg.pair_top, len(testable) + len(pending)) if cfg.pair_top >= 2 else 0
+    family = max(1, len(testable) + len(pending) + n_top * (n_top - 1) // 2)
     findings = {}
     for e in testable:
         # effects judged on other rows than the v̇ residual (per-motor thrust: the thrust shares)
@@ -823,6 +843,11 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     n_assessed = len(added)
     for step in range(cfg.max_steps - n_assessed):
         rank = min(len(added) + 1, family)
+        for e in list(pending):
+            if not any(e.untestable_data(p.ctx) for p in tr_parts if e.applies_to(p.target)):
+                pending.remove(e)
+                testable.append(e)
+                untestable.pop(e.id, None)
         if progress:
             progress(step, total, "scoring effects")
         singles = []

@@ -241,7 +241,11 @@ class Effect:
     ``refine_fn(ctx, coef, base) -> {column: array}`` refines the effect after a fit (see
     :meth:`refine`); ``assess_fn(ctx, blocks) -> (err_without, err_with, row_blocks,
     Interpretation)``: an effect judged on other rows than the v̇ residual (per-motor thrust: the
-    motors' thrust shares), by the same decision rule, adding no v̇ column; ``order``: its place in the catalogue (built-in effects; the diagnosis tries
+    motors' thrust shares), by the same decision rule; ``plausible_fn(values) -> reason or None``:
+    whether the fitted physical values (``Interpretation.values``) are physically possible (a
+    negative drag, a rotor radius of metres, thrust ∝ ω^0.7, an attitude that leads the
+    acceleration): an effect that only fits with impossible values is a stand-in for something
+    else and is rejected with that reason; ``order``: its place in the catalogue (built-in effects; the diagnosis tries
     effects in increasing order, ties by id).
     """
     id: str
@@ -261,6 +265,7 @@ class Effect:
     refine_fn: Callable[[EffectContext, dict, dict], Mapping[str, np.ndarray]] | None = None
     order: int = 0
     assess_fn: Callable[[EffectContext, np.ndarray], tuple] | None = None
+    plausible_fn: Callable[[dict], str | None] | None = None
 
     @property
     def foldable(self) -> bool:
@@ -323,6 +328,10 @@ class Effect:
             v[~np.isfinite(v)] = 0.0
             out[k] = v
         return out
+
+    def implausible(self, values: Mapping[str, float]) -> str | None:
+        """Why fitted physical ``values`` are impossible (None: plausible, or no check)."""
+        return self.plausible_fn(dict(values)) if self.plausible_fn else None
 
     def assess(self, ctx: EffectContext, blocks: np.ndarray) -> tuple:
         """``(err_without, err_with, row_blocks, Interpretation)`` from ``assess_fn`` on the

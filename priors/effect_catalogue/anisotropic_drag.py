@@ -27,6 +27,13 @@ def _interpret(coef, base):
                           {"k_x_per_s": kx, "k_y_per_s": ky, "dk_per_s": dk})
 
 
+def _plausible(values):
+    kx, ky = values.get("k_x_per_s", float("nan")), values.get("k_y_per_s", float("nan"))
+    if not (kx >= 0 and ky >= 0):
+        return f"the fitted body drags k_x = {kx:.3g}, k_y = {ky:.3g} 1/s are not both ≥ 0"
+    return None
+
+
 EFFECT = Effect("anisotropic_drag", "different linear drag along body x and body y",
-                (("vx",), ("vy",), ("yaw",)), _interpret, expr_fn=_features,
+                (("vx",), ("vy",), ("yaw",)), _interpret, expr_fn=_features, plausible_fn=_plausible,
                 explain_signal="yaw", order=60)

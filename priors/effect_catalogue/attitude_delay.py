@@ -19,8 +19,22 @@ def _interpret(coef, base):
                           {"delay_ms": tau * 1000.0})
 
 
+#: largest attitude delay (s) taken for an estimator's or a stream's lag
+MAX_DELAY_S = 0.3
+
+
+def _plausible(values):
+    d = values.get("delay_ms", float("nan")) / 1000.0
+    if not 0 < d <= MAX_DELAY_S:
+        return (f"the fitted attitude {'leads' if d < 0 else 'lags'} the acceleration by "
+                f"{abs(d) * 1000:.0f} ms (a lag of 0-{MAX_DELAY_S * 1000:.0f} ms is physical; a lead "
+                "needs a clock error, not an attitude delay)")
+    return None
+
+
 EFFECT = Effect("attitude_delay", "logged attitude lags the acceleration it causes by τ: "
                 "G(att(t + τ)) ≈ G + τ dG/dt", ((TILT,),), _interpret,
-                column_fn=_features, targets=tuple(TARGETS), explain_signal="dG/dt",
+                column_fn=_features, plausible_fn=_plausible, targets=tuple(TARGETS),
+                explain_signal="dG/dt",
                 fold_reason="needs dG/dt, a time derivative of the logged attitude (not an "
                             "instantaneous function of states and inputs)", order=50)

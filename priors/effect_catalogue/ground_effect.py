@@ -74,7 +74,21 @@ def _interpret(coef, base):
     return Interpretation(txt, {"R2_m2": r2, "rotor_radius_m": radius})
 
 
+#: rotor radii (m) a multirotor can have
+RADIUS_RANGE_M = (0.01, 1.0)
+
+
+def _plausible(values):
+    r = values.get("rotor_radius_m", float("nan"))
+    lo, hi = RADIUS_RANGE_M
+    if not lo <= r <= hi:
+        return (f"the fitted ground effect needs a rotor radius of {r:.3g} m (outside {lo}-{hi} m)"
+                if r == r else "the fitted ground effect has a negative (R/4h)² coefficient")
+    return None
+
+
 EFFECT = Effect("ground_effect", "thrust gain near the ground (needs height z above a known ground "
                 "and time near it)", ((TILT,), ("z",)),
                 _interpret, expr_fn=_features, constants_fn=_constants, data_fn=_preconditions,
+                plausible_fn=_plausible,
                 targets=tuple(TARGETS), explain_signal="z", order=100)

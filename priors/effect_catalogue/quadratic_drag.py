@@ -39,6 +39,12 @@ def _interpret(coef, base):
     return Interpretation(f"quadratic drag c_D/m = {c:.3g} 1/m", {"c_D_over_m_per_m": c})
 
 
+def _plausible(values):
+    c = values.get("c_D_over_m_per_m", float("nan"))
+    return None if c > 0 else f"the fitted quadratic drag c_D/m = {c:.3g} 1/m is not positive"
+
+
 EFFECT = Effect("quadratic_drag", "aerodynamic drag growing with speed squared: −c|v|v",
                 (("vx",), ("vy",)), _interpret, expr_fn=_features, data_fn=_preconditions,
+                plausible_fn=_plausible,
                 explain_signal="|v| v_axis", order=10)

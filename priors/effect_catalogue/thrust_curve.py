@@ -50,8 +50,21 @@ def _interpret(coef, base):
                           f"a = {a:.2f})", {"a": a, "exponent": 2 - a})
 
 
+#: physically possible exponents of rotor thrust in rotor speed (propellers: about 1.8-2.2)
+EXPONENT_RANGE = (1.5, 2.5)
+
+
+def _plausible(values):
+    e = values.get("exponent", float("nan"))
+    lo, hi = EXPONENT_RANGE
+    if not lo <= e <= hi:
+        return f"the fitted thrust exponent {e:.2f} lies outside {lo}-{hi} (not a propeller's)"
+    return None
+
+
 EFFECT = Effect("thrust_curve", "rotor thrust is not exactly ∝ ω² (inflow, motor and propeller "
                 "curves): the thrust terms scale with (1 + a·((Σω/S̄)/(Σω²/W̄) − 1)), i.e. T ∝ ω^(2−a) "
                 "near the training mean", ((TILT,), ("rpm1",)), _interpret, expr_fn=_features,
-                constants_fn=_constants, applicable_fn=_applicable, targets=tuple(TARGETS),
+                constants_fn=_constants, applicable_fn=_applicable, plausible_fn=_plausible,
+                targets=tuple(TARGETS),
                 explain_signal="thrust", order=80)

@@ -29,6 +29,12 @@ def _interpret(coef, base):
     return Interpretation(f"vertical quadratic drag c_Dz/m = {c:.3g} 1/m", {"c_D_z_over_m_per_m": c})
 
 
+def _plausible(values):
+    c = values.get("c_D_z_over_m_per_m", float("nan"))
+    return None if c > 0 else f"the fitted vertical drag c_Dz/m = {c:.3g} 1/m is not positive"
+
+
 EFFECT = Effect("vertical_drag", "vertical aerodynamic drag growing with climb rate squared: −c_z|vz|vz",
-                (("vz",),), _interpret, expr_fn=_features, data_fn=_preconditions, targets=("vz_dot",),
+                (("vz",),), _interpret, expr_fn=_features, data_fn=_preconditions,
+                plausible_fn=_plausible, targets=("vz_dot",),
                 explain_signal="vz", order=20)
