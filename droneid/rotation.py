@@ -43,7 +43,7 @@ from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, StateLog
 from .regression import robust_fit
 
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
-           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "centred", "derivative", "spin_rate", "ROTATION_TERMS"]
+           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed", "derivative", "spin_rate", "ROTATION_TERMS"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
@@ -97,10 +97,17 @@ def centred(s: np.ndarray, dt_s: float, tau_s: float | None) -> np.ndarray:
     motor speeds only. ``tau_s=None``: ``s`` unchanged."""
     if tau_s is None:
         return s
+    return s - smoothed(s, dt_s, tau_s)
+
+
+def smoothed(x: np.ndarray, dt_s: float, tau_s: float | None) -> np.ndarray:
+    """Causal first-order low-pass (exponential moving average) of ``x`` (N, …) along time,
+    time constant ``tau_s`` seconds, started at the first sample. ``tau_s=None``: ``x``."""
+    if tau_s is None:
+        return x
     from scipy.signal import lfilter
     a = min(1.0, dt_s / float(tau_s))
-    ema = lfilter([a], [1.0, a - 1.0], s, axis=0, zi=(1.0 - a) * s[:1])[0]
-    return s - ema
+    return lfilter([a], [1.0, a - 1.0], x, axis=0, zi=(1.0 - a) * x[:1])[0]
 
 
 def _mid(a: np.ndarray) -> np.ndarray:
@@ -144,6 +151,8 @@ class RotationModel:
     flight_trims: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     #: None, or the time constant (s) of :func:`centred` applied to ``s`` before the torque terms
     centre_tau_s: float | None = None
+    #: None, or the time constant (s) of the causal low-pass (:func:`smoothed`) of the rotor speeds
+    lowpass_tau_s: float | None = None
 
     def ang_accel_from(self, w: np.ndarray, s: np.ndarray, rates: np.ndarray) -> np.ndarray:
         """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²`` and rotor speed rates."""
@@ -256,7 +265,7 @@ class VehicleModel:
 
     def inputs(self, log: StateLog) -> np.ndarray:
         om = _speeds(log, self.rotation.rad_s_per_rpm)
-        om_r = _delayed(om, self.rotation.delay_steps)
+        om_r = smoothed(_delayed(om, self.rotation.delay_steps), log.dt_s, self.rotation.lowpass_tau_s)
         om_t = _delayed(_speeds(log, self.translation.rad_s_per_rpm), self.translation.delay_steps)
         s_r = centred(om_r ** 2, log.dt_s, self.rotation.centre_tau_s)
         return np.hstack([om_t ** 2, s_r, spin_rate(om_r, log.dt_s)])
@@ -322,7 +331,7 @@ DAMPING_GRID = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
 def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
                            delay_steps: int | Sequence[int] = 0, horizon: int = 50, stride: int = 4,
                            damping_grid: Sequence[float] = DAMPING_GRID, spinup: bool = True,
-                           centre_tau_s: float | None = None,
+                           centre_tau_s: float | None = None, lowpass_tau_s: float | None = None,
                            rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> RotationModel:
     """Fit ω̇ per axis by its open-loop error: the body rate predicted ``1..horizon`` steps
     ahead from every ``stride``-th start in flight, against the logged one.
@@ -336,23 +345,24 @@ def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str =
     ``delay_steps`` may list candidates: the one with the lowest mean absolute error summed over the
     three axes (training flights only) is kept. ``centre_tau_s``: take the torque inputs about
     their causal moving average (:func:`centred`; uses motor speeds before the window).
+    ``lowpass_tau_s``: low-pass the rotor speeds first (:func:`smoothed`, causal).
     """
     layout = get_layout(layout) if isinstance(layout, str) else layout
     layout.check()
     delays = [int(delay_steps)] if np.ndim(delay_steps) == 0 else [int(d) for d in delay_steps]
     fits = [_fit_multistep_at(logs, layout.patterns(), d, int(horizon), stride, damping_grid,
-                              spinup, rad_s_per_rpm, centre_tau_s) for d in delays]
+                              spinup, rad_s_per_rpm, centre_tau_s, lowpass_tau_s) for d in delays]
     loss, d, coef, trims, terms = min(fits, key=lambda f: f[0])
     return RotationModel(layout, terms, coef, trims.mean(axis=0), d, float(rad_s_per_rpm), trims,
-                         centre_tau_s)
+                         centre_tau_s, lowpass_tau_s)
 
 
 def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad_s_per_rpm,
-                      centre_tau_s=None):
+                      centre_tau_s=None, lowpass_tau_s=None):
     """(summed loss, delay, coef, per-flight trims, terms) of the multi-step fit at one delay."""
     per_log = []
     for j, log in enumerate(logs):
-        om_all = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)
+        om_all = smoothed(_delayed(_speeds(log, rad_s_per_rpm), delay_steps), log.dt_s, lowpass_tau_s)
         s_all = centred(om_all ** 2, log.dt_s, centre_tau_s)
         rate_all = spin_rate(om_all, log.dt_s)
         for a, b in _segment_bounds(log, H + 1):
