@@ -716,6 +716,7 @@ def _score(model, cur, cur_terms, cur_test, cands, family_size, rank):
             coef = {k: v for k, v in new["beta"].items() if k.startswith(e.id + ".")}
             why = e.implausible(_physical(e, coef, info)["physical_values"]) if coef else None
             if why:
+                ev["implausible"] = True
                 ev["reasons"].append(why)
                 if ev["passed"]:
                     ev["passed"] = False
@@ -861,7 +862,9 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         if not singles:
             break
         scores = _score(model, cur, cur_terms, cur_test, [(e,) for e in singles], family, rank)
-        scores.sort(key=lambda s: s[4]["cv_rmse_after"])
+        # best first by held-out error; a candidate that only fits with impossible values goes last
+        # (it stands in for something else: the next one is judged instead)
+        scores.sort(key=lambda s: (bool(s[4].get("implausible")), s[4]["cv_rmse_after"]))
         log_entry = {"step": step + 1, "scores": [
             {"effect": "+".join(e.id for e in g), **{k: ev[k] for k in (
                 "cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold",
@@ -884,7 +887,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                     ev["reasons"].append("the pair does not beat each of its effects alone by "
                                          f"{100 * cfg.min_rel_improvement:.2f} %")
                     ev["text"] = ev["text"].replace(": accepted", ": rejected (" + ev["reasons"][-1] + ")")
-            pscores.sort(key=lambda s: s[4]["cv_rmse_after"])
+            pscores.sort(key=lambda s: (bool(s[4].get("implausible")), s[4]["cv_rmse_after"]))
             log_entry["pairs"] = [{"effects": [e.id for e in g], **{k: ev[k] for k in (
                 "cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold",
                 "blocks_improved", "passed", "reasons", "text")}} for g, _, _, _, ev in pscores]

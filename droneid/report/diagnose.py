@@ -86,8 +86,8 @@ def text(result) -> str:
     else:
         lines.append("effects added: none")
     if r.candidates:
-        lines.append("every decision (one rule, droneid.decide: paired t-test over CV blocks, Holm "
-                     "over every candidate the diagnosis may try; training flights only):")
+        lines.append("every decision (one rule, droneid.decide: paired sign-flip test over CV blocks, "
+                     "Holm over every candidate the diagnosis may try; training flights only):")
         for c in r.candidates:
             head = (f"  assessed on its own rows ({c['assessed']}):" if c.get("assessed")
                     else f"  step {c['step']}:")

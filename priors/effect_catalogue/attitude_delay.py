@@ -26,9 +26,11 @@ MAX_DELAY_S = 0.3
 def _plausible(values):
     d = values.get("delay_ms", float("nan")) / 1000.0
     if not 0 < d <= MAX_DELAY_S:
-        return (f"the fitted attitude {'leads' if d < 0 else 'lags'} the acceleration by "
-                f"{abs(d) * 1000:.0f} ms (a lag of 0-{MAX_DELAY_S * 1000:.0f} ms is physical; a lead "
-                "needs a clock error, not an attitude delay)")
+        if d < 0:
+            return (f"the fitted attitude leads the acceleration by {abs(d) * 1000:.0f} ms (a lead "
+                    "needs a clock error, not an attitude delay)")
+        return (f"the fitted attitude lags the acceleration by {d * 1000:.0f} ms (more than "
+                f"{MAX_DELAY_S * 1000:.0f} ms: not an estimator's lag)")
     return None
 
 

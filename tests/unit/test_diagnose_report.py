@@ -83,3 +83,17 @@ def test_a_saved_diagnosis_reads_back_and_renders_the_same_summary(tmp_path):
     assert json.loads((tmp_path / "rep" / "diagnosis.json").read_text()) == d and paths
     with pytest.raises(DataError, match="not a diagnosis result"):
         DiagnosisResult.from_dict({"targets": {}})
+
+
+def test_open_ended_fallback_says_a_residual_remains_or_one_line():
+    from droneid.report.diagnose import _fallback_lines
+    ev = {"text": "open-ended term for vx_dot: CV RMSE 1 -> 0.8 (-20.0 %), ...: accepted",
+          "test_rel_improvement": None}
+    passed = {"vx_dot": {"ran": True, "passed": True, "equation": "0.3*vx*rpm1", "evidence": ev},
+              "vy_dot": {"ran": True, "passed": False, "equation": "0.01*vy", "evidence": ev}}
+    lines = _fallback_lines(passed)
+    assert "SIGNIFICANT RESIDUAL REMAINS" in lines[0] and "none was added in its place" in lines[0]
+    assert any("0.3*vx*rpm1" in x for x in lines) and not any("0.01*vy" in x for x in lines)
+    assert any("accepted" in x for x in lines)
+    quiet = {t: {**o, "passed": False} for t, o in passed.items()}
+    assert len(_fallback_lines(quiet)) == 1 and "no significant residual" in _fallback_lines(quiet)[0]
