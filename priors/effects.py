@@ -84,7 +84,7 @@ __all__ = [
     "Effect", "EffectContext", "Interpretation", "CATALOGUE", "TILT", "get_effect",
     "load_effects", "time_derivative", "MEASURED_DERIVATIVES",
     "is_measured_derivative", "thrust_proxy", "mean_k_drag", "PER_FLIGHT_REASON", "clear_cache",
-    "spread", "high",
+    "spread", "high", "must_be_positive",
 ]
 
 #: Pseudo-signal meaning "the prior has thrust-direction terms for this target".
@@ -370,6 +370,12 @@ def spread(x, lo: float = 2.0, hi: float = 98.0) -> float:
     x = np.asarray(x, float)
     x = x[np.isfinite(x)]
     return float(np.percentile(x, hi) - np.percentile(x, lo)) if x.size else 0.0
+
+
+def must_be_positive(value: float, what: str) -> str | None:
+    """A ``plausible_fn`` reason when a fitted drag-like ``value`` is not > 0 (``what`` names it
+    with its unit placeholder, e.g. "quadratic drag c_D/m = {:.3g} 1/m"); None when positive."""
+    return None if value > 0 else f"the fitted {what.format(value)} is not positive"
 
 
 def high(x, q: float = 98.0) -> float:

@@ -12,7 +12,7 @@ import sympy as sp
 
 from droneid.expressions import symbol
 from droneid.targets import velocity_of
-from priors.effects import Effect, Interpretation, high, spread
+from priors.effects import Effect, Interpretation, high, must_be_positive, spread
 
 MIN_SPEED_M_S = 1.0
 MIN_SPEED_SPREAD_M_S = 0.5
@@ -40,8 +40,7 @@ def _interpret(coef, base):
 
 
 def _plausible(values):
-    c = values.get("c_D_over_m_per_m", float("nan"))
-    return None if c > 0 else f"the fitted quadratic drag c_D/m = {c:.3g} 1/m is not positive"
+    return must_be_positive(values.get("c_D_over_m_per_m", float("nan")), "quadratic drag c_D/m = {:.3g} 1/m")
 
 
 EFFECT = Effect("quadratic_drag", "aerodynamic drag growing with speed squared: −c|v|v",

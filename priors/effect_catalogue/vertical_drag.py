@@ -7,7 +7,7 @@ Precondition: the climb rate reaches ``MIN_VZ_M_S`` (0.5 m/s, 98th percentile of
 import sympy as sp
 
 from droneid.expressions import symbol
-from priors.effects import Effect, Interpretation, high
+from priors.effects import Effect, Interpretation, high, must_be_positive
 
 MIN_VZ_M_S = 0.5
 
@@ -30,8 +30,7 @@ def _interpret(coef, base):
 
 
 def _plausible(values):
-    c = values.get("c_D_z_over_m_per_m", float("nan"))
-    return None if c > 0 else f"the fitted vertical drag c_Dz/m = {c:.3g} 1/m is not positive"
+    return must_be_positive(values.get("c_D_z_over_m_per_m", float("nan")), "vertical drag c_Dz/m = {:.3g} 1/m")
 
 
 EFFECT = Effect("vertical_drag", "vertical aerodynamic drag growing with climb rate squared: −c_z|vz|vz",
