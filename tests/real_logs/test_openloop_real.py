@@ -55,7 +55,8 @@ def test_vehicle_identified_on_three_squares_beats_holding_the_state_on_the_othe
     fit_on = _logs([f"square_run{i}" for i in (3, 4, 5)])
     held = [seg for log in _logs(["square_run1", "square_run2"]) for seg in flying_segments(log)]
     model = VehicleModel(fit_translation(fit_on, delay_steps=2),
-                         fit_rotation_multistep(fit_on, delay_steps=(0, 4, 8), stride=8, centre_tau_s=2.0))
+                         fit_rotation_multistep(fit_on, delay_steps=(0, 4, 8), stride=8, centre_tau_s=2.0,
+                                                lowpass_tau_s=0.05))
     res = open_loop({"identified": model, "constant": Constant()}, held, stride=5)
     for q in QUANTITIES:
         assert res["identified"].simerr[q] < res["constant"].simerr[q], q
