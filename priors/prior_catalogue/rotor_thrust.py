@@ -43,7 +43,8 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         axis, v = tgt.axis, symbol(tgt.velocity)
         feats = [PriorFeature(f"{cname}_{axis}", sp.Float(k_T) * e * b[axis],
                               f"{THRUST_SOURCES[source][2].split(':')[0]} ({cname}) along world {axis}, "
-                              f"coefficient in {unit}", "thrust")
+                              f"nominal k_T = {k_T:.4g} {unit}; the fitted coefficient is a scale on it "
+                              f"(1 = nominal)", "thrust")
                  for cname, e, unit in cols]
         if axis == "z":
             feats.append(PriorFeature("minus_g", sp.Float(-g), "gravity, m/s²", "gravity"))
