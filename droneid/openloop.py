@@ -37,7 +37,7 @@ from types import MappingProxyType
 import numpy as np
 
 from .errors import ConfigError, DataError, MissingSignalError
-from .frames import _qmul, quat_to_matrix
+from .frames import _qmul, quat_to_euler, quat_to_matrix
 
 __all__ = [
     "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log",
@@ -379,3 +379,59 @@ class Constant:
     def rollout(self, x0, u, dt_s: float) -> np.ndarray:
         x0 = np.asarray(x0, float)
         return np.repeat(x0[:, None, :], np.asarray(u).shape[1], axis=1)
+
+
+@dataclass(frozen=True)
+class IdentifiedTranslation:
+    """identify's final v̇ models driven open loop: ``models`` {"vx_dot"|"vy_dot"|"vz_dot":
+    :class:`~droneid.identified.IdentifiedModel`} give v̇ (world ENU) from the simulated state
+    (velocity, and roll, pitch, yaw from the simulated quaternion) and the logged motor speeds,
+    each read at ``t − delay`` as identified (shifted by whole grid steps; a negative delay reads
+    later samples). There is no rotational model yet: the body rates are held (ω̇ = 0), as in
+    the benchmark's Physics row. A model reading another signal cannot be driven open loop."""
+    models: Mapping[str, object]
+
+    def __post_init__(self):
+        missing = [t for t in ("vx_dot", "vy_dot", "vz_dot") if t not in self.models]
+        if missing:
+            raise DataError(f"open-loop simulation needs models of vx_dot, vy_dot and vz_dot; "
+                            f"missing: {', '.join(missing)}")
+        known = {"vx", "vy", "vz", "roll", "pitch", "yaw"}
+        for t, m in self.models.items():
+            other = [s for s in m.signals if s not in known and not s.startswith("rpm")]
+            if other:
+                raise DataError(f"the {t} model reads {', '.join(other)}: open-loop simulation drives "
+                                f"a model by the state and the motor speeds only")
+
+    def _rpm_names(self) -> list[str]:
+        return sorted({s for m in self.models.values() for s in m.signals if s.startswith("rpm")},
+                      key=lambda n: int(n[3:]))
+
+    def inputs(self, log: StateLog) -> np.ndarray:
+        """(N, K): each model's motor speeds at ``t − delay`` (model by model, rpm by rpm)."""
+        cols = []
+        for t in ("vx_dot", "vy_dot", "vz_dot"):
+            m = self.models[t]
+            for name in self._rpm_names():
+                k = int(round(float(m.delays_s.get(name, 0.0)) / log.dt_s))
+                j = int(name[3:]) - 1
+                if j >= log.rpm.shape[1]:
+                    raise DataError(f"{log.name}: the {t} model reads {name}; the log has "
+                                    f"{log.rpm.shape[1]} motor speeds")
+                idx = np.clip(np.arange(len(log)) - k, 0, len(log) - 1)
+                cols.append(log.rpm[idx, j])
+        return np.column_stack(cols)
+
+    def accel(self, state, u) -> np.ndarray:
+        roll, pitch, yaw = quat_to_euler(state[:, _Q])
+        base = {"vx": state[:, 3], "vy": state[:, 4], "vz": state[:, 5], "roll": roll, "pitch": pitch, "yaw": yaw}
+        names = self._rpm_names()
+        out = np.empty((state.shape[0], 3))
+        for a, t in enumerate(("vx_dot", "vy_dot", "vz_dot")):
+            cols = dict(base)
+            cols.update({n: u[:, a * len(names) + i] for i, n in enumerate(names)})
+            out[:, a] = self.models[t].evaluate(cols)
+        return out
+
+    def ang_accel(self, state, u) -> np.ndarray:
+        return np.zeros((state.shape[0], 3))

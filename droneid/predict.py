@@ -30,7 +30,7 @@ from .rollout import RolloutResult, rollout_errors, sample_inputs
 from .screening import implausible_counts, screen_flight
 from .sngp import SymbolicModel
 
-__all__ = ["load_models", "predict_flights", "model_sets", "PredictionResult"]
+__all__ = ["load_models", "predict_flights", "model_sets", "open_loop_section", "PredictionResult"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,7 @@ class PredictionResult:
     horizons: dict | None = None
     horizon_info: dict | None = None
     rollout: RolloutResult | None = field(default=None, repr=False, compare=False)
+    open_loop: dict | None = None
 
     def to_dict(self) -> dict:
         """The JSON document of ``droneid predict --json``."""
@@ -66,6 +67,8 @@ class PredictionResult:
         if self.horizons is not None:
             out["horizons"] = self.horizons
             out["horizon_info"] = self.horizon_info
+        if self.open_loop is not None:
+            out["open_loop"] = self.open_loop
         return to_jsonable(out)
 
 
@@ -139,8 +142,34 @@ def model_sets(models: dict) -> dict:
 
 
 
+def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] = (1, 10, 50)) -> dict:
+    """The nanodrone benchmark's open-loop metric (:mod:`droneid.openloop`) on ``flights``:
+    ``{"identified" | "nominal physics" | "constant": {"1": {"position", "velocity", "attitude",
+    "rates"}, ..., "simerr": {...}}}`` over 50 steps at the log's rate from every start.
+    "identified" drives the final v̇ models by the simulated state and the logged motor speeds
+    with the body rates held (no rotational model yet); "nominal physics" is thrust from the motor
+    speeds with the prior's nominal (hover-calibrated on the TRAINING flights) thrust scale, no
+    drag, rates held; "constant" holds the state."""
+    from .openloop import Constant, IdentifiedTranslation, NominalPhysics, open_loop, state_log
+    sets = model_sets(models)
+    if "identified" not in sets:
+        raise ConfigError("--open-loop needs the final models of vx_dot, vy_dot and vz_dot (targets.<t>.final)")
+    cfg = models.get("_config") or {}
+    params = cfg.get("prior_params") or {}
+    chosen = {"identified": IdentifiedTranslation(sets["identified"])}
+    if cfg.get("prior_used") == "rotor-thrust" and params.get("source") == "rpm" and params.get("k_T"):
+        # k_T is per (10⁴ rpm)²: specific thrust = k_T Σ (u/10⁴)²
+        chosen["nominal physics"] = NominalPhysics(thrust_coeff_N_s2=float(params["k_T"]) * 1e-8, mass_kg=1.0,
+                                                   rad_s_per_rpm=1.0)
+    chosen["constant"] = Constant()
+    logs = [state_log(f) for f in flights]
+    H = max(50, *horizons)
+    return open_loop(chosen, logs, max_horizon=H, horizons=tuple(horizons)).to_dict()
+
+
 def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
-                    method: str | None = None, horizons: Sequence[int] | None = None) -> PredictionResult:
+                    method: str | None = None, horizons: Sequence[int] | None = None,
+                    open_loop: bool = False) -> PredictionResult:
     """Per target and per flight (and all together): samples and the RMSE (m/s²) of the
     identified model (``rmse_identified``), of the empirical model as given (``rmse_empirical``)
     and of its refit (``rmse_refit`` for final models, ``rmse_empirical_refit`` for older results).
@@ -189,8 +218,9 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         roll = rollout_errors(sets, flights, horizons)
         info = roll.to_dict(segments=False)
         table = info.pop("rmse")
+    ol = open_loop_section(models, flights, tuple(horizons or (1, 10, 50))) if open_loop else None
     return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
-                            tuple(fit.warnings) if fit is not None else (), table, info, roll)
+                            tuple(fit.warnings) if fit is not None else (), table, info, roll, ol)
 
 
 def _screened(flights, ds, signals) -> dict:

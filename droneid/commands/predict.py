@@ -29,6 +29,10 @@ def register(sub) -> None:
     p.add_argument("--horizons", type=_horizons, default=None, metavar="H1,H2,...",
                    help="multi-step prediction: integrate the velocity models this many steps of the "
                         "log's rate from every in-flight sample (e.g. 1,10,50) and report the RMSE")
+    p.add_argument("--open-loop", action="store_true",
+                   help="the nanodrone benchmark's metric: simulate the full state open loop from the motor "
+                        "speeds 50 steps from every start and report MAE at the --horizons (default 1,10,50) "
+                        "and SimErr for the final model, nominal physics and the state held")
     p.add_argument("--plot", default=None, metavar="DIR",
                    help="with --horizons: write error-vs-horizon and predicted-trace PNGs into DIR")
     p.add_argument("--json", action="store_true", help="print the errors as one JSON line")
@@ -44,7 +48,8 @@ def run(args) -> int:
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
     models = load_models(args.model, targets)
     flights = read_logs(args.logs)
-    res = predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons)
+    res = predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons,
+                          open_loop=args.open_loop)
     written = []
     if args.plot and res.rollout is not None:
         from pathlib import Path
