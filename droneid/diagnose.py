@@ -945,6 +945,14 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
 
     info = model.base_info(cur)
     final_effects, notes = [], []
+    for where, sets in (("training", train), ("test", test or {})):
+        counts: dict[str, int] = {}
+        for d in sets.values():   # each target's dataset counts the signals it uses
+            for name, c in d.screened.items():
+                counts[name] = max(counts.get(name, 0), c)
+        if counts:
+            notes.append(f"screened ({where}): " + ", ".join(f"{n} {c}" for n, c in counts.items())
+                         + " implausible sample(s) or jump(s) left out before any fit (docs/estimates.md)")
     for eid in added:
         if eid in findings:
             final_effects.append({"effect": eid, "physical": findings[eid].text,

@@ -34,7 +34,7 @@ def register(sub) -> None:
     p.add_argument("--blocks", type=int, default=None,
                    help="cross-validation time blocks per flight (default: ~150 samples per block, 8..20)")
     p.add_argument("--alpha", type=float, default=0.01,
-                   help="significance level of the paired block test, Bonferroni-corrected (default 0.01)")
+                   help="family-wise significance level of the block test, Holm-controlled over every candidate (default 0.01)")
     p.add_argument("--min-improvement", type=float, default=0.01,
                    help="minimum relative CV-RMSE improvement to add an effect (default 0.01)")
     p.add_argument("--max-steps", type=int, default=5, help="most effects added (default 5)")
