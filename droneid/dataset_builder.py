@@ -544,10 +544,13 @@ class DatasetBuilder:
         screened: dict[str, int] = {}
         holes: list[Interval] = []
         for n, sig in need.items():
-            ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]), signal_gaps(sig, self.max_gap_s))
+            d = float(delays.get(n, 0.0))      # a delayed input is read at t - d: its gaps and holes move by d
+            ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]),
+                            [(a + d, b + d) for a, b in signal_gaps(sig, self.max_gap_s)])
             sc = screen_signal(sig)          # implausible samples: holes no row may use
             if sc.implausible:
-                d = float(delays.get(n, 0.0))  # a delayed input is read at t - d
+                if diff.name == "spline" and n in (source, _POSITION_OF.get(source)):
+                    ivs = _subtract(ivs, sc.holes)   # a spline smooths the whole interval
                 holes += [(a + d, b + d) for a, b in sc.holes]
                 screened[n] = sc.implausible
                 notes.append(f"screened {sc.describe()}: rows that use them are left out")
@@ -557,7 +560,8 @@ class DatasetBuilder:
         # a row depends on the samples within its differentiator's stencil (±h): it is left out when
         # that reaches a hole; the grid and every other row stay as they are
         h = float(getattr(diff, "window_s", None) or 0.0) / 2 if diff.smoothing else 0.0
-        h = max(h, ts) + 1e-9
+        order = 1 if f.has(source) else 2          # a target from positions: differentiated twice
+        h = order * max(h, ts) + 1e-9
         for n in dict.fromkeys(derived):
             what = "the target" if n == source else "input"
             notes.append(f"{n} ({what}) derived from {_POSITION_OF[n]} by {diff.name} differences"

@@ -1028,7 +1028,7 @@ def fold_into_prior(result: DiagnosisResult, prior):
     return PriorModel(f"{prior.name}+{'+'.join(added)}",
                       f"{prior.description} Plus the diagnosed effects {', '.join(added)}.",
                       terms, inputs, dict(prior.params), vehicle=prior.vehicle,
-                      constraints=prior.constraints)
+                      constraints=prior.constraints, intercept=dict(prior.intercept))
 
 
 def _needs_signals(effect) -> list[str]:

@@ -45,8 +45,8 @@ from .expressions import compile_expression, symbol
 from .fitness import check_prior_data
 from .identified import IdentifiedModel
 from .io_util import to_jsonable
-from .ladder import (TermModel, block_ids, drag_slope, drop_negligible, evaluate_expr, n_blocks_for,
-                     physical_fit, plausible, trim_terms, validation_blocks)
+from .ladder import (TermModel, drag_slope, drop_negligible, evaluate_expr, physical_fit, plausible,
+                     time_blocks, trim_terms, validation_blocks)
 from .numerics import finite_median, rmse, to_float
 from .rollout import horizon_section
 from .sngp import SNGPRegressor
@@ -482,10 +482,10 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
             "pred_test": p_te}
 
 
-def bootstrap_blocks(ds: Dataset) -> np.ndarray:
-    """The time blocks the intervals resample: :func:`droneid.ladder.n_blocks_for` contiguous
-    blocks per training flight (~150 samples each)."""
-    return block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
+def bootstrap_blocks(ds: Dataset, **need) -> np.ndarray:
+    """The time blocks the intervals resample and the block tests use
+    (:func:`droneid.ladder.time_blocks`: ~150 samples each; ``need``: family and alpha of a test)."""
+    return time_blocks(ds.t, ds.flight, **need)
 
 
 def _physical_model(p: TargetProblem, features) -> TermModel:
@@ -909,7 +909,8 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     if best is not None:   # the calibrated rule of droneid.decide: held-out errors, time blocks, Bonferroni over the runs
         err0 = y - phys_model.cv_predictions(cols, y, p.blocks)
         err1 = y - best[2].cv_predictions(cols, y, p.blocks)
-        decision = decide(err0, err1, bootstrap_blocks(p.train), alpha=TERM_ALPHA, family_size=max(len(done), 1),
+        decision = decide(err0, err1, bootstrap_blocks(p.train, family=max(len(done), 1), alpha=TERM_ALPHA),
+                          alpha=TERM_ALPHA, family_size=max(len(done), 1),
                           min_effect_pct=100 * cfg.margin, what=f"evolved terms of run {best[1] + 1}")
         guards["decision"] = decision.evidence
     if decision is not None and decision.accepted:

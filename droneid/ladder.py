@@ -17,7 +17,7 @@ Errors are in the target's units (m/s² for v̇).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -27,7 +27,7 @@ from .expressions import compile_expression
 from .numerics import rmse
 from .regression import block_bootstrap, blocked_cv, robust_fit
 
-__all__ = ["TermModel", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
+__all__ = ["TermModel", "time_blocks", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
            "drop_negligible", "blocked_cv", "trim_terms", "plausible", "n_blocks_for"]
 
 
@@ -53,6 +53,18 @@ def validation_blocks(t: np.ndarray, flight: np.ndarray) -> tuple[np.ndarray, st
         return np.searchsorted(flights, flight), f"leave-one-flight-out over {flights.size} training flights"
     k = n_blocks_for(t.size)
     return block_ids(t, flight, k), f"{k} contiguous time blocks per training flight"
+
+
+def time_blocks(t: np.ndarray, flight: np.ndarray, *, family: int = 1, alpha: float = 1.0) -> np.ndarray:
+    """Contiguous time blocks of the training flights for intervals and block tests:
+    :func:`n_blocks_for` the rows of an average flight, per flight (~150 samples a block), and at
+    least enough blocks in all that a sign-flip test over them can reach ``alpha / family``
+    (its smallest p is 2^-B)."""
+    flights = np.unique(flight)
+    nf = max(flights.size, 1)
+    need = math.ceil(math.log2(max(family, 1) / alpha)) + 1 if alpha < 1.0 else 0
+    per = max(n_blocks_for(len(t) // nf), math.ceil(need / nf))
+    return block_ids(t, flight, per)
 
 
 def n_blocks_for(n: int) -> int:

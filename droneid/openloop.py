@@ -36,7 +36,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .errors import ConfigError, DataError, MissingSignalError
+from .errors import ConfigError, DataError
 from .frames import _qmul, quat_to_euler, quat_to_matrix
 
 __all__ = [
@@ -113,8 +113,8 @@ def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> S
     rpm_names = [f"rpm{i}" for i in range(1, motors + 1)]
     missing += [n for n in rpm_names if n not in flight]
     if missing or not rpm_names:
-        raise MissingSignalError(f"{flight.name}: open-loop simulation needs "
-                                 f"{', '.join(missing) or 'per-motor speeds rpm1..rpmN'}")
+        raise DataError(f"{flight.name}: open-loop simulation needs "
+                        f"{', '.join(missing) or 'per-motor speeds rpm1..rpmN'}, which the log lacks")
     names = list(need) + rpm_names
     t0 = max(flight[n].t[0] for n in names)
     t1 = min(flight[n].t[-1] for n in names)

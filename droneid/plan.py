@@ -22,7 +22,7 @@ from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .fitness import usable_signals
-from .ladder import TermModel, block_ids, n_blocks_for
+from .ladder import TermModel, time_blocks
 from .targets import targets_for
 
 __all__ = ["Plan", "OffsetDecision", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
@@ -164,7 +164,7 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
         for t in targets:
             ds = train_rows(dataset_builder(cfg, {s: d for s in signals}).build(
                 list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-            blocks = block_ids(ds.t, ds.flight, n_blocks_for(len(ds)))
+            blocks = time_blocks(ds.t, ds.flight, family=len(grid) - 1, alpha=OFFSET_ALPHA)
             err = ds.y - prior_terms(prior, t).cv_predictions(ds.columns(), ds.y, blocks)
             key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
             per[t] = (key, err, blocks)
@@ -176,8 +176,7 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
         keys = np.array(sorted(common), dtype=np.int64)
         for d in res:
             k, e, b = res[d][t]
-            pos = np.searchsorted(k, keys) if np.all(np.diff(k) > 0) else \
-                np.array([np.flatnonzero(k == x)[0] for x in keys])
+            pos = np.searchsorted(k, keys)      # rows are ordered by flight, then time
             errs[d].append(e[pos])
             if d == 0.0:
                 blocks.append(i * 1000 + b[pos])

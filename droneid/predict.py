@@ -18,7 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset_builder import DatasetBuilder
+from priors.thrust import RPM_SCALE
+
+from .dataset_builder import DatasetBuilder, in_flight_intervals
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
 from .fitness import assess
@@ -159,12 +161,14 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     chosen = {"identified": IdentifiedTranslation(sets["identified"])}
     if cfg.get("prior_used") == "rotor-thrust" and params.get("source") == "rpm" and params.get("k_T"):
         # k_T is per (10⁴ rpm)²: specific thrust = k_T Σ (u/10⁴)²
-        chosen["nominal physics"] = NominalPhysics(thrust_coeff_N_s2=float(params["k_T"]) * 1e-8, mass_kg=1.0,
-                                                   rad_s_per_rpm=1.0)
+        chosen["nominal physics"] = NominalPhysics(thrust_coeff_N_s2=float(params["k_T"]) / RPM_SCALE ** 2,
+                                                   mass_kg=1.0, rad_s_per_rpm=1.0)
     chosen["constant"] = Constant()
-    logs = [state_log(f) for f in flights]
-    H = max(50, *horizons)
-    return open_loop(chosen, logs, max_horizon=H, horizons=tuple(horizons)).to_dict()
+    # the airborne, pre-crash stretches only (as the multi-step prediction): a window on the
+    # ground with the motors off would score free fall against a vehicle at rest
+    logs = [state_log(f.between(a, b)) for f in flights for a, b in in_flight_intervals(f)[0]
+            if b - a > 0.6]
+    return open_loop(chosen, logs, max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 
 
 def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
@@ -307,7 +311,8 @@ def _predict_final(builder, flights, target: str, m: dict):
             c[s] = v
         preds[name] = im.evaluate(c)
         if im.delays_s:
-            notes.append(f"{name}: " + ", ".join(f"{s} read at t − {d:g} s" for s, d in im.delays_s.items()))
+            notes.append(f"{name}: " + ", ".join(f"{s} read at t {'−' if d >= 0 else '+'} {abs(d):g} s"
+                                                 for s, d in im.delays_s.items()))
     return ds, preds, notes
 
 

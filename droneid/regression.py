@@ -108,14 +108,22 @@ def robust_fit(A: np.ndarray, y: np.ndarray, lo=None, hi=None, *, max_iter: int 
     y = np.asarray(y, float)
     k = A.shape[1]
     lo, hi = _bounds(k, lo, hi)
-    w = np.ones(y.size) if w0 is None else np.asarray(w0, float)
+    bad = ~(np.isfinite(y) & np.all(np.isfinite(A), axis=1))
+    if bad.any():             # a row that cannot be evaluated weighs nothing
+        A, y = np.where(bad[:, None], 0.0, A), np.where(bad, 0.0, y)
+    w = np.ones(y.size) if w0 is None else np.asarray(w0, float).copy()
+    w[bad] = 0.0
+    if not (w > 0).any():     # no usable row: every coefficient at its nearest bound to 0
+        zero = np.clip(np.zeros(k), lo, hi)
+        return RobustFit(zero, w, float("nan"), np.zeros(k, bool))
     beta = weighted_bounded_lstsq(A, y, w, lo, hi)
     s = 1e-12
     for _ in range(max_iter):
         r = y - A @ beta
-        s = _scale(r)
+        s = _scale(r[~bad])
         u = np.abs(r) / (HUBER_C * s)
         w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300))
+        w[bad] = 0.0
         new = weighted_bounded_lstsq(A, y, w, lo, hi)
         moved = float(np.max(np.abs(A @ (new - beta)))) if k else 0.0   # in target units
         beta = new

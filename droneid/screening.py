@@ -11,7 +11,8 @@ by :meth:`droneid.flight.Signal.clean` and counted in the log's diagnostics):
 1. **Physical range.** A sample outside :data:`PHYSICAL_RANGE` of its kind (a motor speed below
    0 rpm, a battery voltage at or below 0 V) is implausible.
 2. **Robust range.** With ``lo``/``hi`` the 0.5th/99.5th percentiles of the flight and
-   ``w = hi - lo``, a sample outside ``[lo - RANGE_WIDTHS·w, hi + RANGE_WIDTHS·w]`` is implausible.
+   ``w = max(hi - lo, BAND_FLOOR·max(|lo|, |hi|))``, a sample outside
+   ``[lo - RANGE_WIDTHS·w, hi + RANGE_WIDTHS·w]`` is implausible.
    At most 1 % of the samples lie outside [lo, hi] by construction, and a real signal does not
    leave its own 99 % band by three band widths; a glitch at 10x the maximum does. Angles are
    exempt (a wrapped or unwrapped yaw has no robust band).
@@ -24,9 +25,12 @@ by :meth:`droneid.flight.Signal.clean` and counted in the log's diagnostics):
 An implausible sample ``i`` makes the interval ``(t[i-1], t[i+1])`` a hole; a jump between ``i``
 and ``i+1`` makes ``(t[i], t[i+1])`` one. Jumps come in clusters (a marker swap makes several
 jumps in 0.1 s, with garbage between them): jump holes closer than ``MERGE_S`` are merged, and
-widened by ``PAD_S`` on both sides. The dataset builder subtracts holes from the in-flight
-intervals, so rows that depend on a screened sample (by interpolation or by a derivative) are left
-out of fitting, validation, test and prediction, never interpolated across.
+widened by ``PAD_S`` on both sides. The dataset builder leaves out every row whose
+differentiator stencil reaches a hole (for a spline, which smooths a whole interval, the holes of
+the target's source are cut from the intervals), so rows that depend on a screened sample (by
+interpolation or by a derivative) are left out of fitting, validation, test and prediction, never
+interpolated across. The statistics are those of the whole flight: with ``--holdout`` they include
+the held-out block (a data-quality rule, not a model choice; nothing is fitted to choose them).
 """
 from __future__ import annotations
 
@@ -42,6 +46,9 @@ __all__ = ["Screen", "screen_signal", "screen_flight", "PHYSICAL_RANGE", "RANGE_
 
 #: robust-range margin, in widths of the 0.5-99.5 % band
 RANGE_WIDTHS = 3.0
+#: the band is at least this fraction of the signal's level (a throttle held at 0.5 that steps to
+#: 0.6 is no glitch; one at 5.0 is)
+BAND_FLOOR = 0.25
 #: a one-sample rate of change above this many times the flight's 99th percentile is a jump
 JUMP_FACTOR = 5.0
 #: holes closer than this (s) are one glitch: merged, nothing in between is trusted
@@ -110,7 +117,8 @@ def screen_signal(sig: Signal) -> Screen:
     lo, hi = -np.inf, np.inf
     if not angle:
         p_lo, p_hi = np.percentile(v[~bad] if (~bad).any() else v, [0.5, 99.5])
-        w = max(p_hi - p_lo, 1e-9 * max(abs(p_lo), abs(p_hi), 1.0))
+        # a nearly constant signal has no band to speak of: at least a quarter of its level
+        w = max(p_hi - p_lo, BAND_FLOOR * max(abs(p_lo), abs(p_hi)), 1e-9)
         lo, hi = max(p_lo - RANGE_WIDTHS * w, plo), min(p_hi + RANGE_WIDTHS * w, phi)
         bad |= (v < lo) | (v > hi)
     else:

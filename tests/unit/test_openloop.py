@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from droneid.errors import DataError, MissingSignalError
+from droneid.errors import DataError
 from droneid.flight import Flight, Signal
 from droneid.frames import _qmul
 from droneid.openloop import (QUANTITIES, Constant, NominalPhysics, StateLog, open_loop,
@@ -173,5 +173,5 @@ def test_state_log_resamples_onto_one_grid_with_a_continuous_quaternion():
 
 
 def test_state_log_names_the_missing_signal():
-    with pytest.raises(MissingSignalError, match="wz"):
+    with pytest.raises(DataError, match="wz"):
         state_log(_flight(drop=("wz",)))
