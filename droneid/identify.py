@@ -835,6 +835,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     delays = p.plan.delays_s if p.plan else {}
     cols, y = p.train.columns(), p.train.y
     phys_model = _physical_model(p, p.priors3)
+    phys_tm = phys_model.fit(cols, y)      # the physical rung refit on the training rows, once
     base = phys_model.terms
     bound = 2.0 * float(np.max(np.abs(y))) + 9.81
     ranges = {n: (float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i])))
@@ -846,7 +847,6 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
     if cset is not None:  # a training draw of constraint samples (not the e_c^test draw)
         cs_sel = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
                              seed=run_seeds(cfg.seed + 1, 0)[0])
-        phys_tm = phys_model.fit(cols, y)
         ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
         ec_limit = max(cfg.gamma, 1.1 * ec_phys)
         guards["constraint_limit"] = ec_limit
@@ -856,7 +856,7 @@ def _final_rung(p: TargetProblem, cfg: IdentifyConfig, done: Sequence[RunRecord]
         pick = np.random.default_rng(cfg.seed).choice(len(p.train), size=min(50, len(p.train)), replace=False)
         rows = {n: p.train.X[pick, j] for j, n in enumerate(p.train.input_names)}
         v_max = 1.2 * float(np.max(np.abs(cols[vel])))
-        phys_slope = drag_slope(phys_model.fit(cols, y).expr(), vel, rows, v_max)
+        phys_slope = drag_slope(phys_tm.expr(), vel, rows, v_max)
         slope_limit = max(phys_slope, 0.0) + 0.05
         guards["drag_slope_limit"] = slope_limit
     guards["drag_not_monotone"] = 0

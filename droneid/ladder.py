@@ -141,9 +141,13 @@ class TermModel:
     def _offset(self, columns, n) -> np.ndarray:
         return evaluate_expr(self.offset, columns, n)
 
-    def fit(self, columns: Mapping[str, np.ndarray], y: np.ndarray) -> "TermModel":
+    def _problem(self, columns, y) -> tuple:
+        """(design, target less the fixed offset, lo, hi): what every fit of this model solves."""
         lo, hi = self.bounds()
-        f = robust_fit(self.design(columns, y.size), y - self._offset(columns, y.size), lo, hi)
+        return self.design(columns, y.size), y - self._offset(columns, y.size), lo, hi
+
+    def fit(self, columns: Mapping[str, np.ndarray], y: np.ndarray) -> "TermModel":
+        f = robust_fit(*self._problem(columns, y))
         beta = f.beta
         return replace(self, coefs=tuple(float(b) for b in beta[:-1]), intercept=float(beta[-1]),
                        at_bound=tuple(bool(a) for a in f.at_bound[:-1]))
@@ -153,9 +157,8 @@ class TermModel:
 
     def cv_predictions(self, columns, y, blocks) -> np.ndarray:
         """Held-out predictions of the training rows (blocked CV, robust and bounded)."""
-        lo, hi = self.bounds()
-        off = self._offset(columns, y.size)
-        return blocked_cv(self.design(columns, y.size), y - off, blocks, lo, hi) + off
+        A, yy, lo, hi = self._problem(columns, y)
+        return blocked_cv(A, yy, blocks, lo, hi) + (y - yy)
 
     def cv_rmse(self, columns, y, blocks) -> float:
         return rmse(self.cv_predictions(columns, y, blocks), y)
@@ -163,9 +166,7 @@ class TermModel:
     def intervals(self, columns, y, blocks, *, seed: int = 0) -> dict[str, tuple[float, float]]:
         """{label: (low, high)}: 95 % block-bootstrap interval of each coefficient ("intercept"
         too, unless it is fixed), :func:`droneid.regression.block_bootstrap` over ``blocks``."""
-        lo, hi = self.bounds()
-        A = self.design(columns, y.size)
-        yy = y - self._offset(columns, y.size)
+        A, yy, lo, hi = self._problem(columns, y)
         iv = block_bootstrap(A, yy, blocks, robust_fit(A, yy, lo, hi), lo, hi, seed=seed)
         out = {lab: (float(a), float(b)) for lab, (a, b) in zip(self.labels, iv[:-1])}
         if lo[-1] != hi[-1]:
@@ -241,9 +242,7 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
             notes.append(f"{lab} is not identifiable from these flights ({why}): held at its nominal "
                          f"value {nominal:g}")
     if held:
-        lo2, hi2 = list(model.lo or [-math.inf] * k), list(model.hi or [math.inf] * k)
-        lo2 += [-math.inf] * (k - len(lo2))
-        hi2 += [math.inf] * (k - len(hi2))
+        lo2, hi2 = lo[:k].copy(), hi[:k].copy()
         for i, lab in enumerate(model.labels):
             if lab in held:
                 lo2[i] = hi2[i] = held[lab]
