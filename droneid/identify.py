@@ -19,6 +19,7 @@ Errors are in the target's units (m/s² for ``v̇``).
 """
 from __future__ import annotations
 
+import inspect
 import logging
 import math
 import re
@@ -33,8 +34,7 @@ import numpy as np
 import sympy as sp
 
 from priors import constraints as pc
-from priors.models import tilt_drag
-from priors.thrust import thrust_columns
+from priors.models import PRIORS, get_prior, is_prior_spec, resolve_prior
 
 from . import __version__, runner
 from .constraint_samples import constraint_rmse
@@ -55,7 +55,7 @@ from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
 from .targets import HORIZONTAL, TARGETS, targets_for, velocity_of
 from .plan import (Plan, dataset_builder, fixed_plan, holdout_cuts, plan_identification, prior_terms,
-                   resolve_plan_prior, split_terms, thrust_signals, train_rows)
+                   resolve_plan_prior, split_terms, train_rows)
 
 __all__ = ["IdentifyConfig", "Verdict", "VERDICT_KINDS", "TargetProblem", "RunJob", "RunRecord", "TargetResult", "IdentificationResult",
            "identify", "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best",
@@ -175,7 +175,9 @@ class IdentifyConfig:
         check_choice("prior_features", self.prior_features, (0, 1, 3))
         check_choice("effects", self.effects, ("auto", "none"))
         check_choice("delays", self.delays, ("auto", "none"))
-        check_choice("empirical", self.empirical, ("tilt-drag",))
+        if not is_prior_spec(self.empirical):
+            raise ConfigError(f"The 'empirical' parameter must name a prior (built-in: {', '.join(PRIORS)}; "
+                              f"or FILE.toml:NAME). Got {self.empirical!r} instead.")
         if isinstance(self.search_rows, bool) or not isinstance(self.search_rows, (int, np.integer)) \
                 or not (self.search_rows == 0 or self.search_rows >= 50):
             raise ConfigError(f"The 'search_rows' parameter must be 0 (all) or an integer >= 50. "
@@ -278,25 +280,18 @@ def _cs_columns(cs) -> dict:
 def _constraint_set_for(cfg: IdentifyConfig, target: str, prior=None, train: Dataset | None = None):
     """(training constraint set or None, evaluation constraint set or None) for a target.
 
-    ``paper`` means the prior's own set: the paper's for tilt-drag, the rotor-thrust set (thrust
-    inputs spanning 0 to their training maximum) for rotor-thrust, the declared constraints TOML
-    for a user prior that names one (:mod:`priors.user`). Inputs no constraint names
-    are held at their training median. Unconstrained runs are still measured against that set.
+    ``paper`` means the set the prior declares (:meth:`priors.base.PriorModel.constraint_set`):
+    the paper's for tilt-drag, one built from the training data for a prior that builds its own
+    (rotor-thrust: thrust inputs spanning 0 to their training maximum), the constraints TOML a
+    user prior names (:mod:`priors.user`). Inputs no constraint names are held at their training
+    median. Unconstrained runs are still measured against that set.
     """
     name = getattr(prior, "name", cfg.prior)
 
     def own():
-        declared = getattr(prior, "constraints", "paper")
-        if declared == "rotor-thrust":   # built from the training data's thrust span
-            thrust = thrust_signals(prior, target)
-            cols = train.columns()
-            span = {s: float(np.max(cols[s])) for s in thrust}
-            cs = pc.rotor_thrust(target, span, g=float(prior.params.get("g", 9.81)))
-            return _extend(cs, {s: (0.0, v) for s, v in span.items()})
-        if declared.endswith(".toml"):   # the prior's own constraints file
-            cs = pc.load_constraints(declared, target=target)
-        else:                            # a built-in set, in the prior's vehicle's version
-            cs = pc.get_constraints(declared, target=target, prior=name)
+        cs, levels, from_data = prior.constraint_set(target, train.columns() if train is not None else None)
+        if from_data:                    # built from the training data: always with drag signs
+            return _extend(cs, levels)
         return cs if cfg.effects == "none" and cfg.delays == "none" else _extend(cs, {})
 
     def _extend(cs, level):
@@ -393,16 +388,12 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
 def _fitted_thrust(p: TargetProblem, terms: dict) -> float | None:
     """Median over the training rows of the fitted specific thrust (m/s², the thrust terms'
     fitted scales times their magnitudes, without the direction), or None for priors without
-    thrust terms."""
-    prior = p.plan.prior if p.plan else None
-    if prior is None or prior.name != "rotor-thrust":
+    thrust magnitudes (:meth:`priors.base.PriorModel.fitted_thrust`)."""
+    if p.plan is None:
         return None
-    names = [f"⟨{f.name}⟩" for f in p.priors3[:p.n_base] if f.role == "thrust"]
-    cols = thrust_columns(prior.params["source"], int(prior.params.get("motors", 4)))
-    data = p.train.columns()
-    lift = sum(float(terms.get(n, 0.0)) * float(prior.params["k_T"]) * evaluate_expr(e, data, len(p.train))
-               for n, (_, e, _) in zip(names, cols))
-    return float(np.median(lift)) if np.ndim(lift) else None
+    lift = p.plan.prior.fitted_thrust(p.target, {k.strip("⟨⟩"): v for k, v in terms.items()},
+                                      p.train.columns(), len(p.train))
+    return float(np.median(lift)) if lift is not None and len(lift) else None
 
 
 def _same_rows(ds: Dataset, like: Dataset) -> Dataset:
@@ -411,19 +402,30 @@ def _same_rows(ds: Dataset, like: Dataset) -> Dataset:
     return ds.subset(np.isin(key(ds), key(like)))
 
 
+def empirical_prior(cfg: IdentifyConfig):
+    """The prior behind the user's empirical model (``cfg.empirical``: a built-in name or
+    ``FILE.toml:NAME``), with ``cfg.k_D`` when the prior takes a drag constant."""
+    if cfg.empirical in PRIORS and "k_D" in inspect.signature(PRIORS[cfg.empirical]).parameters:
+        return get_prior(cfg.empirical, k_D=cfg.k_D)
+    return resolve_prior(cfg.empirical)
+
+
 def _empirical_inputs(cfg: IdentifyConfig, target: str) -> tuple:
-    m = tilt_drag(k_D=cfg.k_D)
+    m = empirical_prior(cfg)
     return m.signals(target) if target in m.targets else ()
 
 
 def empirical_model(cfg: IdentifyConfig, target: str):
-    """The user's empirical model as given (an IdentifiedModel): tilt-drag with ``cfg.k_D``;
-    v̇z = 0 (hover balance) for vz_dot."""
-    m = tilt_drag(k_D=cfg.k_D)
+    """The user's empirical model as given (an IdentifiedModel): the empirical prior's equation
+    as one feature (tilt-drag with ``cfg.k_D`` by default); hover balance, v̇ = 0, for a target
+    it does not model (v̇z for tilt-drag)."""
+    m = empirical_prior(cfg)
     if target in m.targets:
+        k_D = f" (k_D = {m.params['k_D']:g} 1/s)" if "k_D" in m.params else ""
         return IdentifiedModel(target, m.features(target, 1)[0].expr, {},
-                               f"the empirical tilt-drag model as given (k_D = {cfg.k_D:g} 1/s)")
-    return IdentifiedModel(target, sp.Integer(0), {}, "hover balance as given: v̇z = 0")
+                               f"the empirical {m.name} model as given{k_D}")
+    state = target[:-len("_dot")] if target.endswith("_dot") else target
+    return IdentifiedModel(target, sp.Integer(0), {}, f"hover balance as given: {state[0]}\u0307{state[1:]} = 0")
 
 
 def range_notes(train: Dataset, test: Dataset, margin: float = 0.05) -> list[str]:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from priors.models import PriorFeature, get_prior, prior_for, resolve_prior
+from priors.models import PriorFeature, prior_for, resolve_prior
 
 from .data import Dataset
 from .dataset_builder import DatasetBuilder, split_time_block
@@ -26,7 +26,7 @@ from .ladder import TermModel, time_blocks
 from .targets import targets_for
 
 __all__ = ["Plan", "OffsetDecision", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
-           "thrust_signals", "split_terms", "prior_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
+           "split_terms", "prior_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
 PAPER_PRIOR = "tilt-drag"
@@ -56,29 +56,18 @@ class Plan:
 
 
 def _hover_calibrated(prior, flights, cfg, cuts=None):
-    """The rotor-thrust prior with its nominal thrust scale k_T set by hover balance on the
-    training rows: the median of k_T·thrust·cosφ·cosθ is g (uses inputs only, no derivative),
-    so the fitted scales read as ~1 and the 1-feature form is a sensible model as given."""
+    """The prior with its nominal thrust scale set by hover balance on the training rows of v̇z
+    (:meth:`priors.base.PriorModel.hover_calibrated`; a prior without one is returned as is)."""
     t = "vz_dot"
-    ds = train_rows(dataset_builder(cfg).build(list(flights), target=t, inputs=prior.inputs(t)), cuts)
-    thrust = [f for f in prior.features(t) if f.role == "thrust"]
-    k_T = float(prior.params["k_T"])
-    lift = sum(prior.evaluate(ds.columns(), t)[:, i] for i, f in enumerate(prior.features(t)) if f.role == "thrust")
-    med = float(np.median(lift)) / k_T if thrust and len(ds) else 0.0
-    if not med > 0:
+    if prior.hover_param is None or t not in prior.targets:
         return prior
-    params = {k: v for k, v in prior.params.items() if k != "k_T"}
-    return get_prior("rotor-thrust", k_T=float(prior.params.get("g", 9.81)) / med, **params)
+    ds = train_rows(dataset_builder(cfg).build(list(flights), target=t, inputs=prior.inputs(t)), cuts)
+    return prior.hover_calibrated(ds.columns(), t) if len(ds) else prior
 
 
 def resolve_plan_prior(cfg, flights) -> tuple:
     """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
     return prior_for(cfg.prior, usable_signals(flights, cfg.ts))
-
-
-def thrust_signals(prior, target: str) -> list:
-    return sorted({s for f in prior.features(target) if f.role == "thrust" for s in f.signals
-                   if s not in ("roll", "pitch", "yaw")})
 
 
 def dataset_builder(cfg, delays=None):
@@ -205,11 +194,10 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
     (``cuts``: {flight index: time s} where a held-out test block starts: rows from there on
     are never seen here)."""
     prior, reason = resolve_plan_prior(cfg, train_flights)
-    if prior.name == "rotor-thrust":
-        prior = _hover_calibrated(prior, train_flights, cfg, cuts)
+    prior = _hover_calibrated(prior, train_flights, cfg, cuts)
     targets = targets_for(prior, cfg.targets)
     notes = []
-    thrust = sorted({s for t in targets for s in thrust_signals(prior, t)})
+    thrust = sorted({s for t in targets for s in prior.thrust_signals(t)})
     delays, scores, decision = {}, {}, None
     if cfg.delays == "auto" and thrust:
         if progress:

@@ -6,7 +6,7 @@ Their own module so that the built-in models (:mod:`priors.models`) and the TOML
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
@@ -15,6 +15,8 @@ import sympy as sp
 
 from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
 from droneid.expressions import compile_expression
+
+from . import constraints as pc
 
 __all__ = ["PriorFeature", "PriorModel", "ROLES", "ROLE_BOUNDS", "VEHICLE_KINDS", "check_param"]
 
@@ -46,12 +48,15 @@ class PriorFeature:
     direction at hover balance (tilt-drag), ``thrust`` = logged thrust along the body z axis,
     ``drag``, ``gravity`` (a constant), ``kinematic``, ``other``). ``limits``: the physical
     (low, high) range of its fitted coefficient when it differs from its role's
-    (:data:`ROLE_BOUNDS`)."""
+    (:data:`ROLE_BOUNDS`). ``magnitude``: for a ``thrust`` term, the specific thrust it stands
+    for without its direction (m/s² at coefficient 1), so a fit can be checked for positive
+    thrust whatever the prior."""
     name: str
     expr: sp.Expr
     description: str = ""
     role: str = "other"
     limits: tuple[float, float] | None = None
+    magnitude: sp.Expr | None = None
 
     @property
     def bounds(self) -> tuple[float, float]:
@@ -72,11 +77,19 @@ class PriorModel:
     input_names : mapping target -> the inputs a model of that target is given (paper's choice)
     params : the parameters the terms were built with (numbers; a rotor-thrust source name)
     vehicle : the kind of vehicle the model describes, one of :data:`VEHICLE_KINDS`
-    constraints : its constraint set: a built-in set's name (:func:`priors.constraints.get_constraints`,
-        ``rotor-thrust``: built from the data's thrust span) or the path of a constraints TOML
+    constraints : its constraint set: a built-in set's name (:func:`priors.constraints.get_constraints`),
+        the path of a constraints TOML, or a callable ``(prior, target, columns) -> (ConstraintSet,
+        levels)`` that builds the set from the training data (``columns``: signal -> array;
+        ``levels``: the domains of further inputs where drag-sign constraints are added, e.g.
+        the thrust inputs' span); see :meth:`constraint_set`
     intercept : mapping target -> (low, high) of the free constant a refit may add (m/s² for
         v̇); missing targets: free. ``(0, 0)``: none (a model whose constant is known physics,
         e.g. free fall at zero thrust)
+    hover_param : the parameter hover balance sets from the data (the nominal thrust scale, e.g.
+        ``k_T``; see :meth:`hover_calibrated`), or None for a prior without logged thrust
+    factory : the function that builds this prior from its ``params`` (its catalogue entry), so a
+        stage can change one parameter (:meth:`with_params`); None: the prior is fixed
+    rotational : the name of the prior modelling the same vehicle's rotation (ω̇), or None
     """
     name: str
     description: str
@@ -84,8 +97,11 @@ class PriorModel:
     input_names: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     params: Mapping[str, float] = field(default_factory=dict)
     vehicle: str = "any"
-    constraints: str = "paper"
+    constraints: str | Callable = "paper"
     intercept: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    hover_param: str | None = None
+    factory: Callable | None = field(default=None, compare=False, repr=False)
+    rotational: str | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "terms", MappingProxyType({k: tuple(v) for k, v in self.terms.items()}))
@@ -107,6 +123,65 @@ class PriorModel:
     @property
     def targets(self) -> tuple[str, ...]:
         return tuple(self.terms)
+
+    def with_params(self, **params) -> "PriorModel":
+        """The same prior built with some parameters changed (ConfigError for a fixed prior)."""
+        if self.factory is None:
+            raise ConfigError(f"prior '{self.name}' is fixed: its parameters cannot be changed")
+        return self.factory(**{**dict(self.params), **params})
+
+    def thrust_signals(self, target: str) -> list[str]:
+        """The logged signals the thrust terms of ``target`` read (motor speeds, commands,
+        thrust), not the attitude that only turns them; [] for a prior without thrust terms."""
+        return sorted({s for f in self.features(target) if f.role == "thrust" for s in f.signals
+                       if s not in ("roll", "pitch", "yaw")})
+
+    def hover_calibrated(self, columns: Mapping[str, np.ndarray], target: str = "vz_dot") -> "PriorModel":
+        """This prior with its :attr:`hover_param` set by hover balance on data (``columns``: the
+        training rows' inputs of ``target``): the median of the thrust terms of ``target`` is g,
+        so the fitted scales read as ~1 and the 1-feature form is a sensible model as given. Uses
+        inputs only, never a measured derivative. Unchanged without a hover parameter, thrust
+        terms or positive thrust."""
+        if self.hover_param is None or target not in self.terms:
+            return self
+        feats = self.features(target)
+        if not any(f.role == "thrust" for f in feats) or not len(next(iter(columns.values()), ())):
+            return self
+        values = self.evaluate(columns, target)
+        lift = sum(values[:, i] for i, f in enumerate(feats) if f.role == "thrust")
+        med = float(np.median(lift)) / float(self.params[self.hover_param])
+        if not med > 0:
+            return self
+        return self.with_params(**{self.hover_param: float(self.params.get("g", 9.81)) / med})
+
+    def fitted_thrust(self, target: str, coefficients: Mapping[str, float],
+                      columns: Mapping[str, np.ndarray], n: int) -> np.ndarray | None:
+        """The specific thrust (m/s², without direction) of a fit of ``target`` on data: the thrust
+        terms' :attr:`PriorFeature.magnitude` times their fitted coefficients (``coefficients``
+        keyed by feature name), or None for a prior without thrust magnitudes."""
+        feats = [f for f in self.features(target) if f.role == "thrust" and f.magnitude is not None]
+        if not feats:
+            return None
+        out = np.zeros(n)
+        for f in feats:
+            names = sorted(s.name for s in f.magnitude.free_symbols)
+            out = out + float(coefficients.get(f.name, 0.0)) * compile_expression(f.magnitude, names)(
+                {k: columns[k] for k in names})
+        return out
+
+    def constraint_set(self, target: str, columns: Mapping[str, np.ndarray] | None = None):
+        """(ConstraintSet, levels, data_built) this prior declares for ``target``: a set built
+        from the training data (a callable ``constraints``; ``levels`` are the domains of
+        further inputs for added drag-sign constraints), its constraints TOML, or a built-in set
+        (``levels`` empty). Raises ConfigError when the prior declares none for ``target``."""
+        if callable(self.constraints):
+            if columns is None:
+                raise ConfigError(f"prior '{self.name}' builds its constraints from data: none given")
+            cs, levels = self.constraints(self, target, columns)
+            return cs, dict(levels), True
+        if str(self.constraints).endswith(".toml"):
+            return pc.load_constraints(self.constraints, target=target), {}, False
+        return pc.get_constraints(self.constraints, target=target, prior=self.name), {}, False
 
     def _terms(self, target: str) -> tuple[PriorFeature, ...]:
         try:

@@ -53,7 +53,6 @@ from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression
 from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
-from .models import PRIORS
 
 __all__ = ["Constraint", "ConstraintSet", "get_constraints", "load_constraints", "paper_drone",
            "paper_turtlebot", "rotor_thrust", "drag_sign", "extended", "CONSTRAINT_SETS"]
@@ -293,11 +292,17 @@ def extended(base: ConstraintSet, v_max: float, level: Mapping[str, float | tupl
 CONSTRAINT_SETS = {"paper": {"tilt-drag": paper_drone, "unicycle": paper_turtlebot}}
 
 
+def _registry():
+    """The built-in priors (:data:`priors.models.PRIORS`)."""
+    from .models import PRIORS   # the registry's priors declare their sets: it imports this module
+    return PRIORS
+
+
 def _priors_with(name: str, target: str) -> list[str]:
     """The built-in priors that declare constraint set ``name`` and model ``target``."""
     out = []
     for prior in CONSTRAINT_SETS.get(name, {}):
-        model = PRIORS[prior]()
+        model = _registry()[prior]()
         if model.constraints == name and target in model.targets:
             out.append(prior)
     return out
@@ -314,7 +319,7 @@ def get_constraints(name: str = "paper", target: str = "vx_dot", prior: str | No
     if prior is None:
         found = _priors_with(name, target)
         if not found:
-            known = sorted({t for p in by_prior for t in PRIORS[p]().targets})
+            known = sorted({t for p in by_prior for t in _registry()[p]().targets})
             raise ConfigError(f"constraint set {name!r} has no constraints for {target!r}; targets: "
                               f"{', '.join(known)}")
         prior = found[0]

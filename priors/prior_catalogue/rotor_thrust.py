@@ -3,12 +3,14 @@
 """
 from __future__ import annotations
 
+import numpy as np
 import sympy as sp
 
 from droneid.errors import ConfigError
 from droneid.expressions import symbol
 from droneid.targets import TARGETS
 
+from .. import constraints as pc
 from ..base import PriorFeature, PriorModel, check_param
 from ..thrust import RPM_SCALE, THRUST_SOURCES, body_z_world, thrust_columns
 
@@ -44,7 +46,7 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         feats = [PriorFeature(f"{cname}_{axis}", sp.Float(k_T) * e * b[axis],
                               f"{THRUST_SOURCES[source][2].split(':')[0]} ({cname}) along world {axis}, "
                               f"nominal k_T = {k_T:.4g} {unit}; the fitted coefficient is a scale on it "
-                              f"(1 = nominal)", "thrust")
+                              f"(1 = nominal)", "thrust", magnitude=sp.Float(k_T) * e)
                  for cname, e, unit in cols]
         if axis == "z":
             feats.append(PriorFeature("minus_g", sp.Float(-g), "gravity, m/s²", "gravity"))
@@ -62,9 +64,18 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         f"full attitude, minus gravity, minus linear drag k_D v.",
         terms, inputs, {"source": source, "motors": motors, "k_T": k_T, "k_D": k_D, "g": g,
                         "rotor_drag": rotor_drag},
-        vehicle="multirotor", constraints="rotor-thrust",
+        vehicle="multirotor", constraints=span_constraints,
         # free fall at zero thrust: gravity is the only constant (known, fixed), no free one
-        intercept={t: (0.0, 0.0) for t in terms})
+        intercept={t: (0.0, 0.0) for t in terms}, hover_param="k_T", factory=rotor_thrust)
+
+
+def span_constraints(prior: PriorModel, target: str, columns) -> tuple:
+    """The rotor-thrust constraint set of ``target`` (:func:`priors.constraints.rotor_thrust`)
+    over the thrust inputs' span in the training data (0 to their largest value), and that span
+    as the level of the drag-sign constraints added to it."""
+    span = {s: float(np.max(columns[s])) for s in prior.thrust_signals(target)}
+    cs = pc.rotor_thrust(target, span, g=float(prior.params.get("g", 9.81)))
+    return cs, {s: (0.0, v) for s, v in span.items()}
 
 
 FACTORY = rotor_thrust

@@ -44,7 +44,7 @@ def tilt_drag(g: float = 9.81, k_D: float = 0.28) -> PriorModel:
         "tilted thrust at hover balance plus linear drag -k_D v.",
         terms,
         {"vx_dot": ("vx", "pitch", "roll", "yaw"), "vy_dot": ("vy", "pitch", "roll", "yaw")},
-        {"g": g, "k_D": k_D}, vehicle="multirotor",
+        {"g": g, "k_D": k_D}, vehicle="multirotor", factory=tilt_drag,
     )
 
 

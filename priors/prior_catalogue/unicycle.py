@@ -30,7 +30,7 @@ def unicycle() -> PriorModel:
                                 "kinematic"),),
          "y_dot": (PriorFeature("v_f_sin_yaw", v_f * sp.sin(yaw), "commanded velocity along world y",
                                 "kinematic"),)},
-        {"x_dot": inputs, "y_dot": inputs}, vehicle="ground",
+        {"x_dot": inputs, "y_dot": inputs}, vehicle="ground", factory=unicycle,
     )
 
 
