@@ -8,10 +8,15 @@ simulator.
 """
 from __future__ import annotations
 
-import sympy as sp
+from typing import TYPE_CHECKING
 
 from droneid.errors import ConfigError, did_you_mean
-from droneid.expressions import symbol
+
+if TYPE_CHECKING:
+    import sympy as sp
+
+# sympy (and droneid.expressions, which imports it) inside the functions that build expressions:
+# the simulator imports this module for RPM_SCALE, and `droneid simulate` needs no sympy
 
 __all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count"]
 
@@ -31,6 +36,7 @@ RPM_SCALE = 1e4
 def body_z_world(roll, pitch, yaw) -> tuple:
     """The body z axis (thrust direction) in the ENU world, exact Z-Y-X rotation (droneid's
     angles: positive pitch = nose down): components (x, y, z), no small-angle form."""
+    import sympy as sp
     return (sp.cos(yaw) * sp.sin(pitch) * sp.cos(roll) + sp.sin(yaw) * sp.sin(roll),
             sp.sin(yaw) * sp.sin(pitch) * sp.cos(roll) - sp.cos(yaw) * sp.sin(roll),
             sp.cos(roll) * sp.cos(pitch))
@@ -41,6 +47,9 @@ def thrust_columns(source: str, motors: int = 4) -> tuple[tuple[str, sp.Expr, st
 
     ``rpm``: Σ (ω_i/10⁴)²; ``motor``: Σ u_i² and Σ u_i; ``throttle``: u² and u; ``thrust``: T.
     """
+    import sympy as sp
+
+    from droneid.expressions import symbol
     if source == "rpm":
         w = [symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)]
         return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), "m/s² per (10⁴ rpm)²"),)

@@ -5,7 +5,7 @@ import sys
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="write the final models as self-contained Python, C, MATLAB or LaTeX",
+    p = sub.add_parser("export",
                        description="Write each target's final model (targets.<t>.final of an identify "
                                    "result.json: prior terms, effects and evolved terms expanded into one "
                                    "expression) as self-contained code; the header states the inputs, units, "

@@ -9,7 +9,7 @@ from ._common import add_log_options, print_json, read_logs
 
 def register(sub):
     p = sub.add_parser(
-        "inspect", help="show the format, signals, rates, segments and diagnostics of a flight log",
+        "inspect",
         description="Read a flight log (DataFlash .bin, MAVLink .tlog, PX4 .ulg, ROS 2 .mcap, "
                     "Motive or flat CSV) and show what droneid sees: format, vehicle, duration, each "
                     "signal with unit, rate, count, span and source, armed / in-flight intervals, "

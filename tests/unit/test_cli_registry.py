@@ -70,11 +70,7 @@ def test_top_level_help_and_version_import_no_command_module(argv):
     assert not [m for m in modules if m.startswith("droneid.commands.")]
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.xfail(
-        strict=True, reason="droneid/simulate.py imports priors.thrust (RPM_SCALE), which imports "
-                            "sympy at module level")) if n == "simulate" else n
-    for n in COMMANDS])
+@pytest.mark.parametrize("name", list(COMMANDS))
 def test_command_help_imports_only_its_module_and_nothing_heavy(name):
     rc, modules = _modules_after(name, "--help")
     assert rc == 0
