@@ -11,7 +11,7 @@ import numpy as np
 
 from priors.effects import CATALOGUE
 
-from ..diagnose import DiagnosisResult
+from ..diagnosis_result import DiagnosisResult
 from ..errors import MissingSignalError
 from ..flight import canonical_unit
 from .document import Document, break_gaps, fmt, new_figure

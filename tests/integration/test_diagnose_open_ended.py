@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 import diag_synth as S
-from droneid.diagnose import DiagnoseConfig, _clock_like, diagnose_datasets
+from droneid.diagnose import DiagnoseConfig, diagnose_datasets
+from droneid.residual_search import clock_like
 
 CFG = DiagnoseConfig(generations=1500, population_size=200, seed=3)
 
@@ -23,8 +24,8 @@ def test_open_ended_search_claims_nothing_on_a_control_flight():
 def test_clock_like_signals_are_kept_out_of_the_search():
     t = np.arange(0, 60, 0.05)
     f = np.zeros(t.size, int)
-    assert _clock_like(16.0 - 0.01 * t + 0.001 * np.sin(t), t, f)
-    assert not _clock_like(np.sin(0.5 * t), t, f)
+    assert clock_like(16.0 - 0.01 * t + 0.001 * np.sin(t), t, f)
+    assert not clock_like(np.sin(0.5 * t), t, f)
     r = diagnose_datasets(S.make(None, seed=0, duration_s=30), None, prior=S.TiltDragStub(), config=CFG)
     assert "battery_voltage" not in r.open_ended["vx_dot"]["signals"]
     assert "yaw" in r.open_ended["vx_dot"]["signals"]
