@@ -48,7 +48,9 @@ class PredictionResult:
     models name no signals); horizons : {model: {steps: {"vx", "vy", "vz" (m/s), "position"
     (m)}}} of multi-step prediction and horizon_info its step (s), counts and notes (None
     without ``horizons``); rollout : the :class:`~droneid.rollout.RolloutResult` behind them,
-    with its traces (for figures; not part of :meth:`to_dict`).
+    with its traces (for figures; not part of :meth:`to_dict`); open_loop : the open-loop
+    metric (None without it); reader_options : {"recorded": the options the result was identified
+    with, "given": the options given to predict} (None when neither exists; set by the CLI).
     """
     ts: float
     method: str
@@ -59,6 +61,7 @@ class PredictionResult:
     horizon_info: dict | None = None
     rollout: RolloutResult | None = field(default=None, repr=False, compare=False)
     open_loop: dict | None = None
+    reader_options: dict | None = None
 
     def to_dict(self) -> dict:
         """The JSON document of ``droneid predict --json``."""
@@ -71,11 +74,15 @@ class PredictionResult:
             out["horizon_info"] = self.horizon_info
         if self.open_loop is not None:
             out["open_loop"] = self.open_loop
+        if self.reader_options is not None:
+            out["reader_options"] = self.reader_options
         return to_jsonable(out)
 
 
 def load_models(path, targets: Sequence[str] | None = None) -> dict:
-    """{target: {"model", "inputs", "empirical_refit", ...}} plus "_config" from a JSON file."""
+    """{target: {"model", "inputs", "empirical_refit", ...}} plus "_config" and
+    "_reader_options" (the reader options the result was identified with: read_flight keywords,
+    ``{}`` when none were recorded) from a JSON file."""
     path = Path(path)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
@@ -95,6 +102,7 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
             check_choice("target", t, available, owner=str(path))
         out = {t: _entry(path, t, doc["targets"][t]) for t in chosen}
         out["_config"] = doc.get("config") or {}
+        out["_reader_options"] = _reader_options(path, doc.get("reader_options"))
         return out
     # a bare model file (SNGPRegressor.to_dict()): its target is saved in it or named by the caller
     target = targets[0] if targets and len(targets) == 1 else doc.get("target")
@@ -105,7 +113,44 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     if not inputs:
         raise DataError(f"{path}: a model file must list its 'inputs'")
     return {target: {"model": doc, "inputs": list(inputs), "empirical_terms": [],
-                         "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {}}
+                         "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {},
+            "_reader_options": {}}
+
+
+#: the reader options a result may record (identify's ``reader_options``: the read_flight keywords
+#: of the CLI's --format, --topic, --body, --column, --sysid, --vehicle), with each value's type
+READER_OPTION_TYPES = {"format": str, "topics": dict, "body": str, "column_map": dict, "sysid": int,
+                        "vehicle": str}
+
+
+_KIND_NAMES = {str: "a string", int: "an integer", dict: "a map of names to names"}
+
+
+def _reader_options(path, recorded) -> dict:
+    """The ``reader_options`` a result recorded (identify writes the options its logs were read
+    with), checked: unset options are left out; a damaged entry is an error naming the file."""
+    if recorded is None:
+        return {}
+    if not isinstance(recorded, dict):
+        raise DataError(f"{path}: 'reader_options' must be an object of reader options, got "
+                        f"{type(recorded).__name__}")
+    out = {}
+    for k, v in recorded.items():
+        if v is None:
+            continue
+        kind = READER_OPTION_TYPES.get(k)
+        if kind is None:
+            raise DataError(f"{path}: reader_options.{k} is not a reader option (known: "
+                            f"{', '.join(READER_OPTION_TYPES)})")
+        ok = isinstance(v, kind) and not isinstance(v, bool)
+        if ok and kind is dict:
+            ok = all(isinstance(a, str) and isinstance(b, str) for a, b in v.items())
+        if not ok:
+            raise DataError(f"{path}: reader_options.{k} must be "
+                            f"{_KIND_NAMES[kind]}, got {v!r}")
+        if v != {}:
+            out[k] = dict(v) if kind is dict else v
+    return out
 
 
 def _entry(path, target: str, tr: dict) -> dict:

@@ -114,8 +114,122 @@ def log_options(args) -> dict:
             "vehicle": getattr(args, "vehicle", None)}
 
 
-def read_logs(paths, args=None) -> list:
-    """Read every log (format from its content unless ``--format``), with the reader options."""
+def read_logs(paths, args=None, recorded: dict | None = None) -> list:
+    """Read every log (format from its content unless ``--format``), with the reader options.
+
+    ``recorded``: reader options a result was identified with (``reader_options`` of identify's
+    result.json, as :func:`log_options` gives them); they apply by default and the options given
+    in ``args`` override them (see :func:`merged_log_options`)."""
     from parsers import read_flight
     opts = log_options(args) if args is not None else {}
-    return [read_flight(p, **opts) for p in paths]
+    if not recorded:
+        return [read_flight(p, **opts) for p in paths]
+    from ..errors import DroneIdError
+    flights = []
+    for p in paths:
+        merged = merged_log_options(recorded, opts, p)
+        try:
+            flights.append(read_flight(p, **merged))
+        except DroneIdError as exc:
+            applied = _from_record(recorded, opts, merged)
+            if not applied:
+                raise
+            raise ConfigError(f"{exc} (read with the reader options the model was identified with: "
+                              f"{options_text(applied)}; options given here override them, e.g. "
+                              f"--column NAME=NAME reads a column under its own name)") from None
+    return flights
+
+
+#: reader options that are maps (``--column``/``--topic``): given entries override recorded ones
+_MAP_OPTIONS = ("topics", "column_map")
+#: reader options every format takes (read_flight's own); the others are a reader's own options
+_ANY_FORMAT = ("format", "vehicle")
+
+
+def merged_log_options(recorded: dict, given: dict, path) -> dict:
+    """read_flight keyword arguments for one log: ``given`` (:func:`log_options` of the command
+    line) over ``recorded`` (the options a result was identified with).
+
+    A given scalar replaces the recorded one; a given ``--column``/``--topic`` entry replaces the
+    recorded entry of the same name and keeps the others. A recorded option the log's reader does
+    not take (a ``--column`` map recorded on CSV logs, applied to a ULog) is left out; a given one
+    is kept, and the reader refuses it as it would without a record."""
+    from ..predict import READER_OPTION_TYPES
+    out = {k: v for k, v in recorded.items() if k in READER_OPTION_TYPES and v is not None and v != {}}
+    for k, v in given.items():
+        if v is None:
+            continue
+        out[k] = {**out[k], **v} if k in _MAP_OPTIONS and isinstance(out.get(k), dict) else v
+    own = [k for k in out if k not in _ANY_FORMAT and given.get(k) is None]
+    if own:
+        accepted = _reader_accepts(out.get("format"), path)
+        if accepted is not None:
+            out = {k: v for k, v in out.items() if k not in own or k in accepted}
+    return out
+
+
+def _from_record(recorded: dict, given: dict, merged: dict) -> dict:
+    """The part of ``merged`` that came from the record (not given on the command line)."""
+    out = {}
+    for k, v in merged.items():
+        if k not in recorded:
+            continue
+        if k in _MAP_OPTIONS and isinstance(v, dict):
+            rest = {n: c for n, c in v.items() if n not in (given.get(k) or {})}
+            if rest:
+                out[k] = rest
+        elif given.get(k) is None:
+            out[k] = v
+    return out
+
+
+def recorded_options_note(recorded: dict, args, paths) -> str:
+    """One line saying which logs were read with the reader options a result recorded (and
+    which took none of them: a reader that has no such option), '' when none was recorded."""
+    if not recorded:
+        return ""
+    given = log_options(args)
+    by_text: dict[str, list[str]] = {}
+    for p in paths:
+        by_text.setdefault(options_text(_from_record(recorded, given, merged_log_options(recorded, given, p))),
+                           []).append(str(p))
+    parts = []
+    for text, logs in by_text.items():
+        which = "every log" if len(by_text) == 1 else ", ".join(logs)
+        parts.append(f"{which}: {text}" if text else
+                     f"{which}: none of them (its reader takes no such option)")
+    return ("read with the reader options the model was identified with (options given here override "
+            "them): " + "; ".join(parts))
+
+
+def _reader_accepts(fmt, path) -> tuple | None:
+    """The options of the reader that reads ``path`` (None when it cannot be told: read_flight
+    then reports the problem with the file)."""
+    import os
+
+    from parsers import READERS, detect_format
+
+    from ..errors import DroneIdError
+    try:
+        if fmt is None:
+            if not os.path.isfile(path):
+                return None
+            fmt = detect_format(path)
+        return tuple(READERS[fmt].options)
+    except (DroneIdError, OSError, KeyError):
+        return None
+
+
+def options_text(opts: dict) -> str:
+    """Reader options as the command-line words that give them (``--column vx=vel_e ...``)."""
+    flags = {"format": "--format", "body": "--body", "sysid": "--sysid", "vehicle": "--vehicle"}
+    words = []
+    for k, v in opts.items():
+        if v is None or v == {}:
+            continue
+        if k in _MAP_OPTIONS:
+            flag = "--column" if k == "column_map" else "--topic"
+            words += [f"{flag} {name}={value}" for name, value in v.items()]
+        else:
+            words.append(f"{flags.get(k, '--' + k)} {v}")
+    return " ".join(words)

@@ -5,6 +5,7 @@ import sys
 
 from ..errors import ConfigError
 from . import COMMANDS
+from ._common import add_log_options, log_options
 
 HELP = COMMANDS["dataset"].help
 
@@ -34,7 +35,7 @@ def register(sub):
                    "CSV), clock-aligned and merged into LOG; give one per LOG, in order")
     p.add_argument("--offset", type=float, default=None, metavar="SECONDS",
                    help="clock offset to add to the --merge log (default: estimated)")
-    p.add_argument("--format", default=None, help="force the log format (default: detected)")
+    add_log_options(p)   # --format, --topic, --body, --column, --sysid, --vehicle (for LOG, not --merge)
     p.add_argument("--max-samples", type=int, default=None, metavar="N",
                    help="keep N randomly chosen samples (in time order)")
     p.add_argument("--seed", type=int, default=0, help="seed for --max-samples (default 0)")
@@ -72,7 +73,7 @@ def run(args) -> int:
         raise ConfigError("--offset applies to --merge")
     flights = []
     for i, path in enumerate(args.logs):
-        f = read_flight(path, format=args.format)
+        f = read_flight(path, **log_options(args))
         if args.merge:
             f = merge_flights(f, read_flight(args.merge[i]), offset_s=args.offset)
         flights.append(f)

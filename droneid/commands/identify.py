@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._common import ProgressBar, add_log_options, print_json, read_logs
+from ._common import ProgressBar, add_log_options, log_options, print_json, read_logs
 
 
 def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
@@ -88,6 +88,7 @@ def run(args) -> int:
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
     result = identify(train, test, cfg, progress=bar).to_dict()
+    result["reader_options"] = log_options(args)   # predict reads its logs with them by default
     if args.report:
         identify_report.write(result, args.report)
     if args.json:

@@ -1,7 +1,7 @@
 """``droneid predict``: apply a saved model (identify's result.json) to other logs, report its error."""
 from __future__ import annotations
 
-from ._common import print_json, read_logs
+from ._common import add_log_options, log_options, print_json, read_logs, recorded_options_note
 
 
 def _horizons(text: str) -> tuple[int, ...]:
@@ -36,6 +36,10 @@ def register(sub) -> None:
     p.add_argument("--plot", default=None, metavar="DIR",
                    help="with --horizons: write error-vs-horizon and predicted-trace PNGs into DIR")
     p.add_argument("--json", action="store_true", help="print the errors as one JSON line")
+    add_log_options(p)
+    p.epilog = ("Reader options: by default the logs are read with the options the result was identified "
+                "with (its reader_options: --column, --topic, --body, --format, --sysid, --vehicle); options "
+                "given here override them (a --column/--topic entry replaces the recorded entry of the same name).")
     p.set_defaults(func=run)
 
 
@@ -47,9 +51,14 @@ def run(args) -> int:
         raise ConfigError("--plot draws the multi-step prediction: give --horizons too (e.g. --horizons 1,10,50)")
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
     models = load_models(args.model, targets)
-    flights = read_logs(args.logs)
+    recorded = models.get("_reader_options") or {}
+    flights = read_logs(args.logs, args, recorded=recorded)
     res = predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons,
                           open_loop=args.open_loop)
+    given = {k: v for k, v in log_options(args).items() if v is not None}
+    if recorded or given:
+        from dataclasses import replace
+        res = replace(res, reader_options={"recorded": recorded, "given": given})
     written = []
     if args.plot and res.rollout is not None:
         from pathlib import Path
@@ -62,6 +71,8 @@ def run(args) -> int:
         print_json(res.to_dict())
         return 0
     print(predict_report.text(res))
+    if recorded:
+        print("\n" + recorded_options_note(recorded, args, args.logs))
     for p in written:
         print(f"wrote {p}")
     return 0

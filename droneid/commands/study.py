@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from ._common import ProgressBar, print_json, read_logs
+from ._common import ProgressBar, add_log_options, print_json, read_logs
 from .identify import add_budget_arguments, config_from_args
 
 
@@ -25,6 +25,7 @@ def register(sub) -> None:
                    help="write study.json, study.md, study.html and figures here (default ./study)")
     p.add_argument("--json", action="store_true",
                    help="print the study result as one JSON line (no budget line, no progress)")
+    add_log_options(p)
     p.set_defaults(func=run)
 
 
@@ -48,8 +49,8 @@ def run(args) -> int:
     cfg = config_from_args(args, constraints=args.constraints)
     if not (args.quiet or args.json):
         print(budget_line(cfg), file=sys.stderr)
-    train = read_logs(args.train)
-    test = read_logs(args.test) if args.test else None
+    train = read_logs(args.train, args)
+    test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
     result = study(train, test, cfg, progress=bar)
     study_report.write(result, args.out)
