@@ -42,7 +42,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .errors import ConfigError
-from .ladder import blocked_cv
+from .regression import blocked_cv
 
 __all__ = ["Decision", "decide", "decide_predictions", "decide_designs", "decide_family",
            "block_differences", "paired_block_test", "holm_threshold", "N_FLIPS"]
@@ -207,7 +207,7 @@ def decide_predictions(y, pred_without, pred_with, blocks, **kwargs) -> Decision
 def decide_designs(A_without, A_with, y, blocks, **kwargs) -> Decision:
     """:func:`decide` for two least-squares models given by their design matrices (include an
     intercept column if the model has one): held-out predictions by
-    :func:`droneid.ladder.blocked_cv` over ``blocks``."""
+    :func:`droneid.regression.blocked_cv` over ``blocks``."""
     y = np.asarray(y, float)
     return decide_predictions(y, blocked_cv(np.asarray(A_without, float), y, blocks),
                               blocked_cv(np.asarray(A_with, float), y, blocks), blocks, **kwargs)
