@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: demo test test-fast install sample-logs bench clean
+.PHONY: demo test test-fast install sample-logs bench clean browser
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -33,6 +33,19 @@ sample-logs: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py
+
+# a headless browser for the screenshot tests (tests/unit/test_screenshot*.py, which skip without
+# one); not part of `make test`: a clean clone stays green without it
+browser:
+	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then \
+		echo "chromium is installed: $$(command -v chromium || command -v chromium-browser)"; \
+	elif command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+		apt-get install -y chromium || { apt-get update && apt-get install -y chromium; }; \
+	elif command -v apt-get >/dev/null 2>&1 && command -v sudo >/dev/null 2>&1; then \
+		sudo apt-get install -y chromium || { sudo apt-get update && sudo apt-get install -y chromium; }; \
+	else \
+		echo "no apt-get here: install Chromium with your package manager, or set DRONEID_CHROMIUM"; exit 1; \
+	fi
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
