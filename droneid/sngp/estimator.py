@@ -1,23 +1,18 @@
 """SNGPRegressor: the estimator-style front of the engine (validation, search, model building).
 
 ``__init__`` only stores keyword parameters (unknown names are rejected with a suggestion);
-``fit`` validates, runs the compiled search (:mod:`droneid.sngp.search`), prunes dead features,
-simplifies the equation with sympy under a time limit and fills the ``*_`` attributes.
-
-sympy is imported only where the symbolic side begins (prior expressions, the final model, its
-rendering): a fit without priors runs its search before sympy is imported, and imports sympy in
-a background thread meanwhile (the search kernels release the GIL), so a fresh process such as
-``droneid fit`` does not wait for the import on top of the search.
+``fit`` validates (:meth:`SNGPRegressor.validate_params`, the one home of the engine's
+parameter rules), runs the compiled search (:mod:`droneid.sngp.search`), prunes dead features
+and fills the ``*_`` attributes; the simplified equation and its other forms are built on first
+use (:mod:`droneid.sngp.render`, which also holds the symbolic side: sympy is imported only
+there, in the background while a search without priors runs).
 """
 from __future__ import annotations
 
-import logging
 import inspect
+import logging
 import math
 import re
-import signal
-import sys
-import threading
 import time
 from collections.abc import Mapping, Sequence
 
@@ -29,12 +24,14 @@ from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError
 from ..numerics import lstsq as _lstsq
 from ..numerics import rmse
 from . import kernels as K
-from .kernels import kernels_ready
 from . import population as popmod
-from .operators import CONST, IDENT, DEFAULT_FUNCTIONS, by_code, names as operator_names
+from .kernels import kernels_ready
+from .operators import DEFAULT_FUNCTIONS
+from .operators import names as operator_names
 from .population import Population, Problem
-from .selection import best_index
+from .render import ArchiveEntry, import_symbolic_side, is_sympy, links_equation, node_exprs, render
 from .search import run_search
+from .selection import best_index
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +50,8 @@ class SNGPRegressor:
     Parameters (keyword only): ``functions`` (names from the operator table), ``population_size``
     (nodes), ``generations``, ``n_features`` (nf, prior features included), ``max_depth``,
     ``gamma`` (e_c threshold of the constrained variant, target units), ``n_epochs``,
-    ``n_threads`` (search threads per epoch, run one after the other), ``seed`` (None: drawn),
+    ``n_threads`` (search threads per epoch, each from the epoch's best population),
+    ``seed`` (None: drawn),
     ``progress`` (callable(done, total, message)), ``identity_steps`` (local steps relinking
     feature slots at the end of each thread), ``simplify_s`` (sympy time budget; 0 disables),
     ``prune`` ("exact": drop only features whose removal changes the training RMSE by < 1e-6
@@ -65,7 +63,10 @@ class SNGPRegressor:
     not improved by the relative ``early_stop_margin`` over this many generations; the error is
     the one on the held-out rows with ``prune="validation"``, else the training error (the
     constrained variant: e_d once a model qualifies, e_c before); None or 0: always run all
-    ``generations``, the paper's protocol). ``generations_`` reports the generations run and
+    ``generations``, the paper's protocol), ``n_jobs`` (cores the threads of an epoch may run
+    on at once: the unconstrained variant runs up to ``n_threads`` of them side by side, with
+    the same result as one after the other; it changes how fast, never what, so it is not
+    recorded in :meth:`to_dict`). ``generations_`` reports the generations run and
     ``stopped_early_`` whether the window ended the search.
     """
 
@@ -73,7 +74,7 @@ class SNGPRegressor:
                  n_features=10, max_depth=7, gamma=0.05, n_epochs=30, n_threads=2, seed=None,
                  progress=None, identity_steps=100, simplify_s=0.5, prune="exact",
                  validation_fraction=0.25, early_stop_window=10000, early_stop_margin=0.001,
-                 **unknown):
+                 n_jobs=1, **unknown):
         if unknown:
             name = next(iter(unknown))
             raise ConfigError(f"SNGPRegressor got an unknown parameter '{name}'"
@@ -94,6 +95,7 @@ class SNGPRegressor:
         self.validation_fraction = validation_fraction
         self.early_stop_window = early_stop_window
         self.early_stop_margin = early_stop_margin
+        self.n_jobs = n_jobs
 
     # -- sklearn-style parameter access -------------------------------------------------------
     @classmethod
@@ -123,51 +125,25 @@ class SNGPRegressor:
         return f"SNGPRegressor({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
 
     # -- validation ----------------------------------------------------------------------------
+    @classmethod
+    def validate_params(cls, params: Mapping, owner: str = "SNGPRegressor") -> dict:
+        """Check engine parameters by name: the one home of their rules (configs that pass them
+        on call it too). ``params``: any of :meth:`param_names` (only those given are checked);
+        returns them as a new dict. Raises :class:`~droneid.errors.ConfigError`: an unknown
+        name (with the nearest valid one), or "The 'x' parameter of ``owner`` must be ... Got ...
+        instead."."""
+        params = dict(params)
+        for name in params:
+            if name not in _PARAMS:
+                raise ConfigError(f"{owner} has no engine parameter '{name}'"
+                                  f"{did_you_mean(name, _PARAMS)}; valid: {', '.join(_PARAMS)}")
+        for name in _PARAMS:     # signature order: the first bad one is reported
+            if name in params:
+                _check_param(name, params[name], owner)
+        return params
+
     def _validate_params(self) -> None:
-        def bad(name, expected, value):
-            raise ConfigError(f"The '{name}' parameter of SNGPRegressor must be {expected}. "
-                              f"Got {value!r} instead.")
-
-        def integer(name, lo):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                bad(name, f"an int >= {lo}", v)
-
-        funcs = self.functions
-        if isinstance(funcs, str) or not isinstance(funcs, Sequence) or not funcs:
-            bad("functions", "a non-empty sequence of operator names", funcs)
-        for f in funcs:
-            if f not in operator_names():
-                raise ConfigError(f"The 'functions' parameter of SNGPRegressor has an unknown "
-                                  f"operator {f!r}{did_you_mean(str(f), operator_names())}; "
-                                  f"known: {', '.join(operator_names())}")
-        integer("population_size", 20)
-        integer("generations", 1)
-        integer("n_features", 1)
-        integer("max_depth", 1)
-        integer("n_epochs", 1)
-        integer("n_threads", 1)
-        integer("identity_steps", 0)
-        if isinstance(self.gamma, bool) or not isinstance(self.gamma, (int, float)) \
-                or not self.gamma > 0 or not math.isfinite(self.gamma):
-            bad("gamma", "a positive finite number", self.gamma)
-        if self.seed is not None and (isinstance(self.seed, bool)
-                                      or not isinstance(self.seed, (int, np.integer)) or self.seed < 0):
-            bad("seed", "None or an int >= 0", self.seed)
-        if self.progress is not None and not callable(self.progress):
-            bad("progress", "None or a callable(done, total, message)", self.progress)
-        if not isinstance(self.simplify_s, (int, float)) or self.simplify_s < 0:
-            bad("simplify_s", "a number >= 0 (seconds)", self.simplify_s)
-        check_choice("prune", self.prune, ("exact", "validation"), owner="SNGPRegressor")
-        v = self.validation_fraction
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.05 <= v <= 0.5:
-            bad("validation_fraction", "a number in [0.05, 0.5]", v)
-        w = self.early_stop_window
-        if w is not None and (isinstance(w, bool) or not isinstance(w, (int, np.integer)) or w < 0):
-            bad("early_stop_window", "None or an int >= 0 (generations; 0 or None: no early stop)", w)
-        m = self.early_stop_margin
-        if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
-            bad("early_stop_margin", "a number in [0, 1) (relative improvement)", m)
+        self.validate_params(self.get_params())
 
     # -- fit -----------------------------------------------------------------------------------
     def fit(self, X, y, *, feature_names=None, priors=(), prior_names=None, constraints=None):
@@ -203,7 +179,7 @@ class SNGPRegressor:
 
         # terminal rows: inputs then priors, over training columns then constraint columns
         Xall = X if not constrained else np.vstack([X, cs.X])
-        terminals = _terminal_rows(Xall, y.size, names, prior_syms, prior_exprs, prior_labels)
+        terminals = popmod.terminal_rows(Xall, y.size, names, prior_syms, prior_exprs, prior_labels)
         yc = y - y.mean()
         if constrained:
             ckind = np.asarray(cs.kind, dtype=np.int64)
@@ -225,16 +201,17 @@ class SNGPRegressor:
                           "later runs)")
         monitor = None
         if val is not None and self.early_stop_window:
-            held = _terminal_rows(X_all[val], int(val.sum()), names, prior_syms, prior_exprs,
+            held = popmod.terminal_rows(X_all[val], int(val.sum()), names, prior_syms, prior_exprs,
                                   prior_labels)
             monitor = popmod.holdout(template, held, y_all[val])
-        _import_symbolic_side()
+        import_symbolic_side()
         result = run_search(template, problem, generations=int(self.generations),
                             n_epochs=int(self.n_epochs), n_threads=int(self.n_threads),
                             identity_steps=int(self.identity_steps), gamma=float(self.gamma),
                             rng=rng, progress=self.progress,
                             early_stop_window=self.early_stop_window,
-                            early_stop_margin=float(self.early_stop_margin), monitor=monitor)
+                            early_stop_margin=float(self.early_stop_margin), monitor=monitor,
+                            workers=int(self.n_jobs))
 
         self._names = names
         self._prior_syms = prior_syms
@@ -312,7 +289,7 @@ class SNGPRegressor:
     def _priors(priors, prior_names, names):
         if priors is None:
             priors = ()
-        if isinstance(priors, str) or _is_sympy(priors):
+        if isinstance(priors, str) or is_sympy(priors):
             priors = (priors,)
         priors = list(priors)
         if prior_names is not None:
@@ -374,34 +351,7 @@ class SNGPRegressor:
         return pop
 
     def _node_exprs(self, pop: Population):
-        import sympy as sp
-
-        from ..expressions import symbol
-        consts = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
-        lay = pop.lay
-        head_end, tail0 = int(lay[K.L_HEAD]), int(lay[K.L_TAIL])
-        terminals = [symbol(n) for n in self._names] + [symbol(s) for s in self._prior_syms]
-        memo: dict[int, "sp.Expr"] = {}
-
-        def expr(n: int) -> "sp.Expr":
-            if n in memo:
-                return memo[n]
-            code = int(pop.op[n])
-            if code == CONST:
-                e = consts[n] if n < len(consts) else sp.Float(pop.cval[n])
-            elif n < head_end:
-                e = sp.Float(float(pop.current(n)[0]))
-            elif n < tail0:
-                e = terminals[n - head_end]
-            elif code == IDENT:
-                e = expr(int(pop.a[n]))
-            else:
-                op = by_code(code)
-                args = [expr(int(pop.a[n]))] + ([expr(int(pop.b[n]))] if op.arity == 2 else [])
-                e = op.sympy(*args)
-            memo[n] = e
-            return e
-        return expr
+        return node_exprs(pop, self._names, self._prior_syms)
 
     def _build_model(self, pop: Population, y, cs, validation=None):
         """Refit the final population's features, prune dead ones, return (model, e_d, e_c).
@@ -495,40 +445,13 @@ class SNGPRegressor:
         ec = constraint_rmse(Ac[:, keep] @ beta, cs) if constrained else 0.0
         return keep, beta, ed, ec
 
-    def _render(self, model: "SymbolicModel") -> dict:
-        """Simplified forms of the model: equation_, expr_, expr_raw_, latex_, coef_, prior_coef_."""
-        import sympy as sp
-
-        from ..expressions import symbol
-        from .model import round_expr, to_text
-        deadline = time.perf_counter() + float(self.simplify_s)
-        prior_set = {symbol(s) for s in self._prior_syms}
-        simple_terms = []
-        for t in model.terms:
-            left = deadline - time.perf_counter()
-            simple_terms.append(_guarded_simplify(t, left) if t not in prior_set else t)
-        coef = {}
-        prior_coef = {self._prior_labels[s]: 0.0 for s in self._prior_syms}
-        display = sp.Float(model.intercept)
-        for t, st, c in zip(model.terms, simple_terms, model.coefs):
-            if t in prior_set:
-                prior_coef[self._prior_labels[t.name]] = c
-            else:
-                key = to_text(st)
-                coef[key] = coef.get(key, 0.0) + c
-            display = display + sp.Float(c) * st
-        shown = round_expr(display)
-        return {"coef_": coef, "prior_coef_": prior_coef,
-                "expr_raw_": model.expression(expand_priors=True),
-                "expr_": display.xreplace({symbol(s): e for s, e in self._prior_exprs.items()}),
-                "equation_": to_text(shown), "latex_": sp.latex(shown)}
-
     def _rendered_attr(self, name: str):
         """The simplified forms are built with sympy on first use (most runs of a study or of
         identify are never shown), then kept."""
         self._check_fitted()
         if self._rendered is None:
-            self._rendered = self._render(self.model_)
+            self._rendered = render(self.model_, self._prior_syms, self._prior_labels,
+                                    self._prior_exprs, self.simplify_s)
         return self._rendered[name]
 
     equation_ = property(lambda self: self._rendered_attr("equation_"),
@@ -548,18 +471,7 @@ class SNGPRegressor:
                 for ed, ec, a, b in archive]
 
     def _archive_equation(self, a, b) -> str:
-        import sympy as sp
-
-        from .model import round_expr, to_text
-        pop = self._population_from_links(a, b)
-        node_expr = self._node_exprs(pop)
-        expr = sp.Integer(0)
-        for c, bta in zip(pop.cols, pop.beta):
-            if c == -1:
-                expr += sp.Float(float(bta))
-            elif c >= 0 and bta != 0.0:
-                expr += sp.Float(float(bta)) * node_expr(int(c))
-        return to_text(round_expr(expr))
+        return links_equation(self._population_from_links(a, b), self._names, self._prior_syms)
 
     # -- use -----------------------------------------------------------------------------------
     def _check_fitted(self):
@@ -589,57 +501,9 @@ class SNGPRegressor:
                   "constraint_rmse_train": self.constraint_rmse_train_, "qualified": self.qualified_,
                   "prior_coef": dict(self.prior_coef_), "seed": self.seed_,
                   "generations": self.generations_, "stopped_early": self.stopped_early_,
-                  "params": {k: v for k, v in self.get_params().items() if k != "progress"}})
+                  "params": {k: v for k, v in self.get_params().items() if k not in _HOW}})
         d["params"]["functions"] = list(d["params"]["functions"])
         return d
-
-
-class ArchiveEntry(Mapping):
-    """One non-dominated model of the constrained search: a read-only mapping with the keys
-    ``rmse_train``, ``constraint_rmse_train`` and ``equation``. The equation is built with sympy
-    only when first read (a run archives up to 64 models and most callers read the errors)."""
-
-    _KEYS = ("rmse_train", "constraint_rmse_train", "equation")
-
-    def __init__(self, rmse_train: float, constraint_rmse_train: float, equation):
-        self._values = {"rmse_train": float(rmse_train),
-                        "constraint_rmse_train": float(constraint_rmse_train)}
-        self._equation = equation
-
-    def __getitem__(self, key):
-        if key == "equation" and key not in self._values:
-            self._values[key] = self._equation()
-        if key not in self._KEYS:
-            raise KeyError(key)
-        return self._values[key]
-
-    def __iter__(self):
-        return iter(self._KEYS)
-
-    def __len__(self) -> int:
-        return len(self._KEYS)
-
-    def __repr__(self) -> str:
-        return f"ArchiveEntry({dict(self)!r})"
-
-
-def _terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> np.ndarray:
-    """The terminal rows of the node cache: the inputs, then each prior evaluated on ``X``
-    (rows ``n_train`` on are constraint samples); a prior that is not finite is a DataError."""
-    cols = {n: X[:, i] for i, n in enumerate(names)}
-    prior_vals = []
-    for sym, expr in zip(prior_syms, prior_exprs):
-        from ..expressions import compile_expression
-        v = compile_expression(expr, names)(cols)
-        if not np.isfinite(v[:n_train]).all():
-            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
-                            f"{int((~np.isfinite(v[:n_train])).sum())} training samples")
-        if not np.isfinite(v).all():
-            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
-                            "constraint samples")
-        prior_vals.append(v)
-    rows = np.vstack([X.T] + [v[None, :] for v in prior_vals]) if prior_vals else X.T
-    return np.ascontiguousarray(rows, dtype=np.float64)
 
 
 def _validation_rows(n: int, fraction: float):
@@ -658,87 +522,60 @@ def _validation_rows(n: int, fraction: float):
 
 
 
-class _Timeout(Exception):
-    pass
-
-
-def _guarded_simplify(expr: "sp.Expr", seconds: float, max_ops: int = 60) -> "sp.Expr":
-    """sympy.simplify with a wall-clock limit (SIGALRM in the main thread) and a size cap.
-
-    Returns ``expr`` unchanged when it is too big, time runs out, or the result is not smaller.
-    """
-    import sympy as sp
-    if seconds <= 0.01 or sp.count_ops(expr) > max_ops:
-        return expr
-    in_main = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
-    if not in_main:
-        if sp.count_ops(expr) > 15:
-            return expr
-        try:
-            out = sp.simplify(expr)
-        except Exception:   # noqa: BLE001 - simplification is optional
-            return expr
-    else:
-        active = [True]
-
-        def _alarm(signum, frame):
-            if not active[0]:
-                return
-            # Raise only inside sympy: a signal can also land in foreign code run meanwhile
-            # (a gc callback, a __del__) that would swallow the exception. Re-arm either way,
-            # so the next tick ends the simplification if this one does not.
-            signal.setitimer(signal.ITIMER_REAL, 0.02)
-            where = frame.f_code.co_filename if frame is not None else ""
-            if "sympy" in where or "mpmath" in where or where == __file__:
-                raise _Timeout()
-        old = signal.signal(signal.SIGALRM, _alarm)
-        try:
-            try:
-                signal.setitimer(signal.ITIMER_REAL, min(seconds, 1.0))
-                out = sp.simplify(expr)
-            finally:
-                active[0] = False
-                signal.setitimer(signal.ITIMER_REAL, 0)
-        except _Timeout:
-            return expr
-        except Exception:   # noqa: BLE001 - simplification is optional
-            return expr
-        finally:
-            signal.signal(signal.SIGALRM, old if old is not None else signal.SIG_DFL)
-    return out if sp.count_ops(out) <= sp.count_ops(expr) else expr
-
-
+#: parameters that change how a fit runs, never its result: not recorded in to_dict
+_HOW = ("progress", "n_jobs")
 #: the estimator's parameters and their defaults, read from its signature (their one home)
 _PARAMS = {name: p.default for name, p in inspect.signature(SNGPRegressor.__init__).parameters.items()
            if p.kind is inspect.Parameter.KEYWORD_ONLY}
 
 
-def _is_sympy(obj) -> bool:
-    """Whether ``obj`` is a sympy object (without importing sympy: none exists before it is)."""
-    sympy = sys.modules.get("sympy")
-    return sympy is not None and isinstance(obj, sympy.Basic)
+#: the smallest integer each integer parameter takes. max_depth counts the identity level of a
+#: feature slot: at depth 1 every feature is an input or constant as it stands (no operator can
+#: be placed), so the search is a linear fit of the inputs; 2 is the first depth with a function
+_MIN_INT = {"population_size": 20, "generations": 1, "n_features": 1, "max_depth": 2,
+            "n_epochs": 1, "n_threads": 1, "n_jobs": 1, "identity_steps": 0}
 
 
-def _import_symbolic_side() -> None:
-    """Import the modules of the model and its rendering (sympy, ~0.3 s) in a background thread
-    when nothing imported them yet: called as the search starts, whose kernels release the GIL,
-    so the import overlaps the search instead of adding to it. Imports only: results are the
-    same with or without it."""
-    if "sympy" in sys.modules:
-        return
-    threading.Thread(target=_import_quietly, args=(f"{__package__}.model",),
-                     name="droneid-import-sympy", daemon=True).start()
+def _check_param(name: str, v, owner: str) -> None:
+    """Raise ConfigError when ``v`` is not a valid value of engine parameter ``name``."""
+    def bad(expected):
+        raise ConfigError(f"The '{name}' parameter of {owner} must be {expected}. Got {v!r} instead.")
 
+    def number(x) -> bool:
+        return not isinstance(x, bool) and isinstance(x, (int, float, np.integer, np.floating))
 
-def _import_quietly(name: str) -> None:
-    """Import ``name``, then run a full garbage collection: the import's many new objects would
-    otherwise still be young when the equation is simplified (under a wall-clock budget), and
-    the collections scanning them would eat into that budget (~0.07 s CPU measured); here, on
-    the other core while the search runs, they cost the user nothing."""
-    import gc
-    import importlib
-    try:
-        importlib.import_module(name)
-    except Exception:   # noqa: BLE001 - the main thread's own import of it reports the error
-        return
-    gc.collect()
+    if name in _MIN_INT:
+        lo = _MIN_INT[name]
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            bad(f"an int >= {lo}")
+    elif name == "functions":
+        if isinstance(v, str) or not isinstance(v, Sequence) or not v:
+            bad("a non-empty sequence of operator names")
+        for f in v:
+            if f not in operator_names():
+                raise ConfigError(f"The 'functions' parameter of {owner} has an unknown operator "
+                                  f"{f!r}{did_you_mean(str(f), operator_names())}; known: "
+                                  f"{', '.join(operator_names())}")
+    elif name == "gamma":
+        if not number(v) or not v > 0 or not math.isfinite(v):
+            bad("a positive finite number")
+    elif name == "seed":
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0):
+            bad("None or an int >= 0")
+    elif name == "progress":
+        if v is not None and not callable(v):
+            bad("None or a callable(done, total, message)")
+    elif name == "simplify_s":
+        if not number(v) or not 0 <= v < math.inf:
+            bad("a finite number >= 0 (seconds)")
+    elif name == "prune":
+        check_choice("prune", v, ("exact", "validation"), owner=owner)
+    elif name == "validation_fraction":
+        if not number(v) or not 0.05 <= v <= 0.5:
+            bad("a number in [0.05, 0.5]")
+    elif name == "early_stop_window":
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0):
+            bad("None or an int >= 0 (generations; 0 or None: no early stop)")
+    elif name == "early_stop_margin":
+        if not number(v) or not 0 <= v < 1:
+            bad("a number in [0, 1) (relative improvement)")

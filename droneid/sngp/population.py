@@ -15,6 +15,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..errors import DataError
 from ..numerics import rmse
 from . import kernels as K
 from .operators import CONST, HEAD_OPERATORS, IDENT, VAR, by_name
@@ -141,6 +142,26 @@ def run(pop: Population, problem: Problem, seed: int, n_gens: int, identity_only
                 pop.buf, pop.valid, pop.isconst, pop.fit, pop.lay, problem.y, problem.yc,
                 problem.syy, problem.ckind, problem.cbound, pop.beta, pop.cols, pop.obj,
                 pop.gram, pop.rhs, arch_obj, arch_a, arch_b, arch_n, stats)
+
+
+def terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> np.ndarray:
+    """The terminal rows of the node cache: the inputs, then each prior evaluated on ``X``
+    (rows ``n_train`` on are constraint samples); a prior that is not finite is a DataError."""
+    cols = {n: X[:, i] for i, n in enumerate(names)}
+    prior_vals = []
+    if prior_exprs:
+        from ..expressions import compile_expression   # sympy: only with priors
+    for sym, expr in zip(prior_syms, prior_exprs):
+        v = compile_expression(expr, names)(cols)
+        if not np.isfinite(v[:n_train]).all():
+            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
+                            f"{int((~np.isfinite(v[:n_train])).sum())} training samples")
+        if not np.isfinite(v).all():
+            raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on some "
+                            "constraint samples")
+        prior_vals.append(v)
+    rows = np.vstack([X.T] + [v[None, :] for v in prior_vals]) if prior_vals else X.T
+    return np.ascontiguousarray(rows, dtype=np.float64)
 
 
 def holdout(template: Population, terminals: np.ndarray, y: np.ndarray):

@@ -3,8 +3,13 @@
 Each thread starts from the best population so far, runs its share of generations of (1+1)
 local search in compiled chunks, ends with ~100 identity-relinking steps, and replaces the best
 population only when strictly better. The threads of one epoch all start from the same
-population (as the reference runs them in parallel); here they run one after the other on one
-core, which gives the same result.
+population (as the reference runs them in parallel). They run one after the other, or with
+``workers > 1`` (the unconstrained variant) side by side on as many cores (the kernels release the
+GIL): every random seed is drawn before the epoch in the order of the sequential schedule, each
+thread works on its own population and counters, and the results are compared in thread order
+afterwards, so the outcome is bit for bit that of the sequential run. The constrained variant
+always runs its threads in turn: they share the archive of non-dominated models, whose contents
+depend on the order of insertion.
 
 Early stopping: after every epoch the search scores its best population with ``monitor`` (the
 held-out error of ``prune="validation"``, else the search key); when that score has not improved
@@ -14,6 +19,7 @@ check draws no random numbers, so a stopped run is the exact prefix of the fixed
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -86,10 +92,12 @@ class _Stopper:
 def run_search(template: Population, problem: Problem, *, generations: int, n_epochs: int,
                n_threads: int, identity_steps: int, gamma: float, rng: np.random.Generator,
                progress=None, early_stop_window: int | None = None, early_stop_margin: float = 0.0,
-               monitor=None) -> SearchResult:
+               monitor=None, workers: int = 1) -> SearchResult:
     """The whole search. ``early_stop_window`` (generations; None or 0: the fixed budget),
     ``early_stop_margin`` (relative) and ``monitor`` (callable(population) -> float, the score
-    to watch instead of e_d or e_c in the search key; NaN never improves) control early stopping."""
+    to watch instead of e_d or e_c in the search key; NaN never improves) control early stopping.
+    ``workers``: threads of an epoch run at once (unconstrained only; the result does not depend
+    on it, see the module docstring)."""
     t_start = time.perf_counter()
     c_start = time.process_time()
     constrained = bool(template.lay[K.L_MODE])
@@ -119,38 +127,79 @@ def run_search(template: Population, problem: Problem, *, generations: int, n_ep
     done = 0
     stopper = _Stopper(early_stop_window, early_stop_margin)
     stopped = False
-    for epoch, threads in enumerate(plan):
-        cand.copy_from(best)
-        for t, per_thread in enumerate(threads):
-            if per_thread == 0:
-                continue
-            weight = WEIGHTS[(epoch * n_threads + t) % len(WEIGHTS)]
-            work.copy_from(best)
-            left = per_thread
-            while left > 0:
-                g = min(CHUNK, left)
-                popmod.run(work, problem, seed(), g, False, weight, arch, stats)
-                left -= g
-                done += g
-                if progress is not None:
-                    progress(done, total, f"e_d={best.obj[K.O_ED]:.4g}"
-                             + (f" e_c={best.obj[K.O_EC]:.3g}" if constrained else ""))
-            if identity_steps > 0 and template.lay[K.L_ID] < template.lay[K.L_P]:
-                popmod.run(work, problem, seed(), identity_steps, True, weight, arch, stats)
-            if key(work, constrained, gamma) < key(cand, constrained, gamma):
-                cand.copy_from(work)
-        if key(cand, constrained, gamma) < key(best, constrained, gamma):
-            best.copy_from(cand)
-        if stopper.window and epoch + 1 < len(plan):
-            score = key(best, constrained, gamma)
-            if monitor is not None:      # e.g. the held-out error, after the qualification flag
-                score = (score[0], float(monitor(best)))
-            if stopper.stalled(score, done):
-                stopped = True
-                if progress is not None:
-                    progress(total, total, f"stopped early after {done} generations: no "
-                             f"{100 * stopper.margin:g} % gain in {stopper.window}")
-                break
+    relink = identity_steps > 0 and template.lay[K.L_ID] < template.lay[K.L_P]
+    side_by_side = workers > 1 and n_threads > 1 and not constrained
+    pool = ThreadPoolExecutor(min(workers, n_threads), thread_name_prefix="sngp-search") \
+        if side_by_side else None
+    works = [work] + [work.copy() for _ in range(n_threads - 1)] if side_by_side else [work]
+
+    def report(done_now: int) -> None:
+        if progress is not None:
+            progress(done_now, total, f"e_d={best.obj[K.O_ED]:.4g}"
+                     + (f" e_c={best.obj[K.O_EC]:.3g}" if constrained else ""))
+
+    def chunk_done(g: int) -> None:     # sequential schedule: progress after every chunk
+        nonlocal done
+        done += g
+        report(done)
+
+    def thread(w: Population, epoch: int, t: int, seeds: list[int], own_stats, per_thread: int,
+               chunk_done) -> Population:
+        """One thread of an epoch from ``best``: its chunks of generations (``chunk_done(g)``
+        after each, when given), then identity relinking, with the seeds drawn for it."""
+        weight = WEIGHTS[(epoch * n_threads + t) % len(WEIGHTS)]
+        w.copy_from(best)
+        left, i = per_thread, 0
+        while left > 0:
+            g = min(CHUNK, left)
+            popmod.run(w, problem, seeds[i], g, False, weight, arch, own_stats)
+            i += 1
+            left -= g
+            if chunk_done is not None:
+                chunk_done(g)
+        if relink:
+            popmod.run(w, problem, seeds[i], identity_steps, True, weight, arch, own_stats)
+        return w
+
+    try:
+        for epoch, threads in enumerate(plan):
+            cand.copy_from(best)
+            # the seeds of each thread, in the order the sequential schedule draws them
+            seeds = [[seed() for _ in range(-(-n // CHUNK) + relink)] if n else [] for n in threads]
+            if side_by_side:
+                base = stats.copy()
+                own = [stats.copy() for _ in threads]
+                futures = [pool.submit(thread, works[t], epoch, t, seeds[t], own[t], n, None)
+                           for t, n in enumerate(threads) if n]
+                for f in futures:           # in thread order, as the sequential schedule compares
+                    w = f.result()
+                    if key(w, constrained, gamma) < key(cand, constrained, gamma):
+                        cand.copy_from(w)
+                for st in own:
+                    stats += st - base
+                done += sum(threads)
+                report(done)
+            else:
+                for t, per_thread in enumerate(threads):
+                    if per_thread:
+                        thread(work, epoch, t, seeds[t], stats, per_thread, chunk_done)
+                        if key(work, constrained, gamma) < key(cand, constrained, gamma):
+                            cand.copy_from(work)
+            if key(cand, constrained, gamma) < key(best, constrained, gamma):
+                best.copy_from(cand)
+            if stopper.window and epoch + 1 < len(plan):
+                score = key(best, constrained, gamma)
+                if monitor is not None:      # e.g. the held-out error, after the qualification flag
+                    score = (score[0], float(monitor(best)))
+                if stopper.stalled(score, done):
+                    stopped = True
+                    if progress is not None:
+                        progress(total, total, f"stopped early after {done} generations: no "
+                                 f"{100 * stopper.margin:g} % gain in {stopper.window}")
+                    break
+    finally:
+        if pool is not None:
+            pool.shutdown()
     n = int(arch[3][0])
     archive = [(float(arch[0][i, 0]), float(arch[0][i, 1]), arch[1][i].copy(), arch[2][i].copy())
                for i in range(n)]

@@ -299,7 +299,7 @@ def test_simplification_has_a_time_limit():
 
     import sympy as sp
 
-    from droneid.sngp.estimator import _guarded_simplify
+    from droneid.sngp.render import guarded_simplify as _guarded_simplify
     x, y = sp.symbols("x y", real=True)
     expr = sp.sin(x + y) ** 3 * sp.cos(x - y) ** 2 + sp.cos(2 * x) * sp.sin(3 * y) ** 2 \
         - sp.sin(x) ** 4 * sp.cos(y) ** 3 + (x + y) ** 5 / (x - y + 2)
