@@ -10,7 +10,9 @@ Hashes (sha256 over JSON with floats written exactly, ``float.hex``):
 - ``droneid fit``'s pipeline (:func:`droneid.fit.fit_table`, the command's defaults) on the
   tables of ``bench_startup.py`` (160 and 1 000 samples; no prior, and the three tilt-drag terms
   as prior features): the fitted model (raw terms, coefficients, intercept), its generations and
-  its training and test errors.
+  its training and test errors. The fits run their search threads side by side on ``--jobs``
+  cores (default 2, as ``droneid fit`` on this machine kind); ``--jobs 1`` runs them one after the
+  other and must print the same lines.
 
 The simplified equation that ``droneid fit`` prints is not hashed: sympy simplifies it under a
 wall-clock budget (``simplify_s``, 0.5 s), so how far it gets depends on the machine's load;
@@ -71,7 +73,7 @@ def study_checksums(generations: int) -> dict[str, str]:
     return out
 
 
-def fit_checksums(generations: int) -> dict[str, str]:
+def fit_checksums(generations: int, jobs: int = 2) -> dict[str, str]:
     from bench_startup import write_tables
     from droneid.fit import FitConfig, fit_table
 
@@ -81,7 +83,7 @@ def fit_checksums(generations: int) -> dict[str, str]:
         tables = write_tables(Path(tmp))
         for n in (160, 1000):
             for label, priors in (("no prior", ()), ("3 priors", TILT_DRAG)):
-                cfg = FitConfig(target="vx_dot", priors=priors, generations=generations)
+                cfg = FitConfig(target="vx_dot", priors=priors, generations=generations, n_jobs=jobs)
                 res = fit_table(tables[n], cfg, test=tables["test"])
                 m = res.estimator
                 out[f"fit {n} samples, {label}"] = digest({
@@ -94,10 +96,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="3 000 generations instead of 60 000")
     ap.add_argument("--json", default=None, help="also write the checksums to this JSON file")
+    ap.add_argument("--jobs", type=int, default=2,
+                    help="cores for the search threads of the fits (default 2; 1: one after the other)")
     args = ap.parse_args(argv)
     generations = 3000 if args.quick else 60000
     t0 = time.perf_counter()
-    sums = {**fit_checksums(generations), **study_checksums(generations)}
+    sums = {**fit_checksums(generations, args.jobs), **study_checksums(generations)}
     for k, v in sums.items():
         print(f"{v}  {k}")
     print(f"{digest(sums)}  ALL ({len(sums)} items, {generations} generations; "

@@ -54,7 +54,12 @@ class FitConfig:
     :data:`NOT_INPUTS`). priors : prior specs, each an expression over the inputs, a built-in prior
     name (every term of it for ``target``) or ``FILE.toml:NAME``. constraints : a TOML constraint
     file (None: unconstrained); n_constraint_samples per constraint, for training and for test.
-    functions : the function set (None: the engine's default).
+    functions : the function set (None: the engine's default). simplify_s : sympy's time budget
+    (s) for simplifying the equation that is shown; 0 (fit's default, unlike the engine's): the
+    terms as the search found them, rounded. What a budget achieves depends on the machine's
+    load, and in a fresh process such as ``droneid fit`` the 0.5 s went into importing sympy's
+    simplifier, so the equation came out unsimplified anyway, half a second later. n_jobs : cores
+    the search threads may run on at once (the model does not depend on it).
     """
     target: str
     inputs: tuple[str, ...] | None = None
@@ -68,6 +73,8 @@ class FitConfig:
     gamma: float = _ENGINE["gamma"]
     seed: int = 0
     functions: tuple[str, ...] | None = None
+    simplify_s: float = 0.0
+    n_jobs: int = 1
 
     def engine_params(self) -> dict:
         """Keyword arguments of ``SNGPRegressor``: every estimator parameter this config names."""
@@ -281,6 +288,7 @@ class TableProblem:
 def prepare(train, config: FitConfig, test=None) -> TableProblem:
     """Read and check the tables (CSV paths or DataFrames) before any search: bad input fails
     here, in seconds, with one line naming the file and the problem."""
+    SNGPRegressor.validate_params(config.engine_params(), owner="FitConfig")
     df, where = _table(train, "the training table",
                        lambda columns: (*_inputs(columns, config), config.target))
     inputs = _inputs(df, config)

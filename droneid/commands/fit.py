@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..io_util import atomic_write_json
-from ..runner import startup_message
+from ..runner import default_jobs, startup_message
 from ._common import ProgressBar, print_json
 
 
@@ -45,6 +45,11 @@ def register(sub) -> None:
                    help="constraint error threshold in target units (default 0.05)")
     p.add_argument("--seed", type=int, default=0, metavar="S",
                    help="random seed; the same seed and data give the same model (default 0, as identify)")
+    p.add_argument("--simplify", type=float, default=0.0, metavar="S",
+                   help="let sympy simplify the shown equation for up to S seconds (default 0: the "
+                        "terms as found, rounded; a budget's result depends on the machine's load)")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="cores the search may use (default: all; the model does not depend on it)")
     p.add_argument("--save", metavar="MODEL.json", help="write the fitted model as JSON (default: not saved)")
     p.add_argument("--json", action="store_true", help="print one JSON line with the results")
     p.set_defaults(func=run)
@@ -64,7 +69,8 @@ def run(args) -> int:
                        constraints=args.constraints, n_constraint_samples=args.constraint_samples,
                        generations=args.generations, population_size=args.population,
                        n_features=args.features, max_depth=args.depth, gamma=args.gamma,
-                       seed=args.seed, functions=functions)
+                       seed=args.seed, functions=functions, simplify_s=args.simplify,
+                       n_jobs=args.jobs if args.jobs is not None else default_jobs())
     problem = prepare(args.train, config, test=args.test)
     for w in problem.warnings:
         print(f"droneid fit: warning: {w}", file=sys.stderr)
