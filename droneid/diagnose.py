@@ -230,12 +230,14 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
                                            rank=min(len(added) + 1, family),
                                            min_effect_pct=100 * cfg.min_rel_improvement, what=e.id)),
                         None, None)
-        candidates_log.append({"step": 0, "assessed": e.id, "scores": [
+        entry = {"step": 0, "assessed": e.id, "added": [], "scores": [
             {"effect": e.id, **{k: ev[k] for k in ("cv_rmse_after", "rel_improvement", "statistic",
                                                    "p_value", "p_threshold", "blocks_improved",
-                                                   "test_rmse_after", "passed", "reasons", "text")}}]})
+                                                   "test_rmse_after", "passed", "reasons", "text")}}]}
+        candidates_log.append(entry)
         if not ev["passed"] or len(added) >= cfg.max_steps:
             continue
+        entry["added"] = [e.id]
         findings[e.id] = interp
         ev["indistinguishable_from"] = []
         steps.append({"effect": e.id, "description": e.description, "coefficients": {},
@@ -311,6 +313,7 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
             if pscores and pscores[0][4]["passed"]:
                 best, jointly = pscores[0], True
         group, et, ett, new, ev = best
+        log_entry["added"] = [e.id for e in group] if ev["passed"] else []
         if not ev["passed"]:
             log.info("step %d: best candidate %s rejected: %s", step + 1,
                      "+".join(e.id for e in group), "; ".join(ev["reasons"]))

@@ -5,6 +5,7 @@ Pure functions over the result (no printing); :func:`write` writes ``diagnosis.j
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -26,19 +27,42 @@ def _pair(d, key="train"):
     return fmt(v, 4) if v is not None else "—"
 
 
-def _evidence_text(ev) -> str:
-    if ev.get("text"):     # the decision rule's own line (droneid.decide.Decision.evidence)
-        extra = (f", test {-100 * ev['test_rel_improvement']:+.1f} % (reported, not used)"
-                 if ev.get("test_rel_improvement") is not None else "")
-        return ev["text"] + extra
-    what = "CV error (σ units)" if ev.get("cv_units") else "CV RMSE"
-    parts = [f"{what} {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
-             f"({-100 * ev['rel_improvement']:+.1f} %)",
-             f"block test p = {fmt(ev['p_value'], 2)} (threshold {fmt(ev['p_threshold'], 2)})",
-             f"{ev['blocks_improved']} CV blocks better"]
-    if ev.get("test_rel_improvement") is not None:
-        parts.append(f"test {-100 * ev['test_rel_improvement']:+.1f} % (reported, not used)")
-    return ", ".join(parts)
+def _evidence_text(ev, verdict: str | None = None) -> str:
+    """The decision rule's own line (training flights only; :class:`droneid.decide.Decision`),
+    with ``verdict`` in place of its last word(s) when the diagnosis did something else with a
+    candidate that passed (not added, dropped later). The test flights are NOT in this line:
+    :func:`_test_text` says what they show, on a line of its own."""
+    if ev.get("text"):
+        line = ev["text"]
+    else:   # a document without the rule's line (older diagnosis.json)
+        line = (f"CV RMSE {fmt(ev['cv_rmse_before'], 4)} -> {fmt(ev['cv_rmse_after'], 4)} "
+                f"({-100 * ev['rel_improvement']:+.1f} %), sign-flip p = {fmt(ev['p_value'], 2)} "
+                f"(threshold {fmt(ev['p_threshold'], 2)}), {ev['blocks_improved']} blocks better: "
+                + ("accepted" if ev.get("passed") else "rejected"))
+    if verdict and line.endswith(": accepted"):
+        line = line[: -len("accepted")] + verdict
+    return line
+
+
+def _test_text(ev) -> str | None:
+    """The test flights' RMSE before and after, in words that cannot be read as part of the
+    decision: "reported only, not part of the decision", and whether they got better or worse.
+    None when there is no test error."""
+    b, a = ev.get("test_rmse_before"), ev.get("test_rmse_after")
+    if b is None or a is None or not b:
+        return None
+    pct = 100.0 * (a / b - 1.0)
+    how = "better" if pct < -0.05 else "worse" if pct > 0.05 else "unchanged"
+    return (f"test flights (reported only, not part of the decision): RMSE {fmt(b, 4)} -> "
+            f"{fmt(a, 4)} ({pct:+.1f} %, {how} on the test flights)")
+
+
+def _step_lines(ev, indent: str, label: str = "evidence (training flights, decides)") -> list[str]:
+    lines = [f"{indent}{label}: {_evidence_text(ev)}"]
+    tt = _test_text(ev)
+    if tt:
+        lines.append(f"{indent}{tt}")
+    return lines
 
 
 def _result(result) -> DiagnosisResult:
@@ -57,10 +81,13 @@ def text(result) -> str:
                      f"  cv {_pair(v['rmse_before'], 'cv')}   (prior as given: train "
                      f"{_pair(v['rmse_prior'])}, test {_pair(v['rmse_prior'], 'test')})")
     if r.steps:
-        lines.append("effects added, in order:")
+        lines.append("effects added, in order:" if r.effects_added else
+                     "effects added: none in the end (every step below was dropped at the end)")
         prev = {t: v["rmse_before"] for t, v in r.targets.items()}
         for i, s in enumerate(r.steps, 1):
-            lines.append(f"  {i}. {s['effect']}: {s['physical']}")
+            dropped = bool(s.get("dropped"))
+            lines.append(f"  {i}. {s['effect']}: {s['physical']}"
+                         + (" — DROPPED at the end, not in the final model" if dropped else ""))
             if s.get("tested_jointly"):
                 lines.append(f"       tested jointly: {' + '.join(s['tested_jointly'])} (neither "
                              "passed alone; overlapping effects)")
@@ -68,14 +95,15 @@ def text(result) -> str:
                 lines.append(f"       {t:7s} train {_pair(prev[t])} -> {_pair(e)}, "
                              f"test {_pair(prev[t], 'test')} -> {_pair(e, 'test')}")
                 prev[t] = e
-            lines.append(f"       evidence: {_evidence_text(s['evidence'])}")
-            if s.get("dropped"):
-                lines.append(f"       DROPPED at the end (it no longer earns its place once the others "
-                             f"are in): {_evidence_text(s['dropped'])}")
+            lines.extend(_step_lines(s["evidence"], "       ", "evidence when added (training flights, decides)"
+                                     if dropped else "evidence (training flights, decides)"))
+            if dropped:
+                lines.append("       dropped at the end: it no longer earns its place once the others are "
+                             f"in: {_evidence_text(s['dropped'])}")
             alts = s["evidence"].get("indistinguishable_from") or []
             if alts:
                 lines.append(f"       note: these data cannot tell it apart from {', '.join(alts)}")
-        if len(r.steps) > 1:
+        if len(r.final_effects) > 1:
             lines.append("final estimates (all effects refitted jointly):")
             for fe in r.final_effects:
                 lines.append(f"  {fe['effect']}: {fe['physical']}")
@@ -86,18 +114,20 @@ def text(result) -> str:
     else:
         lines.append("effects added: none")
     if r.candidates:
-        lines.append("every decision (one rule, droneid.decide: paired sign-flip test over CV blocks, "
-                     "Holm over every candidate the diagnosis may try; training flights only):")
+        lines.append("every decision (one rule, droneid.decide: one-sided sign-flip test over the "
+                     "validation blocks, Holm over every candidate the diagnosis may try; training "
+                     "flights only):")
         for c in r.candidates:
             head = (f"  assessed on its own rows ({c['assessed']}):" if c.get("assessed")
                     else f"  step {c['step']}:")
             lines.append(head)
+            chosen = _chosen(c, r)
             for sc in c["scores"]:
-                lines.append(f"    {sc.get('text') or sc['effect']}")
+                lines.append(f"    {_candidate_text(sc, sc['effect'], chosen)}")
             if c.get("pairs"):
                 lines.append(f"    {c['pairs_reason']}:")
                 for pb in c["pairs"]:
-                    lines.append(f"    {pb.get('text') or ' + '.join(pb['effects'])}")
+                    lines.append(f"    {_candidate_text(pb, ' + '.join(pb['effects']), chosen)}")
     lines.append(r.conclusion)
     for note in getattr(r, "notes", []) or []:
         lines.append(f"WARNING: {note}")
@@ -107,7 +137,7 @@ def text(result) -> str:
                      + "".join(f"; {fe['effect']} not ({fe['reason']})"
                                for fe in r.final_effects if not fe.get("foldable")))
     if r.not_detected:
-        lines.append(f"tested, not detected: {', '.join(r.not_detected)}")
+        lines.append(f"tested, not in the final model: {', '.join(r.not_detected)}")
     if r.untestable:
         lines.append("untestable from these signals (NOT evidence of absence):")
         for eid, why in r.untestable.items():
@@ -117,7 +147,87 @@ def text(result) -> str:
         for eid, why in r.not_applicable.items():
             lines.append(f"  {eid}: {why}")
     lines.extend(_fallback_lines(r.open_ended or {}))
+    lines.extend(symbol_lines(lines))
     return "\n".join(lines)
+
+
+def _chosen(entry, r) -> str | None:
+    """What a logged step added ("a" or "a + b"; None: nothing). Read from the entry, or for a
+    diagnosis.json written before entries recorded it, from the steps in order."""
+    if "added" in entry:
+        return " + ".join(entry["added"]) if entry["added"] else None
+    if entry.get("assessed"):
+        return entry["assessed"] if entry["assessed"] in [s["effect"] for s in r.steps] else None
+    regular = [s for s in r.steps if s["effect"] not in
+               {c["assessed"] for c in r.candidates if c.get("assessed")}]
+    k = entry["step"] - 1
+    if 0 <= k < len(regular):
+        s = regular[k]
+        return " + ".join(s["tested_jointly"]) if s.get("tested_jointly") else s["effect"]
+    return None
+
+
+def _candidate_text(sc, name: str, chosen: str | None) -> str:
+    """One candidate's decision line, its verdict saying what happened to it: added, or passed
+    the rule but not added (and why), or rejected (the rule's own reasons)."""
+    line = sc.get("text") or name
+    if not sc.get("passed"):
+        return line
+    if chosen == name:
+        return _evidence_text(sc, "accepted: added")
+    if chosen is None:
+        why = ("not added: the candidate with the lowest held-out error failed the rule, so the step "
+               "stops (a weaker candidate may stand in for it)")
+    else:
+        why = f"not added: {chosen} was added at this step (the lowest held-out error)"
+    return _evidence_text(sc, f"passes the rule, {why}")
+
+
+def _verdict(sc, name: str, chosen: str | None) -> str:
+    """One word or three for a candidate: added, passes (not added), rejected."""
+    if not sc.get("passed"):
+        return "rejected"
+    return "added" if chosen == name else "passes the rule, not added"
+
+
+#: every symbol or abbreviation the summary may print, with its meaning (printed when it appears)
+GLOSSARY = (
+    (r"\bCV\b", "CV: blocked cross-validation on the training flights (each validation block is "
+                 "predicted by a model fitted on the other blocks)"),
+    (r"CV RMSE \d", "CV RMSE in a decision line: root mean square of the held-out residuals, pooled "
+                    "over the targets, each divided by its RMSE after the prior refit (so no unit)"),
+    (r"\bσ\b", "σ: the RMSE of a target's residual after the prior refit (m/s²)"),
+    (r"\bt = ", "t: the paired t statistic of the per-block relative gains (reported; the decision "
+                "uses the sign-flip p)"),
+    (r"sign-flip p", "sign-flip p: one-sided p that the candidate does not help, from the per-block "
+                     "relative gains (share of random sign patterns whose mean reaches the observed one)"),
+    (r"α", "α: the family-wise error level over every candidate the diagnosis may try"),
+    (r"Bonferroni over", "Bonferroni over m: the first effect must reach p < α/m, m = every candidate "
+                         "the diagnosis may try (singles and pairs)"),
+    (r"Holm rank", "Holm rank k of m: the k-th effect added must reach p < α/(m − k + 1)"),
+    (r"blocks better", "n/B blocks better: validation blocks (of B) whose held-out error falls"),
+    (r"\bG\b|dG/dt", "G: the prior's thrust-direction term for the target (m/s²): its tilt terms or "
+                      "the logged thrust along body z; dG/dt its time derivative"),
+    (r"τ", "τ: the attitude delay (s)"),
+    (r"\bk_D\b", "k_D: the fitted linear drag (1/s)"),
+    (r"c_D/m", "c_D/m: quadratic drag over mass (1/m), drag acceleration c_D/m·|v|v"),
+    (r"c_Dz/m", "c_Dz/m: vertical quadratic drag over mass (1/m)"),
+    (r"\bk_x\b|\bk_y\b", "k_x, k_y: linear drag along the body's forward and left axes (1/s)"),
+    (r"\bR/4h\b|rotor radius R", "R: rotor radius (m); h: height above the ground (m)"),
+    (r"\bh0\b", "h0: the height scale of the ground-effect precondition (m)"),
+    (r"ω", "ω: rotor speed"),
+    (r"T̄|T/T", "T: the logged thrust proxy; T̄: its training mean"),
+    (r"ΔV/V̄", "ΔV/V̄: battery voltage change relative to its training mean"),
+    (r"\bk_i\b", "k_i: thrust coefficient of motor i relative to the mean of all motors"),
+    (r"a = -?\d", "a: how far the thrust exponent departs from 2 (thrust ∝ ω^(2 − a))"),
+)
+
+
+def symbol_lines(lines) -> list[str]:
+    """"symbols:" and one line per symbol of :data:`GLOSSARY` that appears in ``lines``."""
+    body = "\n".join(lines)
+    found = [meaning for pattern, meaning in GLOSSARY if re.search(pattern, body)]
+    return (["symbols:"] + [f"  {m}" for m in found]) if found else []
 
 
 def _fallback_lines(open_ended) -> list[str]:
@@ -135,7 +245,7 @@ def _fallback_lines(open_ended) -> list[str]:
            "none was added in its place): the open-ended search explains it with"]
     for t, o in passed.items():
         out.append(f"  {t}: {o['equation']}")
-        out.append(f"       evidence: {_evidence_text(o['evidence'])}")
+        out.extend(_step_lines(o["evidence"], "       "))
     return out
 
 
@@ -181,9 +291,12 @@ def document(result) -> Document:
     doc.table(["target", "model", "train", "test", "blocked CV"], rows)
     if r.steps:
         doc.heading("Effects added, in order")
-        doc.table(["#", "effect", "physical terms", "evidence"],
-                  [[i, s["effect"], s["physical"], _evidence_text(s["evidence"])
-                    + (f" (tested jointly: {' + '.join(s['tested_jointly'])})" if s.get("tested_jointly") else "")]
+        doc.table(["#", "effect", "physical terms", "evidence (training flights, decides)",
+                   "test flights (reported only)"],
+                  [[i, s["effect"] + (" (dropped at the end)" if s.get("dropped") else ""), s["physical"],
+                    _evidence_text(s["evidence"])
+                    + (f" (tested jointly: {' + '.join(s['tested_jointly'])})" if s.get("tested_jointly") else ""),
+                    _test_text(s["evidence"]) or "—"]
                    for i, s in enumerate(r.steps, 1)])
         rows = [[fe["effect"], t, f["name"], str(f["expr"]), fmt(f["coefficient"], 4)]
                 for fe in r.final_effects for t, fs in fe.get("features", {}).items() for f in fs]
@@ -207,24 +320,31 @@ def document(result) -> Document:
     if r.candidates:
         doc.heading("Candidate scores per step")
         for c in r.candidates:
-            doc.table([f"step {c['step']}", "CV error (σ units)", "CV change", "p", "blocks better", "test RMSE", "passed"],
+            chosen = _chosen(c, r)
+            doc.table([f"step {c['step']}" if not c.get("assessed") else f"own rows ({c['assessed']})",
+                       "CV error (σ units)", "CV change", "p", "threshold", "blocks better",
+                       "test RMSE (reported only)", "decision"],
                       [[s["effect"], fmt(s["cv_rmse_after"]), f"{-100 * s['rel_improvement']:+.2f} %",
-                        fmt(s["p_value"], 2), s["blocks_improved"], fmt(s["test_rmse_after"]),
-                        "yes" if s["passed"] else "no"] for s in c["scores"]])
+                        fmt(s["p_value"], 2), fmt(s["p_threshold"], 2), s["blocks_improved"],
+                        fmt(s.get("test_rmse_after")), _verdict(s, s["effect"], chosen)] for s in c["scores"]])
             if c.get("pairs"):
                 doc.paragraph(c["pairs_reason"])
-                doc.table(["pair", "CV error (σ units)", "CV change", "p", "threshold", "passed"],
+                doc.table(["pair", "CV error (σ units)", "CV change", "p", "threshold", "decision"],
                           [[" + ".join(s["effects"]), fmt(s["cv_rmse_after"]),
                             f"{-100 * s['rel_improvement']:+.2f} %", fmt(s["p_value"], 2),
-                            fmt(s["p_threshold"], 2), "yes" if s["passed"] else "no"]
+                            fmt(s["p_threshold"], 2), _verdict(s, " + ".join(s["effects"]), chosen)]
                            for s in c["pairs"]])
     if r.open_ended:
         doc.heading("Open-ended search on the residual")
         for t, o in r.open_ended.items():
-            if o and o.get("ran"):
-                doc.paragraph(f"{t}: {'passed' if o['passed'] else 'not significant'}; "
-                              f"{_evidence_text(o['evidence'])}")
+            if o and o.get("ran") and o.get("passed"):
+                doc.paragraph(f"{t}: a significant residual remains; the SNGP term below explains it. "
+                              f"Evidence (training flights, decides): {_evidence_text(o['evidence'])}"
+                              + (f". {_test_text(o['evidence'])}" if _test_text(o["evidence"]) else ""))
                 doc.code(o["equation"])
+            elif o and o.get("ran"):
+                doc.paragraph(f"{t}: no significant residual remains (no SNGP term passes the rule; "
+                              "none is shown)")
             elif o:
                 doc.paragraph(f"{t}: not run ({o.get('reason')})")
     _figures(doc, r)

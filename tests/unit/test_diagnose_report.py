@@ -97,3 +97,90 @@ def test_open_ended_fallback_says_a_residual_remains_or_one_line():
     assert any("accepted" in x for x in lines)
     quiet = {t: {**o, "passed": False} for t, o in passed.items()}
     assert len(_fallback_lines(quiet)) == 1 and "no significant residual" in _fallback_lines(quiet)[0]
+
+
+# -- one output, one story (issue 29 item 6): built by hand, so each case is certain -------------
+def _ev(what, passed, test=None, p=2e-05, thr=0.00067):
+    verdict = "accepted" if passed else f"rejected (block test p = {p:.2g} ≥ {thr:.2g})"
+    ev = {"cv_rmse_before": 1.0, "cv_rmse_after": 0.8, "rel_improvement": 0.2, "p_value": p,
+          "p_threshold": thr, "statistic": 5.0, "n_blocks": 16, "blocks_improved": "15/16",
+          "passed": passed, "reasons": [] if passed else ["block test p"], "indistinguishable_from": [],
+          "text": f"{what}: CV RMSE 1 -> 0.8 (-20.0 %), t = 5.00 over 16 blocks, sign-flip p = {p:.2g} "
+                  f"{'<' if passed else '≥'} {thr:.2g} (α = 0.01, Bonferroni over 15), 15/16 blocks "
+                  f"better: {verdict}",
+          "test_rmse_before": None, "test_rmse_after": None, "test_rel_improvement": None}
+    if test:
+        ev.update(test_rmse_before=test[0], test_rmse_after=test[1], test_rel_improvement=1 - test[1] / test[0])
+    return ev
+
+
+def _hand_result(**over):
+    rm = {"train": 0.5, "test": 0.6, "cv": 0.55}
+    step = {"effect": "wind", "physical": "wind ≈ (1, 2) m/s", "coefficients": {}, "tested_jointly": None,
+            "rmse": {"vx_dot": rm}, "evidence": _ev("wind", True, test=(0.50, 0.517))}
+    d = {"targets": {"vx_dot": {"rmse_prior": rm, "rmse_before": rm, "rmse_after": rm, "steps": []}},
+         "effects_added": ["wind"], "steps": [step], "untestable_reasons": {}, "not_detected": [],
+         "conclusion": "added wind; no further effect is detectable from these signals",
+         "final_effects": [{"effect": "wind", "physical": "wind ≈ (1, 2) m/s", "foldable": False,
+                            "reason": "a condition of one flight", "features": {}}],
+         "open_ended": {"vx_dot": {"ran": True, "passed": False, "equation": "13710.0*throttle**12",
+                                   "signals": ["throttle"], "evidence": _ev("open-ended", False,
+                                                                            test=(0.1, 0.6755))}},
+         "candidates": [{"step": 1, "added": ["wind"], "scores": [
+             {"effect": "wind", **{k: v for k, v in _ev("wind", True).items()}, "test_rmse_after": None},
+             {"effect": "attitude_bias", **{k: v for k, v in _ev("attitude_bias", True).items()},
+              "test_rmse_after": None}]}],
+         "prior": "tilt-drag", "config": {}, "sources": {"train": ["a"], "test": ["b"]}}
+    d.update(over)
+    return d
+
+
+def test_an_accepted_step_does_not_share_a_line_with_a_worse_test_error():
+    txt = render_text(_hand_result())
+    ev_line = next(x for x in txt.splitlines() if "evidence" in x and "wind: CV RMSE" in x)
+    assert ev_line.rstrip().endswith("accepted") and "test" not in ev_line.split("wind:", 1)[1]
+    assert "reported, not used" not in txt                       # the old, self-contradicting suffix
+    assert ("test flights (reported only, not part of the decision): RMSE 0.5 -> 0.517 (+3.4 %, "
+            "worse on the test flights)") in txt
+
+
+def test_a_candidate_that_passes_but_is_not_added_does_not_say_accepted():
+    lines = render_text(_hand_result()).splitlines()
+    ab = next(x for x in lines if x.strip().startswith("attitude_bias: CV RMSE"))
+    assert not ab.endswith("accepted") and "passes the rule, not added: wind was added" in ab
+    w = next(x for x in lines if x.strip().startswith("wind: CV RMSE"))
+    assert w.endswith("accepted: added")
+
+
+def test_a_step_dropped_at_the_end_is_not_listed_as_added():
+    d = _hand_result(effects_added=[], final_effects=[])
+    d["steps"][0]["dropped"] = _ev("keep wind (all others in)", False, p=0.01)
+    txt = render_text(d)
+    assert "effects added, in order:" not in txt and "effects added: none in the end" in txt
+    assert "1. wind: wind ≈ (1, 2) m/s — DROPPED at the end, not in the final model" in txt
+
+
+def test_an_open_ended_term_that_is_not_significant_is_not_printed(tmp_path):
+    d = _hand_result()
+    assert "13710" not in render_text(d) and "+575" not in render_text(d)
+    write(d, tmp_path / "rep")
+    md = (tmp_path / "rep" / "diagnosis.md").read_text()
+    assert "13710" not in md and "no significant residual remains" in md
+    assert "passes the rule, not added" in md and "| added |" in md
+
+
+def test_every_symbol_printed_is_explained():
+    import re
+
+    from droneid.report.diagnose import GLOSSARY
+    txt = render_text(_result())
+    assert "symbols:" in txt
+    legend = txt[txt.index("symbols:"):]
+    for sym, key in (("α", "α:"), ("σ", "σ:"), ("t = ", "t: the paired t"), ("sign-flip p", "sign-flip p:"),
+                     ("Bonferroni over", "Bonferroni over m:"), ("CV", "CV:")):
+        if sym in txt[:txt.index("symbols:")]:
+            assert key in legend, sym
+    # the glossary's patterns are valid and each names what it explains
+    for pattern, meaning in GLOSSARY:
+        re.compile(pattern)
+        assert ":" in meaning
