@@ -56,6 +56,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    _import_sympy_meanwhile()
     from ..fit import FitConfig, fit, prepare   # the engine: only once the command runs
     from ..sngp.kernels import set_up_target
     if args.save and Path(args.save).is_dir():
@@ -102,3 +103,23 @@ def run(args) -> int:
         print(line)
     print(f"{model.generations_} generations in {model.wall_s_:.2f} s, seed {model.seed_}")
     return 0
+
+
+def _import_sympy_meanwhile() -> None:
+    """Start importing sympy (the equation is built with it) in a background thread now, before
+    the engine's imports: numba's set-up and the loading of its cached kernels run largely in
+    LLVM, outside the GIL, and the search releases it, so the import fills time the other core
+    would leave idle instead of waiting until the search starts. Imports only: the model and its
+    printed equation are the same either way."""
+    import threading
+    if "sympy" not in sys.modules:
+        threading.Thread(target=_import_quietly, name="droneid-import-sympy", daemon=True).start()
+
+
+def _import_quietly() -> None:
+    import gc
+    try:
+        import sympy  # noqa: F401
+    except Exception:   # noqa: BLE001 - the engine's own import of it reports the error
+        return
+    gc.collect()
