@@ -1,29 +1,30 @@
-"""Whole-process timings: the CLI's start-up and ``droneid fit`` as a user runs it (issue 26).
+"""Whole-process timings next to engine-only ones and the jar's recorded times (issue 26).
 
     .venv/bin/python benchmarks/bench_startup.py [--repeats R] [--quick] [--previous DIR] [--json FILE]
 
-Every figure here is the wall time of a whole process (``python -m droneid ...``, interpreter
-start to exit, run from this checkout), median of R runs taken round-robin so that load from
-other processes spreads over all of them. Two tables:
+One command prints every figure side by side. The processes run as a user runs them
+(``python -m droneid ...`` from this checkout, interpreter start to exit, with Python's bytecode
+cache), each figure the median of R runs taken round-robin so that load from other processes
+spreads over all of them; the load average is printed with each table (other processes inflate
+wall time on this shared 2-core machine kind: CPU time is given too). Three tables:
 
 1. **Start-up**: ``python -c "import numpy"`` (the yardstick, measured in the same run),
-   ``droneid --version``, ``droneid --help``, ``droneid inspect --help``, ``droneid fit --help``;
-   each as seconds and as a multiple of the numpy import (target: at most 3x).
+   ``droneid --version``, ``--help``, ``inspect --help``, ``fit --help``, ``simulate --help``; each
+   in seconds and as a multiple of the numpy import (target: at most 3x).
 2. **droneid fit at the paper's budget** (the command's defaults: 60 000 generations, population
-   500, nf 10, depth 7, Table I function set, early stopping on) on drone-like tables of 160, 431
-   and 1 000 samples (the data of ``bench_sngp.py``: tilt-drag with a planted -0.3|vx|vx,
-   noise 0.05 m/s^2), side by side:
-   - ``process``: the whole ``droneid fit`` process, what a user waits for;
+   500, nf 10, depth 7, Table I function set, early stopping on, search threads on every core) on
+   drone-like tables of 160, 431 and 1 000 samples (the data of ``bench_sngp.py``: tilt-drag with
+   a planted -0.3|vx|vx, noise 0.05 m/s^2). Side by side, each also as "x jar" (the jar's
+   recorded time divided by it, against the jar's best and worst):
+   - ``jar rec.``: the authors' SNGP.jar, its wall times RECORDED on this machine kind (22-36 s at
+     160 samples, 40-43 s at 431, about 155 s at 1 000; the jar is not available here);
+   - ``process``: the whole ``droneid fit`` process, what a user waits for (targets: 20x the
+     jar's best at 160 samples, i.e. <= 1.1 s, and 40x at 1 000, i.e. <= 3.9 s), and its CPU time;
    - ``engine``: ``SNGPRegressor.fit`` inside that process (its ``--json`` ``wall_s``: the
-     search, with the compiled kernels loaded from numba's cache on the first call, pruning and
-     the final refit; not the start-up, not the sympy simplification of the printed equation);
-   - ``engine warm``: the same fit in this benchmark's own process after a warm-up (kernels
-     loaded, sympy imported): the engine-only figure ``bench_sngp.py`` reports, here with the
-     command's early stopping;
-   - the authors' SNGP.jar: its wall times recorded on this machine kind (22-36 s at 160
-     samples, 40-43 s at 431, about 155 s at 1 000; the jar is not available here), and the
-     ratio jar / process against the jar's best and worst recorded time (targets: 20x at 160
-     samples, i.e. <= 1.1 s, and 40x at 1 000, i.e. <= 3.9 s).
+     search, loading the cached kernels on the first call, pruning, the final refit);
+   - ``warm``: the same fit in this benchmark's own process after a warm-up (every core);
+   - ``1-core``: the same fit in a warm process on one core, CPU s: the engine-only figure of the
+     kind ``bench_sngp.py`` reports (it runs the fixed budget without early stopping).
 3. **Where the time goes**: one ``droneid fit`` process at 160 samples, phase by phase.
 
 ``--previous DIR`` also times every process command from another checkout (e.g. a git worktree
@@ -64,6 +65,7 @@ STARTUP = {
     "droneid --help": ["-m", "droneid", "--help"],
     "droneid inspect --help": ["-m", "droneid", "inspect", "--help"],
     "droneid fit --help": ["-m", "droneid", "fit", "--help"],
+    "droneid simulate --help": ["-m", "droneid", "simulate", "--help"],
 }
 
 
@@ -85,13 +87,18 @@ def _save(path: Path, X, y) -> Path:
     return path
 
 
+#: the processes run as a user's would: with Python's bytecode cache (a shell that sets
+#: PYTHONDONTWRITEBYTECODE would otherwise have droneid's modules compiled from source every run)
+_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def _run(args: list[str], root: Path = ROOT) -> tuple[float, str, float]:
     """Wall time, stdout and CPU time (user + system) of ``python ARGS`` run in ``root`` (whose
     droneid ``-m`` runs). CPU time is less inflated than wall time by other processes' load."""
     import resource
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, *args], cwd=root, capture_output=True, text=True)
+    r = subprocess.run([sys.executable, *args], cwd=root, capture_output=True, text=True, env=_ENV)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
@@ -109,10 +116,12 @@ def startup_table(repeats: int, previous: Path | None) -> dict:
         for label, args in STARTUP.items():
             for r in roots:
                 walls[label, r].append(_run(args, r)[0])
+    load = os.getloadavg()[0]
     med = {k: statistics.median(v) for k, v in walls.items()}
     base = med["python -c 'import numpy'", ROOT]
     print(f"\n## Start-up, whole process (median of {repeats}; wall s; x numpy = multiple of the "
-          f"numpy import measured in the same run; target <= {STARTUP_TARGET:g}x)")
+          f"numpy import measured in the same run; target <= {STARTUP_TARGET:g}x; load average "
+          f"{load:.1f} at the end)")
     print(f"{'command':<28} {'wall s':>7} {'x numpy':>8} {'met?':>5}"
           + (f" {'before s':>9} {'x numpy':>8}" if previous else ""))
     for label in STARTUP:
@@ -128,10 +137,15 @@ def startup_table(repeats: int, previous: Path | None) -> dict:
 
 
 def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> dict:
-    from droneid.fit import FitConfig, fit_table   # the warm, in-process engine figure
+    from droneid.fit import FitConfig, fit_table   # the warm, in-process engine figures
+    from droneid.runner import default_jobs
 
     runs = {n: [] for n in sizes}
     before = {n: [] for n in sizes}
+    for root in [ROOT] + ([previous] if previous else []):   # writes the engine's .pyc files
+        _run(["-m", "droneid", "fit", str(tables[160]), "--target", "vx_dot", "--generations", "1",
+              "-q"], root)
+    load = [os.getloadavg()[0]]
     for _ in range(repeats):
         for n in sizes:
             argv = ["-m", "droneid", "fit", str(tables[n]), "--target", "vx_dot",
@@ -141,52 +155,75 @@ def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> 
             if previous:
                 wall, out, cpu = _run(argv, previous)
                 before[n].append((wall, {**json.loads(out.strip().splitlines()[-1]), "cpu_s": cpu}))
+        load.append(os.getloadavg()[0])
+    jobs = default_jobs()
     fit_table(tables[160], FitConfig(target="vx_dot", generations=200))  # warm-up
-    warm = {}
+    warm, fixed = {}, {}
     for n in sizes:
         t0 = time.perf_counter()
-        res = fit_table(tables[n], FitConfig(target="vx_dot"), test=tables["test"])
+        res = fit_table(tables[n], FitConfig(target="vx_dot", n_jobs=jobs), test=tables["test"])
         warm[n] = (time.perf_counter() - t0, res.estimator.generations_)
+        c0 = time.process_time()
+        res = fit_table(tables[n], FitConfig(target="vx_dot"), test=tables["test"])   # one core
+        fixed[n] = time.process_time() - c0
+    load.append(os.getloadavg()[0])
 
-    print(f"\n## droneid fit at the paper's budget, whole process vs engine vs SNGP.jar (median of "
-          f"{repeats}; wall s)")
-    print("process: the whole `droneid fit TABLE --target vx_dot --test TEST` process | engine: "
-          "SNGPRegressor.fit in it\n(kernel loading included) | engine warm: the same fit in an "
-          "already warm process | jar: its wall\ntime RECORDED on this machine kind (not run "
-          "here) | x jar: jar / process, against the jar's best-worst time")
-    print(f"{'samples':>7} {'gens':>6} {'process':>8} {'cpu':>5} {'engine':>7} {'start+print':>11} "
-          f"{'engine warm':>11} {'jar (rec.)':>10} {'x jar':>11} {'target':>7} {'met?':>5}"
-          + (f" {'before':>7} {'cpu':>5} {'x jar':>11} {'same model':>10}" if previous else ""))
+    print(f"\n## droneid fit at the paper's budget: SNGP.jar vs the whole process vs the engine alone "
+          f"(median of {repeats}; load average {min(load):.1f}-{max(load):.1f} on {os.cpu_count()} cores)")
+    print("""Which figure is which (every one on the same table and budget; s = seconds):
+  jar rec.   the authors' SNGP.jar, wall s RECORDED earlier on this machine kind (not run here: no jar)
+  process    wall s of the whole `droneid fit TABLE --target vx_dot --test TEST` process, start to
+             exit: what a user waits for (cpu: its user + system CPU s, less inflated by load)
+  engine     SNGPRegressor.fit inside that process (wall s: the search on every core, loading the
+             cached kernels on its first call, pruning, refit; not start-up, not printing)
+  warm       the same fit in this benchmark's process after a warm-up (wall s, every core)
+  1-core     the same fit in a warm process on one core (CPU s): the engine-only figure of
+             bench_sngp.py's kind
+  x jar      how many times faster than the jar: jar rec. / figure, against the jar's best-worst
+             recorded time (the targets of issue 26 are on the whole process and the jar's best)""")
+    print(f"{'samples':>7} {'gens':>6} {'jar rec.':>9} {'process':>8} {'cpu':>5} {'engine':>7} "
+          f"{'warm':>6} {'1-core':>7} | {'x jar: process':>15} {'engine':>12} {'warm':>12} "
+          f"{'1-core':>12} | {'target':>6} {'met?':>4}"
+          + (f" | {'before':>7} {'cpu':>5} {'x jar':>11} {'same model':>10}" if previous else ""))
     rows = {}
+
+    def ratio(lo, hi, x):
+        return f"{lo / x:.1f}x" if lo == hi else f"{lo / x:.1f}-{hi / x:.1f}x"
+
     for n in sizes:
         wall = statistics.median(w for w, _ in runs[n])
         engine = statistics.median(d["wall_s"] for _, d in runs[n])
+        cpu = statistics.median(d["cpu_s"] for _, d in runs[n])
         gens = runs[n][0][1]["generations"]
         lo, hi = JAR_WALL_S[n]
         target = TARGET_X.get(n)
         met = "" if target is None else ("yes" if lo / wall >= target else "NO")
         jar = f"{lo:.0f}" if lo == hi else f"{lo:.0f}-{hi:.0f}"
-        xjar = f"{lo / wall:.1f}x" if lo == hi else f"{lo / wall:.1f}-{hi / wall:.1f}x"
-        cpu = statistics.median(d["cpu_s"] for _, d in runs[n])
-        line = (f"{n:>7} {gens:>6} {wall:8.2f} {cpu:5.2f} {engine:7.2f} {wall - engine:11.2f} {warm[n][0]:11.2f} "
-                f"{jar:>10} {xjar:>11} {(f'{target:.0f}x' if target else ''):>7} {met:>5}")
+        line = (f"{n:>7} {gens:>6} {jar:>9} {wall:8.2f} {cpu:5.2f} {engine:7.2f} {warm[n][0]:6.2f} "
+                f"{fixed[n]:7.2f} | {ratio(lo, hi, wall):>15} {ratio(lo, hi, engine):>12} "
+                f"{ratio(lo, hi, warm[n][0]):>12} {ratio(lo, hi, fixed[n]):>12} | "
+                f"{(f'{target:.0f}x' if target else ''):>6} {met:>4}")
         if previous:
             bw = statistics.median(w for w, _ in before[n])
             bcpu = statistics.median(d["cpu_s"] for _, d in before[n])
             same = all((d["rmse_train"], d["rmse_test"], d["generations"])
                        == (runs[n][0][1]["rmse_train"], runs[n][0][1]["rmse_test"], gens)
                        for _, d in before[n] + runs[n])
-            line += (f" {bw:7.2f} {bcpu:5.2f} {(f'{lo / bw:.1f}x' if lo == hi else f'{lo / bw:.1f}-{hi / bw:.1f}x'):>11}"
-                     f" {'yes' if same else 'NO':>10}")
+            line += f" | {bw:7.2f} {bcpu:5.2f} {ratio(lo, hi, bw):>11} {'yes' if same else 'NO':>10}"
         print(line)
-        rows[n] = {"process_s": wall, "process_cpu_s": cpu, "engine_s": engine, "engine_warm_s": warm[n][0],
+        rows[n] = {"process_s": wall, "process_cpu_s": cpu, "engine_s": engine,
+                   "engine_warm_s": warm[n][0], "engine_one_core_cpu_s": fixed[n],
                    "generations": gens, "jar_recorded_s": [lo, hi],
-                   "x_jar": [lo / wall, hi / wall], "process_runs_s": [w for w, _ in runs[n]],
-                   "rmse_train": runs[n][0][1]["rmse_train"], "rmse_test": runs[n][0][1]["rmse_test"]}
-    print("(cpu: user + system CPU s of the process; start+print: process - engine = interpreter, imports, reading the table, the sympy "
-          "simplification of the\n printed equation (a 0.5 s budget) and exit."
-          + (" before: the same process from --previous, interleaved; same model: equal\n"
-             " training and test errors and generations in every run of both)" if previous else ")"))
+                   "x_jar_process": [lo / wall, hi / wall], "x_jar_engine_warm": [lo / warm[n][0], hi / warm[n][0]],
+                   "process_runs_s": [w for w, _ in runs[n]],
+                   "process_cpu_runs_s": [d["cpu_s"] for _, d in runs[n]],
+                   "rmse_train": runs[n][0][1]["rmse_train"], "rmse_test": runs[n][0][1]["rmse_test"],
+                   "load": load}
+    print(f"(process - engine = interpreter, imports (numpy, numba, sympy in the background), "
+          f"reading the table, building and printing the equation, exit. Search threads: "
+          f"{jobs} cores"
+          + ("; before: the same process from --previous, interleaved; same model: equal training "
+             "and test errors and generations in every run of both)" if previous else ")"))
     return rows
 
 
@@ -216,13 +253,13 @@ def wrap(owner, name, before=None, after=None, once=False):
         return out
     setattr(owner, name, inner)
 
-wrap(F, "prepare", "imports of the fit command (numpy, numba, the engine; no sympy, no pandas)",
-     "reading and checking the table")
+wrap(F, "prepare", "imports of the fit command (numpy, numba, the engine; sympy starts in the "
+     "background)", "reading and checking the table")
 wrap(K, "set_up_target", None, "numba's target set-up (kernels.set_up_target)")
 wrap(popmod, "init", None, "first kernel call: loading the cached kernels", once=True)
-wrap(E, "run_search", "estimator set-up", "the search (sympy imported meanwhile)")
-wrap(E.SNGPRegressor, "_render", "final model, pruning, test error",
-     "sympy simplification of the printed equation (0.5 s budget)")
+wrap(E, "run_search", "estimator set-up", "the search (threads on every core)")
+wrap(E, "render", "final model, pruning, test error (waits for sympy if still importing)",
+     "building the equation's text (sympy; no simplification by default)")
 with contextlib.redirect_stdout(io.StringIO()):
     cli.main(["fit", sys.argv[1], "--target", "vx_dot", "-q"])
 mark("printing")
@@ -240,7 +277,7 @@ def breakdown(table: Path) -> None:
     import ast
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-c", _PHASES, str(table)], cwd=ROOT, capture_output=True,
-                       text=True, check=True)
+                       text=True, check=True, env=_ENV)
     whole = time.perf_counter() - t0
     rows, inside = ast.literal_eval(r.stdout.strip().splitlines()[-1])
     print(f"\n## Where one `droneid fit` process (160 samples) spends its time (wall s, one run)")
