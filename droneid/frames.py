@@ -21,7 +21,7 @@ import numpy as np
 __all__ = [
     "wrap_angle", "unwrap_angle", "ned_to_enu", "euler_frd_ned_to_flu_enu",
     "euler_to_quat", "quat_to_euler", "quat_to_matrix", "euler_to_matrix",
-    "quat_flu_enu_from_frd_ned",
+    "quat_flu_enu_from_frd_ned", "qmul",
 ]
 
 
@@ -120,7 +120,8 @@ _Q_NED_TO_ENU = np.array([0.0, np.sqrt(0.5), np.sqrt(0.5), 0.0])  # rotation tak
 _Q_FLU_TO_FRD = np.array([0.0, 1.0, 0.0, 0.0])                    # 180 deg about x
 
 
-def _qmul(a, b):
+def qmul(a, b):
+    """Hamilton product ``a ⊗ b`` of quaternions (..., 4), scalar first (broadcasts)."""
     a, b = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
     w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
     w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
@@ -137,6 +138,6 @@ def quat_flu_enu_from_frd_ned(q_frd_ned):
 
     ``q_enu_flu = q_ned->enu * q_ned_frd * q_flu->frd``, all Hamilton, scalar first.
     """
-    q = _qmul(_qmul(_Q_NED_TO_ENU, np.asarray(q_frd_ned, float)), _Q_FLU_TO_FRD)
+    q = qmul(qmul(_Q_NED_TO_ENU, np.asarray(q_frd_ned, float)), _Q_FLU_TO_FRD)
     # keep the scalar part non-negative: same rotation, continuous sign
     return np.where(q[..., :1] < 0, -q, q)

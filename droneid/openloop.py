@@ -37,7 +37,7 @@ from types import MappingProxyType
 import numpy as np
 
 from .errors import ConfigError, DataError
-from .frames import _qmul, quat_to_euler, quat_to_matrix
+from .frames import qmul, quat_to_euler, quat_to_matrix
 
 __all__ = [
     "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log",
@@ -148,14 +148,14 @@ def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> S
 def quat_derivative(q: np.ndarray, w_body: np.ndarray) -> np.ndarray:
     """``q̇ = ½ q ⊗ (0, ω)`` for Hamilton ``q`` (..., 4) and body rates ``ω`` (..., 3) in rad/s."""
     zero = np.zeros(w_body.shape[:-1] + (1,))
-    return 0.5 * _qmul(q, np.concatenate([zero, w_body], axis=-1))
+    return 0.5 * qmul(q, np.concatenate([zero, w_body], axis=-1))
 
 
 def quat_angle(q_true: np.ndarray, q_pred: np.ndarray) -> np.ndarray:
     """Geodesic angle (rad, in [0, π]) between two attitudes: ``2·atan2(‖e_v‖, |e_w|)`` of the
     error quaternion ``e = q_true⁻¹ ⊗ q_pred`` (inputs (..., 4), need not be normalised)."""
     conj = q_true * np.array([1.0, -1.0, -1.0, -1.0])
-    e = _qmul(conj, q_pred)
+    e = qmul(conj, q_pred)
     return 2.0 * np.arctan2(np.linalg.norm(e[..., 1:], axis=-1), np.abs(e[..., 0]))
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from droneid.errors import DataError
 from droneid.flight import Flight, Signal
-from droneid.frames import _qmul
+from droneid.frames import qmul
 from droneid.openloop import (QUANTITIES, Constant, NominalPhysics, StateLog, open_loop,
                               quat_angle, simulate, state_log, window_errors)
 
@@ -29,7 +29,7 @@ def _state(p, v, q, w):
 def test_window_errors_of_a_known_error_in_each_quantity():
     q_true = _rot([1.0, 2.0, -0.5], 0.7)
     # predicted attitude: the true one turned by 0.3 rad about another axis (body side)
-    q_pred = _qmul(q_true, _rot([0.0, 1.0, 1.0], 0.3))
+    q_pred = qmul(q_true, _rot([0.0, 1.0, 1.0], 0.3))
     true = _state([1.0, 2.0, 3.0], [0.5, -0.5, 0.0], q_true, [0.1, 0.2, 0.3])[None, None]
     pred = _state([4.0, 6.0, 3.0], [1.5, 1.5, 2.0], -q_pred, [0.1, 0.2, -1.7])[None, None]
     e = window_errors(pred, true)
@@ -42,9 +42,9 @@ def test_window_errors_of_a_known_error_in_each_quantity():
 def test_quat_angle_is_the_geodesic_angle_up_to_pi():
     q0 = _rot([0.0, 0.0, 1.0], 0.2)
     for a in (0.0, 0.5, 2.0, 3.0):
-        assert quat_angle(q0, _qmul(q0, _rot([1.0, 0.0, 0.0], a))) == pytest.approx(a, abs=1e-12)
+        assert quat_angle(q0, qmul(q0, _rot([1.0, 0.0, 0.0], a))) == pytest.approx(a, abs=1e-12)
     # beyond pi the shorter way round is reported
-    assert quat_angle(q0, _qmul(q0, _rot([1.0, 0.0, 0.0], 4.0))) == pytest.approx(2 * math.pi - 4.0)
+    assert quat_angle(q0, qmul(q0, _rot([1.0, 0.0, 0.0], 4.0))) == pytest.approx(2 * math.pi - 4.0)
 
 
 def _ramp_log(n=300, dt=0.01):
@@ -123,7 +123,7 @@ def test_constant_body_rate_rotates_by_the_right_angle_and_keeps_unit_norm():
     ang = quat_angle(np.broadcast_to(q0, q.shape), q)
     np.testing.assert_allclose(ang, np.linalg.norm(w) * t, atol=1e-9)
     # body-fixed axis: q(t) = q0 ⊗ exp(ω t / 2)
-    expected = _qmul(q0, _rot(w, np.linalg.norm(w) * t))
+    expected = qmul(q0, _rot(w, np.linalg.norm(w) * t))
     np.testing.assert_allclose(q, expected, atol=1e-9)
     np.testing.assert_allclose(out[0, :, 10:13], np.broadcast_to(w, (H, 3)))
 
