@@ -58,6 +58,9 @@ def test_fit_text_output_inputs_and_save(tables, capsys, tmp_path):
     (["--target", "vz_dot"], "vz_dot"),
     (["--target", "vx_dot", "--inputs", "vx,pich"], "did you mean 'pitch'"),
     (["--target", "vx_dot", "--prior", "open('x')"], "not allowed"),
+    (["--target", "vx_dot", "--depth", "1"], "'max_depth' parameter of FitConfig must be an int >= 2"),
+    (["--target", "vx_dot", "--jobs", "0"], "'n_jobs' parameter of FitConfig must be an int >= 1"),
+    (["--target", "vx_dot", "--simplify", "-1"], "'simplify_s' parameter of FitConfig"),
 ])
 def test_fit_errors_exit_2(tables, capsys, argv, message):
     train, _ = tables
@@ -88,3 +91,15 @@ def test_fit_with_constraint_file(tables, tmp_path, capsys):
     assert rc == 0
     d = json.loads(capsys.readouterr().out)
     assert d["constraint_rmse_train"] < 0.05 and d["constraint_rmse_test"] < 0.05
+
+
+def test_fit_gives_the_same_line_on_one_core_and_on_two(tables, capsys):
+    train, test = tables
+    lines = []
+    for jobs in ("1", "2"):
+        assert main(["fit", str(train), "--test", str(test), "--target", "vx_dot", "--generations",
+                     "2000", "--population", "80", "--jobs", jobs, "--json"]) == 0
+        d = json.loads(capsys.readouterr().out.strip())
+        d.pop("wall_s")
+        lines.append(d)
+    assert lines[0] == lines[1]
