@@ -43,7 +43,7 @@ __all__ = [
     "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log",
     "quat_derivative", "quat_angle", "simulate", "rollout", "window_errors", "OpenLoopScore",
     "OpenLoopResult", "score_model", "open_loop", "NominalPhysics", "Constant",
-    "CRAZYFLIE_RAD_S_PER_ERPM",
+    "CRAZYFLIE_RAD_S_PER_ERPM", "IdentifiedTranslation", "IdentifiedVehicle",
 ]
 
 STATE_SIZE = 13
@@ -435,3 +435,26 @@ class IdentifiedTranslation:
 
     def ang_accel(self, state, u) -> np.ndarray:
         return np.zeros((state.shape[0], 3))
+
+
+@dataclass(frozen=True)
+class IdentifiedVehicle:
+    """The whole vehicle open loop: a translational model's v̇ and a rotational model's ω̇,
+    stepped together by :func:`simulate` (RK4, unit quaternion) from the motor speeds alone.
+
+    ``translation`` has ``inputs(log) -> (N, K_t)`` and ``accel(state, u) -> v̇`` (e.g.
+    :class:`IdentifiedTranslation`, :class:`droneid.rotation.TranslationModel`); ``rotation`` has
+    ``inputs(log) -> (N, K_r)``, ``input_width == K_r`` and ``ang_accel(state, u) -> ω̇`` (e.g.
+    :class:`droneid.rotation.RotationModel`). Their inputs sit side by side, translation first.
+    """
+    translation: object
+    rotation: object
+
+    def inputs(self, log: StateLog) -> np.ndarray:
+        return np.hstack([_model_inputs(self.translation, log), _model_inputs(self.rotation, log)])
+
+    def accel(self, state, u) -> np.ndarray:
+        return self.translation.accel(state, u[:, :u.shape[1] - self.rotation.input_width])
+
+    def ang_accel(self, state, u) -> np.ndarray:
+        return self.rotation.ang_accel(state, u[:, u.shape[1] - self.rotation.input_width:])

@@ -12,6 +12,19 @@ the rotor speeds ``d`` steps earlier, ``P`` the layout's torque patterns, :mod:`
 * ``c_k ω_k``: rate damping (rotor flapping, drag); ``γ_k``: gyroscopic ``ω_j ω_l`` terms, e.g.
   ``ω̇x ∋ (J_y − J_z)/J_x · ω_y ω_z``; ``r_k`` (yaw only): reaction to the rotors' spin-up;
 * ``b_k``: trim. It is fitted per training flight; a new flight gets their mean.
+* ``h_k v_b`` (term ``rotor_drag``, roll and pitch): the rotors' drag moment (blade flapping):
+  a body velocity ``v_b`` pitches the vehicle back against it, ``ω̇x ∋ +h v_by``,
+  ``ω̇y ∋ −h v_bx``; ``rotor_drag_thrust`` adds ``h' v_b (Σ s_i)`` (the moment grows with thrust).
+  On the shared Crazyflie flights the onboard controller holds this moment with slow thrust
+  differences (their low-frequency part is ``≈ −0.35 v_b`` on squares and melon alike): without
+  the term those differences read as torques that never turn the vehicle.
+
+The trim of a new flight (``balance_weight_s``): every flight has its own balance point (centre of
+gravity, battery, propellers); the controller keeps the mean torque at zero, so the mean of the
+torque inputs since the flight began (:func:`balanced`, causal, started from the training mean
+with ``balance_weight_s`` seconds of weight) estimates it. The model then reads motor speeds from
+before the prediction window (never states): say so where its figures are compared with models
+that read the window only.
 
 The balance point of the torque inputs moves between flights (battery and centre of gravity: on
 the shared Crazyflie squares the hover pitch pattern ``(P s)_pitch`` of runs 1-2 differs from
@@ -30,6 +43,7 @@ near the ground are screened out. Fits are Huber IRLS (:func:`droneid.regression
 from __future__ import annotations
 
 from collections.abc import Sequence
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,14 +53,19 @@ from priors.torque import RotorLayout, get_layout
 from .differentiation import get_differentiator
 from .errors import DataError
 from .frames import quat_to_matrix
-from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, StateLog
+from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, IdentifiedVehicle, StateLog
 from .regression import robust_fit
 
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
-           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed", "derivative", "spin_rate", "ROTATION_TERMS"]
+           "fit_vehicle", "fit_rotation_multistep", "DAMPING_GRID", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed", "derivative", "spin_rate", "ROTATION_TERMS",
+           "KNOWN_TERMS", "balanced", "body_velocity", "select_rotation", "RotationChoice"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
+#: every optional rotational term :func:`fit_rotation` knows
+KNOWN_TERMS = ROTATION_TERMS + ("rotor_drag", "rotor_drag_thrust")
+#: roll gets +v_by, pitch −v_bx (the rotor drag moment opposes the body velocity)
+_DRAG_AXIS = ((1, 1.0), (0, -1.0))
 _SPEED_UNIT = 1000.0  # rad/s: s_i = (ω_i / 1000 rad/s)², coefficients near one
 
 
@@ -110,6 +129,22 @@ def smoothed(x: np.ndarray, dt_s: float, tau_s: float | None) -> np.ndarray:
     return lfilter([a], [1.0, a - 1.0], x, axis=0, zi=(1.0 - a) * x[:1])[0]
 
 
+def balanced(s: np.ndarray, dt_s: float, prior: np.ndarray | None, weight_s: float | None) -> np.ndarray:
+    """``s`` (N, M) minus its mean since the first sample, causal: ``(Σ_{j≤i} s_j dt + w·prior)
+    / (i·dt + w)`` with the prior mean ``prior`` (M,) weighted as ``weight_s`` seconds of data.
+    ``weight_s=None``: ``s`` unchanged."""
+    if weight_s is None:
+        return s
+    n = dt_s * np.arange(1, s.shape[0] + 1)[:, None]
+    prior = np.zeros(s.shape[1]) if prior is None else np.asarray(prior, float)
+    return s - (np.cumsum(s, axis=0) * dt_s + float(weight_s) * prior) / (n + float(weight_s))
+
+
+def body_velocity(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Velocity (W, 3) in the body frame FLU, m/s, from the attitude ``q`` and world ENU ``v``."""
+    return np.einsum("nji,nj->ni", quat_to_matrix(q), v)
+
+
 def _mid(a: np.ndarray) -> np.ndarray:
     """Values at the step midpoints: the mean of consecutive samples (one row fewer)."""
     return 0.5 * (a[1:] + a[:-1])
@@ -121,7 +156,10 @@ def _speeds(log: StateLog, rad_s_per_rpm: float) -> np.ndarray:
 
 # -- rotation ------------------------------------------------------------------------------------
 def _rotation_columns(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
-                      terms: tuple[str, ...]) -> list[np.ndarray]:
+                      terms: tuple[str, ...], vb: np.ndarray | None = None) -> list[np.ndarray]:
+    unknown = [t for t in terms if t not in KNOWN_TERMS]
+    if unknown:
+        raise DataError(f"unknown rotational term(s) {', '.join(unknown)}; known: {', '.join(KNOWN_TERMS)}")
     cols = [s @ P[k]]
     if "centre" in terms:
         cols.append(s.sum(axis=-1))
@@ -132,6 +170,14 @@ def _rotation_columns(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates
         cols.append(w[:, i] * w[:, j])
     if "spinup" in terms and k == 2:
         cols.append(rates @ P[2])
+    if k < 2 and ("rotor_drag" in terms or "rotor_drag_thrust" in terms):
+        if vb is None:
+            raise DataError("the rotor drag moment needs the body velocity")
+        j, sign = _DRAG_AXIS[k]
+        if "rotor_drag" in terms:
+            cols.append(sign * vb[:, j])
+        if "rotor_drag_thrust" in terms:
+            cols.append(sign * vb[:, j] * s.sum(axis=-1))
     return cols
 
 
@@ -153,40 +199,88 @@ class RotationModel:
     centre_tau_s: float | None = None
     #: None, or the time constant (s) of the causal low-pass (:func:`smoothed`) of the rotor speeds
     lowpass_tau_s: float | None = None
+    #: None, or the prior weight (s) of :func:`balanced`: ``s`` about its mean since the flight began
+    balance_weight_s: float | None = None
+    #: the training flights' mean ``s`` (M,), the prior of :func:`balanced`
+    balance_prior: np.ndarray | None = None
 
-    def ang_accel_from(self, w: np.ndarray, s: np.ndarray, rates: np.ndarray) -> np.ndarray:
-        """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²`` and rotor speed rates."""
+    @property
+    def input_width(self) -> int:
+        """Columns of :meth:`inputs`: ``s`` and the rotor speed rates, one per rotor each."""
+        return 2 * self.layout.motors
+
+    def conditioned(self, rpm: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(s, rates)`` (N, M) each, from motor speeds ``rpm`` (N, M) as logged on a uniform grid
+        of step ``dt_s``: delayed, low-passed, squared in (1000 rad/s)², centred and balanced as
+        this model was fitted. Causal: row ``i`` reads ``rpm[:i + 1]`` only."""
+        om = smoothed(_delayed(np.asarray(rpm, float) * (self.rad_s_per_rpm / _SPEED_UNIT), self.delay_steps),
+                      dt_s, self.lowpass_tau_s)
+        s = balanced(centred(om ** 2, dt_s, self.centre_tau_s), dt_s, self.balance_prior, self.balance_weight_s)
+        return s, spin_rate(om, dt_s)
+
+    def inputs(self, log: StateLog) -> np.ndarray:
+        """(N, 2M) for :func:`droneid.openloop.simulate`: :meth:`conditioned` side by side."""
+        if log.rpm.shape[1] != self.layout.motors:
+            raise DataError(f"{log.name}: the rotation model has {self.layout.motors} rotors, the log "
+                            f"{log.rpm.shape[1]} motor speeds")
+        return np.hstack(self.conditioned(log.rpm, log.dt_s))
+
+    def ang_accel(self, state: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """ω̇ (W, 3) from the state (W, 13) and a row of :meth:`inputs` (W, 2M)."""
+        m = self.layout.motors
+        vb = body_velocity(state[:, 6:10], state[:, 3:6])
+        return self.ang_accel_from(state[:, 10:13], u[:, :m], u[:, m:2 * m], vb)
+
+    def ang_accel_from(self, w: np.ndarray, s: np.ndarray, rates: np.ndarray,
+                       vb: np.ndarray | None = None) -> np.ndarray:
+        """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²``, rotor speed rates and (for
+        the rotor drag moment) the body velocity ``vb`` (W, 3) in m/s."""
         P = self.layout.patterns()
         out = np.empty((w.shape[0], 3))
         for k in range(3):
-            cols = _rotation_columns(k, P, s, w, rates, self.terms)
+            cols = _rotation_columns(k, P, s, w, rates, self.terms, vb)
             out[:, k] = np.column_stack(cols) @ self.coef[k] + self.trim[k]
         return out
 
 
 def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
                  terms: tuple[str, ...] = ROTATION_TERMS, delay_steps: int = 0,
-                 window_s: float = 0.05, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
+                 window_s: float = 0.05, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM,
+                 lowpass_tau_s: float | None = None, balance_weight_s: float | None = None
                  ) -> RotationModel:
-    """Fit ω̇ per axis on training flights, with one trim per flight (their mean is kept)."""
+    """Fit ω̇ per axis on training flights by equation error (Huber IRLS), with one trim per
+    flight (their mean is kept). Rows sit at the step midpoints (the input is held over the step)
+    where every motor turns in flight. ``lowpass_tau_s``: causal low-pass of the rotor speeds;
+    ``balance_weight_s``: torque inputs about their mean since the flight began (:func:`balanced`,
+    the prior being the training flights' mean)."""
     layout = get_layout(layout) if isinstance(layout, str) else layout
     layout.check()
     P = layout.patterns()
+    shell = RotationModel(layout, tuple(terms), (np.zeros(0),) * 3, np.zeros(3), int(delay_steps),
+                          float(rad_s_per_rpm), lowpass_tau_s=lowpass_tau_s)
+    prior = None
+    if balance_weight_s is not None:
+        flying = [shell.conditioned(log.rpm, log.dt_s)[0][flying_mask(log)] for log in logs]
+        if not any(f.size for f in flying):
+            raise DataError("fit_rotation: no training row with every motor turning in flight")
+        prior = np.concatenate(flying).mean(axis=0)
+        shell = dataclasses.replace(shell, balance_weight_s=float(balance_weight_s), balance_prior=prior)
     rows = []
     for log in logs:
         # rows at the step midpoints k + 1/2: the input u_k is held over [k, k+1]
         m = _mid(flying_mask(log).astype(float)) == 1.0
-        om = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)
+        s, rate = shell.conditioned(log.rpm, log.dt_s)
         wd = _mid(derivative(log, slice(10, 13), window_s))
-        rows.append((m, om[:-1] ** 2, _mid(log.state[:, 10:13]), spin_rate(om, log.dt_s)[:-1], wd))
+        vb = _mid(body_velocity(log.state[:, 6:10], log.state[:, 3:6]))
+        rows.append((m, s[:-1], _mid(log.state[:, 10:13]), rate[:-1], wd, vb))
     if not any(r[0].any() for r in rows):
         raise DataError("fit_rotation: no training row with every motor turning in flight")
     n_f = len(logs)
     coef, trims = [], np.zeros((n_f, 3))
     for k in range(3):
         A, y = [], []
-        for j, (m, s, w, sr, wd) in enumerate(rows):
-            cols = _rotation_columns(k, P, s[m], w[m], sr[m], terms)
+        for j, (m, s, w, sr, wd, vb) in enumerate(rows):
+            cols = _rotation_columns(k, P, s[m], w[m], sr[m], terms, vb[m])
             onehot = np.zeros((int(m.sum()), n_f))
             onehot[:, j] = 1.0
             A.append(np.column_stack(cols + [onehot]))
@@ -200,8 +294,7 @@ def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyfli
         beta = robust_fit(A, y, lo=lo).beta
         coef.append(beta[:nc])
         trims[:, k] = beta[nc:]
-    return RotationModel(layout, tuple(terms), tuple(coef), trims.mean(axis=0), int(delay_steps),
-                         float(rad_s_per_rpm), trims)
+    return dataclasses.replace(shell, coef=tuple(coef), trim=trims.mean(axis=0), flight_trims=trims)
 
 
 # -- translation ---------------------------------------------------------------------------------
@@ -213,6 +306,14 @@ class TranslationModel:
     delay_steps: int = 0
     rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
     g: float = G
+
+    def inputs(self, log: StateLog) -> np.ndarray:
+        """(N, M): ``s = (ω_i/1000 rad/s)²`` of the motor speeds ``delay_steps`` earlier."""
+        return _delayed(_speeds(log, self.rad_s_per_rpm), self.delay_steps) ** 2
+
+    def accel(self, state: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """v̇ (W, 3) from the state (W, 13) and a row of :meth:`inputs` (W, M)."""
+        return self.accel_from(state[:, 6:10], state[:, 3:6], u)
 
     def accel_from(self, q: np.ndarray, v: np.ndarray, s: np.ndarray) -> np.ndarray:
         R = quat_to_matrix(q)
@@ -253,30 +354,9 @@ def fit_translation(logs: Sequence[StateLog], *, delay_steps: int = 0, window_s:
 
 
 # -- the vehicle ---------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class VehicleModel:
-    """Translation and rotation together, for :func:`droneid.openloop.simulate`.
-
-    Its inputs (``inputs(log)``, (N, 12)): ``s`` at the translation's delay, ``s`` at the
-    rotation's delay and the rotor speed rates at the rotation's delay.
-    """
-    translation: TranslationModel
-    rotation: RotationModel
-
-    def inputs(self, log: StateLog) -> np.ndarray:
-        om = _speeds(log, self.rotation.rad_s_per_rpm)
-        om_r = smoothed(_delayed(om, self.rotation.delay_steps), log.dt_s, self.rotation.lowpass_tau_s)
-        om_t = _delayed(_speeds(log, self.translation.rad_s_per_rpm), self.translation.delay_steps)
-        s_r = centred(om_r ** 2, log.dt_s, self.rotation.centre_tau_s)
-        return np.hstack([om_t ** 2, s_r, spin_rate(om_r, log.dt_s)])
-
-    def accel(self, state, u) -> np.ndarray:
-        m = u.shape[1] // 3
-        return self.translation.accel_from(state[:, 6:10], state[:, 3:6], u[:, :m])
-
-    def ang_accel(self, state, u) -> np.ndarray:
-        m = u.shape[1] // 3
-        return self.rotation.ang_accel_from(state[:, 10:13], u[:, m:2 * m], u[:, 2 * m:])
+#: translation and rotation together (:class:`droneid.openloop.IdentifiedVehicle`): the inputs
+#: are the translation's and the rotation's side by side
+VehicleModel = IdentifiedVehicle
 
 
 def fit_vehicle(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
