@@ -1,7 +1,24 @@
 """droneid: identify analytic models of drone dynamics from flight logs.
 
-Stages (one object, one verb each): ``parsers.read_flight(path) -> Flight``,
-dataset building ``Flight -> Dataset``, the SNGP engine ``fit / predict``, identification and
-diagnosis pipelines, and reports. See docs/signals.md for the frame and unit conventions.
+The Python API (docs/api.md), imported on first use so that ``droneid --version`` stays fast:
+
+- ``droneid.read_log(path, **options) -> Flight``;
+- ``droneid.Identifier(prior=…, differentiator=…, constraints=…, effects=…).fit(flights)`` ->
+  :class:`droneid.identify.IdentificationResult`, with ``.predict(flight)`` and ``.export(lang)``.
+
+Stages (one object, one verb each): ``parsers.read_flight(path) -> Flight``, dataset building
+``Flight -> Dataset``, the plan, the problem, the SNGP search, the ladder, and reports. See
+docs/signals.md for the frame and unit conventions.
 """
 __version__ = "0.1.0"
+
+__all__ = ["__version__", "read_log", "Identifier", "IdentificationResult"]
+
+_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify"}
+
+
+def __getattr__(name):
+    if name in _API:
+        import importlib
+        return getattr(importlib.import_module(_API[name]), name)
+    raise AttributeError(f"module 'droneid' has no attribute {name!r}")

@@ -6,7 +6,7 @@ identification and diagnosis. Columns use canonical signal names; the target is 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -96,6 +96,10 @@ class Dataset:
         out[self.target_name] = self.y
         out["t"] = self.t
         return out
+
+    def noted(self, note: str) -> "Dataset":
+        """The same rows with ``note`` added to :attr:`notes` (how the set was made)."""
+        return replace(self, notes=self.notes + (note,))
 
     def subset(self, mask_or_index) -> "Dataset":
         """The samples selected by a boolean mask or an index array."""

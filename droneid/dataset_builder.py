@@ -49,7 +49,7 @@ from .frames import quat_to_euler, wrap_angle
 from .screening import screen_signal
 from .targets import TARGETS, state_of
 
-__all__ = ["DatasetBuilder", "split_time_block", "split_by_flight", "subsample",
+__all__ = ["DatasetBuilder", "subsample",
            "resample_signal", "in_flight_intervals", "with_euler_from_quaternion", "signal_gaps"]
 
 log = logging.getLogger(__name__)
@@ -669,52 +669,6 @@ def _unique_names(names: Sequence[str]) -> list[str]:
 
 
 # -- splits -------------------------------------------------------------------------------------
-def split_time_block(ds: Dataset, test_fraction: float = 0.3, block: str = "last"
-                     ) -> tuple[Dataset, Dataset]:
-    """Train and test sets by time blocks: in every flight, the ``last`` (or ``middle``)
-    ``test_fraction`` of its samples (in time order) is the test set."""
-    if isinstance(test_fraction, bool) or not isinstance(test_fraction, (int, float)) \
-            or not 0 < test_fraction < 1:
-        raise ConfigError(f"The 'test_fraction' parameter must be a number in (0, 1). "
-                          f"Got {test_fraction!r} instead.")
-    check_choice("block", block, ("last", "middle"), owner="split_time_block")
-    test = np.zeros(len(ds), bool)
-    for k in np.unique(ds.flight):
-        idx = np.flatnonzero(ds.flight == k)
-        idx = idx[np.argsort(ds.t[idx], kind="stable")]
-        m = int(round(test_fraction * idx.size))
-        if m == 0 or m == idx.size:
-            continue
-        start = idx.size - m if block == "last" else (idx.size - m) // 2
-        test[idx[start:start + m]] = True
-    if not test.any() or test.all():
-        raise DataError(f"cannot split {len(ds)} samples with test_fraction={test_fraction}")
-    return _noted(ds.subset(~test), f"train: time-block split ({block} {test_fraction:g} is test)"), \
-        _noted(ds.subset(test), f"test: time-block split ({block} {test_fraction:g} of each flight)")
-
-
-def split_by_flight(ds: Dataset, test) -> tuple[Dataset, Dataset]:
-    """Train and test sets by flight: ``test`` is a source name, an index, or a sequence of them
-    (the paper trains on one flight and tests on another)."""
-    items = [test] if isinstance(test, (str, int)) else list(test)
-    idx = set()
-    for it in items:
-        if isinstance(it, str):
-            if it not in ds.sources:
-                raise MissingSignalError(it, ds.sources, where="the dataset's flights")
-            idx.add(ds.sources.index(it))
-        else:
-            if not 0 <= int(it) < len(ds.sources):
-                raise ConfigError(f"flight index {it} out of range 0..{len(ds.sources) - 1}")
-            idx.add(int(it))
-    mask = np.isin(ds.flight, sorted(idx))
-    if not mask.any() or mask.all():
-        raise DataError("split by flight leaves the train or the test set empty")
-    names = ", ".join(ds.sources[i] for i in sorted(idx))
-    return _noted(ds.subset(~mask), f"train: flights other than {names}"), \
-        _noted(ds.subset(mask), f"test: flight(s) {names}")
-
-
 def subsample(ds: Dataset, n: int, seed=0) -> Dataset:
     """``n`` samples drawn without replacement (kept in their original order); the whole
     dataset when it has ``n`` or fewer."""
@@ -723,9 +677,4 @@ def subsample(ds: Dataset, n: int, seed=0) -> Dataset:
     if n >= len(ds):
         return ds
     idx = np.sort(np.random.default_rng(seed).choice(len(ds), size=int(n), replace=False))
-    return _noted(ds.subset(idx), f"subsampled to {n} of {len(ds)} samples (seed {seed})")
-
-
-def _noted(ds: Dataset, note: str) -> Dataset:
-    return Dataset(ds.X, ds.y, ds.t, ds.input_names, ds.target_name, ds.flight, ds.sources,
-                   ds.extra, ds.notes + (note,), ds.screened)
+    return ds.subset(idx).noted(f"subsampled to {n} of {len(ds)} samples (seed {seed})")

@@ -23,7 +23,11 @@ import sympy as sp
 from .errors import DataError, MissingSignalError
 from .expressions import compile_expression, parse_expression
 
-__all__ = ["IdentifiedModel"]
+__all__ = ["IdentifiedModel", "SCHEMA", "check_schema"]
+
+#: the ``schema`` of identify's result.json (docs/result-json.md); version 1, from before the typed
+#: results, is refused by everything that reads a result
+SCHEMA = "droneid.identify/2"
 
 # sympy's printed names -> the names the safe parser accepts
 _PRINTED = {"Abs": "abs", "Min": "min", "Max": "max"}
@@ -89,3 +93,14 @@ class IdentifiedModel:
         expr = parse_expression(text, signals, what=f"identified model of {target}")
         return cls(target, expr, dict(d.get("delays_s") or {}), str(d.get("description", "")),
                    str(d.get("unit", "m/s^2")))
+
+
+def check_schema(d: Mapping, where: str = "the result") -> None:
+    """DataError in one line unless ``d`` is a result.json of :data:`SCHEMA`."""
+    schema = d.get("schema") if isinstance(d, Mapping) else None
+    if schema == SCHEMA:
+        return
+    if schema == "droneid.identify/1":
+        raise DataError(f"{where} was made by an older droneid (schema {schema}); re-run "
+                        f"`droneid identify` to make a {SCHEMA} result")
+    raise DataError(f"{where} is not a droneid identification result (schema {schema!r}, expected {SCHEMA!r})")

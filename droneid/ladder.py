@@ -1,433 +1,374 @@
-"""The rungs of one identification, from the empirical model to the final one, and the guards
-that decide which rung a user gets.
+"""The ladder of one target: the rungs from the empirical model as given to the final model, and
+the guards that decide which rung a user gets.
 
-Every decision here uses TRAINING data only: blocked cross-validation over contiguous time
-blocks of the training flights (:func:`blocked_cv`). Test flights are evaluated for the report
-and never looked at.
+Rungs, bottom to top: the empirical model as given; the prior refit; + the input offset (when
+one was chosen); + each folded effect; the FINAL model (the physical rung, or the best SNGP run's
+evolved terms added to it when they survive the guards and the calibrated block test). Every
+rung is a :class:`Rung`: errors on the training rows, their validation blocks and the test
+rows, the fitted terms with 95 % block-bootstrap :class:`Interval` s, and what was held or hit a
+physical bound. The guards' tally is a :class:`GuardReport`.
 
-- :class:`TermModel`: ``y = b0 + Σ b_i · term_i`` with sympy terms over canonical signals;
-  :meth:`TermModel.fit` is least squares, :meth:`TermModel.cv_rmse` its blocked-CV error.
-- :func:`trim_terms`: merge near-duplicate columns (cancelling pairs) and drop evolved terms that
-  do not improve the CV error by ``margin``.
-- :func:`plausible`: the model on a grid spanning the training inputs' ranges plus a margin
-  stays within physical bounds (no blow-up outside the data).
-
-Errors are in the target's units (m/s² for v̇).
+Every choice uses TRAINING rows only (blocks of :mod:`droneid.validation`, the robust bounded
+fits of :mod:`droneid.terms`, the rule of :mod:`droneid.decide`); test rows are measured for the
+report and never looked at. Errors are RMSEs in the target's units (m/s² for v̇).
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sympy as sp
 
-from .expressions import compile_expression
-from .numerics import rmse
-from .regression import block_bootstrap, blocked_cv, robust_fit
+from .constraint_samples import constraint_rmse
+from .data import Dataset
+from .decide import decide
+from .errors import ConfigError, DataError
+from .expressions import symbol
+from .identified import IdentifiedModel
+from .numerics import rmse, to_float
+from .report.wording import display_term
+from .search import run_seeds
+from .sngp.model import SymbolicModel, round_expr, to_text
+from .targets import velocity_of
+from .terms import (TermModel, drag_slope, drop_negligible, evaluate_expr, physical_fit, plausible,
+                    prior_terms, trim_terms)
+from .validation import block_ids, time_blocks, validation_blocks
 
-__all__ = ["TermModel", "time_blocks", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "block_ids", "validation_blocks", "drag_slope", "nested_functions", "evaluate_expr",
-           "drop_negligible", "blocked_cv", "trim_terms", "plausible", "n_blocks_for"]
+if TYPE_CHECKING:
+    from .problem import TargetProblem
+    from .search import RunRecord
 
+__all__ = ["Interval", "Rung", "GuardReport", "rung", "physical_rungs", "final_rung", "bootstrap_blocks",
+           "TERM_ALPHA", "block_ids"]
 
-def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
-    """Contiguous time blocks 0..n_blocks-1 inside each flight, with equal sample counts
-    (so trimmed ground time or gaps leave no block empty)."""
-    t = np.asarray(t, float)
-    flight = np.asarray(flight, int)
-    out = np.zeros(t.size, dtype=int)
-    for f in np.unique(flight):
-        idx = np.flatnonzero(flight == f)
-        order = idx[np.argsort(t[idx], kind="stable")]
-        out[order] = np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1), n_blocks - 1)
-    return out
-
-
-def validation_blocks(t: np.ndarray, flight: np.ndarray) -> tuple[np.ndarray, str]:
-    """(block ids, description) for validation on training data: whole flights (leave one
-    flight out) when there are at least 3 training flights, so that a term must transfer to a
-    flight it was not fitted on; contiguous time blocks inside the flights otherwise."""
-    flights = np.unique(flight)
-    if flights.size >= 3:
-        return np.searchsorted(flights, flight), f"leave-one-flight-out over {flights.size} training flights"
-    k = n_blocks_for(t.size)
-    return block_ids(t, flight, k), f"{k} contiguous time blocks per training flight"
-
-
-def time_blocks(t: np.ndarray, flight: np.ndarray, *, family: int = 1, alpha: float = 1.0) -> np.ndarray:
-    """Contiguous time blocks of the training flights for intervals and block tests:
-    :func:`n_blocks_for` the rows of an average flight, per flight (~150 samples a block), and at
-    least enough blocks in all that a sign-flip test over them can reach ``alpha / family``
-    (its smallest p is 2^-B)."""
-    flights = np.unique(flight)
-    nf = max(flights.size, 1)
-    need = math.ceil(math.log2(max(family, 1) / alpha)) + 1 if alpha < 1.0 else 0
-    per = max(n_blocks_for(len(t) // nf), math.ceil(need / nf))
-    return block_ids(t, flight, per)
-
-
-def n_blocks_for(n: int) -> int:
-    """Blocks per flight for ``n`` training samples: ~150 samples a block, 8 to 20 blocks."""
-    return int(np.clip(n // 150, 8, 20))
-
-
-def evaluate_expr(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-    """``expr`` on data columns, broadcast to ``n`` rows (constants too); invalid values stay nan."""
-    names = sorted(s.name for s in expr.free_symbols)
-    if not names:
-        return np.full(n, float(expr))
-    with np.errstate(all="ignore"):
-        v = compile_expression(expr, names)({k: np.asarray(columns[k], float) for k in names})
-    return np.broadcast_to(np.asarray(v, float), (n,)).astype(float)
+#: family-wise level of keeping evolved terms (Bonferroni over the runs; :mod:`droneid.decide`)
+TERM_ALPHA = 0.01
 
 
 @dataclass(frozen=True)
-class TermModel:
-    """``y = offset + intercept + Σ coefs[i] · terms[i]``; ``labels`` name the terms (for the
-    report). ``lo``/``hi``: each term's coefficient bounds (physics; missing = free, equal = fixed);
-    ``intercept_bounds``: the intercept's (``(0, 0)``: no intercept, e.g. free fall at zero thrust);
-    ``offset``: known physics with a fixed coefficient 1 (gravity), never fitted. :meth:`fit` is
-    the robust, bounded least squares of :func:`droneid.regression.robust_fit`."""
-    terms: tuple
-    labels: tuple
-    coefs: tuple = ()
-    intercept: float = 0.0
-    lo: tuple = ()
-    hi: tuple = ()
-    intercept_bounds: tuple = (-math.inf, math.inf)
-    offset: sp.Expr = sp.Integer(0)
-    at_bound: tuple = ()
+class Interval:
+    """A 95 % interval of a fitted coefficient (block bootstrap over the training flights' time
+    blocks), in the coefficient's units (a scale on a prior term: 1 = nominal)."""
+    low: float
+    high: float
+
+    def to_list(self) -> list:
+        return [self.low, self.high]
 
     @classmethod
-    def of(cls, features, labels=None, *, intercept_bounds=(-math.inf, math.inf),
-           offset=sp.Integer(0)) -> "TermModel":
-        """An unfitted model of prior features (:class:`priors.base.PriorFeature`, their
-        ``bounds``) or plain sympy terms (free)."""
-        feats = tuple(features)
-        terms = tuple(getattr(f, "expr", f) for f in feats)
-        labels = tuple(labels) if labels is not None else tuple(f"⟨{getattr(f, 'name', f)}⟩" for f in feats)
-        bounds = [getattr(f, "bounds", (-math.inf, math.inf)) for f in feats]
-        return cls(terms, labels, lo=tuple(b[0] for b in bounds), hi=tuple(b[1] for b in bounds),
-                   intercept_bounds=tuple(intercept_bounds), offset=sp.sympify(offset))
-
-    def extended(self, terms, labels) -> "TermModel":
-        """This model's terms (and bounds) followed by free ``terms`` (evolved ones)."""
-        k = len(self.terms)
-        lo, hi = self.bounds()
-        return TermModel(self.terms + tuple(terms), self.labels + tuple(labels),
-                         lo=tuple(lo[:k]) + (-math.inf,) * len(terms), hi=tuple(hi[:k]) + (math.inf,) * len(terms),
-                         intercept_bounds=self.intercept_bounds, offset=self.offset)
-
-    def keep(self, idx) -> "TermModel":
-        """The unfitted model of the terms ``idx`` (bounds kept)."""
-        lo, hi = self.bounds()
-        return TermModel(tuple(self.terms[i] for i in idx), tuple(self.labels[i] for i in idx),
-                         lo=tuple(lo[i] for i in idx), hi=tuple(hi[i] for i in idx),
-                         intercept_bounds=self.intercept_bounds, offset=self.offset)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(lo, hi) of every coefficient, the intercept last."""
-        k = len(self.terms)
-        lo = np.array([*(self.lo or ()), *([-math.inf] * (k - len(self.lo or ())))], float)
-        hi = np.array([*(self.hi or ()), *([math.inf] * (k - len(self.hi or ())))], float)
-        return np.append(lo, self.intercept_bounds[0]), np.append(hi, self.intercept_bounds[1])
-
-    def design(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-        """(n, k+1): one column per term, then ones."""
-        cols = [evaluate_expr(t, columns, n) for t in self.terms]
-        return np.column_stack([*cols, np.ones(n)]) if cols else np.ones((n, 1))
-
-    def _offset(self, columns, n) -> np.ndarray:
-        return evaluate_expr(self.offset, columns, n)
-
-    def _problem(self, columns, y) -> tuple:
-        """(design, target less the fixed offset, lo, hi): what every fit of this model solves."""
-        lo, hi = self.bounds()
-        return self.design(columns, y.size), y - self._offset(columns, y.size), lo, hi
-
-    def fit(self, columns: Mapping[str, np.ndarray], y: np.ndarray) -> "TermModel":
-        f = robust_fit(*self._problem(columns, y))
-        beta = f.beta
-        return replace(self, coefs=tuple(float(b) for b in beta[:-1]), intercept=float(beta[-1]),
-                       at_bound=tuple(bool(a) for a in f.at_bound[:-1]))
-
-    def predict(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-        return self.design(columns, n) @ np.array([*self.coefs, self.intercept]) + self._offset(columns, n)
-
-    def cv_predictions(self, columns, y, blocks) -> np.ndarray:
-        """Held-out predictions of the training rows (blocked CV, robust and bounded)."""
-        A, yy, lo, hi = self._problem(columns, y)
-        return blocked_cv(A, yy, blocks, lo, hi) + (y - yy)
-
-    def cv_rmse(self, columns, y, blocks) -> float:
-        return rmse(self.cv_predictions(columns, y, blocks), y)
-
-    def intervals(self, columns, y, blocks, *, seed: int = 0) -> dict[str, tuple[float, float]]:
-        """{label: (low, high)}: 95 % block-bootstrap interval of each coefficient ("intercept"
-        too, unless it is fixed), :func:`droneid.regression.block_bootstrap` over ``blocks``."""
-        A, yy, lo, hi = self._problem(columns, y)
-        iv = block_bootstrap(A, yy, blocks, robust_fit(A, yy, lo, hi), lo, hi, seed=seed)
-        out = {lab: (float(a), float(b)) for lab, (a, b) in zip(self.labels, iv[:-1])}
-        if lo[-1] != hi[-1]:
-            out["intercept"] = (float(iv[-1, 0]), float(iv[-1, 1]))
-        return out
-
-    def expr(self) -> sp.Expr:
-        """The fitted model as one sympy expression."""
-        return self.offset + sp.Float(self.intercept) + sp.Add(*[sp.Float(c) * t for c, t in zip(self.coefs, self.terms)])
-
-
-#: a physical coefficient whose 95 % interval is wider than ± this fraction of max(|value|, its
-#: nominal 1) is not identifiable from the flights: it is held at its nominal value
-IDENTIFIABLE_REL = 0.5
-#: a physical term whose column has a variance inflation factor above this is collinear with
-#: the others (the data cannot separate them): it is held at its nominal value
-VIF_LIMIT = 100.0
+    def of(cls, pair) -> "Interval":
+        lo, hi = pair
+        return cls(to_float(lo), to_float(hi))
 
 
 @dataclass(frozen=True)
-class PhysicalFit:
-    """A fitted model with its evidence: ``model`` (fitted), ``intervals`` {label: (low, high)}
-    (95 %, block bootstrap), ``held`` {label: value} (not identifiable, held at the nominal
-    value), ``at_bound`` {label: bound} (the data pull the coefficient outside its physical
-    range: it sits on the bound), ``notes`` (one line per held or bounded coefficient)."""
-    model: TermModel
-    intervals: dict
-    held: dict
-    at_bound: dict
-    notes: tuple = ()
+class Rung:
+    """One rung of the ladder.
 
-
-def _vif(A: np.ndarray, j: int, with_intercept: bool) -> float:
-    others = np.delete(A, j, axis=1)
-    if not with_intercept:
-        others = others[:, :-1]
-    c = A[:, j]
-    if others.shape[1] == 0 or not np.std(c) > 0:
-        return 1.0
-    beta = np.linalg.lstsq(others, c, rcond=None)[0]
-    res = c - others @ beta
-    ss = float(np.sum((c - (c.mean() if with_intercept else 0.0)) ** 2))
-    r2 = 1.0 - float(np.sum(res * res)) / ss if ss > 0 else 0.0
-    return math.inf if r2 >= 1.0 else 1.0 / (1.0 - r2)
-
-
-def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physical: int | None = None
-                 ) -> PhysicalFit:
-    """Fit ``model`` (robust, bounded), give every coefficient its 95 % block-bootstrap interval
-    (``blocks``: time blocks of the training flights), and hold at its nominal value 1 each of the
-    first ``n_physical`` terms (default: every term with a physical bound) that the data cannot pin
-    down: interval wider than ±:data:`IDENTIFIABLE_REL` of max(|value|, 1), or collinear (VIF >
-    :data:`VIF_LIMIT`). Evolved and effect terms (free) are reported, never held."""
-    lo, hi = model.bounds()
-    k = len(model.terms)
-    phys = [i for i in range(k if n_physical is None else n_physical)
-            if (np.isfinite(lo[i]) or np.isfinite(hi[i])) and lo[i] != hi[i]]
-    fitted = model.fit(columns, y)
-    iv = fitted.intervals(columns, y, blocks, seed=seed)
-    A = model.design(columns, y.size)
-    free_int = lo[-1] != hi[-1]
-    held, notes = {}, []
-    for i in phys:
-        lab = model.labels[i]
-        a, b = iv[lab]
-        half = (b - a) / 2
-        vif = _vif(A, i, free_int)
-        if half > IDENTIFIABLE_REL * max(abs(fitted.coefs[i]), 1.0) or vif > VIF_LIMIT:
-            nominal = float(np.clip(1.0, lo[i], hi[i]))
-            held[lab] = nominal
-            why = (f"collinear with the other terms (VIF {vif:.3g} > {VIF_LIMIT:g})" if vif > VIF_LIMIT else
-                   f"its 95 % interval [{a:.3g}, {b:.3g}] is wider than ±{100 * IDENTIFIABLE_REL:.0f} %")
-            notes.append(f"{lab} is not identifiable from these flights ({why}): held at its nominal "
-                         f"value {nominal:g}")
-    if held:
-        lo2, hi2 = lo[:k].copy(), hi[:k].copy()
-        for i, lab in enumerate(model.labels):
-            if lab in held:
-                lo2[i] = hi2[i] = held[lab]
-        model = replace(model, lo=tuple(lo2), hi=tuple(hi2))
-        fitted = model.fit(columns, y)
-        iv = fitted.intervals(columns, y, blocks, seed=seed)
-    at_bound = {}
-    for i, lab in enumerate(model.labels):
-        if i < len(fitted.at_bound) and fitted.at_bound[i] and lab not in held:
-            c = fitted.coefs[i]
-            at_bound[lab] = c
-            notes.append(f"{lab} sits on its physical bound {c:g}: the data pull it outside "
-                         f"[{lo[i]:g}, {hi[i]:g}] (e.g. negative drag); the bound holds")
-    return PhysicalFit(fitted, iv, held, at_bound, tuple(notes))
-
-
-#: an evolved term with more operations than this is not something a person can read aloud
-MAX_TERM_OPS = 10
-
-
-def nested_functions(expr: sp.Expr) -> int:
-    """How deeply non-polynomial functions (sin, cos, exp, tanh, |.|, ...) nest in ``expr``:
-    sin(vx) is 1, sin(cos(vx)) is 2 (a person can read the first aloud, not the second)."""
-    def depth(e):
-        inner = max((depth(a) for a in e.args), default=0)
-        return inner + 1 if isinstance(e, sp.Function) else inner
-    return depth(expr)
-
-
-def trim_terms(model: TermModel, columns, y, blocks, keep_first: int, margin: float = 0.01,
-               corr_limit: float = 0.999, max_ops: int = MAX_TERM_OPS, cancel_limit: float = 3.0,
-               sizes: Sequence[int] | None = None) -> tuple[TermModel, list[str]]:
-    """Drop evolved terms (index ≥ ``keep_first``) that do not earn their place.
-
-    1. A term whose column correlates with an earlier one beyond ``corr_limit`` (a cancelling
-       pair or a near-duplicate) is dropped (least squares refits the survivor).
-       Terms with more than ``max_ops`` sympy operations (``sizes``: counted on the form a
-       person reads, e.g. with a named prior feature as one symbol) or with a function inside a
-       function (sin(cos(.)), :func:`nested_functions`) go too (unreadable). While the terms'
-       contributions Σ|b_i|·std(col_i) exceed ``cancel_limit`` times the spread of their sum
-       (times the physical terms' own ratio when that is above 1: a command map a Σu² + b Σu
-       offsets by design), the evolved term contributing most goes (a cancelling pair such as
-       22.9·cos a − 21.7·cos b fits the training range and explodes outside it).
-    2. Backward elimination on the blocked-CV error: the evolved term whose removal costs least
-       goes while the CV error rises by less than ``margin`` (relative).
-    Returns the refit model and one line per dropped term.
+    name : ``empirical``, ``refit``, ``delay``, ``effect:<name>`` or ``final``
+    description : what the rung adds, one line
+    rmse_train, rmse_validation, rmse_test : errors on the training rows, on their validation
+        blocks (each block predicted by the same terms refit without it; the training error for a
+        model with nothing fitted) and on the test rows (NaN without test rows)
+    constraint_rmse_test : e_c on the test draw of constraint samples (NaN without a set)
+    terms : {label: fitted coefficient}; prior terms as ``⟨name⟩`` (a scale, 1 = nominal)
+    intercept : the equation's constant (fitted plus known physics: gravity), None when nothing
+        was fitted
+    model : the rung as an :class:`~droneid.identified.IdentifiedModel` (what predict applies)
+    intervals : {label: Interval}; held : {label: value held at}, coefficients the data cannot
+        identify; at_bound : {label: value}, coefficients the data pull to a physical bound
+    evidence : sentences saying why (holds, bounds)
+    pred_test : the rung's prediction on the test rows (memory only, not in result.json)
     """
-    n = y.size
-    cols = [evaluate_expr(t, columns, n) for t in model.terms]
-    notes = []
-    keep = []
-    for i, c in enumerate(cols):
-        dup = None
-        if i >= keep_first and np.std(c) > 0 and np.all(np.isfinite(c)):
-            for j in keep:
-                cj = cols[j]
-                if np.std(cj) > 0 and abs(np.corrcoef(c, cj)[0, 1]) > corr_limit:
-                    dup = j
-                    break
-        elif i >= keep_first:
-            dup = -1
-        size = sizes[i] if sizes is not None else sp.count_ops(model.terms[i])
-        if dup is None and i >= keep_first and (size > max_ops or nested_functions(model.terms[i]) > 1):
-            dup = -2
-        if dup is None:
-            keep.append(i)
-        else:
-            why = {-1: "not finite or constant on the training data",
-                   -2: f"more than {max_ops} operations or functions of functions (unreadable)"}.get(dup)
-            notes.append(f"dropped {model.labels[i]}: " + (why or f"duplicates {model.labels[dup]}"))
+    name: str
+    description: str
+    rmse_train: float
+    rmse_validation: float
+    rmse_test: float
+    constraint_rmse_test: float
+    terms: Mapping[str, float]
+    intercept: float | None
+    model: IdentifiedModel
+    intervals: Mapping[str, Interval] = field(default_factory=dict)
+    held: Mapping[str, float] = field(default_factory=dict)
+    at_bound: Mapping[str, float] = field(default_factory=dict)
+    evidence: tuple[str, ...] = ()
+    pred_test: np.ndarray | None = field(default=None, repr=False, compare=False)
 
-    def cv(idx):
-        return model.keep(idx).cv_rmse(columns, y, blocks)
+    def to_dict(self) -> dict:
+        """The rung as ``result.json`` holds it (``targets.<t>.ladder[i]``; no ``pred_test``)."""
+        return {"name": self.name, "description": self.description, "rmse_train": self.rmse_train,
+                "rmse_validation": self.rmse_validation, "rmse_test": self.rmse_test,
+                "constraint_rmse_test": self.constraint_rmse_test, "terms": dict(self.terms),
+                "intercept": self.intercept, "model": self.model.to_dict(),
+                "intervals": {k: v.to_list() for k, v in self.intervals.items()},
+                "held": dict(self.held), "at_bound": dict(self.at_bound), "evidence": list(self.evidence)}
 
-    def cancellation(idx):
-        """Σ|b_i|·std(col_i) over the spread of their sum: ≫ 1 when terms cancel each other."""
-        beta = model.keep(idx).fit(columns, y).coefs
-        parts = [b * cols[i] for b, i in zip(beta, idx)]
-        spread = float(np.std(np.sum(parts, axis=0)))
-        return {i: abs(b) * float(np.std(cols[i])) for b, i in zip(beta, idx)}, spread
-
-    def ratio(idx):
-        contrib, spread = cancellation(idx)
-        return sum(contrib.values()) / max(spread, 1e-12), contrib
-
-    # the physical terms may offset each other by design (a command map a Σu² + b Σu): only
-    # cancellation beyond theirs counts against evolved terms
-    base = [i for i in keep if i < keep_first]
-    limit = cancel_limit * max(1.0, ratio(base)[0] if base else 1.0)
-    while True:  # cancelling pairs: big opposite contributions that nearly sum to nothing
-        r, contrib = ratio(keep)
-        evolved = [i for i in keep if i >= keep_first]
-        if not evolved or r <= limit:
-            break
-        i = max(evolved, key=lambda k: contrib[k])
-        keep.remove(i)
-        notes.append(f"dropped {model.labels[i]}: it cancels other terms (contributions {r:.3g}x the "
-                     f"spread of their sum, limit {limit:.3g}x)")
-
-    cur = cv(keep)
-    while True:
-        evolved = [i for i in keep if i >= keep_first]
-        if not evolved:
-            break
-        trials = {i: cv([k for k in keep if k != i]) for i in evolved}
-        i = min(trials, key=trials.get)
-        if trials[i] <= cur * (1.0 + margin):
-            keep.remove(i)
-            notes.append(f"dropped {model.labels[i]}: validation error {cur:.4g} -> {trials[i]:.4g} without it")
-            cur = trials[i]
-        else:
-            break
-    return model.keep(keep).fit(columns, y), notes
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "Rung":
+        """Read back :meth:`to_dict` (DataError for a malformed rung)."""
+        try:
+            return cls(str(d["name"]), str(d["description"]), to_float(d["rmse_train"]),
+                       to_float(d["rmse_validation"]), to_float(d["rmse_test"]),
+                       to_float(d["constraint_rmse_test"]), {str(k): float(v) for k, v in d["terms"].items()},
+                       None if d["intercept"] is None else float(d["intercept"]),
+                       IdentifiedModel.from_dict(d["model"]),
+                       {str(k): Interval.of(v) for k, v in d["intervals"].items()},
+                       {str(k): float(v) for k, v in d["held"].items()},
+                       {str(k): float(v) for k, v in d["at_bound"].items()},
+                       tuple(str(e) for e in d["evidence"]))
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise DataError(f"not a ladder rung: {type(exc).__name__} {exc}") from None
 
 
 @dataclass(frozen=True)
-class Plausibility:
-    ok: bool
-    max_abs: float
-    bound: float
-    n_points: int
-    note: str = ""
+class GuardReport:
+    """What the trust guards did with the SNGP runs of one target (:func:`final_rung`).
+
+    bound : the plausibility bound (± target units) on the training inputs' range ± 20 %
+    candidates : runs whose evolved terms survived every guard
+    implausible, no_evolved_term_left, constraints_broken, drag_not_monotone : runs rejected,
+        by reason; dropped : one line per dropped term or rejected run
+    constraint_limit : e_c limit of a candidate (None without a constraint set)
+    drag_slope_limit : the largest ∂v̇/∂v a candidate may reach, 1/s (None without a velocity)
+    decision : the block test's evidence for the best candidate (None without one)
+    chosen_run : the run whose evolved terms are in the final model (0-based), or None
+    best_evolved_validation : the best candidate's validation error when it was not kept
+    """
+    bound: float = math.nan
+    candidates: int = 0
+    implausible: int = 0
+    no_evolved_term_left: int = 0
+    constraints_broken: int = 0
+    drag_not_monotone: int = 0
+    dropped: tuple[str, ...] = ()
+    constraint_limit: float | None = None
+    drag_slope_limit: float | None = None
+    decision: str | None = None
+    chosen_run: int | None = None
+    best_evolved_validation: float | None = None
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "GuardReport":
+        known = set(cls.__dataclass_fields__)
+        kw = {k: v for k, v in dict(d or {}).items() if k in known}
+        if "dropped" in kw:
+            kw["dropped"] = tuple(kw["dropped"] or ())
+        if "bound" in kw:
+            kw["bound"] = to_float(kw["bound"])
+        return cls(**kw)
 
 
-def plausible(expr: sp.Expr, ranges: Mapping[str, tuple[float, float]], bound: float,
-              margin: float = 0.2, n_points: int = 4000, seed: int = 0,
-              fixed: Mapping[str, float] | None = None) -> Plausibility:
-    """Whether ``expr`` stays within ±``bound`` on random points spanning every input's training
-    range widened by ``margin`` of its span on each side (angles kept within ±80° for roll and
-    pitch, where the thrust still holds the vehicle up)."""
-    rng = np.random.default_rng(seed)
-    names = sorted(s.name for s in expr.free_symbols)
-    cols = {}
-    for n in names:
-        if n in (fixed or {}):
-            cols[n] = np.full(n_points, float(fixed[n]))
+def _cs_columns(cs) -> dict:
+    return {n: cs.X[:, i] for i, n in enumerate(cs.input_names)}
+
+
+def _ec(pred_cs, cs) -> float:
+    return float(constraint_rmse(pred_cs, cs)) if cs is not None else float("nan")
+
+
+def bootstrap_blocks(ds: Dataset, **need) -> np.ndarray:
+    """The time blocks the intervals resample and the block tests use
+    (:func:`droneid.validation.time_blocks`: ~150 samples each; ``need``: family and alpha of a test)."""
+    return time_blocks(ds.t, ds.flight, **need)
+
+
+def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, *,
+         blocks=None, fitted: bool = True, terms: dict | None = None, delays=None) -> Rung:
+    """One rung of the ladder: a model (IdentifiedModel, or a TermModel: fitted here, robust and
+    bounded, with 95 % block-bootstrap intervals and unidentifiable physical coefficients held at
+    their nominal value, :func:`droneid.terms.physical_fit`) measured on the training rows
+    (train; validation = blocked CV of the same terms refit without each block, or the training
+    error for a model with nothing fitted), the test rows and the constraints."""
+    tr_cols, te_cols = train.columns(), test.columns()
+    evidence = None
+    if isinstance(model, TermModel):
+        evidence = physical_fit(model, tr_cols, train.y, bootstrap_blocks(train))
+        model = evidence.model
+        p_tr, p_te = model.predict(tr_cols, len(train)), model.predict(te_cols, len(test))
+        val = model.cv_rmse(tr_cols, train.y, blocks) if fitted and blocks is not None else rmse(p_tr, train.y)
+        p_cs = model.predict(_cs_columns(cs), len(cs)) if cs is not None else None
+        final = IdentifiedModel(train.target_name, model.expr(), dict(delays or {}), description)
+        terms = terms if terms is not None else {lab: c for lab, c in zip(model.labels, model.coefs)}
+        # the equation's constant: the fitted intercept plus the known physics no fit touches (gravity)
+        intercept = model.intercept + (float(model.offset) if model.offset.is_number else 0.0)
+    else:
+        final = model
+        p_tr, p_te = model.evaluate(tr_cols), model.evaluate(te_cols)
+        val = rmse(p_tr, train.y)
+        p_cs = model.evaluate(_cs_columns(cs)) if cs is not None else None
+        intercept = None
+    return Rung(name, description, rmse(p_tr, train.y), val, rmse(p_te, test.y),
+                _ec(p_cs, cs) if p_cs is not None else float("nan"), dict(terms or {}), intercept, final,
+                {k: Interval.of(v) for k, v in evidence.intervals.items()} if evidence else {},
+                dict(evidence.held) if evidence else {}, dict(evidence.at_bound) if evidence else {},
+                tuple(evidence.notes) if evidence else (), p_te)
+
+
+def _physical_model(p: TargetProblem, features) -> TermModel:
+    """The unfitted physical model of ``p`` over ``features`` (prior terms and effects): bounds,
+    gravity and intercept bounds as the prior declares them."""
+    if p.plan is None:
+        return TermModel.of(features)
+    return prior_terms(p.plan.prior, p.target, features)
+
+
+def physical_rungs(p: TargetProblem, empirical: IdentifiedModel, undelayed: tuple | None = None) -> tuple[Rung, ...]:
+    """The ladder's physical rungs: ``empirical`` (the user's model as given), the prior refit
+    (without the input offset: on ``undelayed`` = (train, test) when one was chosen), + the
+    offset, + each folded effect."""
+    plan = p.plan
+    cs = p.cs_test
+    ladder = [rung("empirical", empirical.description, empirical, p.train, p.test, cs, fitted=False)]
+    base = p.priors3[:p.n_base]
+    prior_name = getattr(plan.prior, "name", "prior") if plan else "prior"
+    tm = _physical_model(p, base)
+    if plan is not None and plan.delays_s and undelayed is not None:
+        tr0, te0 = undelayed
+        b0, _ = validation_blocks(tr0.t, tr0.flight)
+        ladder.append(rung("refit", f"{prior_name} prior refit", tm, tr0, te0, cs, blocks=b0))
+        d = next(iter(plan.delays_s.values()))
+        what = (f"+ thrust inputs delayed by {1000 * d:.0f} ms" if d > 0 else
+                f"+ thrust stream clock corrected (read {1000 * -d:.0f} ms later)")
+        ladder.append(rung("delay", what, tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
+    else:
+        ladder.append(rung("refit", f"{prior_name} prior refit",
+                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s if plan else None))
+    for e in (plan.effects if plan else ()):
+        feats = e.features.get(p.target, ())
+        if not feats:
             continue
-        lo, hi = ranges.get(n, (0.0, 0.0))
-        pad = margin * (hi - lo)
-        lo, hi = lo - pad, hi + pad
-        if n in ("roll", "pitch"):
-            lo, hi = max(lo, -math.radians(80)), min(hi, math.radians(80))
-        if n.startswith(("rpm", "motor")) or n in ("throttle", "thrust", "battery_voltage"):
-            lo = max(lo, 0.0)
-        cols[n] = rng.uniform(lo, hi, n_points)
-    v = evaluate_expr(expr, cols, n_points)
-    m = float(np.max(np.abs(v))) if np.all(np.isfinite(v)) else math.inf
-    ok = m <= bound
-    note = "" if ok else (f"reaches {m:.3g} (bound {bound:.3g}) on inputs within the training range "
-                          f"± {100 * margin:.0f} %")
-    return Plausibility(ok, m, float(bound), n_points, note)
+        base = base + tuple(feats)
+        tm = _physical_model(p, base)
+        ladder.append(rung(f"effect:{e.effect}", f"+ {e.effect} ({e.physical})",
+                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
+    return tuple(ladder)
 
 
-def drag_slope(expr: sp.Expr, velocity: str, rows: Mapping[str, np.ndarray], v_max: float,
-               n_points: int = 41) -> float:
-    """The largest slope ∂v̇/∂v (1/s) of ``expr`` along its own-axis ``velocity`` from −v_max to
-    v_max, every other input held at each of the given training ``rows`` (states the vehicle
-    really flew). Drag grows with speed, so a physical model's slope is ≤ 0 (−k_D for linear
-    drag); an evolved velocity term that oscillates or turns over shows a positive slope."""
-    if velocity not in {s.name for s in expr.free_symbols}:
-        return -math.inf
-    m = len(next(iter(rows.values())))
-    v = np.linspace(-v_max, v_max, n_points)
-    cols = {k: np.repeat(np.asarray(a, float), n_points) for k, a in rows.items()}
-    cols[velocity] = np.tile(v, m)
-    vals = evaluate_expr(expr, cols, m * n_points).reshape(m, n_points)
-    slopes = np.diff(vals, axis=1) / np.diff(v)
-    return float(np.max(slopes)) if np.all(np.isfinite(slopes)) else math.inf
+def fitted_thrust(p: TargetProblem, terms: Mapping[str, float]) -> float | None:
+    """Median over the training rows of the fitted specific thrust (m/s², the thrust terms'
+    fitted scales times their magnitudes, without the direction), or None for priors without
+    thrust magnitudes (:meth:`priors.base.PriorModel.fitted_thrust`)."""
+    if p.plan is None:
+        return None
+    lift = p.plan.prior.fitted_thrust(p.target, {k.strip("⟨⟩"): v for k, v in terms.items()},
+                                      p.train.columns(), len(p.train))
+    return float(np.median(lift)) if lift is not None and len(lift) else None
 
 
-def drop_negligible(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int, rel: float = 1e-3) -> sp.Expr:
-    """``expr`` without the addends of its sums that never reach ``rel`` of the sum's largest value
-    on the training data (``4·roll²·rpm4² + rpm2 + 3.142`` -> ``4·roll²·rpm4²`` when rpm4 is
-    ~10⁵): the same numbers to that precision, a shorter equation."""
-    def walk(e):
-        if not e.args:
-            return e
-        e = e.func(*[walk(a) for a in e.args]) if not isinstance(e, sp.Add) else e
-        if isinstance(e, sp.Add):
-            parts = [walk(a) for a in e.args]
-            vals = [np.abs(evaluate_expr(a, columns, n)) for a in parts]
-            if not all(np.all(np.isfinite(v)) for v in vals):
-                return sp.Add(*parts)
-            top = float(np.max(np.abs(evaluate_expr(sp.Add(*parts), columns, n)))) if n else 0.0
-            keep = [a for a, v in zip(parts, vals) if float(np.max(v, initial=0.0)) >= rel * top]
-            return sp.Add(*keep) if keep else sp.Add(*parts)
-        return e
-    return walk(expr)
+def final_rung(p: TargetProblem, cfg, done: Sequence[RunRecord]) -> tuple[Rung, GuardReport]:
+    """(final rung, guard report): the best evolved model that survives the trust guards, or the
+    physical rung (prior + delay + effects) when none beats it on TRAINING validation blocks by
+    the calibrated block test of :mod:`droneid.decide` (held-out errors of both, time blocks,
+    α = :data:`TERM_ALPHA` Bonferroni over the runs, at least ``cfg.margin`` lower error).
+
+    Guards, in order, per run: the run's evolved terms are added to ALL prior and effect
+    features; near-duplicate columns (cancelling pairs) are merged and evolved terms that do not
+    lower the blocked-CV error by 1 % are dropped (:func:`droneid.terms.trim_terms`); the
+    model must stay within ±(2·max|y_train| + g) on a grid spanning the training inputs ± 20 %
+    (:func:`droneid.terms.plausible`); its constraint error on a training draw of the constraint
+    samples must stay below max(γ, 1.1 x the physical rung's); drag must grow with speed: along
+    its own-axis velocity (±1.2 x the training speed, other inputs at 50 flown states) the
+    model's slope may not exceed the physical rung's (or 0) by more than 0.05 1/s. The survivor
+    with the lowest CV error replaces the physical rung only if it passes that test.
+    ``cfg``: the identify config (seed, margin, γ, constraint samples)."""
+    phys = p.ladder[-1]
+    delays = p.plan.delays_s if p.plan else {}
+    cols, y = p.train.columns(), p.train.y
+    phys_model = _physical_model(p, p.priors3)
+    phys_tm = phys_model.fit(cols, y)      # the physical rung refit on the training rows, once
+    base = phys_model.terms
+    bound = 2.0 * float(np.max(np.abs(y))) + 9.81
+    ranges = {n: (float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i])))
+              for i, n in enumerate(p.train.input_names)}
+    g = {"bound": bound, "implausible": 0, "no_evolved_term_left": 0, "constraints_broken": 0,
+         "drag_not_monotone": 0, "candidates": 0}
+    dropped: list[str] = []
+    cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
+    cs_sel, ec_limit = None, math.inf
+    if cset is not None:  # a training draw of constraint samples (not the e_c^test draw)
+        cs_sel = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
+                             seed=run_seeds(cfg.seed + 1, 0)[0])
+        ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
+        ec_limit = max(cfg.gamma, 1.1 * ec_phys)
+        g["constraint_limit"] = ec_limit
+    vel = velocity_of(p.target)
+    slope_limit, rows, v_max = math.inf, {}, 0.0
+    if vel in p.train.input_names:
+        pick = np.random.default_rng(cfg.seed).choice(len(p.train), size=min(50, len(p.train)), replace=False)
+        rows = {n: p.train.X[pick, j] for j, n in enumerate(p.train.input_names)}
+        v_max = 1.2 * float(np.max(np.abs(cols[vel])))
+        phys_slope = drag_slope(phys_tm.expr(), vel, rows, v_max)
+        slope_limit = max(phys_slope, 0.0) + 0.05
+        g["drag_slope_limit"] = slope_limit
+    best = None
+    for i, r in enumerate(done):
+        try:
+            m = SymbolicModel.from_dict(r.model)
+        except (ConfigError, DataError, KeyError, TypeError):
+            continue
+        prior_syms = {symbol(k) for k in m.priors}
+        subs = {symbol(k): v for k, v in m.priors.items()}
+        env = {**cols, **{k: evaluate_expr(v, cols, len(y)) for k, v in m.priors.items()}}
+        raw = [drop_negligible(t, env, len(y)) for t in m.terms if t not in prior_syms]
+        evolved = [t.xreplace(subs) for t in raw]
+        if not evolved:
+            g["no_evolved_term_left"] += 1
+            continue
+        shown = [display_term(to_text(round_expr(t, 4)), {k: m.prior_labels.get(k, k) for k in m.priors})
+                 for t in raw]
+        tm = phys_model.extended(evolved, tuple(("-" if neg else "") + txt for txt, neg in shown))
+        sizes = [0] * len(base) + [int(sp.count_ops(t)) for t in raw]
+        trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base), sizes=sizes)
+        dropped.extend(f"run {i + 1}: {n}" for n in notes)
+        if len(trimmed.terms) == len(base):
+            g["no_evolved_term_left"] += 1
+            continue
+        pl = plausible(trimmed.expr(), ranges, bound)
+        if not pl.ok:
+            g["implausible"] += 1
+            dropped.append(f"run {i + 1}: rejected, {pl.note}")
+            continue
+        if cs_sel is not None:
+            ec = _ec(trimmed.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
+            if not ec <= ec_limit:
+                g["constraints_broken"] += 1
+                dropped.append(f"run {i + 1}: rejected, constraint error {ec:.3g} > {ec_limit:.3g}")
+                continue
+        if rows:
+            slope = drag_slope(trimmed.expr(), vel, rows, v_max)
+            if not slope <= slope_limit:
+                g["drag_not_monotone"] += 1
+                dropped.append(f"run {i + 1}: rejected, ∂{p.target}/∂{vel} reaches {slope:.3g} 1/s "
+                               f"within ±{v_max:.3g} m/s (drag must grow with speed)")
+                continue
+        cv = trimmed.cv_rmse(cols, y, p.blocks)
+        g["candidates"] += 1
+        if best is None or cv < best[0]:
+            best = (cv, i, trimmed)
+    decision = None
+    if best is not None:   # the calibrated rule of droneid.decide: held-out errors, time blocks, Bonferroni over the runs
+        err0 = y - phys_model.cv_predictions(cols, y, p.blocks)
+        err1 = y - best[2].cv_predictions(cols, y, p.blocks)
+        decision = decide(err0, err1, bootstrap_blocks(p.train, family=max(len(done), 1), alpha=TERM_ALPHA),
+                          alpha=TERM_ALPHA, family_size=max(len(done), 1),
+                          min_effect_pct=100 * cfg.margin, what=f"evolved terms of run {best[1] + 1}")
+        g["decision"] = decision.evidence
+    if decision is not None and decision.accepted:
+        cv, i, tm = best
+        n_ev = len(tm.terms) - len(base)
+        final = rung("final", f"+ {n_ev} evolved term{'s' * (n_ev > 1)} (run {i + 1})", tm, p.train, p.test,
+                     p.cs_test, blocks=p.blocks, delays=delays)
+        g["chosen_run"] = i
+    else:
+        final = replace(phys, name="final", description=f"= the rung above (no evolved term passed the block "
+                        f"test: {100 * cfg.margin:.0f} % lower held-out error at α = {TERM_ALPHA:g})")
+        if best is not None:
+            g["best_evolved_validation"] = best[0]
+    return final, GuardReport(dropped=tuple(dropped), **g)

@@ -9,7 +9,7 @@ The result is a frozen :class:`Plan`; :mod:`droneid.identify` builds the target 
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,19 +17,29 @@ import numpy as np
 from priors.models import PriorFeature, prior_for, resolve_prior
 
 from .data import Dataset
-from .dataset_builder import DatasetBuilder, split_time_block
+from .dataset_builder import DatasetBuilder
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .fitness import usable_signals
-from .ladder import TermModel, time_blocks
+from .terms import prior_terms
+from .validation import split_time_block, time_blocks
 from .targets import targets_for
 
-__all__ = ["Plan", "OffsetDecision", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
-           "split_terms", "prior_terms", "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
+__all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
+           "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
 PAPER_PRIOR = "tilt-drag"
+
+
+@dataclass(frozen=True)
+class Effect:
+    """An effect the diagnosis found on the training flights and folded into the prior features:
+    its catalogue name, what it is physically, and its features per target."""
+    effect: str
+    physical: str
+    features: Mapping[str, tuple[PriorFeature, ...]]
 
 
 @dataclass(frozen=True)
@@ -40,16 +50,14 @@ class Plan:
     targets : the targets identified; delays_s : {signal: delay s} of the thrust inputs
     delay_scores : {offset s: joint blocked-CV error of the refit prior, relative to no offset}
     offset : the :class:`OffsetDecision` behind ``delays_s`` (its test and interval), or None
-    effects : the diagnosis' folded effects: [{"effect", "physical", "features": {target:
-        [PriorFeature]}}]; not_folded : [{"effect", "reason"}]; diagnosis : its summary dict
+    effects : the diagnosis' folded effects (:class:`Effect`); diagnosis : its summary dict
     """
     prior: object
     prior_reason: str
     targets: tuple
     delays_s: dict = field(default_factory=dict)
     delay_scores: dict = field(default_factory=dict)
-    effects: tuple = ()
-    not_folded: tuple = ()
+    effects: tuple["Effect", ...] = ()
     diagnosis: dict = field(default_factory=dict)
     notes: tuple = ()
     offset: "OffsetDecision | None" = None
@@ -73,19 +81,6 @@ def resolve_plan_prior(cfg, flights) -> tuple:
 def dataset_builder(cfg, delays=None):
     """The DatasetBuilder of an identify config (its Ts and differentiator), with input delays."""
     return DatasetBuilder(ts=cfg.ts, method=cfg.method, delays_s=dict(delays or {}))
-
-
-def split_terms(prior, target: str) -> tuple:
-    """The prior's terms as separate features, without constant ones (the intercept holds them,
-    or the prior's fixed offset when the constant is known physics: gravity)."""
-    return tuple(f for f in prior.features(target) if f.expr.free_symbols)
-
-
-def prior_terms(prior, target: str, features: Sequence | None = None) -> TermModel:
-    """The unfitted refit model of ``target``: the prior's terms (or ``features``: its terms and
-    effects) with their physical bounds, its fixed offset (gravity) and its intercept bounds."""
-    feats = split_terms(prior, target) if features is None else tuple(features)
-    return TermModel.of(feats, intercept_bounds=prior.intercept_bounds(target), offset=prior.offset(target))
 
 
 def fixed_plan(cfg, targets: Sequence[str] | None = None) -> Plan:
@@ -207,11 +202,11 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
         if decision.offset_s:
             delays = {s: decision.offset_s for s in thrust}
         notes.append(decision.text(thrust))
-    effects, not_folded, diag = (), (), {}
+    effects, diag = (), {}
     if cfg.effects == "auto":
-        effects, not_folded, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts)
+        effects, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts)
         notes.extend(enotes)
-    return Plan(prior, reason, targets, delays, scores, effects, not_folded, diag, tuple(notes), decision)
+    return Plan(prior, reason, targets, delays, scores, effects, diag, tuple(notes), decision)
 
 
 def train_rows(ds: Dataset, cuts: dict | None, test: bool = False) -> Dataset:
@@ -240,15 +235,14 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
         res = diagnose_datasets(train, None, prior=prior,
                                 config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0))
     except (ConfigError, DataError, TypeError) as exc:
-        return (), (), {}, [f"diagnosis skipped: {exc}"]
+        return (), {}, [f"diagnosis skipped: {exc}"]
     folded, skipped = [], []
     for fe in res.final_effects:
         feats = fe.get("features")
         if fe.get("foldable") and feats:
-            folded.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
-                           "features": {t: tuple(PriorFeature(d["name"], d["expr"], fe.get("physical", ""),
-                                                              "other") for d in feats.get(t, ()))
-                                        for t in targets}})
+            folded.append(Effect(fe["effect"], fe.get("physical", ""),
+                                 {t: tuple(PriorFeature(d["name"], d["expr"], fe.get("physical", ""), "other")
+                                           for d in feats.get(t, ())) for t in targets}))
         else:
             skipped.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
                             "reason": fe.get("reason") or "not foldable into a model of states and inputs"})
@@ -256,4 +250,4 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
                "untestable": dict(res.untestable), "not_detected": list(res.not_detected)}
     notes = [f"diagnosis on the training flights: {res.conclusion}"]
     notes += [f"effect {s['effect']} ({s['physical']}) not folded into the model: {s['reason']}" for s in skipped]
-    return tuple(folded), tuple(skipped), summary, notes
+    return tuple(folded), summary, notes

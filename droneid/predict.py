@@ -24,7 +24,7 @@ from .dataset_builder import DatasetBuilder, in_flight_intervals
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
 from .fitness import assess
-from .identified import IdentifiedModel
+from .identified import IdentifiedModel, check_schema
 from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
@@ -82,7 +82,8 @@ class PredictionResult:
 def load_models(path, targets: Sequence[str] | None = None) -> dict:
     """{target: {"model", "inputs", "empirical_refit", ...}} plus "_config" and
     "_reader_options" (the reader options the result was identified with: read_flight keywords,
-    ``{}`` when none were recorded) from a JSON file."""
+    ``{}`` when none were recorded) from a JSON file: an identify result.json (schema
+    :data:`droneid.identified.SCHEMA`; an older one is refused with one line) or a bare model."""
     path = Path(path)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
@@ -91,19 +92,7 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     if not isinstance(doc, dict):
         raise DataError(f"{path}: expected a JSON object (an identify result.json or a model file)")
     if "targets" in doc:
-        if not isinstance(doc["targets"], dict):
-            raise DataError(f"{path}: 'targets' must map target names to results")
-        available = [t for t, tr in doc["targets"].items()
-                     if isinstance(tr, dict) and (tr.get("final") or tr.get("model"))]
-        if not available:
-            raise DataError(f"{path}: the result holds no finished model")
-        chosen = list(targets) if targets else available
-        for t in chosen:
-            check_choice("target", t, available, owner=str(path))
-        out = {t: _entry(path, t, doc["targets"][t]) for t in chosen}
-        out["_config"] = doc.get("config") or {}
-        out["_reader_options"] = _reader_options(path, doc.get("reader_options"))
-        return out
+        return models_from_document(doc, targets, where=str(path))
     # a bare model file (SNGPRegressor.to_dict()): its target is saved in it or named by the caller
     target = targets[0] if targets and len(targets) == 1 else doc.get("target")
     if target not in TARGETS:
@@ -115,6 +104,23 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     return {target: {"model": doc, "inputs": list(inputs), "empirical_terms": [],
                          "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {},
             "_reader_options": {}}
+
+
+def models_from_document(doc: dict, targets: Sequence[str] | None = None, where: str = "the result") -> dict:
+    """:func:`load_models` of an identify result document (``IdentificationResult.to_dict()``)."""
+    check_schema(doc, where)
+    if not isinstance(doc["targets"], dict):
+        raise DataError(f"{where}: 'targets' must map target names to results")
+    available = [t for t, tr in doc["targets"].items() if isinstance(tr, dict) and tr.get("final")]
+    if not available:
+        raise DataError(f"{where}: the result holds no finished model")
+    chosen = list(targets) if targets else available
+    for t in chosen:
+        check_choice("target", t, available, owner=where)
+    out = {t: _entry(where, t, doc["targets"][t]) for t in chosen}
+    out["_config"] = doc.get("config") or {}
+    out["_reader_options"] = _reader_options(where, doc.get("reader_options"))
+    return out
 
 
 #: the reader options a result may record (identify's ``reader_options``: the read_flight keywords
@@ -154,24 +160,18 @@ def _reader_options(path, recorded) -> dict:
 
 
 def _entry(path, target: str, tr: dict) -> dict:
-    """One target of a result.json: the final / empirical / refit IdentifiedModels when present
-    (errors name the file and the target), the engine model and empirical terms otherwise."""
-    if tr.get("final"):
-        out = {"equation": tr.get("equation")}
-        for key, name in (("final", "identified"), ("empirical_model", "empirical"), ("refit_model", "refit")):
-            if tr.get(key):
-                try:
-                    out[name] = IdentifiedModel.from_dict(tr[key])
-                except DroneIdError as exc:
-                    raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
-        out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
-        out["input_ranges"] = dict(tr.get("input_ranges") or {})
-        return out
-    return {"model": tr["model"], "inputs": tr["inputs"],
-            "empirical_terms": tr.get("empirical_terms") or [],
-            "empirical_refit": tr.get("empirical_refit") or {},
-            "empirical_expr": (tr.get("empirical") or {}).get("expr"),
-            "equation": tr.get("equation")}
+    """One target of a result.json: its final, empirical and refit IdentifiedModels (errors name
+    the file and the target), its equation and input ranges."""
+    out = {"equation": tr.get("equation")}
+    for key, name in (("final", "identified"), ("empirical_model", "empirical"), ("refit_model", "refit")):
+        if tr.get(key):
+            try:
+                out[name] = IdentifiedModel.from_dict(tr[key])
+            except DroneIdError as exc:
+                raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
+    out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
+    out["input_ranges"] = dict(tr.get("input_ranges") or {})
+    return out
 
 
 def model_sets(models: dict) -> dict:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 
 from ._common import ProgressBar, add_log_options, log_options, print_json, read_logs
 
@@ -72,6 +73,11 @@ def register(sub) -> None:
     p.add_argument("--delays", default="auto", choices=("auto", "none"),
                    help="auto (default): choose the input delay of the thrust signals by cross-validation "
                         "on the training flights; none: no delay")
+    p.add_argument("--empirical", default="tilt-drag", metavar="PRIOR",
+                   help="the empirical model every verdict compares with, as given: a prior name or "
+                        "FILE.toml:NAME (default tilt-drag with --kD; v̇z = 0 where it has no model)")
+    p.add_argument("--kD", dest="k_D", type=float, default=0.28, metavar="1/s",
+                   help="the empirical model's drag constant k_D, when it has one (default 0.28 1/s)")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="write result.json, report.md, report.html and PNG figures into DIR")
     p.add_argument("--json", action="store_true", help="print the result summary as one JSON line")
@@ -83,12 +89,12 @@ def run(args) -> int:
     from ..identify import identify
     from ..report import identify as identify_report
     cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints,
-                           effects=args.effects, delays=args.delays)
+                           effects=args.effects, delays=args.delays, empirical=args.empirical, k_D=args.k_D)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
-    result = identify(train, test, cfg, progress=bar).to_dict()
-    result["reader_options"] = log_options(args)   # predict reads its logs with them by default
+    # predict reads its logs with the reader options recorded here by default
+    result = replace(identify(train, test, cfg, progress=bar), reader_options=log_options(args))
     if args.report:
         identify_report.write(result, args.report)
     if args.json:
@@ -97,7 +103,7 @@ def run(args) -> int:
         print(identify_report.text(result))
         if args.report:
             print(f"\nreport written to {args.report}/ (result.json, report.html, report.md, figures)")
-    if result["interrupted"]:
+    if result.interrupted:
         print("droneid identify: interrupted; the finished runs are reported", file=sys.stderr)
         return 130
     return 0

@@ -1,8 +1,9 @@
 """Rendering an identification result: terminal text, report.md/report.html with PNG figures.
 
-Every function here takes the result as plain data (the ``result.json`` dict, see
-:meth:`droneid.identify.IdentificationResult.to_dict`) and renders it; nothing is recomputed
-from logs, so a saved result can be re-rendered anywhere.
+Every function here takes the typed result (:class:`droneid.identify.IdentificationResult`; a
+``result.json`` dict is read with ``from_dict`` first, which refuses another schema) and renders
+it from its attributes; nothing is recomputed from logs, so a saved result can be re-rendered
+anywhere.
 """
 from __future__ import annotations
 
@@ -15,73 +16,60 @@ import sympy as sp
 
 from ..errors import ConfigError
 from ..expressions import parse_expression
-from ..identify import VERDICT_KINDS, round_floats
+from ..identify import IdentificationResult, TargetResult
 from .rollout import horizon_figures
 from ..numerics import to_float
 from ..regression import LOSS
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table
+from .wording import VERDICT_KINDS, round_floats
 
-__all__ = ["error_rows", "text", "document", "write", "pareto_front", "compact",
-           "ERROR_HEADER"]
-
-ERROR_HEADER = ("model", "e_d train", "e_d test", "e_c test")
-
+__all__ = ["text", "document", "write", "pareto_front", "compact", "as_result"]
 
 LADDER_HEADER = ("model", "e_d train", "e_d validation", "e_d test", "e_c test")
 
 
-def ladder_rows(tr: dict) -> list[list[str]]:
+def as_result(result) -> IdentificationResult:
+    """The typed result: ``result`` itself, or a result.json dict read back (DataError in one
+    line for another schema)."""
+    return result if isinstance(result, IdentificationResult) else IdentificationResult.from_dict(result)
+
+
+def ladder_rows(tr: TargetResult) -> list[list[str]]:
     """The ladder of one target: empirical as given -> refit -> + delay -> + effects -> final."""
-    return [[("FINAL: " if r["name"] == "final" else "") + r["description"], efmt(r.get("rmse_train")),
-             efmt(r.get("rmse_validation")), efmt(r.get("rmse_test")), efmt(r.get("constraint_rmse_test"))]
-            for r in tr.get("ladder") or []]
+    return [[("FINAL: " if r.name == "final" else "") + r.description, efmt(r.rmse_train),
+             efmt(r.rmse_validation), efmt(r.rmse_test), efmt(r.constraint_rmse_test)]
+            for r in tr.ladder]
 
 
-def method_line(cfg: dict) -> str:
+def method_line(result: IdentificationResult) -> str:
     """How the errors were measured (printed with every error table)."""
-    return (f"errors in m/s² (RMSE); targets by {cfg.get('method')} differences at Ts = {cfg.get('ts')} s; "
-            f"fits and validation: {LOSS} refit of the same terms, {cfg.get('validation') or 'blocked CV'} "
+    cfg = result.config
+    return (f"errors in m/s² (RMSE); targets by {cfg.method} differences at Ts = {cfg.ts} s; "
+            f"fits and validation: {LOSS} refit of the same terms, {result.plan.validation or 'blocked CV'} "
             f"(training flights only); e_c = constraint RMSE")
 
 
-def error_rows(tr: dict) -> list[list[str]]:
-    """The comparison table of one target: empirical, refit, identified best and median."""
-    def row(label, d):
-        d = d or {}
-        return [label, efmt(d.get("rmse_train")), efmt(d.get("rmse_test")), efmt(d.get("constraint_rmse_test"))]
-    n = len(tr.get("runs") or [])
-    return [row("empirical model as given", tr.get("empirical")),
-            row("empirical model refit (LS)", tr.get("empirical_refit")),
-            row("identified, best run", tr.get("identified")),
-            row(f"identified, median of {n} runs", tr.get("identified_median"))]
-
-
-def interval_lines(tr: dict) -> list[str]:
+def interval_lines(tr: TargetResult) -> list[str]:
     """The final model's coefficients with their 95 % intervals, one line."""
-    final = next((r for r in tr.get("ladder") or [] if r.get("name") == "final"), None)
-    if not final or not final.get("intervals"):
+    final = tr.final_rung
+    if not final.intervals:
         return []
     parts = []
-    for lab, (a, b) in final["intervals"].items():
-        c = final["intercept"] if lab == "intercept" else (final.get("terms") or {}).get(lab)
-        held = " held" if lab in (final.get("held") or {}) else ""
-        parts.append(f"{lab} {efmt(c)} [{efmt(a)}, {efmt(b)}]{held}")
+    for lab, iv in final.intervals.items():
+        c = final.intercept if lab == "intercept" else final.terms[lab]
+        held = " held" if lab in final.held else ""
+        parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}]{held}")
     return ["  95 % intervals (block bootstrap over the training flights' time blocks): " + "; ".join(parts)]
 
 
-def screened_lines(tr: dict) -> list[str]:
+def screened_lines(tr: TargetResult) -> list[str]:
     """Implausible samples screened out of the training and test data (count per signal)."""
     out = []
-    for where, counts in (tr.get("screened") or {}).items():
+    for where, counts in tr.screened.items():
         if counts:
             out.append(f"SCREENED ({where}): " + ", ".join(f"{n} {c}" for n, c in counts.items())
                        + " implausible sample(s) or jump(s); the rows that use them are left out")
     return out
-
-
-def _pct(v) -> str:
-    v = to_float(v)
-    return "—" if not math.isfinite(v) else f"{v:+.1f} %"
 
 
 _NAME = re.compile(r"[A-Za-z_]\w*")
@@ -101,79 +89,57 @@ def readable_expr(text: str, sig: int = 4) -> str:
     return round_floats(text, sig)
 
 
-def _legend(tr: dict) -> list[str]:
-    return [f"  ⟨{p['name']}⟩ = {readable_expr(p['expr'])}"
-            + (f"   ({p['description']})" if p.get("description") else "")
-            for p in tr.get("prior_features") or []]
+def _legend(tr: TargetResult) -> list[str]:
+    return [f"  ⟨{p.name}⟩ = {readable_expr(p.expr)}" + (f"   ({p.description})" if p.description else "")
+            for p in tr.prior_features]
 
 
-def _constraints_label(cfg: dict) -> str:
-    """``paper`` means the prior's own set: say which."""
-    c = cfg.get("constraints")
-    if c != "paper":
-        return str(c)
-    prior = cfg.get("prior_used") or cfg.get("prior")
-    return "the paper's" if prior == "tilt-drag" else f"{prior}'s own (docs/priors.md)"
+def _constraints_label(result: IdentificationResult) -> str:
+    """The constraint sets the runs trained on, as the targets record them (``paper`` means the
+    prior's own set: the record names it)."""
+    used = sorted({tr.constraints for tr in result.targets.values()})
+    own = " (the prior's own, docs/priors.md)" if result.config.constraints == "paper" else ""
+    return ", ".join(used) + (own if any(u != "none" for u in used) else "") if used else str(result.config.constraints)
 
 
-def text(result: dict) -> str:
-    """The terminal summary: per target the equation, the error table and the improvement."""
-    out = []
-    cfg = result.get("config", {})
-    out.append(f"droneid identify: prior {cfg.get('prior_used') or cfg.get('prior')} with {cfg.get('prior_features')} prior "
-               f"feature(s), constraints {_constraints_label(cfg)}, {cfg.get('runs')} run(s) of "
-               f"{cfg.get('generations')} generations x population {cfg.get('population_size')}"
-               + (" (quick budget)" if cfg.get("quick") else ""))
-    for note in result.get("notes") or []:
-        out.append(f"NOTE: {note}")
-    for name, tr in result["targets"].items():
-        out += ["", f"== {name}  ({tr['n_train']} training / {tr['n_test']} test samples; {tr['test_data']})"]
-        if tr.get("ladder"):
-            out.append(tr.get("verdict") or "")
-            out.append(tr.get("equation") or "")
-            out += _legend(tr)
-            out += interval_lines(tr)
-            if tr.get("final"):
-                out.append(f"  expanded: {tr['final']['equation']}")
-                if tr["final"].get("delays_s"):
-                    out.append("  offset inputs: " + ", ".join(f"{k}(t {'−' if v > 0 else '+'} {1000 * abs(v):.0f} ms)"
-                                                               for k, v in tr["final"]["delays_s"].items()))
-            out.append("")
-            out.append(text_table(list(LADDER_HEADER), ladder_rows(tr)))
-            out.append(method_line(cfg))
-            g = tr.get("guards") or {}
-            out.append(f"SNGP runs: {len(tr.get('runs') or [])}; rejected as implausible: {g.get('implausible', 0)}; "
-                       f"no evolved term left after the guards: {g.get('no_evolved_term_left', 0)}; "
-                       f"breaking the constraints: {g.get('constraints_broken', 0)}; "
-                       f"drag not growing with speed: {g.get('drag_not_monotone', 0)}")
-            out += screened_lines(tr)
-            for note in tr.get("notes") or []:
-                if note != tr["test_data"]:
-                    out.append(f"NOTE: {note}")
-            continue
-        if tr.get("equation"):
-            out.append(tr["equation"])
-            out += _legend(tr)
-            if tr.get("equation_expanded"):
-                out.append(f"  expanded: {tr['equation_expanded']}")
-        else:
-            out.append("(no finished run)")
-        out.append("")
-        out.append(text_table(list(ERROR_HEADER), error_rows(tr)))
-        imp = tr.get("improvement_pct") or {}
-        out.append(f"errors in the target's units (m/s²); e_d = RMSE on data, e_c = constraint RMSE. "
-                   f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
-                   f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its refit.")
-        for note in tr.get("notes") or []:
-            if note != tr["test_data"]:
-                out.append(f"NOTE: {note}")
-    out += horizon_lines(result.get("horizons") or {})
+def _guard_line(tr: TargetResult) -> str:
+    g = tr.guards
+    return (f"SNGP runs: {len(tr.runs)}; rejected as implausible: {g.implausible}; "
+            f"no evolved term left after the guards: {g.no_evolved_term_left}; "
+            f"rejected for breaking the constraints: {g.constraints_broken}; "
+            f"drag not growing with speed: {g.drag_not_monotone}")
+
+
+def _delay_text(tr: TargetResult) -> str:
+    return ", ".join(f"{k}(t {'−' if v > 0 else '+'} {1000 * abs(v):.0f} ms)" for k, v in tr.final.delays_s.items())
+
+
+def text(result) -> str:
+    """The terminal summary: per target the verdict, the equation, the ladder and the notes."""
+    result = as_result(result)
+    cfg, plan = result.config, result.plan
+    out = [f"droneid identify: prior {plan.prior_used or cfg.prior} with {cfg.prior_features} prior "
+           f"feature(s), constraints {_constraints_label(result)}, {cfg.runs} run(s) of "
+           f"{cfg.generations} generations x population {cfg.population_size}"
+           + (" (quick budget)" if cfg.quick else "")]
+    out += [f"NOTE: {note}" for note in result.notes]
+    for name, tr in result.targets.items():
+        out += ["", f"== {name}  ({tr.n_train} training / {tr.n_test} test samples; {tr.test_data})",
+                tr.verdict, tr.equation, *_legend(tr), *interval_lines(tr),
+                f"  expanded: {name} = {tr.final.text()}"]
+        if tr.final.delays_s:
+            out.append("  offset inputs: " + _delay_text(tr))
+        out += ["", text_table(list(LADDER_HEADER), ladder_rows(tr)), method_line(result), _guard_line(tr)]
+        out += screened_lines(tr)
+        out += [f"NOTE: {note}" for note in tr.notes if note != tr.test_data]
+    out += horizon_lines(result.horizons)
     return "\n".join(out)
 
 
 def horizon_rows(h: dict) -> tuple[list, list]:
-    """(header, rows) of the multi-step table: velocity RMSE (m/s) per model and horizon."""
-    if not h.get("rmse"):
+    """(header, rows) of the multi-step table: velocity RMSE (m/s) per model and horizon
+    (``h``: the result's ``horizons``, :func:`droneid.rollout.horizon_section`)."""
+    if "rmse" not in h or not h["rmse"]:
         return [], []
     axes = [a for a in ("vx", "vy", "vz", "position")
             if any(a in e for per in h["rmse"].values() for e in per.values())]
@@ -181,8 +147,8 @@ def horizon_rows(h: dict) -> tuple[list, list]:
     rows = []
     for m, per in h["rmse"].items():
         for step, sec in zip(h["steps"], h["seconds"]):
-            e = per.get(str(step), {})
-            rows.append([m, f"{step} ({sec:.3g} s)"] + [efmt(e.get(a)) if a in e else "—" for a in axes])
+            e = per[str(step)] if str(step) in per else {}
+            rows.append([m, f"{step} ({sec:.3g} s)"] + [efmt(e[a]) if a in e else "—" for a in axes])
     return header, rows
 
 
@@ -193,7 +159,7 @@ def horizon_lines(h: dict) -> list[str]:
     return ["", "== multi-step prediction on the test flights (velocity integrated from each sample, "
                 "inputs from the log; RMSE against the logged velocity)", text_table(header, rows),
             f"steps of {h['dt_s']:.3g} s; starts per horizon: "
-            + ", ".join(f"{k}: {v}" for k, v in (h.get("n_starts") or {}).items())]
+            + ", ".join(f"{k}: {v}" for k, v in h["n_starts"].items())]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -214,8 +180,8 @@ def pareto_front(points: np.ndarray) -> np.ndarray:
 
 
 def _x_axis(series: dict):
-    t = np.asarray(series.get("t") or [], float)
-    fl = np.asarray(series.get("flight") or [], int)
+    t = np.asarray(series["t"], float)
+    fl = np.asarray(series["flight"], int)
     if t.size and (fl.size == 0 or np.all(fl == fl[0])):
         return t, "time in test flight (s)"
     return np.arange(t.size), "test sample index (flights one after another; 1 sample = 1 Ts)"
@@ -224,8 +190,8 @@ def _x_axis(series: dict):
 def _gapped(s: dict, *ys):
     """x axis, its label and the ``ys`` with NaN at every gap in time or change of flight."""
     x, xl = _x_axis(s)
-    t = s.get("t") or None
-    fl = s.get("flight") or None
+    t = s["t"] or None
+    fl = s["flight"] or None
     xg, yg = break_gaps(x, ys, t=t if t is not None and len(t) == len(x) else None, flight=fl)
     return xg, xl, yg
 
@@ -274,13 +240,11 @@ def _math_lines(lhs: str, expr, width: int = 110, signals=None) -> list[str] | N
     return ["$" + ln.replace(r"\operatorname", r"\mathrm") + "$" for ln in lines]
 
 
-def fig_equation(name: str, tr: dict):
+def fig_equation(name: str, tr: TargetResult):
     """The final model typeset with matplotlib's mathtext (no LaTeX install, no network), wrapped
-    over several lines, the figure as wide as its longest line; None when there is no final
-    expression or mathtext cannot render it."""
-    fin = tr.get("final") or {}
-    expr = fin.get("expr")
-    lines = _math_lines(name, expr, signals=fin.get("signals")) if expr else None
+    over several lines, the figure as wide as its longest line; None when mathtext cannot render
+    it."""
+    lines = _math_lines(name, tr.final.expr)
     if not lines:
         return None
     step = 0.42  # inches per line
@@ -302,8 +266,8 @@ def fig_equation(name: str, tr: dict):
     return fig
 
 
-def fig_measured_vs_predicted(name: str, tr: dict):
-    s = tr["test_series"]
+def fig_measured_vs_predicted(name: str, tr: TargetResult):
+    s = tr.test_series
     x, xl, (y, emp, ide) = _gapped(s, s["y"], s["empirical"], s["identified"])
     fig = new_figure(7.5, 3.4)
     ax = fig.add_subplot()
@@ -317,8 +281,8 @@ def fig_measured_vs_predicted(name: str, tr: dict):
     return fig
 
 
-def fig_residuals(name: str, tr: dict):
-    s = tr["test_series"]
+def fig_residuals(name: str, tr: TargetResult):
+    s = tr.test_series
     y = np.asarray(s["y"], float)
     x, xl, (r_emp, r_ref, r_ide) = _gapped(s, y - np.asarray(s["empirical"], float),
                                            y - np.asarray(s["empirical_refit"], float),
@@ -336,14 +300,13 @@ def fig_residuals(name: str, tr: dict):
     return fig
 
 
-def fig_runs(name: str, tr: dict):
-    runs = tr.get("runs") or []
-    e = np.sort(np.array([to_float(r.get("rmse_test")) for r in runs], float))
+def fig_runs(name: str, tr: TargetResult):
+    e = np.sort(np.array([to_float(r.rmse_test) for r in tr.runs], float))
     fig = new_figure(6.0, 3.2)
     ax = fig.add_subplot()
     ax.plot(np.arange(1, e.size + 1), e, "o-", color="tab:blue", ms=4, label="identified runs")
-    ax.axhline(to_float(tr["empirical"].get("rmse_test")), color="tab:orange", ls="--", label="empirical model")
-    ax.axhline(to_float(tr["empirical_refit"].get("rmse_test")), color="tab:green", ls=":", label="prior refit")
+    ax.axhline(to_float(tr.ladder[0].rmse_test), color="tab:orange", ls="--", label="empirical model")
+    ax.axhline(to_float(tr.ladder[1].rmse_test), color="tab:green", ls=":", label="prior refit")
     ax.set_xlabel("run (sorted by test error)")
     from matplotlib.ticker import MaxNLocator
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -355,9 +318,9 @@ def fig_runs(name: str, tr: dict):
     return fig
 
 
-def fig_pareto(name: str, tr: dict, gamma: float | None):
-    pts = [(to_float(a.get("rmse_train")), to_float(a.get("constraint_rmse_train")))
-           for r in tr.get("runs") or [] for a in (r.get("archive") or [])]
+def fig_pareto(name: str, tr: TargetResult, gamma: float | None):
+    pts = [(to_float(a["rmse_train"]), to_float(a["constraint_rmse_train"]))
+           for r in tr.runs for a in r.archive]
     pts = np.array([p for p in pts if all(math.isfinite(v) for v in p)], float).reshape(-1, 2)
     if not len(pts):
         return None
@@ -382,86 +345,65 @@ def fig_pareto(name: str, tr: dict, gamma: float | None):
 # documents
 
 
-def document(result: dict) -> Document:
-    """report.md / report.html content: config, per-target equation, table and figures."""
-    cfg = result.get("config", {})
+def document(result) -> Document:
+    """report.md / report.html content: settings, per-target verdict, equation, ladder, figures."""
+    result = as_result(result)
+    cfg, plan = result.config, result.plan
     doc = Document("droneid identification report")
-    doc.paragraph(f"Prior '{cfg.get('prior')}' with {cfg.get('prior_features')} prior feature(s); "
-                  f"constraints: {cfg.get('constraints')}; {cfg.get('runs')} SNGP run(s), "
-                  f"{cfg.get('generations')} generations, population {cfg.get('population_size')}, "
-                  f"seed {cfg.get('seed')}; Ts {cfg.get('ts')} s, {cfg.get('method')} differences. "
+    delays = ", ".join(f"{k} {1000 * v:+.0f} ms" for k, v in plan.delays_s.items()) or "none"
+    doc.paragraph(f"Prior '{plan.prior_used or cfg.prior}' with {cfg.prior_features} prior feature(s); "
+                  f"constraints: {_constraints_label(result)}; input offsets: {delays}; {cfg.runs} SNGP run(s), "
+                  f"{cfg.generations} generations, population {cfg.population_size}, "
+                  f"seed {cfg.seed}; Ts {cfg.ts} s, {cfg.method} differences. "
                   f"Errors in m/s²: e_d is the RMSE on data, e_c the RMSE of constraint violations.")
-    for note in result.get("notes") or []:
+    for note in result.notes:
         doc.paragraph(f"NOTE: {note}")
-    prov = result.get("provenance") or {}
-    files = lambda part: ", ".join(str(f) for p in prov.get(part) or [] for f in (p.get("files") or []))  # noqa: E731
+    files = lambda part: ", ".join(str(f) for p in (result.provenance[part] if part in result.provenance else ()) for f in p["files"])  # noqa: E731
     doc.paragraph(f"Training logs: {files('train') or '—'}. Test logs: {files('test') or '—'}.")
-    for name, tr in result["targets"].items():
+    for name, tr in result.targets.items():
         doc.heading(name)
-        if tr.get("verdict"):
-            doc.verdict(tr["verdict"], VERDICT_KINDS.get(tr.get("verdict_kind") or "", "grey"))
-        has_series = bool(tr.get("test_series", {}).get("y"))
+        doc.verdict(tr.verdict, VERDICT_KINDS[tr.verdict_kind] if tr.verdict_kind in VERDICT_KINDS else "grey")
+        has_series = bool(tr.test_series["y"])
         eq = fig_equation(name, tr)
         top = []
         if eq is not None:
-            delays = (tr.get("final") or {}).get("delays_s") or {}
             top.append((eq, f"{name}_equation", "final model, in m/s²" + (
-                "; delayed inputs: " + ", ".join(f"{k}(t − {1000 * v:.0f} ms)" for k, v in delays.items())
-                if delays else "")))
+                "; delayed inputs: " + _delay_text(tr) if tr.final.delays_s else "")))
         if has_series:
             top.append((fig_measured_vs_predicted(name, tr), f"{name}_test_prediction",
                         "measured vs predicted on the test data (final model and empirical model)"))
         if top:
             doc.side_by_side(*top)
-        if tr.get("equation"):
-            doc.code("\n".join([tr["equation"], *_legend(tr), *interval_lines(tr), *screened_lines(tr)]
-                               + ([f"expanded: {tr['equation_expanded']}"] if tr.get("equation_expanded") else [])))
-        if tr.get("ladder"):
-            doc.table(LADDER_HEADER, ladder_rows(tr))
-            doc.paragraph(method_line(cfg))
-        doc.paragraph(f"{tr['n_train']} training and {tr['n_test']} test samples; {tr['test_data']}. "
-                      f"Inputs: {', '.join(tr['inputs'])}.")
-        if not tr.get("ladder"):  # a result of the first version (no ladder): its own table
-            doc.table(ERROR_HEADER, error_rows(tr))
-            imp = tr.get("improvement_pct") or {}
-            doc.paragraph(f"Improvement of the best run's test error: {_pct(imp.get('vs_empirical'))} vs the "
-                          f"empirical model, {_pct(imp.get('vs_empirical_refit'))} vs its least-squares refit. "
-                          f"The best run is chosen by training error among runs meeting the constraint "
-                          f"threshold, never by test error.")
-            refit = tr["empirical_refit"].get("coefficients") or {}
-            if refit:
-                doc.paragraph("Empirical refit: " + ", ".join(f"{fmt(v)}·⟨{k}⟩" for k, v in refit.items())
-                              + f" + {fmt(tr['empirical_refit'].get('intercept'))}")
-        for note in tr.get("notes") or []:
-            if note != tr["test_data"]:
+        doc.code("\n".join([tr.equation, *_legend(tr), *interval_lines(tr), *screened_lines(tr),
+                            f"expanded: {name} = {tr.final.text()}"]))
+        doc.table(LADDER_HEADER, ladder_rows(tr))
+        doc.paragraph(method_line(result))
+        doc.paragraph(f"{tr.n_train} training and {tr.n_test} test samples; {tr.test_data}. "
+                      f"Inputs: {', '.join(tr.inputs)}. Constraints: {tr.constraints}.")
+        for note in tr.notes:
+            if note != tr.test_data:
                 doc.paragraph(f"NOTE: {note}")
-        if tr.get("runs"):
-            chosen = (tr.get("guards") or {}).get("chosen_run") if tr.get("ladder") else tr.get("best_run")
-            mark = " (its evolved terms are in the final model)" if tr.get("ladder") else " (best)"
-            if tr.get("ladder"):
-                g = tr.get("guards") or {}
-                doc.paragraph(f"SNGP runs (errors of each run's own model on the rows it searched): "
-                              f"{g.get('implausible', 0)} rejected as implausible, "
-                              f"{g.get('constraints_broken', 0)} breaking the constraints, "
-                              f"{g.get('drag_not_monotone', 0)} with drag not growing with speed, "
-                              f"{g.get('no_evolved_term_left', 0)} with no evolved term left after the guards.")
+        if tr.runs:
+            chosen = tr.guards.chosen_run
+            mark = " (its evolved terms are in the final model)"
+            doc.paragraph(_guard_line(tr) + " (errors of each run's own model on the rows it searched)")
             doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "qualified", "wall (s)"],
-                      [[str(i + 1) + (mark if i == chosen else ""), r.get("seed"),
-                        fmt(r.get("rmse_train")), fmt(r.get("rmse_test")), fmt(r.get("constraint_rmse_train")),
-                        fmt(r.get("constraint_rmse_test")), "yes" if r.get("qualified") else "no",
-                        fmt(r.get("wall_s"), 3)] for i, r in enumerate(tr["runs"])])
+                      [[str(i + 1) + (mark if i == chosen else ""), r.seed,
+                        fmt(r.rmse_train), fmt(r.rmse_test), fmt(r.constraint_rmse_train),
+                        fmt(r.constraint_rmse_test), "yes" if r.qualified else "no",
+                        fmt(r.wall_s, 3)] for i, r in enumerate(tr.runs)])
         if has_series:
             doc.figure(fig_residuals(name, tr), f"{name}_residuals", "residual over time on the test data")
-        if any(math.isfinite(to_float(r.get("rmse_test"))) for r in tr.get("runs") or []):
+        if any(math.isfinite(to_float(r.rmse_test)) for r in tr.runs):
             doc.figure(fig_runs(name, tr), f"{name}_runs",
                        "runs sorted by test error; dashed: the empirical model's test error (cf. the paper's Figs. 2-3)")
-        if cfg.get("constraints") != "none" and tr.get("runs"):
-            fig = fig_pareto(name, tr, cfg.get("gamma"))
+        if tr.constraints != "none" and tr.runs:
+            fig = fig_pareto(name, tr, cfg.gamma)
             if fig is not None:
                 doc.figure(fig, f"{name}_pareto", "Pareto front of e_d^train vs e_c^train over the runs' archives")
-    header, rows = horizon_rows(result.get("horizons") or {})
+    header, rows = horizon_rows(result.horizons)
     if rows:
-        h = result["horizons"]
+        h = result.horizons
         doc.heading("Multi-step prediction on the test flights")
         doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
                       f"{h['dt_s']:.3g} s) with every other input read from the log; RMSE against the "
@@ -470,22 +412,21 @@ def document(result: dict) -> Document:
         for name, png in horizon_figures(h).items():
             doc.png(png, name, "multi-step prediction: error against horizon" if "error" in name
                     else "predicted velocity traces over the measured one")
-    vers = result.get("versions") or {}
-    doc.paragraph("Versions: " + ", ".join(f"{k} {v}" for k, v in vers.items()))
+    doc.paragraph("Versions: " + ", ".join(f"{k} {v}" for k, v in result.versions.items()))
     return doc
 
 
-def write(result: dict, directory) -> dict[str, Path]:
+def write(result, directory) -> dict[str, Path]:
     """Write result.json, report.md, report.html and the PNGs into ``directory`` (atomically)."""
-    return document(result).write(directory, "report", data={"result.json": result})
+    result = as_result(result)
+    return document(result).write(directory, "report", data={"result.json": result.to_dict()})
 
 
-def compact(result: dict) -> dict:
-    """The result without bulky parts (series, archives, the model): for ``--json`` output."""
-    out = {k: v for k, v in result.items() if k != "targets"}
-    out["targets"] = {}
-    for name, tr in result["targets"].items():
-        t = {k: v for k, v in tr.items() if k not in ("test_series", "model", "runs")}
-        t["runs"] = [{k: v for k, v in r.items() if k != "archive"} for r in tr.get("runs") or []]
-        out["targets"][name] = t
+def compact(result) -> dict:
+    """The result.json document without bulky parts (series, archives): for ``--json`` output."""
+    out = as_result(result).to_dict()
+    for tr in out["targets"].values():
+        del tr["test_series"]
+        for r in tr["runs"]:
+            del r["archive"]
     return out

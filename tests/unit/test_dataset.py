@@ -3,8 +3,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from droneid.dataset_builder import (DatasetBuilder, resample_signal, split_by_flight, split_time_block,
-                             subsample)
+from droneid.dataset_builder import DatasetBuilder, resample_signal, subsample
+from droneid.validation import split_by_flight, split_time_block
 from droneid.errors import ConfigError, DataError, MissingSignalError
 from droneid.flight import Event, Flight, Signal
 from droneid.frames import wrap_angle

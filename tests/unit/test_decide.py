@@ -9,7 +9,7 @@ import pytest
 
 from droneid.decide import Decision, decide, decide_designs, decide_family, holm_threshold
 from droneid.errors import ConfigError
-from droneid.ladder import block_ids
+from droneid.validation import block_ids
 
 
 def _blocks(n=960, k=12):

@@ -1,13 +1,15 @@
-"""The trust guards of identify (droneid.ladder) on data with a planted law."""
+"""The trust guards of identify (droneid.terms, droneid.ladder) on data with a planted law."""
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import sympy as sp
 
 from droneid.expressions import symbol
-from droneid.ladder import (TermModel, blocked_cv, drag_slope, plausible, trim_terms,
-                            validation_blocks)
+from droneid.regression import blocked_cv
+from droneid.terms import TermModel, drag_slope, plausible, trim_terms
+from droneid.validation import validation_blocks
 
 v, a = symbol("vx"), symbol("pitch")
 
@@ -93,7 +95,7 @@ def test_drag_slope_flags_a_velocity_term_that_turns_over():
 
 
 def test_functions_of_functions_are_unreadable(data):
-    from droneid.ladder import nested_functions
+    from droneid.terms import nested_functions
     assert nested_functions(v ** 2 * a) == 0 and nested_functions(sp.sin(v) * sp.cos(a)) == 1
     assert nested_functions(sp.cos(sp.sin(v) + 1)) == 2
     cols, y, flight, t = data
@@ -105,7 +107,7 @@ def test_functions_of_functions_are_unreadable(data):
 
 
 def test_negligible_addends_are_dropped_from_the_shown_equation():
-    from droneid.ladder import drop_negligible
+    from droneid.terms import drop_negligible
     r, w = symbol("roll"), symbol("rpm4")
     cols = {"roll": np.linspace(0.1, 0.5, 20), "rpm4": np.linspace(5e4, 1.4e5, 20), "vx": np.linspace(-1, 1, 20)}
     e = 1.1e-10 * (4 * r ** 2 * w ** 2 + w + 3.142) * sp.sin(v)
@@ -113,9 +115,15 @@ def test_negligible_addends_are_dropped_from_the_shown_equation():
     assert drop_negligible(v + 0.5, cols, 20) == v + 0.5  # both parts matter
 
 
+def _rung(rmse_test, rmse_validation, at_bound=None, constraint_rmse_test=float("nan")):
+    """What a verdict reads of a rung (droneid.ladder.Rung's attributes)."""
+    return SimpleNamespace(rmse_test=rmse_test, rmse_validation=rmse_validation, at_bound=at_bound or {},
+                           constraint_rmse_test=constraint_rmse_test)
+
+
 def test_verdicts_read_as_what_they_are():
-    from droneid.identify import verdict
-    rung = lambda te, va, **kw: {"rmse_test": te, "rmse_validation": va, **kw}  # noqa: E731
+    from droneid.report.wording import verdict
+    rung = _rung
     emp = rung(1.0, 1.0)
     v = verdict("vx_dot", rung(0.6, 0.5), emp, False, False, 2.0)
     assert v.kind == "better" and "beats the empirical model by 40 % on the test flights" in v.text
@@ -133,16 +141,16 @@ def test_verdicts_read_as_what_they_are():
 
 
 def test_a_model_outside_its_physics_is_not_to_be_trusted_however_well_it_fits():
-    from droneid.identify import verdict
-    emp = {"rmse_test": 1.0, "rmse_validation": 1.0}
-    pulled = {"rmse_test": 0.5, "rmse_validation": 0.5, "at_bound": {"⟨minus_kD_vz⟩": 0.0}}
+    from droneid.report.wording import verdict
+    emp = _rung(1.0, 1.0)
+    pulled = _rung(0.5, 0.5, at_bound={"⟨minus_kD_vz⟩": 0.0})
     v = verdict("vz_dot", pulled, emp, False, False)
     assert v.kind == "not to be trusted" and "minus_kD_vz" in v.text and "+50 %" in v.text
-    broken = {"rmse_test": 0.5, "rmse_validation": 0.5, "constraint_rmse_test": 7.3}
+    broken = _rung(0.5, 0.5, constraint_rmse_test=7.3)
     assert verdict("vz_dot", broken, emp, False, False, gamma=0.05).kind == "not to be trusted"
     # an e_c the prior's own refit has too is explained, not a fault of the model
     assert verdict("vz_dot", broken, emp, False, False, gamma=0.05,
-                   reference={"constraint_rmse_test": 7.0}).kind == "better"
+                   reference=_rung(1.0, 1.0, constraint_rmse_test=7.0)).kind == "better"
 
 
 def test_physical_terms_that_offset_each_other_do_not_cost_a_real_evolved_term():

@@ -176,7 +176,8 @@ def test_a_user_prior_declares_its_vehicle_and_its_constraint_file(tmp_path):
                                      'target = "vx_dot"\nfeatures = ["9.81*tan(pitch)", "-0.3*vx"]\n')
     p = load_priors(tmp_path / "p.toml")["t"]
     assert p.vehicle == "multirotor" and p.constraints == str(tmp_path / "c.toml")   # relative to the file
-    from droneid.identify import _constraint_set_for, IdentifyConfig
+    from droneid.identify import IdentifyConfig
+    from droneid.problem import constraint_sets as _constraint_set_for
     train_cs, eval_cs = _constraint_set_for(IdentifyConfig.make(effects="none", delays="none"), "vx_dot", p)
     assert train_cs is not None and len(train_cs.constraints) == 1
     for bad, msg in (('vehicle = "boat"', "vehicle must be one of"), ('constraints = "nope.toml"', "not found"),

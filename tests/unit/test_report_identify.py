@@ -9,58 +9,85 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from droneid.errors import ConfigError
-from droneid.identify import (IdentificationResult, IdentifyConfig, RunRecord, improvement_pct,
-                              readable_equation, run_seeds, select_best)
-from droneid.report.identify import error_rows, pareto_front, write
+from droneid.errors import ConfigError, DataError
+from droneid.identified import IdentifiedModel
+from droneid.identify import (FeatureText, IdentificationResult, IdentifyConfig, PlanRecord, RunRecord,
+                              TargetResult)
+from droneid.ladder import GuardReport, Interval, Rung
+from droneid.report.identify import pareto_front, write
 from droneid.report.identify import text as render_text
+from droneid.report.wording import display_term, improvement_pct, readable_equation
+from droneid.search import run_seeds, select_best
+
+SIGNALS = ["vx", "pitch", "roll", "yaw", "rpm1", "rpm2", "rpm3", "rpm4"]
+
+
+def _model(expr: str, delays=None, description="") -> IdentifiedModel:
+    return IdentifiedModel.from_dict({"target": "vx_dot", "expr": expr, "signals": SIGNALS,
+                                      "delays_s": delays or {}, "description": description})
+
+
+def _rung(name, description, e, model, **kw) -> Rung:
+    return Rung(name, description, e, e, e, 0.01, {"⟨tilt_pitch⟩": 0.9, "vx": -0.3}, 0.0, model, **kw)
+
+
+def hand_built(constraints="paper", final_expr="8.8*tan(pitch) - 0.3*vx", delays=None) -> IdentificationResult:
+    """A typed result as identify makes it (no engine needed)."""
+    t = np.arange(0, 5, 0.05)
+    y = np.sin(t)
+    runs = tuple(RunRecord(seed=10 + i, rmse_train=0.1 + 0.01 * i, rmse_test=0.2 + 0.02 * i,
+                           constraint_rmse_train=0.01 * (i + 1), constraint_rmse_test=0.02 * (i + 1),
+                           qualified=True, wall_s=1.5, generations=100, equation="x",
+                           archive=tuple({"rmse_train": 0.1 + j * 0.01, "constraint_rmse_train": 0.5 / (j + 1)}
+                                         for j in range(5))) for i in range(4))
+    emp = _model("9.81*tan(pitch) - 0.28*vx", description="the empirical tilt-drag model as given")
+    ladder = (_rung("empirical", "the empirical tilt-drag model as given", 0.3, emp),
+              _rung("refit", "tilt-drag prior refit", 0.2, _model("9.3*tan(pitch) - 0.25*vx")),
+              _rung("final", "= the rung above", 0.2, _model(final_expr, delays),
+                    intervals={"⟨tilt_pitch⟩": Interval(0.85, 0.95)}, held={}))
+    tr = TargetResult(
+        target="vx_dot", inputs=("vx", "pitch", "roll", "yaw"), n_train=160, n_test=100,
+        test_data="test flights: square", holdout=False,
+        constraints="none" if constraints == "none" else "paper+drag-sign",
+        prior_features=(FeatureText("tilt_pitch", "9.81*tan(pitch)", "d"),), empirical_terms=(),
+        ladder=ladder, guards=GuardReport(bound=20.0, candidates=1, chosen_run=0),
+        verdict="vx_dot: the physical model is 33 % better than the empirical model on the test flights",
+        verdict_kind="better", equation="vx_dot = 0.9·⟨tilt_pitch⟩ - 0.3·vx",
+        identified={"rmse_train": 0.1, "rmse_test": 0.2, "constraint_rmse_test": 0.02},
+        empirical={"rmse_train": 0.5, "rmse_test": 0.4, "constraint_rmse_test": 0.0},
+        empirical_refit={"rmse_train": 0.3, "rmse_test": 0.25, "constraint_rmse_test": 0.001,
+                         "coefficients": {"tilt_pitch": 0.95}, "intercept": 0.01},
+        runs=runs, test_series={"t": t.tolist(), "flight": [0] * t.size, "y": y.tolist(),
+                                "empirical": (0.8 * y).tolist(), "empirical_refit": (0.9 * y).tolist(),
+                                "identified": (0.97 * y).tolist()},
+        notes=("test flights: square",), intervals={"tilt_pitch": Interval(0.85, 0.95)})
+    return IdentificationResult({"vx_dot": tr}, IdentifyConfig(constraints=constraints),
+                                PlanRecord(prior_used="tilt-drag", validation="leave-one-flight-out"),
+                                {"train": [{"files": ["eight.tlog"]}], "test": [{"files": ["square.tlog"]}]},
+                                {"droneid": "0"}, wall_s=1.0)
 
 
 def hand_built_result(constraints="paper") -> dict:
-    t = np.arange(0, 5, 0.05)
-    y = np.sin(t)
-    runs = [{"seed": 10 + i, "rmse_train": 0.1 + 0.01 * i, "rmse_test": 0.2 + 0.02 * i,
-             "constraint_rmse_train": 0.01 * (i + 1), "constraint_rmse_test": 0.02 * (i + 1),
-             "qualified": True, "wall_s": 1.5, "generations": 100, "equation": "x",
-             "archive": [{"rmse_train": 0.1 + j * 0.01, "constraint_rmse_train": 0.5 / (j + 1)}
-                         for j in range(5)]} for i in range(4)]
-    tr = {"target": "vx_dot", "inputs": ["vx", "pitch", "roll", "yaw"], "n_train": 160, "n_test": 100,
-          "test_data": "test flights: square", "holdout": False,
-          "prior_features": [{"name": "tilt_pitch", "expr": "9.81*tan(pitch)", "description": "d"}],
-          "empirical_terms": [],
-          "equation": "vx_dot = 0.9·⟨tilt_pitch⟩ - 0.3·vx", "equation_expanded": "vx_dot = 8.8*tan(pitch) - 0.3*vx",
-          "coefficients": {"vx": -0.3}, "prior_coefficients": {"tilt_pitch": 0.9}, "intercept": 0.0,
-          "identified": {"rmse_train": 0.1, "rmse_test": 0.2, "constraint_rmse_test": 0.02},
-          "identified_median": {"rmse_train": 0.115, "rmse_test": 0.23, "constraint_rmse_test": 0.05},
-          "empirical": {"rmse_train": 0.5, "rmse_test": 0.4, "constraint_rmse_test": 0.0},
-          "empirical_refit": {"rmse_train": 0.3, "rmse_test": 0.25, "constraint_rmse_test": 0.001,
-                              "coefficients": {"tilt_pitch": 0.95}, "intercept": 0.01},
-          "improvement_pct": {"vs_empirical": 50.0, "vs_empirical_refit": 20.0},
-          "runs": runs, "best_run": 0, "failed_runs": {}, "model": {"kind": "fake"},
-          "test_series": {"t": t.tolist(), "flight": [0] * t.size, "y": y.tolist(),
-                          "empirical": (0.8 * y).tolist(), "empirical_refit": (0.9 * y).tolist(),
-                          "identified": (0.97 * y).tolist()},
-          "notes": ["test flights: square"]}
-    cfg = IdentifyConfig(constraints=constraints).to_dict()
-    return {"schema": "droneid.identify/1", "targets": {"vx_dot": tr}, "config": cfg,
-            "provenance": {"train": [{"files": ["eight.tlog"]}], "test": [{"files": ["square.tlog"]}]},
-            "versions": {"droneid": "0"}, "interrupted": False, "wall_s": 1.0, "notes": []}
+    """The result.json document of :func:`hand_built`."""
+    return hand_built(constraints).to_dict()
 
 
-def test_text_summary_has_equation_table_and_improvement():
+def test_text_summary_has_verdict_equation_ladder_and_the_constraints_used():
     text = render_text(hand_built_result())
     assert "vx_dot = 0.9·⟨tilt_pitch⟩ - 0.3·vx" in text
     assert "⟨tilt_pitch⟩ = 9.81*tan(pitch)" in text
-    for label in ("empirical model as given", "empirical model refit", "identified, best run",
-                  "identified, median of 4 runs"):
-        assert label in text
-    assert "+50.0 % vs the empirical model" in text
+    assert text.index("33 % better") < text.index("vx_dot = 0.9") < text.index("FINAL: = the rung above")
+    assert "constraints paper+drag-sign (the prior's own" in text
+    assert "⟨tilt_pitch⟩ 0.9 [0.85, 0.95]" in text        # the interval beside the coefficient
 
 
-def test_error_rows_shape():
-    rows = error_rows(hand_built_result()["targets"]["vx_dot"])
-    assert len(rows) == 4 and all(len(r) == 4 for r in rows)
-    assert rows[2][1:] == ["0.1", "0.2", "0.02"]
+def test_a_result_of_the_first_version_is_refused_in_one_line():
+    d = hand_built_result()
+    d["schema"] = "droneid.identify/1"
+    with pytest.raises(DataError, match="re-run `droneid identify`"):
+        IdentificationResult.from_dict(d)
+    with pytest.raises(DataError, match="re-run"):
+        render_text(d)
 
 
 def test_write_result_writes_json_markdown_html_and_pngs(tmp_path):
@@ -70,7 +97,7 @@ def test_write_result_writes_json_markdown_html_and_pngs(tmp_path):
             "vx_dot_runs.png", "vx_dot_pareto.png"} <= names
     assert json.loads((tmp_path / "result.json").read_text())["targets"]["vx_dot"]["equation"]
     html = (tmp_path / "report.html").read_text()
-    assert html.count("data:image/png;base64,") == 4 and "<table>" in html
+    assert html.count("data:image/png;base64,") == 5 and "<table>" in html  # + the typeset equation
     assert "![" in (tmp_path / "report.md").read_text()
     assert not [n for n in names if n.endswith(".tmp")]
     assert paths["json"].name == "result.json"
@@ -82,10 +109,10 @@ def test_no_pareto_figure_without_constraints(tmp_path):
 
 
 def test_result_round_trips_through_from_dict():
-    d = hand_built_result()
-    back = IdentificationResult.from_dict(json.loads(json.dumps(d))).to_dict()
-    assert back["targets"]["vx_dot"]["equation"] == d["targets"]["vx_dot"]["equation"]
-    assert back["config"] == json.loads(json.dumps(d["config"]))
+    d = json.loads(json.dumps(hand_built_result()))
+    back = IdentificationResult.from_dict(d)
+    assert back.targets["vx_dot"] == hand_built().targets["vx_dot"]
+    assert json.loads(json.dumps(back.to_dict())) == d
 
 
 def test_select_best_uses_training_error_of_qualified_runs_only():
@@ -140,7 +167,6 @@ def test_config_quick_budget_and_overrides():
 
 
 def test_readable_equation_shows_prior_symbols_by_name_and_rounds():
-    from droneid.identify import display_term
     syms = {"P2_g_sin": "g_sin", "P1_a": "a"}
     assert display_term("-sin(357.0494022507776*P2_g_sin)", syms) == ("sin(357*⟨g_sin⟩)", True)
     assert display_term("-P1_a**2 + cos(P2_g_sin)", syms) == ("(-⟨a⟩**2 + cos(⟨g_sin⟩))", False)
@@ -158,25 +184,20 @@ LONG_EXPR = ("-0.282747590081903*vx + 0.996674873717764*(sin(pitch)*cos(roll)*co
 
 
 def ladder_result(gap: bool = True) -> dict:
-    """The hand-built result with the ladder, final model and verdict of the current identify, and
-    (``gap``) a 3 s gap in the test flight's time (the vehicle on the ground)."""
+    """The hand-built result with a long final model that reads its motor speeds 100 ms early,
+    and (``gap``) a 3 s gap in the test flight's time (the vehicle on the ground)."""
     r = hand_built_result()
-    tr = r["targets"]["vx_dot"]
     if gap:
+        tr = r["targets"]["vx_dot"]
         t = np.asarray(tr["test_series"]["t"])
         tr["test_series"]["t"] = np.where(t >= 2.5, t + 3.0, t).tolist()
-    rung = lambda name, d, e: {"name": name, "description": d, "rmse_train": e, "rmse_validation": e,  # noqa: E731
-                               "rmse_test": e, "constraint_rmse_test": 0.01, "terms": [], "model": None}
-    tr["ladder"] = [rung("empirical", "the empirical tilt-drag model as given", 0.3),
-                    rung("refit", "prior, least-squares refit", 0.2),
-                    rung("final", "= the rung above", 0.2)]
-    model = {"target": "vx_dot", "expr": LONG_EXPR, "delays_s": {"rpm1": 0.1}, "unit": "m/s^2",
-             "equation": "vx_dot = " + LONG_EXPR}
-    tr["final"] = tr["empirical_model"] = tr["refit_model"] = model
-    tr["verdict"] = "vx_dot: the physical model is 33 % better than the empirical model on the test flights"
-    tr["verdict_kind"] = "better"
-    tr["guards"] = {}
+    final = hand_built(final_expr=LONG_EXPR, delays={"rpm1": 0.1}).targets["vx_dot"].ladder[-1]
+    r["targets"]["vx_dot"]["ladder"][-1] = final.to_dict()
     return r
+
+
+def ladder_target(gap: bool = True) -> TargetResult:
+    return IdentificationResult.from_dict(ladder_result(gap)).targets["vx_dot"]
 
 
 def _lines(fig):
@@ -202,6 +223,7 @@ def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_th
 def test_text_output_keeps_verdict_equation_ladder_order():
     text = render_text(ladder_result())
     assert text.index("33 % better") < text.index("expanded:") < text.index("FINAL: = the rung above")
+    assert "offset inputs: rpm1(t − 100 ms)" in text
 
 
 def test_long_equation_is_wrapped_into_lines_of_bounded_length():
@@ -211,20 +233,20 @@ def test_long_equation_is_wrapped_into_lines_of_bounded_length():
     assert lines[0].startswith(r"$\dot{v}_{x} = ") and "0.2827" in "".join(lines)
     assert "0.282747590081903" not in "".join(lines)  # numbers rounded to 4 significant figures
     assert _math_lines("vx_dot", "__import__('os').system('false')") is None  # parsed safely, never eval'd
-    fig = fig_equation("vx_dot", ladder_result()["targets"]["vx_dot"])
+    fig = fig_equation("vx_dot", ladder_target())
     w, h = fig.get_size_inches()
     assert w <= 10 and h >= 2 * 0.42  # wrapped, not one very wide line
 
 
 def test_plots_break_the_line_at_a_gap_in_time():
     from droneid.report.identify import fig_measured_vs_predicted, fig_residuals
-    tr = ladder_result(gap=True)["targets"]["vx_dot"]
+    tr = ladder_target(gap=True)
     for fig in (fig_measured_vs_predicted("vx_dot", tr), fig_residuals("vx_dot", tr)):
         for ln in [ln for ln in _lines(fig) if len(ln.get_xdata()) > 2]:
             x, y = np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float)
             k = int(np.flatnonzero(np.isnan(y))[0])
             assert np.isnan(y).sum() == 1 and x[k - 1] < 2.5 and x[k + 1] >= 5.5
-    tr = ladder_result(gap=False)["targets"]["vx_dot"]
+    tr = ladder_target(gap=False)
     assert not any(np.isnan(np.asarray(ln.get_ydata(), float)).any() for ln in
                    _lines(fig_measured_vs_predicted("vx_dot", tr)))
 
@@ -237,7 +259,7 @@ def test_break_gaps_splits_flights_and_time_jumps():
 
 def test_every_axis_of_the_report_figures_has_a_unit():
     from droneid.report import identify as R
-    tr = ladder_result()["targets"]["vx_dot"]
+    tr = ladder_target()
     figs = [R.fig_measured_vs_predicted("vx_dot", tr), R.fig_residuals("vx_dot", tr), R.fig_runs("vx_dot", tr),
             R.fig_pareto("vx_dot", tr, 0.1)]
     unit = re.compile(r"\((s|m/s²|m/s\^2|m/s)\)|sorted")

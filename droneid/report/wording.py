@@ -1,0 +1,163 @@
+"""The words droneid prints for a model: equations a person can read, and the verdict on a final
+model against the empirical one. One home for this wording, used by identify (the verdict it
+records) and by every report.
+
+Pure text: no pipeline imports. A rung here is anything with the attributes of
+:class:`droneid.ladder.Rung` (``rmse_test``, ``rmse_validation``, ``constraint_rmse_test``,
+``at_bound``). Errors are RMSEs in m/s².
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+from ..numerics import to_float
+
+__all__ = ["round_floats", "display_term", "readable_equation", "split_leading_number", "Verdict",
+           "VERDICT_KINDS", "verdict", "improvement_pct"]
+
+
+def improvement_pct(reference: float, value: float) -> float:
+    """How much lower ``value`` is than ``reference``, in percent of the reference."""
+    if not (math.isfinite(reference) and math.isfinite(value)) or reference <= 0:
+        return float("nan")
+    return 100.0 * (reference - value) / reference
+
+
+_LONG_FLOAT = re.compile(r"(?<![\w.])(\d+\.\d{5,}(?:e[+-]?\d+)?)")
+
+
+def round_floats(text: str, sig: int = 4) -> str:
+    """``text`` with every float of 5 or more decimals written to ``sig`` significant figures."""
+    return _LONG_FLOAT.sub(lambda m: f"{float(m.group(1)):.{sig}g}", str(text))
+
+
+def _top_level_sum(text: str) -> bool:
+    """Whether ``text`` (sympy's str form) is a sum at the outermost level."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += ch == "("
+        depth -= ch == ")"
+        if depth == 0 and i > 0 and text[i - 1:i + 2] in (" + ", " - "):
+            return True
+    return False
+
+
+def display_term(term: str, prior_symbols: dict | None = None, sig: int = 4) -> tuple[str, bool]:
+    """(text, negated): a term with floats to ``sig`` figures and prior symbols as ⟨name⟩; a
+    leading minus of a product is moved out (``negated``) and sums are parenthesised."""
+    text = round_floats(term, sig)
+    for sym in sorted(prior_symbols or {}, key=len, reverse=True):
+        text = re.sub(rf"\b{re.escape(sym)}\b", f"⟨{prior_symbols[sym]}⟩", text)
+    if _top_level_sum(text):
+        return f"({text})", False
+    negated = text.startswith("-")
+    return text[1:] if negated else text, negated
+
+
+_LEADING_NUMBER = re.compile(r"^(\d+(?:\.\d*)?(?:e[+-]?\d+)?)\*(?=\S)")
+
+
+def readable_equation(target: str, coefficients: dict, prior_coefficients: dict, intercept,
+                      prior_symbols: dict | None = None, sig: int = 4) -> str:
+    """``target = β·⟨prior⟩ + ... + β·term + ... + β0``: prior features by name (also inside
+    evolved terms), numbers to ``sig`` significant figures."""
+    parts = [(float(b), f"⟨{name}⟩") for name, b in prior_coefficients.items()]
+    for term, b in coefficients.items():
+        if term in prior_coefficients:
+            continue
+        text, neg = display_term(term, prior_symbols, sig)
+        b = -float(b) if neg else float(b)
+        lead = _LEADING_NUMBER.match(text)
+        if lead:  # 2.283·8.0*x -> 18.26·x
+            b, text = b * float(lead.group(1)), text[lead.end():]
+        parts.append((b, text))
+    out = [f"{'-' if b < 0 else '+'} {abs(b):.{sig}g}·{term}" for b, term in parts]
+    if intercept is not None and to_float(intercept) != 0.0:
+        out.append(f"{'-' if intercept < 0 else '+'} {abs(intercept):.{sig}g}")
+    body = " ".join(out) if out else "0"
+    body = body[2:] if body.startswith("+ ") else "-" + body[2:] if body.startswith("- ") else body
+    return f"{target} = {body}"
+
+
+def split_leading_number(label: str, coefficient: float) -> tuple[float, str]:
+    """A term label that starts with a number folded into its coefficient
+    (``1.085e-10·4*roll**2`` -> ``4.34e-10·roll**2``)."""
+    lead = _LEADING_NUMBER.match(label)
+    if lead:
+        return coefficient * float(lead.group(1)), label[lead.end():]
+    return coefficient, label
+
+
+#: what a verdict says, and the colour the report gives it
+VERDICT_KINDS = {"better": "green", "no better": "grey", "worse": "red", "not to be trusted": "amber",
+                 "no verdict": "grey"}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One sentence a user reads first, and its kind (a key of :data:`VERDICT_KINDS`)."""
+    kind: str
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def _physics_problems(final, reference, gamma: float) -> list[str]:
+    """What makes a model untrustworthy as physics: coefficients the data pull outside their
+    physical bounds, and a constraint error above γ that the prior's own refit does not explain."""
+    out = [f"{k.strip('⟨⟩')} is pulled outside its physical range (held at {v:.3g})"
+           for k, v in final.at_bound.items()]
+    ec = to_float(final.constraint_rmse_test)
+    ref = to_float(reference.constraint_rmse_test) if reference is not None else math.nan
+    if math.isfinite(ec) and ec > gamma and not (math.isfinite(ref) and ec <= 1.1 * ref):
+        out.append(f"it breaks the prior's constraints (e_c = {ec:.3g} > γ = {gamma:g})")
+    return out
+
+
+def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
+            y_spread: float = math.inf, *, reference=None, gamma: float = math.inf) -> Verdict:
+    """How the final model compares with the empirical model as given, on the test data (or,
+    without any, on the training flights' validation blocks), with the absolute errors and the
+    target's standard deviation. "better" needs all of: better in validation, every physical
+    coefficient inside its bounds, e_c within γ (or no worse than the prior's own refit,
+    ``reference``); otherwise the verdict says what is wrong and that the model is not to be
+    trusted. A target that barely varies, or an error that cannot be measured, gives no verdict
+    (never a "+100 %")."""
+    te, ee = final.rmse_test, empirical.rmse_test
+    va, ev = final.rmse_validation, empirical.rmse_validation
+    has_test = math.isfinite(te) and math.isfinite(ee)
+    where = ("on the held-out block" if holdout else "on the test flights") if has_test else \
+        "on validation blocks of the training flights (no test data)"
+    if not y_spread > 1e-3:
+        return Verdict("no verdict", f"{target}: no verdict: the measured {target} barely varies (spread "
+                       f"{y_spread:.2g}); these data cannot tell models apart")
+    a, b = (te, ee) if has_test else (va, ev)
+    if not (math.isfinite(a) and math.isfinite(b)) or b <= 0:
+        return Verdict("no verdict", f"{target}: no verdict: the errors could not be measured")
+    gain, vgain = improvement_pct(b, a), improvement_pct(ev, va)
+    what = "identified model (with evolved terms)" if evolved else \
+        "physical model (prior + effects; no evolved term survived validation)"
+    sd = f"σ({target}) {y_spread:.3g}" if math.isfinite(y_spread) else ""
+    errs = f"RMSE {a:.3g} vs {b:.3g} m/s²" + (f", {sd}" if sd else "")
+    extra = f"; validation {vgain:+.0f} %" if has_test else ""
+    problems = _physics_problems(final, reference, gamma)
+    if problems:
+        return Verdict("not to be trusted",
+                       f"{target}: the {what} is NOT TO BE TRUSTED: " + "; ".join(problems)
+                       + f" ({gain:+.0f} % vs the empirical model {where}: {errs}{extra}); keep the empirical model")
+    if gain >= 5 and (not has_test or vgain >= 5):
+        return Verdict("better", f"{target}: the {what} beats the empirical model by {gain:.0f} % {where} "
+                                 f"({errs}{extra})")
+    if gain >= 5:
+        return Verdict("no better", f"{target}: the {what} is better {where} ({gain:+.0f} %: {errs}) but not "
+                                    f"in validation on the training flights ({vgain:+.0f} %): keep the empirical model")
+    if gain > -5:
+        return Verdict("no better", f"{target}: the {what} is no better than the empirical model {where} "
+                                    f"({gain:+.0f} %: {errs}): keep the empirical model")
+    why = ("the training flights do not represent the test flights" if has_test else
+           "its fitted terms do not hold across the validation blocks")
+    return Verdict("worse", f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %: "
+                            f"{errs}{extra}): {why}; keep the empirical model")
