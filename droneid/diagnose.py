@@ -189,179 +189,259 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     effects = _select_effects(user_effects, cfg.effects)
     if cfg.n_blocks is None:
         cfg = replace(cfg, n_blocks=diagnose_blocks(min(len(d) for d in train.values())))
-    terms = {t: prior_terms(pr, t) for t in targets}
+    model = _effect_model(train, test, pr, cfg, targets)
+    testable, untestable, not_applicable = _testability(effects, model.tr_parts, targets,
+                                                        cfg.allow_measured_derivatives)
+    # effects whose signals exist but whose preconditions fail may become testable once another
+    # effect refines the inputs (the wind's air speed for quadratic drag): re-checked every step
+    pending = [effects[eid] for eid in untestable
+               if not any(effects[eid].missing(p.ctx.available()) for p in model.tr_parts
+                          if effects[eid].applies_to(p.target))]
+    # the family of every candidate the diagnosis may try: each testable effect and each pair of
+    # the pair_top best; the k-th step accepted is judged at Holm's alpha / (family − k + 1)
+    n_top = min(cfg.pair_top, len(testable) + len(pending)) if cfg.pair_top >= 2 else 0
+    family = max(1, len(testable) + len(pending) + n_top * (n_top - 1) // 2)
+    search = _Search(model, effects, cfg, family)
+    search.assess_own_rows(testable)
+    for step in range(cfg.max_steps - len(search.added)):
+        for e in list(pending):
+            if not any(e.untestable_data(p.ctx) for p in model.tr_parts if e.applies_to(p.target)):
+                pending.remove(e)
+                testable.append(e)
+                untestable.pop(e.id, None)
+        if progress:
+            progress(step, cfg.max_steps + 1, "scoring effects")
+        if not search.step(step + 1, testable) or len(search.added) >= cfg.max_steps:
+            break
+    search.drop_stand_ins()
+    if progress:
+        progress(cfg.max_steps, cfg.max_steps + 1, "open-ended search")
+    open_ended = search_residuals(model, search.fit, cfg)
+    final_effects = search.final_effects()
+    added, cur = search.added, search.fit
+    derivs = sorted({n for fe in final_effects for fs in fe["features"].values() for f in fs
+                     for n in uses_derivative(f["expr"])}
+                    | {n for eid in added for n in uses_derivative(_needs_signals(effects[eid]))}
+                    | {n for o in open_ended.values() if o and o.get("passed")
+                       for n in uses_derivative(equation_signals(o))})
+    notes = _screening_notes(train, test)
+    if derivs:
+        notes.append(f"the model uses {', '.join(derivs)}, a measured derivative of the output: "
+                     "it cannot be simulated or used by a controller")
+    sources = {"train": sorted({s for d in train.values() for s in d.sources}),
+               "test": sorted({s for d in test.values() for s in d.sources}) if test else []}
+    label = prior_label or (prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__))
+    return DiagnosisResult(
+        targets=_target_summaries(model, search.base_fit, cur, search.terms, search.steps, open_ended),
+        steps=search.steps, effects_added=added, untestable=untestable,
+        not_detected=[e.id for e in testable if e.id not in added],
+        conclusion=_conclusion(added, cfg.max_steps, open_ended, derivs), open_ended=open_ended,
+        config=asdict(cfg), prior=label, sources=sources, candidates=search.log,
+        final_effects=final_effects, not_applicable=not_applicable, simulable=not derivs, notes=notes,
+        series=_series(model, search.base_fit, cur, search.plot_steps))
+
+
+def _effect_model(train, test, prior, cfg: DiagnoseConfig, targets) -> EffectModel:
+    """The stacked model of the prior on the training (and test) datasets, with G at the scale of
+    the base refit on the training flights (effects read relative to it)."""
+    terms = {t: prior_terms(prior, t) for t in targets}
     tr_parts = [make_part(train[t], t, terms[t], cfg) for t in targets]
     for p in tr_parts:
         if p.y.size < 5 * cfg.n_blocks:
             raise DataError(f"{p.target}: only {p.y.size} training samples; need at least "
                             f"{5 * cfg.n_blocks} for {cfg.n_blocks}-block cross-validation")
-    # G at the scale of the base refit on the training flights (effects read relative to it)
     base_beta = EffectModel(tr_parts, None, terms, cfg, targets).fit(
         {n: {p.target: c} for p in tr_parts for n, c in p.base.items()}, {})["beta"]
     terms = {t: terms[t].fitted(t, base_beta) for t in targets}
     tr_parts = [make_part(train[t], t, terms[t], cfg) for t in targets]
     te_parts = [make_part(test[t], t, terms[t], cfg, "test") for t in targets] if test is not None else None
-    testable, untestable, not_applicable = _testability(effects, tr_parts, targets,
-                                                        cfg.allow_measured_derivatives)
-    model = EffectModel(tr_parts, te_parts, terms, cfg, targets)
-    tr = model.tr
+    return EffectModel(tr_parts, te_parts, terms, cfg, targets)
 
-    cur_terms, cur_test = model.terms_of((), effects)
-    cur = base_fit = model.fit(cur_terms, cur_test)
-    steps, added, candidates_log, plot_steps = [], [], [], []
-    total = cfg.max_steps + 1
-    # the family of every candidate the diagnosis may try: each testable effect and each pair of
-    # the pair_top best; the k-th step accepted is judged at Holm's alpha / (family − k + 1)
-    # effects whose signals exist but whose preconditions fail may become testable once another
-    # effect refines the inputs (the wind's air speed for quadratic drag): re-checked every step
-    pending = [effects[eid] for eid in untestable
-               if not any(effects[eid].missing(p.ctx.available()) for p in tr_parts
-                          if effects[eid].applies_to(p.target))]
-    n_top = min(cfg.pair_top, len(testable) + len(pending)) if cfg.pair_top >= 2 else 0
-    family = max(1, len(testable) + len(pending) + n_top * (n_top - 1) // 2)
-    findings = {}
-    for e in testable:
-        # effects judged on other rows than the v̇ residual (per-motor thrust: the thrust shares)
-        if e.assess_fn is None:
-            continue
-        p = next(q for q in tr_parts if e.applies_to(q.target))
-        e0, e1, rows, interp = e.assess(p.ctx, p.block)
-        ev = with_test_errors(evidence_of(decide(e0, e1, rows, alpha=cfg.alpha, family_size=family,
-                                           rank=min(len(added) + 1, family),
-                                           min_effect_pct=100 * cfg.min_rel_improvement, what=e.id)),
-                        None, None)
-        entry = {"step": 0, "assessed": e.id, "added": [], "scores": [
-            {"effect": e.id, **{k: ev[k] for k in ("cv_rmse_after", "rel_improvement", "statistic",
-                                                   "p_value", "p_threshold", "blocks_improved",
-                                                   "test_rmse_after", "passed", "reasons", "text")}}]}
-        candidates_log.append(entry)
-        if not ev["passed"] or len(added) >= cfg.max_steps:
-            continue
-        entry["added"] = [e.id]
-        findings[e.id] = interp
-        ev["indistinguishable_from"] = []
-        steps.append({"effect": e.id, "description": e.description, "coefficients": {},
-                      "physical": interp.text, "physical_values": interp.values,
-                      "physical_per_flight": {}, "per_flight": False, "tested_jointly": None,
-                      "rmse": {t: {"train": cur["train"][t], "test": cur["test"][t], "cv": cur["cv"][t]}
-                               for t in targets},
-                      "test_note": cur.get("test_note"), "evidence": ev})
-        et, ett = model.effect_terms(e)
-        new = model.fit({**cur_terms, **et}, {**cur_test, **ett})
-        plot_steps.append({q.target: {"effect": e.id, "residual": q.y - cur["pred"][tr.tidx == i],
-                                      "contrib": sum(new["beta"][k] * et[k][q.target] for k in et
-                                                     if q.target in et[k])}
-                           for i, q in enumerate(tr_parts)})
-        steps[-1]["rmse"] = {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
-                             for t in targets}
-        steps[-1]["coefficients"] = strip_effect_id({k: new["beta"][k] for k in et})
-        cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
-        added.append(e.id)
-    n_assessed = len(added)
-    for step in range(cfg.max_steps - n_assessed):
-        rank = min(len(added) + 1, family)
-        for e in list(pending):
-            if not any(e.untestable_data(p.ctx) for p in tr_parts if e.applies_to(p.target)):
-                pending.remove(e)
-                testable.append(e)
-                untestable.pop(e.id, None)
-        if progress:
-            progress(step, total, "scoring effects")
+
+#: the evidence keys a logged candidate keeps
+_LOGGED = ("cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold", "blocks_improved",
+           "test_rmse_after", "passed", "reasons", "text")
+
+
+def _best_first(scores) -> list:
+    """Candidates best first by held-out error; one that only fits with impossible values goes
+    last (it stands in for something else: the next one is judged instead)."""
+    return sorted(scores, key=lambda s: (bool(s[4].get("implausible")), s[4]["cv_rmse_after"]))
+
+
+class _Search:
+    """The forward search's state: the model so far (``terms``, ``test_terms``, ``fit``), the
+    steps taken, the effects ``added``, every decision (``log``), the plots' step data and the
+    findings of effects judged on their own rows."""
+
+    def __init__(self, model: EffectModel, effects, cfg: DiagnoseConfig, family: int):
+        self.model, self.effects, self.cfg, self.family = model, effects, cfg, family
+        self.terms, self.test_terms = model.terms_of((), effects)
+        self.fit = self.base_fit = model.fit(self.terms, self.test_terms)
+        self.steps, self.added, self.log, self.plot_steps, self.findings = [], [], [], [], {}
+
+    def _rmse(self, fit) -> dict:
+        return {t: {"train": fit["train"][t], "test": fit["test"][t], "cv": fit["cv"][t]}
+                for t in self.model.targets}
+
+    def _plot(self, label: str, et, new) -> dict:
+        tidx = self.model.tr.tidx
+        return {p.target: {"effect": label, "residual": p.y - self.fit["pred"][tidx == i],
+                           "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
+                for i, p in enumerate(self.model.tr_parts)}
+
+    def assess_own_rows(self, testable) -> None:
+        """Effects judged on other rows than the v̇ residual (per-motor thrust: the thrust shares),
+        once, before the forward steps, by the same rule."""
+        cfg, model = self.cfg, self.model
+        for e in testable:
+            if e.assess_fn is None:
+                continue
+            p = next(q for q in model.tr_parts if e.applies_to(q.target))
+            e0, e1, rows, interp = e.assess(p.ctx, p.block)
+            ev = with_test_errors(evidence_of(decide(
+                e0, e1, rows, alpha=cfg.alpha, family_size=self.family,
+                rank=min(len(self.added) + 1, self.family),
+                min_effect_pct=100 * cfg.min_rel_improvement, what=e.id)), None, None)
+            entry = {"step": 0, "assessed": e.id, "added": [],
+                     "scores": [{"effect": e.id, **{k: ev[k] for k in _LOGGED}}]}
+            self.log.append(entry)
+            if not ev["passed"] or len(self.added) >= cfg.max_steps:
+                continue
+            entry["added"] = [e.id]
+            self.findings[e.id] = interp
+            ev["indistinguishable_from"] = []
+            et, ett = model.effect_terms(e)
+            new = model.fit({**self.terms, **et}, {**self.test_terms, **ett})
+            self.steps.append({"effect": e.id, "description": e.description,
+                               "coefficients": strip_effect_id({k: new["beta"][k] for k in et}),
+                               "physical": interp.text, "physical_values": interp.values,
+                               "physical_per_flight": {}, "per_flight": False, "tested_jointly": None,
+                               "rmse": self._rmse(new), "test_note": self.fit.get("test_note"),
+                               "evidence": ev})
+            self.plot_steps.append(self._plot(e.id, et, new))
+            self.terms, self.test_terms, self.fit = {**self.terms, **et}, {**self.test_terms, **ett}, new
+            self.added.append(e.id)
+
+    def step(self, number: int, testable) -> bool:
+        """One forward step: score every single effect not in yet, pairs when they overlap, and
+        add the best if it passes. False when nothing was added (the search stops)."""
+        model, cfg = self.model, self.cfg
+        rank = min(len(self.added) + 1, self.family)
         singles = []
         for e in testable:
-            if e.id in added or e.assess_fn is not None:   # assessed once, on their own rows
+            if e.id in self.added or e.assess_fn is not None:   # assessed once, on their own rows
                 continue
             et = model.effect_terms(e)[0]
             if not et or all(np.allclose(c, 0) for cols in et.values() for c in cols.values()):
                 continue
             singles.append(e)
         if not singles:
-            break
-        scores = score_candidates(model, cur, cur_terms, cur_test, [(e,) for e in singles], family, rank)
-        # best first by held-out error; a candidate that only fits with impossible values goes last
-        # (it stands in for something else: the next one is judged instead)
-        scores.sort(key=lambda s: (bool(s[4].get("implausible")), s[4]["cv_rmse_after"]))
-        log_entry = {"step": step + 1, "scores": [
-            {"effect": "+".join(e.id for e in g), **{k: ev[k] for k in (
-                "cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold",
-                "blocks_improved", "test_rmse_after", "passed", "reasons", "text")}}
-            for g, _, _, _, ev in scores]}
-        candidates_log.append(log_entry)
-        best = scores[0]
-        jointly = False
+            return False
+        scores = _best_first(score_candidates(model, self.fit, self.terms, self.test_terms,
+                                              [(e,) for e in singles], self.family, rank))
+        entry = {"step": number, "scores": [{"effect": "+".join(e.id for e in g), **{k: ev[k] for k in _LOGGED}}
+                                            for g, _, _, _, ev in scores]}
+        self.log.append(entry)
+        best, jointly = scores[0], False
         if not best[4]["passed"] and best[4]["rel_improvement"] >= cfg.pair_min_gain and cfg.pair_top >= 2:
-            # overlapping effects: test the best pairs jointly, Bonferroni over singles + pairs
-            top = [g[0] for g, *_ in scores[:cfg.pair_top]]
-            pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]]
-            single_cv = {g[0].id: ev["cv_rmse_after"] for g, _, _, _, ev in scores}
-            pscores = score_candidates(model, cur, cur_terms, cur_test, pairs, family, rank)
-            for g, _, _, _, ev in pscores:
-                worst_single = min(single_cv[e.id] for e in g)
-                ev["beats_members"] = ev["cv_rmse_after"] <= (1 - cfg.min_rel_improvement) * worst_single
-                if ev["passed"] and not ev["beats_members"]:
-                    ev["passed"] = False
-                    ev["reasons"].append("the pair does not beat each of its effects alone by "
-                                         f"{100 * cfg.min_rel_improvement:.2f} %")
-                    ev["text"] = ev["text"].replace(": accepted", ": rejected (" + ev["reasons"][-1] + ")")
-            pscores.sort(key=lambda s: (bool(s[4].get("implausible")), s[4]["cv_rmse_after"]))
-            log_entry["pairs"] = [{"effects": [e.id for e in g], **{k: ev[k] for k in (
-                "cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_threshold",
-                "blocks_improved", "passed", "reasons", "text")}} for g, _, _, _, ev in pscores]
-            log_entry["pairs_reason"] = (
-                f"best single {best[0][0].id} gains {100 * best[4]['rel_improvement']:.1f} % but "
-                f"fails ({'; '.join(best[4]['reasons'])}): pairs of the {len(top)} best tested jointly")
-            if pscores and pscores[0][4]["passed"]:
-                best, jointly = pscores[0], True
+            pair = self._pairs(scores, rank, entry)
+            if pair is not None:
+                best, jointly = pair, True
         group, et, ett, new, ev = best
-        log_entry["added"] = [e.id for e in group] if ev["passed"] else []
+        entry["added"] = [e.id for e in group] if ev["passed"] else []
         if not ev["passed"]:
-            log.info("step %d: best candidate %s rejected: %s", step + 1,
+            log.info("step %d: best candidate %s rejected: %s", number,
                      "+".join(e.id for e in group), "; ".join(ev["reasons"]))
-            break
-        if not jointly:
-            # candidates nearly as good (and significant) that the data cannot tell apart
-            ev["indistinguishable_from"] = [g[0].id for g, _, _, _, v in scores[1:] if v["passed"]
-                                            and v["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
-        else:
-            ev["indistinguishable_from"] = []
+            return False
+        # candidates nearly as good (and significant) that the data cannot tell apart
+        ev["indistinguishable_from"] = [] if jointly else [
+            g[0].id for g, _, _, _, v in scores[1:]
+            if v["passed"] and v["rel_improvement"] >= 0.9 * ev["rel_improvement"]]
+        self._add(group, et, ett, new, ev, jointly)
+        return True
+
+    def _pairs(self, scores, rank: int, entry: dict):
+        """Overlapping effects: the pairs of the ``pair_top`` best singles judged jointly (same
+        family); a pair must also beat each of its members alone. The best passing pair or None."""
+        cfg = self.cfg
+        best = scores[0]
+        top = [g[0] for g, *_ in scores[:cfg.pair_top]]
+        pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]]
+        single_cv = {g[0].id: ev["cv_rmse_after"] for g, _, _, _, ev in scores}
+        pscores = score_candidates(self.model, self.fit, self.terms, self.test_terms, pairs, self.family, rank)
+        for g, _, _, _, ev in pscores:
+            worst_single = min(single_cv[e.id] for e in g)
+            ev["beats_members"] = ev["cv_rmse_after"] <= (1 - cfg.min_rel_improvement) * worst_single
+            if ev["passed"] and not ev["beats_members"]:
+                ev["passed"] = False
+                ev["reasons"].append("the pair does not beat each of its effects alone by "
+                                     f"{100 * cfg.min_rel_improvement:.2f} %")
+                ev["text"] = ev["text"].replace(": accepted", ": rejected (" + ev["reasons"][-1] + ")")
+        pscores = _best_first(pscores)
+        entry["pairs"] = [{"effects": [e.id for e in g], **{k: ev[k] for k in _LOGGED if k != "test_rmse_after"}}
+                          for g, _, _, _, ev in pscores]
+        entry["pairs_reason"] = (
+            f"best single {best[0][0].id} gains {100 * best[4]['rel_improvement']:.1f} % but "
+            f"fails ({'; '.join(best[4]['reasons'])}): pairs of the {len(top)} best tested jointly")
+        return pscores[0] if pscores and pscores[0][4]["passed"] else None
+
+    def _add(self, group, et, ett, new, ev, jointly: bool) -> None:
+        """Take a passing group into the model, one step per effect, then let effects that refine
+        the inputs (the wind's air velocity) refresh the contexts and refit, twice (a fixed point)."""
+        model = self.model
         coef = {k: new["beta"][k] for k in et}
         local = {k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}
         info = model.base_info(new)
         for e in group:
             ce = {k: v for k, v in {**coef, **local}.items() if k.startswith(e.id + ".")}
-            steps.append({"effect": e.id, "description": e.description,
-                          "coefficients": strip_effect_id({k: v for k, v in coef.items() if k.startswith(e.id + ".")}),
-                          **physical_terms(e, ce, info), "per_flight": e.per_flight,
-                          "tested_jointly": [x.id for x in group] if jointly else None,
-                          "rmse": {t: {"train": new["train"][t], "test": new["test"][t], "cv": new["cv"][t]}
-                                   for t in targets},
-                          "test_note": new.get("test_note"),
-                          "evidence": ev})
-        plot = {p.target: {"effect": "+".join(e.id for e in group),
-                           "residual": p.y - cur["pred"][tr.tidx == i],
-                           "contrib": sum(new["beta"][k] * et[k][p.target] for k in et if p.target in et[k])}
-                for i, p in enumerate(tr_parts)}
-        plot_steps.extend(plot for _ in group)      # one entry per step (a pair: the joint term)
-        added.extend(e.id for e in group)
-        cur_terms, cur_test, cur = {**cur_terms, **et}, {**cur_test, **ett}, new
-        refiners = [effects[eid] for eid in added if effects[eid].refine_fn is not None]
-        if refiners:
-            # an effect may refine itself after a fit (e.g. the wind sets the air velocity v − w
-            # that drag acts on): refresh the contexts and refit, twice (a fixed point)
-            for _ in range(2):
-                refine_contexts(refiners, tr_parts, te_parts, cur, model.base_info(cur))
-                cur_terms, cur_test = model.terms_of(added, effects)
-                cur = model.fit(cur_terms, cur_test)
-        if len(added) >= cfg.max_steps:
-            break
-    cur_terms, cur_test, cur = drop_stand_ins(model, effects, added, findings, steps, cur_terms, cur_test,
-                                         cur, family)
-    if progress:
-        progress(cfg.max_steps, total, "open-ended search")
-    open_ended = search_residuals(model, cur, cfg)
+            self.steps.append({"effect": e.id, "description": e.description,
+                               "coefficients": strip_effect_id({k: v for k, v in coef.items()
+                                                                if k.startswith(e.id + ".")}),
+                               **physical_terms(e, ce, info), "per_flight": e.per_flight,
+                               "tested_jointly": [x.id for x in group] if jointly else None,
+                               "rmse": self._rmse(new), "test_note": new.get("test_note"),
+                               "evidence": ev})
+        plot = self._plot("+".join(e.id for e in group), et, new)
+        self.plot_steps.extend(plot for _ in group)      # one entry per step (a pair: the joint term)
+        self.added.extend(e.id for e in group)
+        self.terms, self.test_terms, self.fit = {**self.terms, **et}, {**self.test_terms, **ett}, new
+        refiners = [self.effects[eid] for eid in self.added if self.effects[eid].refine_fn is not None]
+        for _ in range(2 if refiners else 0):
+            refine_contexts(refiners, model.tr_parts, model.te_parts, self.fit, model.base_info(self.fit))
+            self.terms, self.test_terms = model.terms_of(self.added, self.effects)
+            self.fit = model.fit(self.terms, self.test_terms)
 
-    info = model.base_info(cur)
-    final_effects, notes = [], []
+    def drop_stand_ins(self) -> None:
+        """Every added effect judged again with all the others in (:func:`drop_stand_ins`)."""
+        self.terms, self.test_terms, self.fit = drop_stand_ins(
+            self.model, self.effects, self.added, self.findings, self.steps, self.terms,
+            self.test_terms, self.fit, self.family)
+
+    def final_effects(self) -> list[dict]:
+        """Every added effect in physical terms with the final joint coefficients, and its
+        foldable features."""
+        model, cur = self.model, self.fit
+        info = model.base_info(cur)
+        out = []
+        for eid in self.added:
+            e = self.effects[eid]
+            train_coef = {k: v for k, v in cur["beta"].items() if k.startswith(eid + ".")}
+            if eid in self.findings:
+                physical = {"physical": self.findings[eid].text, "physical_values": self.findings[eid].values,
+                            "physical_per_flight": {}}
+            else:
+                coef = {k: v for k, v in {**cur["beta"], **cur.get("test_local_beta", {})}.items()
+                        if k.startswith(eid + ".")}
+                physical = physical_terms(e, coef, info)
+            out.append({"effect": eid, **physical, "coefficients": strip_effect_id(train_coef),
+                        **fold_features(e, model, cur["beta"])})
+        return out
+
+
+def _screening_notes(train, test) -> list[str]:
+    """One note per role on the implausible samples screened out of its datasets."""
+    notes = []
     for where, sets in (("training", train), ("test", test or {})):
         counts: dict[str, int] = {}
         for d in sets.values():   # each target's dataset counts the signals it uses
@@ -370,46 +450,23 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
         if counts:
             notes.append(f"screened ({where}): " + ", ".join(f"{n} {c}" for n, c in counts.items())
                          + " implausible sample(s) or jump(s) left out before any fit (docs/estimates.md)")
-    for eid in added:
-        if eid in findings:
-            final_effects.append({"effect": eid, "physical": findings[eid].text,
-                                  "physical_values": findings[eid].values, "physical_per_flight": {},
-                                  "coefficients": strip_effect_id({k: v for k, v in cur["beta"].items()
-                                                          if k.startswith(eid + ".")}),
-                                  **fold_features(effects[eid], model, cur["beta"])})
-            continue
-        coef = {k: v for k, v in {**cur["beta"], **cur.get("test_local_beta", {})}.items()
-                if k.startswith(eid + ".")}
-        train_coef = {k: v for k, v in cur["beta"].items() if k.startswith(eid + ".")}
-        final_effects.append({"effect": eid, **physical_terms(effects[eid], coef, info),
-                              "coefficients": strip_effect_id(train_coef), **fold_features(effects[eid], model, cur["beta"])})
-    derivs = sorted({n for fe in final_effects for fs in fe["features"].values() for f in fs
-                     for n in uses_derivative(f["expr"])}
-                    | {n for eid in added for n in uses_derivative(_needs_signals(effects[eid]))}
-                    | {n for o in open_ended.values() if o and o.get("passed")
-                       for n in uses_derivative(equation_signals(o))})
-    if derivs:
-        notes.append(f"the model uses {', '.join(derivs)}, a measured derivative of the output: "
-                     "it cannot be simulated or used by a controller")
-    not_detected = [e.id for e in testable if e.id not in added]
-    conclusion = NO_FURTHER
+    return notes
+
+
+def _conclusion(added, max_steps: int, open_ended, derivs) -> str:
+    """One sentence: what was added, whether more could be found, the open-ended finding."""
+    unnamed = any(o and o.get("passed") for o in open_ended.values())
+    # with a significant open-ended term the residual is not exhausted: only the catalogue is
+    further = NO_FURTHER.replace("no further effect", "no further catalogue effect") if unnamed else NO_FURTHER
+    conclusion = further
     if added:
-        conclusion = (f"added {', '.join(added)}; {NO_FURTHER}" if len(added) < cfg.max_steps
-                      else f"added {', '.join(added)} (step limit {cfg.max_steps} reached)")
-    if any(o and o.get("passed") for o in open_ended.values()):
+        conclusion = (f"added {', '.join(added)}; {further}" if len(added) < max_steps
+                      else f"added {', '.join(added)} (step limit {max_steps} reached)")
+    if unnamed:
         conclusion += "; the open-ended search found an unnamed term (see open_ended)"
     if derivs:
         conclusion += f" (NOT simulable: uses the measured derivative {', '.join(derivs)})"
-    sources = {"train": sorted({s for d in train.values() for s in d.sources}),
-               "test": sorted({s for d in test.values() for s in d.sources}) if test else []}
-    label = prior_label or (prior if isinstance(prior, str) else getattr(pr, "name", type(pr).__name__))
-    return DiagnosisResult(
-        targets=_target_summaries(model, base_fit, cur, cur_terms, steps, open_ended),
-        steps=steps, effects_added=added, untestable=untestable, not_detected=not_detected,
-        conclusion=conclusion, open_ended=open_ended, config=asdict(cfg),
-        prior=label, sources=sources, candidates=candidates_log, final_effects=final_effects,
-        not_applicable=not_applicable, simulable=not derivs, notes=notes,
-        series=_series(model, base_fit, cur, plot_steps))
+    return conclusion
 
 
 def _needs_signals(effect) -> list[str]:
