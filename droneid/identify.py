@@ -33,6 +33,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import numpy as np
 
 from . import __version__, runner
+from .dataset_builder import reuse_datasets
 from .errors import ConfigError, DataError
 from .export import export_models, input_sources
 from .fitness import check_prior_data
@@ -354,6 +355,12 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     cfg = (config or IdentifyConfig()).validated()
     if not train_flights:
         raise DataError("no training flights")
+    with reuse_datasets():      # each dataset built once, shared by every stage
+        return _identify(list(train_flights), list(test_flights) if test_flights else None, cfg, progress)
+
+
+def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfig,
+              progress: Callable | None) -> IdentificationResult:
     t0 = time.perf_counter()
     prior, _ = resolve_plan_prior(cfg, train_flights)
     targets = targets_for(prior, cfg.targets)

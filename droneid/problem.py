@@ -121,14 +121,17 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     extra_inputs = sorted({s for f in effect_feats for s in f.signals} - set(prior.inputs(target)))
     inputs = tuple(prior.inputs(target)) + tuple(extra_inputs)
     empirical_inputs = _empirical_inputs(cfg, target)
+    # the empirical model's inputs the prior lacks must exist on every row (explicit extras cut
+    # the rows at their gaps); without any, the plan's own request: its datasets are reused
+    extras = [s for s in empirical_inputs if s not in inputs] or None
     builder = dataset_builder(cfg, plan.delays_s)
     ds = builder.build(list(train_flights), target=target, inputs=inputs,
-                       extras=[s for s in empirical_inputs if s not in inputs])
+                       extras=extras)
     holdout = not test_flights and cfg.test_fraction > 0
     if test_flights:
         train = ds
         test = builder.build(list(test_flights), target=target, inputs=inputs,
-                             extras=[s for s in empirical_inputs if s not in inputs])
+                             extras=extras)
         desc = f"test flights: {', '.join(test.sources) or len(test_flights)}"
     elif holdout:
         train, test = train_rows(ds, cuts), train_rows(ds, cuts, test=True)
@@ -160,9 +163,9 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     if plan.delays_s:
         b0 = dataset_builder(cfg)
         tr0 = b0.build(list(train_flights), target=target, inputs=inputs,
-                       extras=[s for s in empirical_inputs if s not in inputs])
+                       extras=extras)
         undelayed = (tr0, b0.build(list(test_flights), target=target, inputs=inputs,
-                                   extras=[s for s in empirical_inputs if s not in inputs])) \
+                                   extras=extras)) \
             if test_flights else (train_rows(tr0, cuts), train_rows(tr0, cuts, test=True) if holdout
                                   else tr0.subset(np.zeros(len(tr0), bool)))
         # every rung is measured on the same rows: those the delayed inputs exist for
