@@ -27,7 +27,7 @@ def rotor_thrust_sum(target: str) -> IdentifiedModel:
 
 def write_result(tmp_path, models) -> str:
     path = tmp_path / "result.json"
-    path.write_text(json.dumps({"targets": {m.target: {"final": m.to_dict()} for m in models},
+    path.write_text(json.dumps({"schema": "droneid.identify/2", "targets": {m.target: {"final": m.to_dict()} for m in models},
                                 "config": {"ts": 0.01, "method": "forward"}}))
     return str(path)
 

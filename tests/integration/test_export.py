@@ -72,7 +72,8 @@ def test_constant_model_and_bad_requests(tmp_path, capsys):
     with pytest.raises(ConfigError, match="MATLAB identifier"):
         export_models([zero], "matlab", name="1x")
     old = tmp_path / "old.json"
-    old.write_text(json.dumps({"targets": {"vx_dot": {"model": {"x": 1}, "inputs": ["vx"]}}}))
+    old.write_text(json.dumps({"schema": "droneid.identify/1",
+                               "targets": {"vx_dot": {"model": {"x": 1}, "inputs": ["vx"]}}}))
     assert main(["export", str(old), "--to", "c"]) == 2
     err = capsys.readouterr().err
-    assert "old.json" in err and "no final model" in err and "Traceback" not in err
+    assert "old.json" in err and "re-run `droneid identify`" in err and "Traceback" not in err

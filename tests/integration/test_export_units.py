@@ -26,7 +26,7 @@ def _result_with_provenance(tmp_path, flights, models=None) -> str:
     from dataclasses import asdict
     models = models or [rotor_thrust_sum("vz_dot")]
     path = tmp_path / "result.json"
-    path.write_text(json.dumps({"targets": {m.target: {"final": m.to_dict()} for m in models},
+    path.write_text(json.dumps({"schema": "droneid.identify/2", "targets": {m.target: {"final": m.to_dict()} for m in models},
                                 "config": {"ts": 0.01}, "provenance": {
                                     "train": [asdict(f.provenance) for f in flights], "test": []}}))
     return str(path)
@@ -87,7 +87,8 @@ def test_no_python_power_in_c_or_matlab_headers_even_in_a_description(tmp_path):
     vx = sp.Symbol("vx")
     m = IdentifiedModel("vx_dot", -0.3 * vx ** 2, {}, "drag: -0.3*vx**2 fitted")
     path = tmp_path / "result.json"
-    path.write_text(json.dumps({"targets": {"vx_dot": {"final": m.to_dict()}}, "config": {"ts": 0.01}}))
+    path.write_text(json.dumps({"schema": "droneid.identify/2", "targets": {"vx_dot": {"final": m.to_dict()}},
+                                "config": {"ts": 0.01}}))
     for to, name in (("c", "m.c"), ("matlab", "m.m")):
         text = open(export_cli(tmp_path, str(path), to, name)).read()
         assert "**" not in text, (to, text[:800])

@@ -41,7 +41,8 @@ def result(tmp_path_factory):
         targets[t] = {"final": _tilt_drag(t, 0.4).to_dict(), "empirical_model": _tilt_drag(t, 0.28).to_dict(),
                       "refit_model": _tilt_drag(t, 0.35).to_dict()}
     path = tmp_path_factory.mktemp("res") / "result.json"
-    path.write_text(json.dumps({"targets": targets, "config": {"ts": TS, "method": "forward"}}))
+    path.write_text(json.dumps({"schema": "droneid.identify/2", "targets": targets,
+                                "config": {"ts": TS, "method": "forward"}}))
     return path
 
 
@@ -122,14 +123,16 @@ def test_delayed_inputs_equal_a_shifted_log(result, log):
 
 def test_horizons_need_final_models_and_bad_horizons_are_usage_errors(log, tmp_path, capsys):
     old = tmp_path / "old.json"
-    old.write_text(json.dumps({"targets": {"vx_dot": {"model": {"x": 1}, "inputs": ["vx"]}}}))
+    old.write_text(json.dumps({"schema": "droneid.identify/1",
+                               "targets": {"vx_dot": {"model": {"x": 1}, "inputs": ["vx"]}}}))
     code, _, err = run_cli(capsys, "predict", old, log, "--horizons", "1,10")
-    assert code == 2 and "targets.<t>.final" in err and "Traceback" not in err
+    assert code == 2 and "re-run `droneid identify`" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
     with pytest.raises(SystemExit) as exc:
         main(["predict", str(old), str(log), "--horizons", "0,x"])
     assert exc.value.code == 2
     bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps({"targets": {"vx_dot": {"final": {"target": "vx_dot", "expr": "vx +* 2",
+    bad.write_text(json.dumps({"schema": "droneid.identify/2", "targets": {"vx_dot": {"final": {"target": "vx_dot", "expr": "vx +* 2",
                                                                   "signals": ["vx"]}}}}))
     code, _, err = run_cli(capsys, "predict", bad, log)
     assert code == 2 and "bad.json" in err and "targets.vx_dot.final" in err

@@ -25,7 +25,7 @@ def test_open_loop_scores_the_final_model_nominal_physics_and_the_held_state(tmp
     finals = {f"v{a}_dot": IdentifiedModel(f"v{a}_dot", w * bz[a] - kd * sp.Symbol(f"v{a}") - (9.81 if a == "z" else 0),
                                            {}, "planted").to_dict() for a in "xyz"}
     result = tmp_path / "result.json"
-    result.write_text(json.dumps({"schema": "droneid.identify/1", "config": {
+    result.write_text(json.dumps({"schema": "droneid.identify/2", "config": {
         "prior_used": "rotor-thrust", "prior_params": {"source": "rpm", "k_T": k_T}, "ts": 0.05, "method": "central"},
         "targets": {t: {"final": m} for t, m in finals.items()}}))
     assert main(["-q", "simulate", "--path", "eight", "--duration", "12", "--seed", "3", "--effect",
