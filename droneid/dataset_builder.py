@@ -104,6 +104,19 @@ _D = _Detect()   # the detection defaults, one home
 _REUSE: ContextVar[dict | None] = ContextVar("droneid_reused_datasets", default=None)
 
 
+def _reused(what: tuple, obj, compute):
+    """``compute()`` for ``obj`` (a Flight or Signal: immutable), once per :func:`reuse_datasets`
+    block (no caching outside one)."""
+    cache = _REUSE.get()
+    if cache is None:
+        return compute()
+    key = (*what, id(obj))
+    hit = cache.get(key)
+    if hit is None or hit[0] is not obj:
+        hit = cache[key] = (obj, compute())
+    return hit[1]
+
+
 @contextmanager
 def reuse_datasets():
     """A block in which :meth:`DatasetBuilder.build` builds each dataset once: the same flights
@@ -321,7 +334,8 @@ class DatasetBuilder:
         notes: list[str] = []
         ts = float(self.ts)
         if self.in_flight == "auto":
-            ivs, n = in_flight_intervals(f, ts=ts, detect=self._detect())
+            ivs, n = _reused(("in_flight", ts, self._detect()), f,
+                             lambda: in_flight_intervals(f, ts=ts, detect=self._detect()))
             notes.extend(n)
         else:
             ivs = [(f.start_s, f.end_s)]
@@ -347,7 +361,7 @@ class DatasetBuilder:
             d = float(delays.get(n, 0.0))      # a delayed input is read at t - d: its gaps and holes move by d
             ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]),
                             [(a + d, b + d) for a, b in signal_gaps(sig, self.max_gap_s)])
-            sc = screen_signal(sig)          # implausible samples: holes no row may use
+            sc = _reused(("screen",), sig, lambda: screen_signal(sig))   # implausible samples: holes no row may use
             if sc.implausible:
                 if diff.name == "spline" and n in (source, _POSITION_OF.get(source)):
                     ivs = _subtract(ivs, sc.holes)   # a spline smooths the whole interval
