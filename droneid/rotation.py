@@ -156,30 +156,36 @@ def _speeds(log: StateLog, rad_s_per_rpm: float) -> np.ndarray:
 
 
 # -- rotation ------------------------------------------------------------------------------------
-def _rotation_columns(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
-                      terms: tuple[str, ...], vb: np.ndarray | None = None) -> list[np.ndarray]:
+def _rotation_named(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
+                    terms: tuple[str, ...], vb: np.ndarray | None = None) -> list[tuple[str, np.ndarray]]:
+    """(name, column) of axis ``k``'s regressors, in the order of its coefficients."""
     unknown = [t for t in terms if t not in KNOWN_TERMS]
     if unknown:
         raise DataError(f"unknown rotational term(s) {', '.join(unknown)}; known: {', '.join(KNOWN_TERMS)}")
-    cols = [s @ P[k]]
+    cols = [("pattern", s @ P[k])]
     if "centre" in terms:
-        cols.append(s.sum(axis=-1))
+        cols.append(("centre", s.sum(axis=-1)))
     if "damping" in terms:
-        cols.append(-w[:, k])
+        cols.append(("damping", -w[:, k]))
     if "gyro" in terms:
         i, j = [(1, 2), (2, 0), (0, 1)][k]
-        cols.append(w[:, i] * w[:, j])
+        cols.append(("gyro", w[:, i] * w[:, j]))
     if "spinup" in terms and k == 2:
-        cols.append(rates @ P[2])
+        cols.append(("spinup", rates @ P[2]))
     if k < 2 and ("rotor_drag" in terms or "rotor_drag_thrust" in terms):
         if vb is None:
             raise DataError("the rotor drag moment needs the body velocity")
         j, sign = _DRAG_AXIS[k]
         if "rotor_drag" in terms:
-            cols.append(sign * vb[:, j])
+            cols.append(("rotor_drag", sign * vb[:, j]))
         if "rotor_drag_thrust" in terms:
-            cols.append(sign * vb[:, j] * s.sum(axis=-1))
+            cols.append(("rotor_drag_thrust", sign * vb[:, j] * s.sum(axis=-1)))
     return cols
+
+
+def _rotation_columns(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
+                      terms: tuple[str, ...], vb: np.ndarray | None = None) -> list[np.ndarray]:
+    return [c for _, c in _rotation_named(k, P, s, w, rates, terms, vb)]
 
 
 @dataclass(frozen=True)
@@ -204,6 +210,14 @@ class RotationModel:
     balance_weight_s: float | None = None
     #: the training flights' mean ``s`` (M,), the prior of :func:`balanced`
     balance_prior: np.ndarray | None = None
+
+    def columns(self, k: int) -> tuple[str, ...]:
+        """Names of axis ``k``'s terms in the order of ``coef[k]`` (``pattern``, ``centre``,
+        ``damping``, ``gyro``, ``spinup``, ``rotor_drag``, ``rotor_drag_thrust`` as present)."""
+        m = self.layout.motors
+        z = np.zeros((1, m))
+        return tuple(n for n, _ in _rotation_named(k, self.layout.patterns(), z, np.zeros((1, 3)), z,
+                                                   self.terms, np.zeros((1, 3))))
 
     @property
     def input_width(self) -> int:

@@ -148,3 +148,9 @@ def test_identified_vehicle_steps_both_halves_with_a_unit_quaternion():
     out = simulate(veh, x, u[None, :50], DT)[0]
     np.testing.assert_allclose(np.linalg.norm(out[:, 6:10], axis=1), 1.0, atol=1e-12)
     assert np.ptp(out[:, 10:13], axis=0).min() > 0.01      # the rates move: ω̇ is not zero
+
+
+def test_column_names_follow_the_coefficients():
+    rot = RotationModel(LAYOUT, ("centre", "damping", "gyro", "spinup", "rotor_drag"), DRAG_COEF, np.zeros(3))
+    assert rot.columns(0) == ("pattern", "centre", "damping", "gyro", "rotor_drag")
+    assert rot.columns(2) == ("pattern", "centre", "damping", "gyro", "spinup")
