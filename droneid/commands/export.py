@@ -36,7 +36,12 @@ def run(args) -> int:
 
     from ..export import input_sources
     provenance = json.loads(Path(args.result).read_text(encoding="utf-8")).get("provenance")
-    text = export_models(finals, args.to, source=str(args.result), name=name,
+    # the reader options the model was identified with: a user's own CSV columns (--column),
+    # MCAP topics, Motive body: what a reader of the header needs to feed the same signals
+    from ._common import options_text
+    read_with = options_text(models.get("_reader_options") or {})
+    source = f"{args.result} (logs read with {read_with})" if read_with else str(args.result)
+    text = export_models(finals, args.to, source=source, name=name,
                          inputs=input_sources(provenance))
     if args.output:
         from ..io_util import atomic_write_text

@@ -188,3 +188,11 @@ def test_every_command_that_reads_logs_takes_the_reader_options(command):
     from droneid.commands._common import log_options
     assert log_options(args) == {"format": "csv", "topics": {"pose": "/a"}, "body": "b1",
                                  "column_map": {"vx": "c"}, "sysid": 3, "vehicle": "multirotor"}
+
+
+def test_export_header_states_the_mapping(result, capsys):
+    """Whoever feeds the exported function reads which of their columns each signal came from."""
+    code, out, err = run_cli(capsys, "export", result, "--to", "python")
+    assert code == 0, err
+    header = out.split('"""')[1]
+    assert "logs read with --column x=est_x_val" in header and "--column vx=est_vx_val" in header
