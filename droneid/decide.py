@@ -7,12 +7,16 @@ over contiguous time blocks, at a family-wise error level over every candidate t
 The rule (:func:`decide`), on per-row held-out (cross-validated) residuals of the two models:
 
 1. **Block differences.** For every validation block b (contiguous time blocks of the training
-   flights, :func:`droneid.ladder.block_ids` / :func:`droneid.ladder.validation_blocks`):
-   ``d_b = (mse0_b − mse1_b) / mse0_b`` with ``mse*_b`` the mean squared held-out residual in
-   block b without/with the candidate (row weights optional): the difference of squared
-   validation error relative to the block's own error, so a calm block and a manoeuvre count
-   alike (raw differences let the noisiest blocks dominate the spread and cost most of the
-   power). ``d_b > 0``: the candidate helps there.
+   flights, ``block_ids``):
+   ``d_b = ln(mse0_b / mse1_b)`` with ``mse*_b`` the mean squared held-out residual in block b
+   without/with the candidate (row weights optional): the log ratio of the block's validation
+   errors, so a calm block and a manoeuvre count alike (raw differences let the noisiest blocks
+   dominate the spread and cost most of the power), and a block twice as bad weighs as much as a
+   block twice as good. (The relative drop ``(mse0_b − mse1_b)/mse0_b`` used before is bounded
+   by 1 above but not below: one block where the candidate's constant meets a local residual
+   near zero, e.g. a gust against the mean wind, outweighed many blocks that improved, and under
+   "no effect" it is skewed, which the sign-flip test assumes it is not.) ``d_b > 0``: the
+   candidate helps there.
 2. **Paired one-sided sign-flip test.** Under "the candidate does not help", each ``d_b`` is as
    likely to be negative as positive; ``p`` is the share of the 2^B sign patterns whose mean
    is at least the observed ``mean(d)`` (exact for B ≤ 14, else ``N_FLIPS`` fixed-seed random
@@ -45,7 +49,7 @@ from .errors import ConfigError
 from .regression import blocked_cv
 
 __all__ = ["Decision", "decide", "decide_predictions", "decide_designs", "decide_family",
-           "block_differences", "paired_block_test", "holm_threshold", "N_FLIPS"]
+           "block_differences", "block_log_ratios", "paired_block_test", "holm_threshold", "N_FLIPS"]
 
 #: random sign patterns of the sign-flip test when 2^B is too many to enumerate (B > 16)
 N_FLIPS = 50_000
@@ -61,7 +65,8 @@ class Decision:
     used. effect_pct: held-out RMSE reduction in % (positive: the candidate helps). evidence:
     one line for a report. rmse_without/rmse_with: pooled held-out RMSE of the two models (the
     residuals' units). blocks_better: blocks where the candidate helps. block_differences:
-    ``d_b``, the relative drop of each block's held-out MSE. family_size, rank: the Holm
+    ``d_b = ln(mse0_b / mse1_b)``, the log ratio of each block's held-out MSE without/with
+    the candidate. family_size, rank: the Holm
     position. reasons: why it was rejected (empty when accepted).
     """
     accepted: bool
@@ -127,6 +132,15 @@ def block_differences(err_without, err_with, blocks, weights=None):
     return ids[keep], m0, m1, m0 - m1, rows[keep]
 
 
+def block_log_ratios(mse_without, mse_with) -> np.ndarray:
+    """``ln(mse_without_b / mse_with_b)`` per block (> 0: the candidate helps there); 0 for a block
+    where either error is 0 (nothing to compare)."""
+    m0 = np.asarray(mse_without, float)
+    m1 = np.asarray(mse_with, float)
+    ok = (m0 > 0) & (m1 > 0)
+    return np.where(ok, np.log(np.where(ok, m0, 1.0) / np.where(ok, m1, 1.0)), 0.0)
+
+
 def paired_block_test(d) -> tuple[float, float]:
     """(t, one-sided p) for "the block differences ``d`` have a positive centre": ``t`` the
     paired t statistic (reported), ``p`` from the sign-flip distribution of mean(d) (exact for
@@ -172,7 +186,7 @@ def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: i
         raise ConfigError(f"decide needs at least 3 validation blocks with data. Got {ids.size} instead.")
     pooled0 = float(np.sum(m0 * rows) / np.sum(rows))
     pooled1 = float(np.sum(m1 * rows) / np.sum(rows))
-    dn = np.where(m0 > 0, d / np.where(m0 > 0, m0, 1.0), 0.0)
+    dn = block_log_ratios(m0, m1)
     t, p = paired_block_test(dn)
     r0, r1 = math.sqrt(pooled0), math.sqrt(pooled1)
     pct = 100.0 * (1.0 - r1 / r0) if r0 > 0 else 0.0
