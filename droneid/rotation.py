@@ -427,7 +427,8 @@ def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str =
                            delay_steps: int | Sequence[int] = 0, horizon: int = 50, stride: int = 4,
                            damping_grid: Sequence[float] = DAMPING_GRID, spinup: bool = True,
                            centre_tau_s: float | None = None, lowpass_tau_s: float | None = None,
-                           rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> RotationModel:
+                           rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM, rotor_drag: bool = False,
+                           balance_weight_s: float | None = None) -> RotationModel:
     """Fit ω̇ per axis by its open-loop error: the body rate predicted ``1..horizon`` steps
     ahead from every ``stride``-th start in flight, against the logged one.
 
@@ -441,36 +442,48 @@ def fit_rotation_multistep(logs: Sequence[StateLog], layout: RotorLayout | str =
     three axes (training flights only) is kept. ``centre_tau_s``: take the torque inputs about
     their causal moving average (:func:`centred`; uses motor speeds before the window).
     ``lowpass_tau_s``: low-pass the rotor speeds first (:func:`smoothed`, causal).
+    ``rotor_drag``: add the rotor drag moment (roll, pitch), driven in the fit by the logged body
+    velocity over the window. ``balance_weight_s``: torque inputs about their mean since the
+    flight began (:func:`balanced`, prior the training mean).
     """
     layout = get_layout(layout) if isinstance(layout, str) else layout
     layout.check()
     delays = [int(delay_steps)] if np.ndim(delay_steps) == 0 else [int(d) for d in delay_steps]
-    fits = [_fit_multistep_at(logs, layout.patterns(), d, int(horizon), stride, damping_grid,
-                              spinup, rad_s_per_rpm, centre_tau_s, lowpass_tau_s) for d in delays]
-    loss, d, coef, trims, terms = min(fits, key=lambda f: f[0])
-    return RotationModel(layout, terms, coef, trims.mean(axis=0), d, float(rad_s_per_rpm), trims,
-                         centre_tau_s, lowpass_tau_s)
+    fits = []
+    for d in delays:
+        shell = RotationModel(layout, (), (np.zeros(0),) * 3, np.zeros(3), d, float(rad_s_per_rpm),
+                              centre_tau_s=centre_tau_s, lowpass_tau_s=lowpass_tau_s)
+        if balance_weight_s is not None:
+            prior = np.concatenate([shell.conditioned(log.rpm, log.dt_s)[0][flying_mask(log)] for log in logs])
+            shell = dataclasses.replace(shell, balance_weight_s=float(balance_weight_s),
+                                        balance_prior=prior.mean(axis=0) if prior.size else None)
+        fits.append((shell,) + _fit_multistep_at(logs, shell, int(horizon), stride, damping_grid,
+                                                 spinup, rotor_drag))
+    shell, loss, coef, trims, terms = min(fits, key=lambda f: f[1])
+    return dataclasses.replace(shell, terms=terms, coef=coef, trim=trims.mean(axis=0), flight_trims=trims)
 
 
-def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad_s_per_rpm,
-                      centre_tau_s=None, lowpass_tau_s=None):
-    """(summed loss, delay, coef, per-flight trims, terms) of the multi-step fit at one delay."""
+def _fit_multistep_at(logs, shell, H, stride, damping_grid, spinup, rotor_drag=False):
+    """(summed loss, coef, per-flight trims, terms) of the multi-step fit with the input
+    conditioning of ``shell`` (a :class:`RotationModel`)."""
+    P = shell.layout.patterns()
     per_log = []
     for j, log in enumerate(logs):
-        om_all = smoothed(_delayed(_speeds(log, rad_s_per_rpm), delay_steps), log.dt_s, lowpass_tau_s)
-        s_all = centred(om_all ** 2, log.dt_s, centre_tau_s)
-        rate_all = spin_rate(om_all, log.dt_s)
+        s_all, rate_all = shell.conditioned(log.rpm, log.dt_s)
+        vb_all = body_velocity(log.state[:, 6:10], log.state[:, 3:6])
         for a, b in _segment_bounds(log, H + 1):
             seg = StateLog(log.name, log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s)
             s = s_all[a:b]
-            feats = [s @ P.T, s.sum(axis=1), rate_all[a:b] @ P[2]]
+            vb = vb_all[a:b]
+            feats = [s @ P.T, s.sum(axis=1), rate_all[a:b] @ P[2],
+                     [vb[:, 1], -vb[:, 0]], [vb[:, 1] * s.sum(axis=1), -vb[:, 0] * s.sum(axis=1)]]
             starts = np.arange(0, len(seg) - H, stride)
             per_log.append((j, seg, feats, starts))
     if not per_log:
         raise DataError(f"fit_rotation_multistep: no flight segment longer than {H} steps")
     dt = logs[0].dt_s
     n_f = len(logs)
-    terms = ("centre", "damping", "spinup") if spinup else ("centre", "damping")
+    terms = ("centre", "damping") + (("spinup",) if spinup else ()) + (("rotor_drag",) if rotor_drag else ())
     coef, trims, total = [], np.zeros((n_f, 3)), 0.0
     for k in range(3):
         best = None
@@ -478,9 +491,10 @@ def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad
             phi = float(np.exp(-c * dt))
             gam = dt if c == 0 else (1.0 - phi) / c
             A, y = [], []
-            for j, seg, (mix, S, spin), starts in per_log:
+            for j, seg, (mix, S, spin, drag, _), starts in per_log:
                 idx = starts[:, None] + np.arange(H)[None, :]
                 f = [mix[:, k][idx], S[idx]] + ([spin[idx]] if spinup and k == 2 else [])
+                f += [drag[k][idx]] if rotor_drag and k < 2 else []
                 f.append(np.ones_like(idx, dtype=float))
                 X = np.zeros((starts.size, H, len(f)))
                 acc = np.zeros((starts.size, len(f)))
@@ -504,11 +518,11 @@ def _fit_multistep_at(logs, P, delay_steps, H, stride, damping_grid, spinup, rad
         total += loss
         nf = A.shape[1] - n_f
         b = beta[:nf]
-        # columns of _rotation_columns: pattern, centre, damping (−ω), [spinup on yaw]
-        ck = [b[0], b[1], c] + ([b[2]] if spinup and k == 2 else [])
+        # columns of _rotation_named: pattern, centre, damping (−ω), [spinup on yaw], [rotor drag]
+        ck = [b[0], b[1], c] + list(b[2:])
         coef.append(np.array(ck))
         trims[:, k] = beta[nf:]
-    return total, int(delay_steps), tuple(coef), trims, terms
+    return total, tuple(coef), trims, terms
 
 
 # -- choosing the rotational model by blocked validation ------------------------------------------
@@ -560,7 +574,8 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     """Choose the rotational model by blocked validation on TRAINING flights only.
 
     Each flight (logs of the same name form one block) is held out in turn; every candidate
-    (keyword arguments of :func:`fit_rotation`) is fitted on the others, with a
+    (keyword arguments of :func:`fit_rotation`, or with ``"method": "multistep"`` of
+    :func:`fit_rotation_multistep`) is fitted on the others, with a
     :class:`TranslationModel` fitted alike (``translation_delay_steps``), and the vehicle is run
     open loop on the held-out flight's in-flight stretches from every ``stride``-th start. The
     lowest pooled body-rate SimErr wins (attitude SimErr breaks ties), and only if it is below
@@ -584,8 +599,7 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
                              rad_s_per_rpm=rad_s_per_rpm)
         models = {"held": IdentifiedVehicle(tr, _HeldRates())}
         for i, c in enumerate(candidates):
-            models[i] = IdentifiedVehicle(tr, fit_rotation(train, layout, window_s=window_s,
-                                                           rad_s_per_rpm=rad_s_per_rpm, **c))
+            models[i] = IdentifiedVehicle(tr, _fit_candidate(train, layout, c, window_s, rad_s_per_rpm))
         res = open_loop(models, test, stride=stride)
         n = res["held"].windows
         windows += n
@@ -600,5 +614,17 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     best = min(range(len(table)), key=lambda i: (table[i]["rates_simerr"], table[i]["attitude_simerr"]))
     if table[best]["rates_simerr"] >= held_row["rates_simerr"]:
         return RotationChoice(None, table, held_row, None)
-    model = fit_rotation(logs, layout, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm, **candidates[best])
-    return RotationChoice(model, table, held_row, best)
+    return RotationChoice(_fit_candidate(logs, layout, candidates[best], window_s, rad_s_per_rpm),
+                          table, held_row, best)
+
+
+def _fit_candidate(logs, layout, candidate: dict, window_s: float, rad_s_per_rpm: float) -> RotationModel:
+    """One candidate of :func:`select_rotation`: ``method`` "equation" (default,
+    :func:`fit_rotation`) or "multistep" (:func:`fit_rotation_multistep`), the rest its keywords."""
+    c = dict(candidate)
+    method = c.pop("method", "equation")
+    if method == "multistep":
+        return fit_rotation_multistep(logs, layout, rad_s_per_rpm=rad_s_per_rpm, **c)
+    if method != "equation":
+        raise DataError(f"select_rotation: unknown fitting method {method!r} (equation, multistep)")
+    return fit_rotation(logs, layout, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm, **c)
