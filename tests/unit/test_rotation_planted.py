@@ -154,3 +154,16 @@ def test_column_names_follow_the_coefficients():
     rot = RotationModel(LAYOUT, ("centre", "damping", "gyro", "spinup", "rotor_drag"), DRAG_COEF, np.zeros(3))
     assert rot.columns(0) == ("pattern", "centre", "damping", "gyro", "rotor_drag")
     assert rot.columns(2) == ("pattern", "centre", "damping", "gyro", "spinup")
+
+
+@pytest.mark.slow   # shares a ~10 s simulated-flight fixture
+def test_multistep_fit_recovers_the_rotor_drag_moment(drag_flights):
+    from droneid.rotation import fit_rotation_multistep
+    m = fit_rotation_multistep(drag_flights, rotor_drag=True, spinup=False, damping_grid=(2.0, 3.0, 4.0), stride=10)
+    for k in range(3):
+        got = dict(zip(m.columns(k), m.coef[k]))
+        assert got["pattern"] == pytest.approx(DRAG_COEF[k][0], rel=0.05), k
+        assert got["damping"] == 3.0, k
+        assert abs(got["centre"]) < 0.02, k               # none planted
+        if k < 2:
+            assert got["rotor_drag"] == pytest.approx(DRAG_COEF[k][2], rel=0.05), k
