@@ -211,6 +211,35 @@ class RotationModel:
     #: the training flights' mean ``s`` (M,), the prior of :func:`balanced`
     balance_prior: np.ndarray | None = None
 
+    def to_dict(self) -> dict:
+        """JSON-able: the layout by name with its geometry, and every field as plain lists."""
+        lay = self.layout
+        return {"layout": {"name": lay.name, "x": list(lay.x), "y": list(lay.y), "spin": list(lay.spin),
+                           "source": lay.source},
+                "terms": list(self.terms), "coef": [np.asarray(c, float).tolist() for c in self.coef],
+                "columns": [list(self.columns(k)) for k in range(3)],
+                "trim": np.asarray(self.trim, float).tolist(), "delay_steps": int(self.delay_steps),
+                "rad_s_per_rpm": float(self.rad_s_per_rpm),
+                "flight_trims": np.asarray(self.flight_trims, float).tolist(),
+                "centre_tau_s": self.centre_tau_s, "lowpass_tau_s": self.lowpass_tau_s,
+                "balance_weight_s": self.balance_weight_s,
+                "balance_prior": None if self.balance_prior is None else np.asarray(self.balance_prior, float).tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "RotationModel":
+        """The inverse of :meth:`to_dict`."""
+        try:
+            lay = d["layout"]
+            layout = RotorLayout(lay["name"], tuple(lay["x"]), tuple(lay["y"]), tuple(lay["spin"]), lay.get("source", ""))
+            prior = d.get("balance_prior")
+            return cls(layout, tuple(d["terms"]), tuple(np.asarray(c, float) for c in d["coef"]),
+                       np.asarray(d["trim"], float), int(d["delay_steps"]), float(d["rad_s_per_rpm"]),
+                       np.asarray(d.get("flight_trims") or np.zeros((0, 3)), float).reshape(-1, 3),
+                       d.get("centre_tau_s"), d.get("lowpass_tau_s"), d.get("balance_weight_s"),
+                       None if prior is None else np.asarray(prior, float))
+        except (KeyError, TypeError, ValueError) as e:
+            raise DataError(f"a rotation model record is damaged: {e}") from None
+
     def columns(self, k: int) -> tuple[str, ...]:
         """Names of axis ``k``'s terms in the order of ``coef[k]`` (``pattern``, ``centre``,
         ``damping``, ``gyro``, ``spinup``, ``rotor_drag``, ``rotor_drag_thrust`` as present)."""
@@ -321,6 +350,20 @@ class TranslationModel:
     delay_steps: int = 0
     rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
     g: float = G
+
+    def to_dict(self) -> dict:
+        """JSON-able fields."""
+        return {"k_thrust": float(self.k_thrust), "drag": np.asarray(self.drag, float).tolist(),
+                "delay_steps": int(self.delay_steps), "rad_s_per_rpm": float(self.rad_s_per_rpm), "g": float(self.g)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TranslationModel":
+        """The inverse of :meth:`to_dict`."""
+        try:
+            return cls(float(d["k_thrust"]), np.asarray(d["drag"], float), int(d["delay_steps"]),
+                       float(d["rad_s_per_rpm"]), float(d.get("g", G)))
+        except (KeyError, TypeError, ValueError) as e:
+            raise DataError(f"a translation model record is damaged: {e}") from None
 
     def inputs(self, log: StateLog) -> np.ndarray:
         """(N, M): ``s = (ω_i/1000 rad/s)²`` of the motor speeds ``delay_steps`` earlier."""
@@ -554,6 +597,12 @@ class RotationChoice:
     @property
     def beats_held(self) -> bool:
         return self.model is not None
+
+    def to_dict(self) -> dict:
+        """JSON-able: ``{"model": RotationModel.to_dict() | None, "table", "held", "chosen"}``."""
+        table = [{k: (list(v) if isinstance(v, tuple) else v) for k, v in row.items()} for row in self.table]
+        return {"model": None if self.model is None else self.model.to_dict(), "table": table,
+                "held": dict(self.held), "chosen": self.chosen}
 
 
 class _HeldRates:

@@ -167,3 +167,22 @@ def test_multistep_fit_recovers_the_rotor_drag_moment(drag_flights):
         assert abs(got["centre"]) < 0.02, k               # none planted
         if k < 2:
             assert got["rotor_drag"] == pytest.approx(DRAG_COEF[k][2], rel=0.05), k
+
+
+def test_models_round_trip_through_json():
+    import json
+    rot = RotationModel(LAYOUT, ("centre", "damping", "rotor_drag"), (np.array([6.0, 0.1, 3.0, 2.0]),
+                        np.array([5.0, 0.0, 3.0, 1.5]), np.array([1.5, 0.0, 3.0])), np.array([0.1, -0.2, 0.0]),
+                        delay_steps=1, lowpass_tau_s=0.05, balance_weight_s=1.0, balance_prior=np.full(4, 2.5))
+    back = RotationModel.from_dict(json.loads(json.dumps(rot.to_dict())))
+    x = np.array([[0, 0, 1.0, 1.0, -0.5, 0, 1, 0, 0, 0, 0.3, -0.2, 0.1]])
+    rng = np.random.default_rng(2)
+    log = StateLog("x", DT * np.arange(50), np.zeros((50, 13)), 95000.0 + 500 * rng.standard_normal((50, 4)), DT)
+    np.testing.assert_array_equal(back.inputs(log), rot.inputs(log))
+    np.testing.assert_array_equal(back.ang_accel(x, rot.inputs(log)[:1]), rot.ang_accel(x, rot.inputs(log)[:1]))
+    assert back.columns(0) == rot.columns(0)
+    tr = TranslationModel.from_dict(json.loads(json.dumps(TRANSLATION.to_dict())))
+    np.testing.assert_array_equal(tr.accel(x, TRANSLATION.inputs(log)[:1]), TRANSLATION.accel(x, TRANSLATION.inputs(log)[:1]))
+    from droneid.errors import DataError
+    with pytest.raises(DataError, match="damaged"):
+        RotationModel.from_dict({"terms": []})
