@@ -73,7 +73,9 @@ def test_identify_writes_the_documented_schema_and_files(identified):
         assert len(tr["runs"]) == 2
         for r in tr["runs"]:
             assert {"seed", "rmse_train", "rmse_test", "constraint_rmse_test", "wall_s"} <= set(r)
-        assert tr["model"] and tr["holdout"] is False
+        assert tr["holdout"] is False and tr["constraints"] in ("rotor-thrust", "rotor-thrust+drag-sign")
+        assert not {"model", "best_run", "identified_median", "improvement_pct"} & set(tr)   # schema 2
+    assert doc["schema"] == "droneid.identify/2"
     assert doc["config"]["prior_features"] == 3 and doc["config"]["constraints"] == "paper"
     # the simulated logs carry motor speeds: auto picks rotor-thrust and says why
     assert doc["config"]["prior_used"] == "rotor-thrust" and "motor speeds" in doc["config"]["prior_reason"]
@@ -138,7 +140,8 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
     guided = identify([train], [test], IdentifyConfig.make(prior_features=3, constraints="paper", **common))
     base = identify([train], [test], IdentifyConfig.make(prior_features=0, constraints="none", **common))
     g, b = guided.targets["vx_dot"], base.targets["vx_dot"]
-    assert g.identified_median["constraint_rmse_test"] < 0.1 * b.identified_median["constraint_rmse_test"]
+    median_ec = lambda tr: float(np.median([r.constraint_rmse_test for r in tr.runs]))  # noqa: E731
+    assert median_ec(g) < 0.1 * median_ec(b)
     assert g.identified["constraint_rmse_test"] < 0.05
     assert g.identified["rmse_test"] <= 1.15 * g.empirical_refit["rmse_test"]
     # the empirical model as given has the wrong drag, its refit finds k_D ~ 0.4
@@ -202,8 +205,8 @@ def test_identify_in_a_process_pool_matches_in_process(logs):
     cfg = dict(targets=("vx_dot",), runs=2, generations=200, population_size=80, seed=5)
     a = identify([train], [test], IdentifyConfig.make(jobs=1, **cfg)).targets["vx_dot"]
     b = identify([train], [test], IdentifyConfig.make(jobs=2, **cfg)).targets["vx_dot"]
-    assert [r["seed"] for r in a.runs] == [r["seed"] for r in b.runs]
-    assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])
+    assert [r.seed for r in a.runs] == [r.seed for r in b.runs]
+    assert np.allclose([r.rmse_test for r in a.runs], [r.rmse_test for r in b.runs])
 
 
 def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
@@ -253,7 +256,7 @@ def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
         res = identify([train], [test], IdentifyConfig.make(scheduler=cluster.scheduler_address, **cfg))
     b = res.targets["vx_dot"]
     assert res.backend.startswith("dask(")
-    assert np.allclose([r["rmse_test"] for r in a.runs], [r["rmse_test"] for r in b.runs])
+    assert np.allclose([r.rmse_test for r in a.runs], [r.rmse_test for r in b.runs])
 
 
 def test_the_test_flights_never_decide(logs):
@@ -268,11 +271,11 @@ def test_the_test_flights_never_decide(logs):
     results = [identify([train], test, cfg) for test in ([read_flight(logs[1])], [other], None)]
     for t in results[0].targets:
         finals = [r.targets[t].final for r in results]
-        assert finals[0]["expr"] == finals[1]["expr"] == finals[2]["expr"]
-        vals = [[rg["rmse_validation"] for rg in r.targets[t].ladder] for r in results]
+        assert finals[0].expr == finals[1].expr == finals[2].expr
+        vals = [[rg.rmse_validation for rg in r.targets[t].ladder] for r in results]
         assert vals[0] == vals[1] == vals[2]
-        assert results[0].targets[t].ladder[0]["rmse_test"] != results[1].targets[t].ladder[0]["rmse_test"]
-    assert results[0].config["delays_s"] == results[1].config["delays_s"] == results[2].config["delays_s"]
+        assert results[0].targets[t].ladder[0].rmse_test != results[1].targets[t].ladder[0].rmse_test
+    assert results[0].plan.delays_s == results[1].plan.delays_s == results[2].plan.delays_s
 
 
 def test_holdout_is_cut_before_any_choice(logs):
@@ -298,14 +301,14 @@ def test_identify_folds_the_effect_the_diagnosis_finds(planted):
     cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=1, generations=200, population_size=60, jobs=1)
     res = identify([flight], None, cfg)
     for t, tr in res.targets.items():
-        rungs = [r["name"] for r in tr.ladder]
+        rungs = [r.name for r in tr.ladder]
         if planted:
             assert "effect:quadratic_drag" in rungs, (t, rungs, res.notes)
             rung = tr.ladder[rungs.index("effect:quadratic_drag")]
             import re
-            c = float(re.search(r"c_D/m = ([0-9.]+)", rung["description"]).group(1))
-            assert c == pytest.approx(0.3, rel=0.1), rung["description"]
-            assert "sqrt(vx**2 + vy**2)" in tr.final["expr"]  # the folded feature is in the final model
-            assert rung["rmse_validation"] < 0.9 * tr.ladder[rungs.index("effect:quadratic_drag") - 1]["rmse_validation"]
+            c = float(re.search(r"c_D/m = ([0-9.]+)", rung.description).group(1))
+            assert c == pytest.approx(0.3, rel=0.1), rung.description
+            assert "sqrt(vx**2 + vy**2)" in tr.final.to_dict()["expr"]  # the folded feature is in the final model
+            assert rung.rmse_validation < 0.9 * tr.ladder[rungs.index("effect:quadratic_drag") - 1].rmse_validation
         else:
             assert not any(r.startswith("effect:") for r in rungs), (t, rungs, res.notes)

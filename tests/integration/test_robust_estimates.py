@@ -87,10 +87,10 @@ def test_coefficients_stay_inside_the_clean_fits_intervals(clean_and_glitched):
     (clean, _, k_clean), (glitched, _, k_glitched) = clean_and_glitched
     for t in ("vx_dot", "vy_dot", "vz_dot"):
         ci, gi = clean[t].intervals, glitched[t].intervals
-        gfinal = next(r for r in glitched[t].ladder if r["name"] == "final")
+        gfinal = glitched[t].final_rung
         assert ci and set(ci) == set(gi)
-        for lab, c in gfinal["terms"].items():
-            lo, hi = ci[lab.strip("⟨⟩")]
+        for lab, c in gfinal.terms.items():
+            lo, hi = ci[lab.strip("⟨⟩")].low, ci[lab.strip("⟨⟩")].high
             scale = (k_glitched / k_clean) if "rpm" in lab else 1.0
             assert lo <= c * scale <= hi, (t, lab, c * scale, (lo, hi))
 
@@ -107,12 +107,12 @@ def test_a_hover_flight_of_a_heavier_vehicle_gives_free_fall_and_the_true_thrust
     train = [s.flight for s in sims]
     plan = plan_identification(train, CFG)
     tr = summarise_target(prepare_target(train, None, "vz_dot", CFG, plan), CFG, [])
-    final = next(r for r in tr.ladder if r["name"] == "final")
-    assert final["intercept"] == pytest.approx(-9.81, abs=1e-9)           # free fall at zero thrust
+    final = tr.final_rung
+    assert final.intercept == pytest.approx(-9.81, abs=1e-9)           # free fall at zero thrust
     k_true = sims[0].truth["rotors"]["k_T"]                                # m/s² per (10⁴ rpm)²
-    term = next(k for k in final["terms"] if "sum_rpm_sq_z" in k)
-    slope = final["terms"][term] * plan.prior.params["k_T"]
-    held = term in final["held"]
+    term = next(k for k in final.terms if "sum_rpm_sq_z" in k)
+    slope = final.terms[term] * plan.prior.params["k_T"]
+    held = term in final.held
     assert held or slope == pytest.approx(k_true, rel=0.05), (slope, k_true)
     if held:
         assert any("not identifiable" in n for n in tr.notes)
@@ -128,6 +128,6 @@ def test_no_rung_has_negative_drag_even_when_the_data_pull_there():
     plan = plan_identification([flipped], CFG)
     tr = summarise_target(prepare_target([flipped], None, "vz_dot", CFG, plan), CFG, [])
     for r in tr.ladder:
-        for lab, c in r["terms"].items():
+        for lab, c in r.terms.items():
             if "minus_kD" in lab:
-                assert c >= 0.0, (r["name"], lab, c)
+                assert c >= 0.0, (r.name, lab, c)

@@ -111,8 +111,8 @@ def _identify_delays(delay_s, late_s=0.0):
     train, test = _delay_flights(delay_s, late_s)
     cfg = IdentifyConfig.make(runs=1, generations=200, population_size=60, jobs=1, effects="none", delays="auto")
     res = identify(train, test, cfg)
-    assert res.config["prior_used"] == "rotor-thrust"
-    return res.config["delays_s"], res.config["delay_scores"]
+    assert res.plan.prior_used == "rotor-thrust"
+    return dict(res.plan.delays_s), dict(res.plan.delay_scores)
 
 
 def test_identify_finds_the_planted_rpm_logging_delay():
@@ -138,7 +138,7 @@ def test_identify_reads_a_late_motor_stream_later_and_keeps_the_stop_and_go_flig
         assert in_flight_intervals(f)[0] == [(f["z"].start_s, f["z"].end_s)]   # no hover cut out
     cfg = IdentifyConfig.make(runs=1, generations=200, population_size=60, jobs=1, effects="none", delays="auto")
     res = identify(train, test, cfg)
-    delays, off = res.config["delays_s"], res.config["offset"]
+    delays, off = res.plan.delays_s, res.plan.offset
     assert set(delays) == {"rpm1", "rpm2", "rpm3", "rpm4"}, off
     assert all(d == pytest.approx(-0.08, abs=0.02) for d in delays.values()), off
     lo, hi = off["interval_s"]

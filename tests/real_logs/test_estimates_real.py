@@ -27,10 +27,10 @@ def _ladders(train, test=None, quick=True):
 def _no_negative_drag(targets):
     for t, tr in targets.items():
         for r in tr.ladder[1:]:
-            assert r["intervals"], (t, r["name"])
-            for lab, c in r["terms"].items():
+            assert r.intervals, (t, r.name)
+            for lab, c in r.terms.items():
                 if "kD" in lab:
-                    assert c >= 0.0, (t, r["name"], lab, c)
+                    assert c >= 0.0, (t, r.name, lab, c)
 
 
 @pytest.fixture(scope="module")
@@ -43,8 +43,8 @@ def test_the_squares_have_no_negative_drag_and_free_fall_at_zero_thrust(squares)
     _no_negative_drag(squares)
     vz = squares["vz_dot"]
     for r in vz.ladder[1:]:
-        assert r["intercept"] == pytest.approx(-9.81)       # gravity, never a free parameter
-    lo, hi = vz.intervals["sum_rpm_sq_z"]
+        assert r.intercept == pytest.approx(-9.81)       # gravity, never a free parameter
+    lo, hi = vz.intervals["sum_rpm_sq_z"].low, vz.intervals["sum_rpm_sq_z"].high
     assert lo < hi and 0.9 < lo <= hi < 1.1                # hover-calibrated thrust scale, pinned down
 
 
