@@ -12,6 +12,7 @@ from droneid.rotation import (RotationModel, TranslationModel, balanced, fit_rot
                               select_rotation)
 from droneid.simulate import simulate as simulate_flight
 from priors.torque import get_layout
+from test_rotation import _smooth_noise   # smooth random motor speeds, shared with the older rotation tests
 
 DT = 0.01
 TRANSLATION = TranslationModel(k_thrust=0.83, drag=np.array([0.3, 0.2, 0.1]))
@@ -19,14 +20,6 @@ TRANSLATION = TranslationModel(k_thrust=0.83, drag=np.array([0.3, 0.2, 0.1]))
 DRAG_COEF = (np.array([6.0, 3.0, 2.0]), np.array([5.0, 3.0, 1.5]), np.array([1.5, 3.0]))
 DRAG_TERMS = ("damping", "rotor_drag")
 LAYOUT = get_layout("crazyflie_x")
-
-
-def _smooth_noise(rng, n, m, scale, width=15):
-    x = rng.standard_normal((n + 4 * width, m))
-    k = np.hanning(2 * width + 1)
-    k /= k.sum()
-    y = np.column_stack([np.convolve(x[:, j], k, mode="same") for j in range(m)])[2 * width:2 * width + n]
-    return scale * y / y.std(axis=0)
 
 
 def _balanced_flight(seed, offset, n=1500, name=None):
