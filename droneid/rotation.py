@@ -586,8 +586,10 @@ class RotationChoice:
     ``model``: the chosen settings refitted on every training flight, or ``None`` when no
     candidate beat holding the body rates on validation (then hold them). ``table``: per
     candidate its settings and validation SimErr of body rates (rad/s) and attitude (rad), summed
-    over ``h = 1..50`` (the nanodrone metric), pooled over the held-out flights; ``held``: the same
-    for the rates held (ω̇ = 0, the benchmark's Physics row); ``chosen``: index into ``table``.
+    over ``h = 1..50`` (the nanodrone metric), pooled over the held-out flights, and per body axis
+    ``rates_axis_simerr`` (Σ_h mean |Δω_k|: the verdict of each rotational target); ``held``: the
+    same for the rates held (ω̇ = 0, the benchmark's Physics row, each target's baseline);
+    ``chosen``: index into ``table``.
     """
     model: RotationModel | None
     table: tuple[dict, ...]
@@ -630,14 +632,13 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     lowest pooled body-rate SimErr wins (attitude SimErr breaks ties), and only if it is below
     holding the rates; the winner is refitted on every flight.
     """
-    from .openloop import open_loop
     names = list(dict.fromkeys(log.name for log in logs))
     if len(names) < 2:
         raise DataError("select_rotation needs at least two training flights to validate on")
     if not candidates:
         raise DataError("select_rotation: no candidate settings")
-    sums = [np.zeros(2) for _ in candidates]
-    held = np.zeros(2)
+    sums = [np.zeros(5) for _ in candidates]
+    held = np.zeros(5)
     windows = 0
     for name in names:
         train = [log for log in logs if log.name != name]
@@ -646,25 +647,48 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
             continue
         tr = fit_translation(train, delay_steps=translation_delay_steps, window_s=window_s,
                              rad_s_per_rpm=rad_s_per_rpm)
-        models = {"held": IdentifiedVehicle(tr, _HeldRates())}
-        for i, c in enumerate(candidates):
-            models[i] = IdentifiedVehicle(tr, _fit_candidate(train, layout, c, window_s, rad_s_per_rpm))
-        res = open_loop(models, test, stride=stride)
-        n = res["held"].windows
+        n, err = _validation_sums(IdentifiedVehicle(tr, _HeldRates()), test, stride)
         windows += n
-        held += n * np.array([res["held"].simerr["rates"], res["held"].simerr["attitude"]])
-        for i in range(len(candidates)):
-            sums[i] += n * np.array([res[i].simerr["rates"], res[i].simerr["attitude"]])
+        held += err
+        for i, c in enumerate(candidates):
+            sums[i] += _validation_sums(IdentifiedVehicle(tr, _fit_candidate(train, layout, c, window_s,
+                                                                              rad_s_per_rpm)), test, stride)[1]
     if windows == 0:
         raise DataError("select_rotation: no held-out flight has an in-flight stretch to validate on")
-    table = tuple({**dict(c), "rates_simerr": float(s[0] / windows), "attitude_simerr": float(s[1] / windows)}
-                  for c, s in zip(candidates, sums))
-    held_row = {"rates_simerr": float(held[0] / windows), "attitude_simerr": float(held[1] / windows)}
+
+    def row(e):
+        e = e / windows
+        return {"rates_simerr": float(e[0]), "attitude_simerr": float(e[1]),
+                "rates_axis_simerr": [float(v) for v in e[2:]]}
+
+    table = tuple({**dict(c), **row(s)} for c, s in zip(candidates, sums))
+    held_row = row(held)
     best = min(range(len(table)), key=lambda i: (table[i]["rates_simerr"], table[i]["attitude_simerr"]))
     if table[best]["rates_simerr"] >= held_row["rates_simerr"]:
         return RotationChoice(None, table, held_row, None)
     return RotationChoice(_fit_candidate(logs, layout, candidates[best], window_s, rad_s_per_rpm),
                           table, held_row, best)
+
+
+def _validation_sums(model, logs: Sequence[StateLog], stride: int, H: int = 50) -> tuple[int, np.ndarray]:
+    """(windows, sums over windows of [rates SimErr, attitude SimErr, Σ_h |Δω_x|, |Δω_y|, |Δω_z|])
+    of ``model`` open loop from every ``stride``-th start of each log (the nanodrone metric's
+    windows, :func:`droneid.openloop.score_model`)."""
+    from .openloop import rollout, window_errors
+    n, out = 0, np.zeros(5)
+    for log in logs:
+        if len(log) <= H:
+            continue
+        u = model.inputs(log)
+        starts = np.arange(0, len(log) - H, stride)
+        idx = starts[:, None] + np.arange(H)[None, :]
+        pred, true = rollout(model, log.state[starts], u[idx], log.dt_s), log.state[idx + 1]
+        err = window_errors(pred, true)
+        out[0] += err["rates"].sum()
+        out[1] += err["attitude"].sum()
+        out[2:] += np.abs(pred[..., 10:13] - true[..., 10:13]).sum(axis=(0, 1))
+        n += starts.size
+    return n, out
 
 
 def _fit_candidate(logs, layout, candidate: dict, window_s: float, rad_s_per_rpm: float) -> RotationModel:

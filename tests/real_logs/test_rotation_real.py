@@ -27,6 +27,8 @@ def test_rotation_chosen_on_the_squares_beats_holding_the_rates_and_has_physical
     # held-out squares: the body rates and the attitude both at least a third better than held
     assert row["rates_simerr"] < 2.0 / 3.0 * choice.held["rates_simerr"]
     assert row["attitude_simerr"] < 2.0 / 3.0 * choice.held["attitude_simerr"]
+    for k, (m, h) in enumerate(zip(row["rates_axis_simerr"], choice.held["rates_axis_simerr"])):
+        assert m < h, k                          # roll, pitch and yaw each beat holding their rate
     m = choice.model
     assert "rotor_drag" in m.terms
     for k in (0, 1):

@@ -105,6 +105,8 @@ def test_selection_keeps_the_planted_structure(drag_flights):
     choice = select_rotation(drag_flights, candidates=cands, translation_delay_steps=0, stride=10)
     assert choice.chosen == 1 and choice.beats_held
     assert choice.table[1]["rates_simerr"] < choice.table[0]["rates_simerr"] < choice.held["rates_simerr"]
+    # per body axis (each rotational target's verdict against the rates held)
+    assert all(m < h for m, h in zip(choice.table[1]["rates_axis_simerr"], choice.held["rates_axis_simerr"]))
 
 
 def test_selection_holds_the_rates_when_no_model_beats_holding_them():
