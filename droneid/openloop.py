@@ -25,7 +25,9 @@ A model may instead define ``rollout(x0, u, dt_s)`` to predict without integrati
 
 Two reference models: :class:`NominalPhysics` (thrust from the motor speeds with a nominal thrust
 coefficient, no drag, body rates held constant: the benchmark's ``Physics`` row) and
-:class:`Constant` (the state held: the benchmark's ``Naive`` row).
+:class:`Constant` (the state held: the benchmark's ``Naive`` row). identify's v̇ models drive the
+translation as :class:`IdentifiedTranslation` (body rates held); :class:`IdentifiedVehicle` steps
+a translational and a rotational model (:class:`droneid.rotation.RotationModel`) together.
 """
 from __future__ import annotations
 
@@ -387,8 +389,8 @@ class IdentifiedTranslation:
     :class:`~droneid.identified.IdentifiedModel`} give v̇ (world ENU) from the simulated state
     (velocity, and roll, pitch, yaw from the simulated quaternion) and the logged motor speeds,
     each read at ``t − delay`` as identified (shifted by whole grid steps; a negative delay reads
-    later samples). There is no rotational model yet: the body rates are held (ω̇ = 0), as in
-    the benchmark's Physics row. A model reading another signal cannot be driven open loop."""
+    later samples). Alone it holds the body rates (ω̇ = 0), as the benchmark's Physics row; with a
+    rotational model it is the translation of :class:`IdentifiedVehicle`. A model reading another signal cannot be driven open loop."""
     models: Mapping[str, object]
 
     def __post_init__(self):

@@ -1,5 +1,12 @@
 """A rigid-body model of the whole vehicle from its motor speeds, identified by robust least
-squares, for open-loop simulation (:mod:`droneid.openloop`) (issue 28, first prototype).
+squares, for open-loop simulation (:mod:`droneid.openloop`) (issue 28).
+
+The rotational model is chosen by :func:`select_rotation` (leave-one-flight-out open-loop
+validation on training flights only) and steps with a translational model in
+:class:`droneid.openloop.IdentifiedVehicle`; :func:`droneid.export.export_vehicle` writes it as
+Python or C. On the shared Crazyflie flights it halves the body-rate error of holding the rates
+on held-out squares but does NOT transfer to the melon runs (roll and pitch; yaw does): see
+docs/use-the-model.md for the figures and the reasons.
 
 Rotation (body FLU, per axis ``k`` = roll, pitch, yaw; ``s_i = (ω_i / 1000 rad/s)²`` with ``ω_i``
 the rotor speeds ``d`` steps earlier, ``P`` the layout's torque patterns, :mod:`priors.torque`)::
