@@ -6,7 +6,7 @@ import pytest
 
 from droneid.dataset_builder import in_flight_intervals
 from droneid.openloop import state_log
-from droneid.rotation import select_rotation
+from droneid.rotation_choice import select_rotation
 from parsers import read_flight
 
 from conftest import real_log

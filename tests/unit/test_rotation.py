@@ -11,8 +11,8 @@ import pytest
 from droneid.errors import ConfigError
 from droneid.openloop import StateLog, open_loop, simulate
 from droneid.rotation import (RotationModel, TranslationModel, VehicleModel, centred, fit_rotation,
-                              fit_rotation_multistep, fit_translation, flying_segments,
-                              identify_layout)
+                              fit_translation, flying_segments, identify_layout)
+from droneid.rotation_choice import fit_rotation_multistep
 from priors.torque import LAYOUTS, RotorLayout, get_layout
 
 DT = 0.01

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from droneid.openloop import IdentifiedVehicle, StateLog, open_loop, simulate, state_log
-from droneid.rotation import (RotationModel, TranslationModel, balanced, fit_rotation, fit_translation,
-                              select_rotation)
+from droneid.rotation import RotationModel, TranslationModel, balanced, fit_rotation, fit_translation
+from droneid.rotation_choice import select_rotation
 from droneid.simulate import simulate as simulate_flight
 from priors.torque import get_layout
 from test_rotation import _smooth_noise   # smooth random motor speeds, shared with the older rotation tests
@@ -153,7 +153,7 @@ def test_column_names_follow_the_coefficients():
 
 @pytest.mark.slow   # shares a ~10 s simulated-flight fixture
 def test_multistep_fit_recovers_the_rotor_drag_moment(drag_flights):
-    from droneid.rotation import fit_rotation_multistep
+    from droneid.rotation_choice import fit_rotation_multistep
     m = fit_rotation_multistep(drag_flights, rotor_drag=True, spinup=False, damping_grid=(2.0, 3.0, 4.0), stride=10)
     for k in range(3):
         got = dict(zip(m.columns(k), m.coef[k]))
