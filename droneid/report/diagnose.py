@@ -197,10 +197,10 @@ GLOSSARY = (
     (r"CV RMSE \d", "CV RMSE in a decision line: root mean square of the held-out residuals, pooled "
                     "over the targets, each divided by its RMSE after the prior refit (so no unit)"),
     (r"\bσ\b", "σ: the RMSE of a target's residual after the prior refit (m/s²)"),
-    (r"\bt = ", "t: the paired t statistic of the per-block relative gains (reported; the decision "
-                "uses the sign-flip p)"),
-    (r"sign-flip p", "sign-flip p: one-sided p that the candidate does not help, from the per-block "
-                     "relative gains (share of random sign patterns whose mean reaches the observed one)"),
+    (r"\bt = ", "t: the paired t statistic of the per-block gains, ln(held-out MSE without / with the "
+                "candidate) in each block (reported; the decision uses the sign-flip p)"),
+    (r"sign-flip p", "sign-flip p: one-sided p that the candidate does not help, from the per-block gains "
+                     "(share of random sign patterns whose mean reaches the observed one)"),
     (r"α", "α: the family-wise error level over every candidate the diagnosis may try"),
     (r"Bonferroni over", "Bonferroni over m: the first effect must reach p < α/m, m = every candidate "
                          "the diagnosis may try (singles and pairs)"),
