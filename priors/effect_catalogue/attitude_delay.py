@@ -1,43 +1,15 @@
 """Attitude delay: the logged attitude lags the acceleration it causes by τ.
 
-Feature (v̇x, v̇y, v̇z): the part of dG/dt that comes from the attitude,
-Σ_a ∂G/∂a · da/dt over a = roll, pitch, yaw (smoothed derivatives of the logged angles, yaw
-unwrapped; coefficient ``tau`` in s, shared) -> "attitude lags by τ":
-G(att(t + τ), T(t)) ≈ G + τ Σ_a ∂G/∂a · da/dt. Only the attitude is delayed: with a thrust term
-from logged motor speeds or thrust (rotor-thrust), dG/dt also holds dT/dt, the change of the
-thrust's magnitude, which is not delayed (on v̇z it is nearly all of dG/dt), so the whole dG/dt
-would fit a stand-in and dilute a real delay. A prior whose G has no angle symbols falls back to
-dG/dt. Not foldable: it needs a time derivative.
+Feature (v̇x, v̇y, v̇z): dG/dt from the logged attitude (smoothed derivative, coefficient ``tau``
+in s, shared) -> "attitude lags by τ": G(att(t + τ)) ≈ G + τ dG/dt. Not foldable: it needs a
+time derivative.
 """
-import numpy as np
-
-from droneid.expressions import symbol
 from droneid.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation
 
-#: the attitude angles whose lag the effect models (the prior's G reads them)
-ANGLES = ("roll", "pitch", "yaw")
-
-
-def attitude_rate_part(ctx) -> np.ndarray:
-    """Σ_a ∂G/∂a · da/dt (m/s³) over the angles G uses (each angle unwrapped per flight, then
-    :meth:`priors.effects.EffectContext.d_dt`); dG/dt when G uses none of them."""
-    used = [a for a in ANGLES if a in ctx.columns and ctx.tilt is not None
-            and symbol(a) in ctx.tilt.free_symbols]
-    if not used:
-        return ctx.d_dt(ctx.columns["G"])
-    out = np.zeros(ctx.t.size)
-    for a in used:
-        x = np.asarray(ctx.columns[a], float).copy()
-        for f in np.unique(ctx.flight):
-            m = ctx.flight == f
-            x[m] = np.unwrap(x[m])
-        out += ctx.tilt_partial(a) * ctx.d_dt(x)
-    return out
-
 
 def _features(ctx, consts):
-    return {"tau": attitude_rate_part(ctx)}
+    return {"tau": ctx.d_dt(ctx.columns["G"])}
 
 
 def _interpret(coef, base):

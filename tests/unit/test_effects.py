@@ -292,33 +292,3 @@ k = "G * vz_dot"
     c = fx["climb"]
     assert not c.foldable and "measured derivative" in c.fold_reason
     assert c.missing(ctx.available()) == ["vz_dot"]          # untestable without the option
-
-
-def test_attitude_delay_feature_is_the_attitude_part_of_dG_dt():
-    """Only the attitude is delayed: with a thrust term, a change of the thrust's magnitude is no
-    part of the feature (the whole dG/dt was), and with the thrust held the feature is dG/dt;
-    yaw is unwrapped, so a heading that crosses ±π gives no spike."""
-    import sympy as sp
-
-    from droneid.expressions import symbol
-    t = np.arange(0, 20, 0.05)
-    fl = np.zeros(t.size, int)
-    thrust, pitch, yaw = symbol("thrust"), symbol("pitch"), symbol("yaw")
-    G = thrust * sp.sin(pitch) * sp.cos(yaw)
-    eff = CATALOGUE["attitude_delay"]
-
-    def feature(cols):
-        ctx = EffectContext.build("vx_dot", cols, t, fl, G, tilt_role="thrust")
-        return eff.features(ctx)["tau"], ctx
-
-    varying_thrust = {"thrust": 9.81 + 2 * np.sin(2 * t), "pitch": np.full(t.size, 0.2),
-                      "yaw": np.zeros(t.size), "roll": np.zeros(t.size)}
-    col, ctx = feature(varying_thrust)
-    assert np.max(np.abs(col)) < 1e-9 < np.max(np.abs(ctx.d_dt(ctx.columns["G"])))
-    turning = {"thrust": np.full(t.size, 9.81), "pitch": 0.2 * np.sin(t), "roll": np.zeros(t.size),
-               "yaw": (0.8 * t + np.pi) % (2 * np.pi) - np.pi}       # wraps at ±π three times
-    col, ctx = feature(turning)
-    smooth = 9.81 * np.sin(0.2 * np.sin(t)) * np.cos(0.8 * t)
-    ref = ctx.d_dt(smooth)
-    inner = slice(10, -10)
-    assert np.max(np.abs(col[inner] - ref[inner])) < 0.05 * np.max(np.abs(ref))
