@@ -40,3 +40,15 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert rc == 2 and "did you mean 'wind'" in err and len(err.strip().splitlines()) == 1
     rc = main(["diagnose", str(tmp_path / "missing.csv")])
     assert rc == 2
+
+
+def test_a_late_motor_stream_is_not_diagnosed_as_an_attitude_delay(capsys):
+    """rotor_climb_eight logs its motor speeds 40 ms late (truth: rpm_delay_s 0.04) and has no
+    attitude delay: the diagnosis (which searches no input offset; identify does) must not add an
+    attitude delay in its place (a feature that left dT/dt out of dG/dt did: 'lags by 31 ms')."""
+    truth = json.loads((SAMPLE_LOGS / "rotor_climb_eight.truth.json").read_text())
+    assert truth["params"]["rpm_delay_s"] > 0
+    rc = main(["-q", "diagnose", str(SAMPLE_LOGS / "rotor_climb_eight.tlog"), "--generations", "0",
+               "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0 and "attitude_delay" not in d["effects_added"]
