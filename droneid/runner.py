@@ -130,8 +130,9 @@ def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, schedul
         if status == "ok":
             outcome.results[index] = payload
         elif status == "error":
-            outcome.errors[index] = payload.splitlines()[0]
-            log.warning("%s %d failed: %s", label, index + 1, payload)
+            outcome.errors[index] = str(payload).splitlines()[0] if str(payload).strip() else "unknown error"
+            log.warning("%s %d failed: %s", label, index + 1, outcome.errors[index])
+            log.debug("%s %d: %s", label, index + 1, payload)     # the worker's traceback (--debug)
         else:
             outcome.interrupted = True
             return

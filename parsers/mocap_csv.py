@@ -273,17 +273,17 @@ def read_flat_csv(path, column_map=None) -> Flight:
     df = _read(usecols=sorted(set(found.values()))) if found else _read(nrows=0)
     shown = ", ".join(columns[:20]) + (", ..." if len(columns) > 20 else "")
     if "t" not in found:
-        raise LogFormatError(path, f"no time column (t, time, timestamp, ...; or column_map={{'t': ...}}); "
+        raise LogFormatError(path, f"no time column (t, time, timestamp, ...; or name it: --column t=COLUMN); "
                                    f"columns: {shown}")
     signals = [k for k in found if k not in ("t", "armed", "flying")]
     unknown = [k for k in (column_map or {}) if k not in FLAT_ALIASES or k in ("armed", "flying", "t")]
     bad = [k for k in unknown if k not in ("t", "armed", "flying") and not is_canonical(k)]
     if bad:
-        raise ConfigError(f"column_map: {bad[0]!r} is not a canonical signal name (x, vx, roll, "
+        raise ConfigError(f"--column: {bad[0]!r} is not a canonical signal name (x, vx, roll, "
                           f"throttle, thrust, motor1, rpm1, ...)" + did_you_mean(bad[0], FLAT_ALIASES))
     if not signals:
         raise LogFormatError(path, f"no recognised signal columns (x y z, qx qy qz qw, roll pitch yaw, "
-                                   f"vx vy vz, ...; or column_map=); columns: {shown}")
+                                   f"vx vy vz, ...; or name them: --column x=COLUMN ...); columns: {shown}")
     b = FlightBuilder(path, "csv")
     b.skip("rows with more fields than the header (extra fields ignored)", _long_rows(path, len(columns)))
 
