@@ -42,3 +42,8 @@ def lstsq(A: np.ndarray, y: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
     except np.linalg.LinAlgError:
         return np.zeros(A.shape[1])
     return beta / norms
+
+
+def rounded(x, nd: int = 3) -> float | None:
+    """``x`` rounded to ``nd`` decimals for a report, or None when it is missing or not finite."""
+    return None if x is None or not math.isfinite(x) else round(float(x), nd)
