@@ -12,13 +12,15 @@ differentiator the model was identified with; inputs with a delay are read at ``
 from __future__ import annotations
 
 import json
+import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from priors.thrust import RPM_SCALE
+from priors.models import get_prior
 
 from .dataset_builder import DatasetBuilder, in_flight_intervals
 from .errors import ConfigError, DataError, DroneIdError, check_choice
@@ -28,6 +30,7 @@ from .identified import IdentifiedModel, check_schema
 from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
+from .openloop import Constant, IdentifiedTranslation, NominalPhysics, open_loop, state_log
 from .rollout import RolloutResult, rollout_errors, sample_inputs
 from .screening import implausible_counts, screen_flight
 from .sngp import SymbolicModel
@@ -189,6 +192,29 @@ def model_sets(models: dict) -> dict:
 
 
 
+def _nominal_physics(cfg: dict):
+    """The benchmark's Physics row for the prior the result used (its parameters as recorded:
+    hover-calibrated on the TRAINING flights): thrust k Σ ω_i² from the motor speeds along the
+    body z axis, no drag, rates held. The prior says what its thrust is (the magnitude of its v̇z
+    thrust term, :attr:`priors.base.PriorFeature.magnitude`); None unless that is one quadratic
+    law in the rotor speeds (rpm1..), or the prior cannot be rebuilt from the record."""
+    try:
+        prior = get_prior(str(cfg["prior_used"]), **dict(cfg["prior_params"]))
+        feats = [f for f in prior.features("vz_dot") if f.role == "thrust" and f.magnitude is not None]
+    except (KeyError, TypeError, DroneIdError):
+        return None
+    if len(feats) != 1:
+        return None
+    names = sorted(s.name for s in feats[0].magnitude.free_symbols)
+    if not names or not all(re.fullmatch(r"rpm\d+", n) for n in names):
+        return None
+    law = compile_expression(feats[0].magnitude, names)
+    one, two = (float(law({n: np.full(1, u) for n in names})[0]) for u in (1.0, 2.0))
+    if not (one > 0 and math.isclose(two, 4 * one, rel_tol=1e-9)):
+        return None
+    return NominalPhysics(thrust_coeff_N_s2=one / len(names), mass_kg=1.0, rad_s_per_rpm=1.0)
+
+
 def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] = (1, 10, 50)) -> dict:
     """The nanodrone benchmark's open-loop metric (:mod:`droneid.openloop`) on ``flights``:
     ``{"identified" | "nominal physics" | "constant": {"1": {"position", "velocity", "attitude",
@@ -197,17 +223,13 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     with the body rates held (no rotational model yet); "nominal physics" is thrust from the motor
     speeds with the prior's nominal (hover-calibrated on the TRAINING flights) thrust scale, no
     drag, rates held; "constant" holds the state."""
-    from .openloop import Constant, IdentifiedTranslation, NominalPhysics, open_loop, state_log
     sets = model_sets(models)
     if "identified" not in sets:
         raise ConfigError("--open-loop needs the final models of vx_dot, vy_dot and vz_dot (targets.<t>.final)")
-    cfg = models.get("_config") or {}
-    params = cfg.get("prior_params") or {}
     chosen = {"identified": IdentifiedTranslation(sets["identified"])}
-    if cfg.get("prior_used") == "rotor-thrust" and params.get("source") == "rpm" and params.get("k_T"):
-        # k_T is per (10⁴ rpm)²: specific thrust = k_T Σ (u/10⁴)²
-        chosen["nominal physics"] = NominalPhysics(thrust_coeff_N_s2=float(params["k_T"]) / RPM_SCALE ** 2,
-                                                   mass_kg=1.0, rad_s_per_rpm=1.0)
+    nominal = _nominal_physics(models.get("_config") or {})
+    if nominal is not None:
+        chosen["nominal physics"] = nominal
     chosen["constant"] = Constant()
     # the airborne, pre-crash stretches only (as the multi-step prediction): a window on the
     # ground with the motors off would score free fall against a vehicle at rest
