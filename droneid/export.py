@@ -35,6 +35,7 @@ from . import __version__
 from .errors import ConfigError, MissingSignalError, check_choice
 from .flight import canonical_unit
 from .identified import IdentifiedModel
+from .rotation import _SPEED_UNIT, KNOWN_TERMS, RotationModel, TranslationModel
 from .targets import state_of
 
 __all__ = ["FORMATS", "export_models", "input_sources", "CONVENTIONS", "VEHICLE_FORMATS", "export_vehicle"]
@@ -227,7 +228,6 @@ def _f(x) -> str:
 def _vehicle_spec(translation, rotation) -> dict:
     """Constants of a :class:`droneid.rotation.TranslationModel` and a
     :class:`droneid.rotation.RotationModel`, checked for export."""
-    from .rotation import KNOWN_TERMS, TranslationModel, RotationModel, _SPEED_UNIT
     if not isinstance(translation, TranslationModel) or not isinstance(rotation, RotationModel):
         raise ConfigError("export_vehicle needs a droneid.rotation.TranslationModel and a RotationModel; "
                           f"got {type(translation).__name__} and {type(rotation).__name__}")
