@@ -54,7 +54,7 @@ def _test_text(ev) -> str | None:
     pct = 100.0 * (a / b - 1.0)
     how = "better" if pct < -0.05 else "worse" if pct > 0.05 else "unchanged"
     return (f"test flights (reported only, not part of the decision): RMSE {fmt(b, 4)} -> "
-            f"{fmt(a, 4)} ({pct:+.1f} %, {how} on the test flights)")
+            f"{fmt(a, 4)} m/s² over all targets ({pct:+.1f} %, {how} on the test flights)")
 
 
 def _step_lines(ev, indent: str, label: str = "evidence (training flights, decides)") -> list[str]:

@@ -140,8 +140,8 @@ def test_an_accepted_step_does_not_share_a_line_with_a_worse_test_error():
     ev_line = next(x for x in txt.splitlines() if "evidence" in x and "wind: CV RMSE" in x)
     assert ev_line.rstrip().endswith("accepted") and "test" not in ev_line.split("wind:", 1)[1]
     assert "reported, not used" not in txt                       # the old, self-contradicting suffix
-    assert ("test flights (reported only, not part of the decision): RMSE 0.5 -> 0.517 (+3.4 %, "
-            "worse on the test flights)") in txt
+    assert ("test flights (reported only, not part of the decision): RMSE 0.5 -> 0.517 m/s² over all "
+            "targets (+3.4 %, worse on the test flights)") in txt
 
 
 def test_a_candidate_that_passes_but_is_not_added_does_not_say_accepted():
