@@ -32,7 +32,7 @@ def register(sub) -> None:
     p.add_argument("--ts", type=float, default=0.05, help="dataset grid step in s (default 0.05)")
     p.add_argument("--method", default="central", help="differentiator (default central)")
     p.add_argument("--blocks", type=int, default=None,
-                   help="cross-validation time blocks per flight (default: ~150 samples per block, 8..20)")
+                   help="cross-validation time blocks per flight (default: ~60 samples per block, 16..30)")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="family-wise significance level of the block test, Holm-controlled over every candidate (default 0.01)")
     p.add_argument("--min-improvement", type=float, default=0.01,

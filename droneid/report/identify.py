@@ -387,7 +387,7 @@ def document(result) -> Document:
             chosen = tr.guards.chosen_run
             mark = " (its evolved terms are in the final model)"
             doc.paragraph(_guard_line(tr) + " (errors of each run's own model on the rows it searched)")
-            doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "qualified", "wall (s)"],
+            doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "e_c train < γ", "wall (s)"],
                       [[str(i + 1) + (mark if i == chosen else ""), r.seed,
                         fmt(r.rmse_train), fmt(r.rmse_test), fmt(r.constraint_rmse_train),
                         fmt(r.constraint_rmse_test), "yes" if r.qualified else "no",
