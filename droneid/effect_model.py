@@ -179,7 +179,7 @@ class _Stack:
 
 def diagnose_blocks(n: int) -> int:
     """Default time blocks per training flight for ``n`` samples: ~60 samples (3 s at 20 Hz) a
-    block, 16 to 30 blocks. More blocks than :func:`droneid.ladder.n_blocks_for` because every
+    block, 16 to 30 blocks. More blocks than :func:`droneid.validation.n_blocks_for` because every
     diagnosis decision is a sign-flip test over blocks at a family-wise threshold (α/13 and
     below, 7.7e-4 at α = 0.01): its p is at least 2^−B (2.4e-4 with 12 blocks, which then must
     ALL improve; 1.5e-5 with 16, which leaves room for a block or two that does not)."""

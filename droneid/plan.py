@@ -138,7 +138,7 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     """The offset of the thrust inputs by :mod:`droneid.decide`'s rule, on the training rows only.
 
     For each offset d of ``grid`` every target's refit prior gives held-out residuals (blocked CV,
-    :func:`droneid.ladder.n_blocks_for` time blocks per flight) on the rows all offsets share.
+    :func:`droneid.validation.n_blocks_for` time blocks per flight) on the rows all offsets share.
     The candidates d ≠ 0 are tested against d = 0 with Holm's control at :data:`OFFSET_ALPHA` over
     the whole grid; among the accepted the lowest held-out error wins. The interval is every
     offset the winner does not beat at :data:`OFFSET_INTERVAL_ALPHA`."""
