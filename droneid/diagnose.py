@@ -64,7 +64,7 @@ from .effect_model import (EffectModel, diagnose_blocks, drop_stand_ins, fold_fe
                            refine_contexts, score_candidates, strip_effect_id, uses_derivative)
 from .errors import ConfigError, DataError, did_you_mean
 from .fitness import check_prior_data, usable_signals
-from .ladder import block_ids
+from .validation import block_ids
 from .numerics import rmse
 from .residual_search import equation_signals, search_residuals
 from .targets import targets_for

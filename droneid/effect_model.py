@@ -29,7 +29,7 @@ from .decide import decide
 from .diagnosis_result import DiagnoseConfig, evidence_of, with_test_errors
 from .errors import ConfigError, MissingSignalError
 from .expressions import compile_expression, symbol
-from .ladder import block_ids
+from .validation import block_ids
 from .numerics import lstsq, rmse
 from .targets import velocity_of
 

@@ -35,14 +35,14 @@ from .sngp.model import SymbolicModel, round_expr, to_text
 from .targets import velocity_of
 from .terms import (TermModel, drag_slope, drop_negligible, evaluate_expr, physical_fit, plausible,
                     prior_terms, trim_terms)
-from .validation import block_ids, time_blocks, validation_blocks
+from .validation import time_blocks, validation_blocks
 
 if TYPE_CHECKING:
     from .problem import TargetProblem
     from .search import RunRecord
 
 __all__ = ["Interval", "Rung", "GuardReport", "rung", "physical_rungs", "final_rung", "bootstrap_blocks",
-           "TERM_ALPHA", "block_ids"]
+           "fitted_thrust", "TERM_ALPHA"]
 
 #: family-wise level of keeping evolved terms (Bonferroni over the runs; :mod:`droneid.decide`)
 TERM_ALPHA = 0.01
