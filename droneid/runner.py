@@ -24,8 +24,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from .errors import ConfigError
+from .lazy import lazy_module
 
 __all__ = ["RunOutcome", "run_jobs", "default_jobs", "startup_message"]
+
+#: the SNGP engine, imported when a command first asks about its kernels (it imports numba, ~0.5 s)
+_engine = lazy_module("droneid.sngp")
 
 log = logging.getLogger(__name__)
 
@@ -78,8 +82,7 @@ def startup_message() -> str:
 def sngp_kernels_cached() -> bool:
     """True when the SNGP kernels are compiled in this process or in numba's cache
     (:func:`droneid.sngp.precompile.kernels_ready`, the engine's own answer)."""
-    from .sngp import precompile   # lazy: importing the engine imports numba (~0.5 s)
-    return precompile.kernels_ready()
+    return _engine.precompile.kernels_ready()
 
 
 def _call(fn, index, job):
