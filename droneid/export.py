@@ -33,6 +33,7 @@ import sympy as sp
 
 from . import __version__
 from .errors import ConfigError, MissingSignalError, check_choice
+from .expressions import round_expr
 from .flight import canonical_unit
 from .identified import IdentifiedModel
 from .rotation import _SPEED_UNIT, KNOWN_TERMS, RotationModel, TranslationModel
@@ -63,7 +64,6 @@ def _equation(m: IdentifiedModel, to: str) -> str:
     """The model's right-hand side in the syntax of language ``to`` (4 significant figures)."""
     if to == "python":
         return m.text()
-    from .sngp.model import round_expr   # lazy: droneid.sngp imports numba (~0.5 s)
     e = round_expr(m.expr, 4)
     if to == "c":
         return sp.ccode(e, standard="C99")

@@ -14,10 +14,12 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 import sympy as sp
+from sympy.printing.str import StrPrinter
 
 from .errors import ConfigError, DataError, MissingSignalError, did_you_mean
 
-__all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "symbol", "safe_format"]
+__all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "symbol", "safe_format", "to_text",
+           "round_expr"]
 
 #: Functions a user expression may call, by name.
 ALLOWED_FUNCTIONS: Mapping[str, object] = {
@@ -330,3 +332,31 @@ def safe_format(template: str, values: Mapping[str, object], what: str = "format
         except (ValueError, TypeError) as exc:
             raise ConfigError(f"{what}: field {field_text} cannot format {value!r}: {exc}") from None
     return "".join(out)
+
+
+# -- writing expressions back ------------------------------------------------------------------
+class _Printer(StrPrinter):
+    """sympy's str printer, spelled the way :func:`parse_expression` reads it back."""
+
+    def _print_Abs(self, expr):
+        return f"abs({self._print(expr.args[0])})"
+
+    def _print_Exp1(self, expr):
+        return "e"
+
+    def _print_Float(self, expr):
+        return repr(float(expr))
+
+
+def to_text(expr: sp.Expr) -> str:
+    """``expr`` as text the safe parser (:func:`parse_expression`) reads back, floats in full."""
+    return _Printer({"full_prec": True}).doprint(expr)
+
+
+def round_expr(expr: sp.Expr, digits: int = 4) -> sp.Expr:
+    """Every float in ``expr`` rounded to ``digits`` significant figures (for display)."""
+    reps = {}
+    for f in expr.atoms(sp.Float):
+        v = float(f)
+        reps[f] = sp.Float(float(f"{v:.{digits}g}")) if v != 0 else sp.Integer(0)
+    return expr.xreplace(reps)

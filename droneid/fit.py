@@ -22,7 +22,14 @@ import numpy as np
 
 from .constraint_samples import ConstraintSamples
 from .errors import ConfigError, DataError, LogFormatError, MissingSignalError
+from .lazy import lazy_module
 from .sngp import SNGPRegressor
+
+# sympy's side, loaded only when a fit has priors or constraints: without them the search starts
+# before sympy is imported
+_registry = lazy_module("priors.models")
+_constraints = lazy_module("priors.constraints")
+_expressions = lazy_module("droneid.expressions")
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -235,17 +242,14 @@ def prior_features(spec: str, inputs: Sequence[str], target: str) -> list:
     """The prior feature(s) one prior spec gives: a built-in prior name or ``FILE.toml:NAME``
     (every term of that model for ``target``), else an expression over ``inputs``."""
     # sympy only with priors: without them the search starts before sympy is imported
-    from priors.models import is_prior_spec, resolve_prior
-
-    from .expressions import parse_expression
-    if is_prior_spec(spec):
-        exprs = [f.expr for f in resolve_prior(spec).features(target)]
+    if _registry.is_prior_spec(spec):
+        exprs = [f.expr for f in _registry.resolve_prior(spec).features(target)]
         for e in exprs:
             unknown = sorted(s.name for s in e.free_symbols if s.name not in inputs)
             if unknown:
                 raise MissingSignalError(unknown[0], list(inputs), where=f"the inputs (--prior {spec})")
         return exprs
-    return [parse_expression(spec, list(inputs), what=f"--prior {spec!r}")]
+    return [_expressions.parse_expression(spec, list(inputs), what=f"--prior {spec!r}")]
 
 
 def _table(data, where, needed) -> tuple:
@@ -305,8 +309,7 @@ def prepare(train, config: FitConfig, test=None) -> TableProblem:
     priors = tuple(e for p in config.priors for e in prior_features(p, inputs, config.target))
     cs_train = cs_test = None
     if config.constraints:
-        from priors.constraints import load_constraints   # sympy: only with constraints
-        cset = load_constraints(config.constraints, target=config.target)
+        cset = _constraints.load_constraints(config.constraints, target=config.target)
         cs_train, cs_test = cset.train_test(inputs, n_per_constraint=config.n_constraint_samples,
                                             seed=config.seed)
     Xt = yt = None

@@ -58,14 +58,20 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .dataset_builder import in_flight_intervals, resample_signal
-from .errors import DataError, check_choice
+from .errors import ConfigError, DataError, check_choice
 from .flight import MAX_GAP_S, VEHICLE_TYPES, Flight, Signal
-from .targets import state_of
+from .in_flight import in_flight_intervals, resample_signal
+from .lazy import lazy_module
+from .targets import state_of, targets_for
 from .numerics import rounded
 from .vehicle_evidence import (EVIDENCE_STEP_S, HOVER_ACCEL_MS2, HOVER_SPEED_MS, MAX_HOVER_TILT_DEG,
                                MAX_TILT_MISMATCH_DEG, MIN_HOVER_S, NEVER_SLOW_MS, VehicleEvidence, tilt_deg,
                                vehicle_evidence)
+
+#: the prior registry (sympy) and the log readers, loaded when a verdict names a prior or a hint
+#: names a reader's option
+_registry = lazy_module("priors.models")
+_parsers = lazy_module("parsers")
 
 __all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
            "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
@@ -343,8 +349,7 @@ def _map_hint(f: Flight, signal: str) -> str:
     """How to name the field holding ``signal``, in the terms of the log's format: ``--topic``
     (MCAP), ``--column`` (CSV); nothing for formats whose fields are fixed (ULog, DataFlash)."""
     try:
-        from parsers import READERS
-        options = READERS[f.provenance.format].options
+        options = _parsers.READERS[f.provenance.format].options
     except (ImportError, KeyError):
         options = ()
     if "topics" in options:
@@ -497,20 +502,16 @@ def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIOR
     the :func:`usable_signals`, then :func:`prior_fitness` of every target the prior models), and
     ``"auto"``: the prior ``--prior auto`` would choose and why. A prior whose signals exist only
     too slowly is judged on them (the rate refusal says so) rather than called inapplicable."""
-    from priors.models import prior_for   # lazy: priors imports the engine's expression tools
-
-    from .errors import ConfigError
-    from .targets import targets_for
     flights = list(flights)
     usable = usable_signals(flights, ts)
     every = set.intersection(*(set(f.names) for f in flights)) if flights else set()
     out = {}
     for spec in priors:
         try:
-            prior, why = prior_for(spec, usable)
+            prior, why = _registry.prior_for(spec, usable)
         except ConfigError as exc:
             try:
-                prior, why = prior_for(spec, every)
+                prior, why = _registry.prior_for(spec, every)
             except ConfigError:
                 out[spec] = {"ok": False, "applies": False, "ts": ts, "problems": [str(exc)],
                              "warnings": [], "flights": []}
@@ -519,6 +520,6 @@ def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIOR
         out[spec] = (dict(fit.to_dict(), applies=True, prior_reason=why) if fit is not None else
                      {"ok": True, "applies": True, "ts": ts, "problems": [], "warnings": [], "flights": [],
                       "prior_reason": why})
-    auto, why = prior_for("auto", usable)
+    auto, why = _registry.prior_for("auto", usable)
     out["auto"] = {"prior": auto.name, "reason": why}
     return out

@@ -21,7 +21,7 @@ import numpy as np
 import sympy as sp
 
 from .errors import DataError, MissingSignalError
-from .expressions import compile_expression, parse_expression
+from .expressions import compile_expression, parse_expression, round_expr, to_text
 
 __all__ = ["IdentifiedModel", "SCHEMA", "check_schema"]
 
@@ -71,7 +71,6 @@ class IdentifiedModel:
 
     def text(self, sig: int = 4) -> str:
         """The expression with numbers to ``sig`` significant figures."""
-        from .sngp.model import round_expr, to_text   # lazy: droneid.sngp imports numba (~0.5 s)
         return to_text(round_expr(self.expr, sig))
 
     def to_dict(self) -> dict:

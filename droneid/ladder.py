@@ -26,12 +26,12 @@ from .constraint_samples import constraint_rmse
 from .data import Dataset
 from .decide import decide
 from .errors import ConfigError, DataError
-from .expressions import symbol
+from .expressions import round_expr, symbol, to_text
 from .identified import IdentifiedModel
 from .numerics import rmse, to_float
 from .report.wording import display_term
 from .search import run_seeds
-from .sngp.model import SymbolicModel, round_expr, to_text
+from .sngp.model import SymbolicModel
 from .targets import velocity_of
 from .terms import (TermModel, drag_slope, drop_negligible, evaluate_expr, physical_fit, plausible,
                     prior_terms, trim_terms)

@@ -14,7 +14,7 @@ import numpy as np
 from priors.torque import RotorLayout, get_layout
 
 from .errors import DataError
-from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog
+from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
 from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation,
                        flying_mask, flying_segments)
@@ -236,7 +236,6 @@ def _validation_sums(model, logs: Sequence[StateLog], stride: int, H: int = 50) 
     """(windows, sums over windows of [rates SimErr, attitude SimErr, Σ_h |Δω_x|, |Δω_y|, |Δω_z|])
     of ``model`` open loop from every ``stride``-th start of each log (the nanodrone metric's
     windows, :func:`droneid.openloop.score_model`)."""
-    from .openloop import rollout, window_errors
     n, out = 0, np.zeros(5)
     for log in logs:
         if len(log) <= H:

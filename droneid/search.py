@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import DataError
+from .expressions import round_expr, to_text
 from .io_util import to_jsonable
 from .numerics import rmse, to_float
 from .sngp import SNGPRegressor
-from .sngp.model import round_expr, to_text
 from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
 

@@ -51,7 +51,11 @@ from droneid.constraint_samples import ConstraintSamples
 from droneid.io_util import load_toml
 from droneid.errors import ConfigError, MissingSignalError, did_you_mean
 from droneid.expressions import parse_expression
+from droneid.lazy import lazy_module
 from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
+
+#: the prior registry: its priors declare their constraint sets, so it imports this module
+_models = lazy_module("priors.models")
 
 
 __all__ = ["Constraint", "ConstraintSet", "get_constraints", "load_constraints", "paper_drone",
@@ -294,8 +298,7 @@ CONSTRAINT_SETS = {"paper": {"tilt-drag": paper_drone, "unicycle": paper_turtleb
 
 def _registry():
     """The built-in priors (:data:`priors.models.PRIORS`)."""
-    from .models import PRIORS   # the registry's priors declare their sets: it imports this module
-    return PRIORS
+    return _models.PRIORS
 
 
 def _priors_with(name: str, target: str) -> list[str]:

@@ -11,6 +11,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from droneid.errors import ConfigError, did_you_mean
+from droneid.lazy import lazy_module
+
+#: sympy's side: the simulator needs only RPM_SCALE, without sympy
+_expressions = lazy_module("droneid.expressions")
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -49,7 +53,7 @@ def thrust_columns(source: str, motors: int = 4) -> tuple[tuple[str, sp.Expr, st
     """
     import sympy as sp
 
-    from droneid.expressions import symbol
+    symbol = _expressions.symbol
     if source == "rpm":
         w = [symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)]
         return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), "m/s² per (10⁴ rpm)²"),)

@@ -2,10 +2,16 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
-from ..errors import ConfigError
+from ..errors import ConfigError, DroneIdError
+from ..lazy import lazy_module
+
+_parsers = lazy_module("parsers")            # the readers (pymavlink, pyulog, mcap): once a log is read
+_flight = lazy_module("droneid.flight")
+_predict = lazy_module("droneid.predict")
 
 
 class ProgressBar:
@@ -75,7 +81,6 @@ def _json_default(o):
 def add_log_options(p, *, with_format: bool = True) -> None:
     """Add the reader options (``--format`` unless the command has its own, ``--topic``,
     ``--body``, ``--column``, ``--sysid``, ``--vehicle``) to a subcommand parser."""
-    from ..flight import VEHICLE_TYPES   # only the commands that read logs need droneid.flight
     if with_format:
         p.add_argument("--format", dest="log_format", default=None,
                        help="skip format detection: a reader's format name (docs/logs.md; an unknown "
@@ -89,7 +94,7 @@ def add_log_options(p, *, with_format: bool = True) -> None:
                         "from COLUMN; repeatable")
     p.add_argument("--sysid", type=int, default=None, help="tlog: the vehicle's MAVLink system id")
     p.add_argument("--vehicle", default=None,
-                   choices=VEHICLE_TYPES,
+                   choices=_flight.VEHICLE_TYPES,
                    help="the vehicle type, when the log does not declare it (mocap CSV, MCAP) or "
                         "to override its declaration")
 
@@ -120,16 +125,14 @@ def read_logs(paths, args=None, recorded: dict | None = None) -> list:
     ``recorded``: reader options a result was identified with (``reader_options`` of identify's
     result.json, as :func:`log_options` gives them); they apply by default and the options given
     in ``args`` override them (see :func:`merged_log_options`)."""
-    from parsers import read_flight
     opts = log_options(args) if args is not None else {}
     if not recorded:
-        return [read_flight(p, **opts) for p in paths]
-    from ..errors import DroneIdError
+        return [_parsers.read_flight(p, **opts) for p in paths]
     flights = []
     for p in paths:
         merged = merged_log_options(recorded, opts, p)
         try:
-            flights.append(read_flight(p, **merged))
+            flights.append(_parsers.read_flight(p, **merged))
         except DroneIdError as exc:
             applied = _from_record(recorded, opts, merged)
             if not applied:
@@ -154,8 +157,7 @@ def merged_log_options(recorded: dict, given: dict, path) -> dict:
     recorded entry of the same name and keeps the others. A recorded option the log's reader does
     not take (a ``--column`` map recorded on CSV logs, applied to a ULog) is left out; a given one
     is kept, and the reader refuses it as it would without a record."""
-    from ..predict import READER_OPTION_TYPES
-    out = {k: v for k, v in recorded.items() if k in READER_OPTION_TYPES and v is not None and v != {}}
+    out = {k: v for k, v in recorded.items() if k in _predict.READER_OPTION_TYPES and v is not None and v != {}}
     for k, v in given.items():
         if v is None:
             continue
@@ -205,17 +207,12 @@ def recorded_options_note(recorded: dict, args, paths) -> str:
 def _reader_accepts(fmt, path) -> tuple | None:
     """The options of the reader that reads ``path`` (None when it cannot be told: read_flight
     then reports the problem with the file)."""
-    import os
-
-    from parsers import READERS, detect_format
-
-    from ..errors import DroneIdError
     try:
         if fmt is None:
             if not os.path.isfile(path):
                 return None
-            fmt = detect_format(path)
-        return tuple(READERS[fmt].options)
+            fmt = _parsers.detect_format(path)
+        return tuple(_parsers.READERS[fmt].options)
     except (DroneIdError, OSError, KeyError):
         return None
 

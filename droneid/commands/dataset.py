@@ -5,7 +5,13 @@ import sys
 
 from ..errors import ConfigError
 from . import COMMANDS
+from ..io_util import atomic_write_text
+from ..lazy import lazy_module
 from ._common import add_log_options, log_options
+
+_parsers = lazy_module("parsers")
+_align = lazy_module("droneid.align")
+_builder = lazy_module("droneid.dataset_builder")
 
 HELP = COMMANDS["dataset"].help
 
@@ -61,30 +67,24 @@ def _names(text):
 
 
 def run(args) -> int:
-    from parsers import read_flight
-
-    from ..align import merge_flights
-    from ..dataset_builder import DatasetBuilder, subsample
-    from ..io_util import atomic_write_text
-
     if args.merge and len(args.merge) != len(args.logs):
         raise ConfigError(f"give one --merge per LOG ({len(args.logs)} logs, {len(args.merge)} --merge)")
     if args.offset is not None and not args.merge:
         raise ConfigError("--offset applies to --merge")
     flights = []
     for i, path in enumerate(args.logs):
-        f = read_flight(path, **log_options(args))
+        f = _parsers.read_flight(path, **log_options(args))
         if args.merge:
-            f = merge_flights(f, read_flight(args.merge[i]), offset_s=args.offset)
+            f = _align.merge_flights(f, _parsers.read_flight(args.merge[i]), offset_s=args.offset)
         flights.append(f)
     e = args.extras.strip()
     extras = () if e == "none" else None if e == "all" else _names(e)
-    builder = DatasetBuilder(ts=args.ts, method=args.method, window_s=args.window_s,
+    builder = _builder.DatasetBuilder(ts=args.ts, method=args.method, window_s=args.window_s,
                              in_flight=args.in_flight, time_windows=_windows(args.window))
     ds = builder.build(flights, target=args.target,
                        inputs=_names(args.inputs) if args.inputs else None, extras=extras)
     if args.max_samples is not None:
-        ds = subsample(ds, args.max_samples, seed=args.seed)
+        ds = _builder.subsample(ds, args.max_samples, seed=args.seed)
     df = ds.to_frame()
     atomic_write_text(args.output, df.to_csv(index=False, float_format="%.9g", lineterminator="\n"))
     if not args.quiet:

@@ -15,7 +15,15 @@ import sys
 import time
 from pathlib import Path
 
-from ._common import ProgressBar
+from ..errors import DataError
+from ..lazy import lazy_module
+from ._common import ProgressBar, read_logs
+
+_settings = lazy_module("droneid.settings")
+_identify = lazy_module("droneid.identify")
+_report = lazy_module("droneid.report.identify")
+_diagnose = lazy_module("droneid.diagnose")
+_diagnose_report = lazy_module("droneid.report.diagnose")
 
 #: about a minute on a 2-core machine (measured: `make demo` prints its wall time)
 DEMO_BUDGET = {"runs": 8, "generations": 6000, "population_size": 300}
@@ -24,7 +32,6 @@ _FORMATS = (".tlog", ".csv", ".mcap", ".bin", ".ulg")
 
 def find_sample_logs(folder: Path | None = None) -> tuple[Path, Path]:
     """(train eight log, test square log) from sample_logs/, preferring one format for both."""
-    from ..errors import DataError
     candidates = [folder] if folder else [Path.cwd() / "sample_logs",
                                           Path(__file__).resolve().parents[2] / "sample_logs"]
     for d in candidates:
@@ -54,22 +61,19 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..identify import IdentifyConfig, identify
-    from ..report import identify as identify_report
-    from ._common import read_logs
     t0 = time.perf_counter()
     train_path, test_path = find_sample_logs(Path(args.logs) if args.logs else None)
     print(f"droneid demo: train on {train_path.name} (eight), test on {test_path.name} (square); "
           f"3 prior features (tilt-drag terms) + the paper's constraints; {args.runs} runs x "
           f"{args.generations} generations, population {args.population} (the paper: 50 x 60000 x 500)\n")
-    cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), prior="tilt-drag", prior_features=3,
+    cfg = _settings.IdentifyConfig.make(targets=("vx_dot", "vy_dot"), prior="tilt-drag", prior_features=3,
                               constraints="paper", runs=args.runs, generations=args.generations,
                               population_size=args.population, jobs=args.jobs, seed=0, method="forward",
                               effects="none", delays="none")
     train, test = read_logs([train_path]), read_logs([test_path])
-    result = identify(train, test, cfg, progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
-    identify_report.write(result, args.out)
-    print(identify_report.text(result))
+    result = _identify.identify(train, test, cfg, progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
+    _report.write(result, args.out)
+    print(_report.text(result))
     print("\nThe sample flights are simulated with the tilt-drag model itself (k_D = 0.28) plus mocap-like "
           "noise and no undeclared effect, so the best an identified model can do here is match the "
           "refit empirical model; priors and constraints keep it there (β ≈ 1 on the prior "
@@ -79,23 +83,21 @@ def run(args) -> int:
         print(f"\n== the loop on a log with motor speeds: {rotor_log.name} (simulated with a rotor model: "
               "thrust = k_f Σ rpm², motor lag 20 ms, speeds logged 40 ms ahead of the thrust; identify's "
               "defaults: --prior auto, thrust delay and effects chosen on this flight alone)\n")
-        rcfg = IdentifyConfig.make(runs=max(1, args.runs // 2), generations=args.generations,
+        rcfg = _settings.IdentifyConfig.make(runs=max(1, args.runs // 2), generations=args.generations,
                                    population_size=args.population, jobs=args.jobs, seed=0)
-        rres = identify(read_logs([rotor_log]), None, rcfg,
+        rres = _identify.identify(read_logs([rotor_log]), None, rcfg,
                         progress=ProgressBar("SNGP runs", quiet=args.quiet)).to_dict()
-        identify_report.write(rres, Path(args.out) / "rotor")
-        print(identify_report.text(rres))
+        _report.write(rres, Path(args.out) / "rotor")
+        print(_report.text(rres))
         print(f"rotor report: {args.out}/rotor/report.html")
     effect_log = train_path.parent / f"wind_quadratic_eight{train_path.suffix}"
     if effect_log.is_file():
-        from ..diagnose import diagnose
-        from ..report import diagnose as diagnose_report
         print(f"\n== closing the loop on {effect_log.name} (planted: wind (1.5, -1) m/s and quadratic "
               "drag c_D/m = 0.15 1/m, neither in the tilt-drag model)\n")
-        diag = diagnose(read_logs([effect_log]), None, prior="tilt-drag", targets=("vx_dot", "vy_dot"),
+        diag = _diagnose.diagnose(read_logs([effect_log]), None, prior="tilt-drag", targets=("vx_dot", "vy_dot"),
                         progress=ProgressBar("diagnose", quiet=args.quiet))
-        diagnose_report.write(diag, Path(args.out) / "diagnosis")
-        print(diagnose_report.text(diag))
+        _diagnose_report.write(diag, Path(args.out) / "diagnosis")
+        print(_diagnose_report.text(diag))
         print(f"diagnosis report: {args.out}/diagnosis/diagnosis.html")
     print(f"\nreport: {args.out}/report.html (also report.md, result.json, PNG figures); "
           f"demo wall time {time.perf_counter() - t0:.0f} s")

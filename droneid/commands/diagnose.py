@@ -3,7 +3,13 @@ from __future__ import annotations
 
 import argparse
 
+from ..errors import ConfigError
+from ..lazy import lazy_module
 from ._common import ProgressBar, add_log_options, print_json, read_logs
+
+_diagnose = lazy_module("droneid.diagnose")
+_report = lazy_module("droneid.report.diagnose")
+_effects = lazy_module("priors.effects")
 
 
 def register(sub) -> None:
@@ -48,10 +54,6 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from droneid.diagnose import DiagnoseConfig, diagnose
-    from droneid.report import diagnose as diagnose_report
-    from droneid.errors import ConfigError
-
     targets = None
     if args.target is not None:
         targets = tuple(t.strip() for t in args.target.split(",") if t.strip())
@@ -59,24 +61,23 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError("--target: no targets given")
     user = None
     if args.effects:
-        from priors.effects import load_effects
-        user = load_effects(args.effects)
+        user = _effects.load_effects(args.effects)
     only = tuple(s.strip() for s in args.only.split(",")) if args.only else None
-    cfg = DiagnoseConfig(ts=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
+    cfg = _diagnose.DiagnoseConfig(ts=args.ts, method=args.method, n_blocks=args.blocks, alpha=args.alpha,
                          min_rel_improvement=args.min_improvement, max_steps=args.max_steps,
                          generations=args.generations, seed=args.seed, effects=only,
                          allow_measured_derivatives=args.allow_measured_derivatives)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("diagnose", quiet=args.quiet or args.json)
-    result = diagnose(train, test, prior=args.prior, targets=targets, config=cfg, user_effects=user,
+    result = _diagnose.diagnose(train, test, prior=args.prior, targets=targets, config=cfg, user_effects=user,
                       progress=bar)
     if args.report:
-        diagnose_report.write(result, args.report)
+        _report.write(result, args.report)
     if args.json:
         print_json(result.to_dict())
     else:
-        print(diagnose_report.text(result))
+        print(_report.text(result))
         if args.report:
             print(f"report: {args.report}/diagnosis.html")
     return 0

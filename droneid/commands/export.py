@@ -1,7 +1,17 @@
 """``droneid export``: the final models of an identify result.json as Python, C, MATLAB or LaTeX."""
 from __future__ import annotations
 
+import json
 import sys
+from pathlib import Path
+
+from ..errors import DataError
+from ..io_util import atomic_write_text
+from ..lazy import lazy_module
+from ._common import options_text
+
+_export = lazy_module("droneid.export")
+_predict = lazy_module("droneid.predict")
 
 
 def register(sub) -> None:
@@ -20,31 +30,21 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    from ..export import export_models
-    from ..predict import load_models
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
-    models = load_models(args.result, targets)
+    models = _predict.load_models(args.result, targets)
     finals = [m["identified"] for t, m in models.items() if not t.startswith("_") and "identified" in m]
     if not finals:
-        from ..errors import DataError
         raise DataError(f"{args.result}: no final model to export (targets.<t>.final is written by "
                         f"droneid identify; older results hold only the engine model)")
     name = Path(args.output).stem if args.output and args.to == "matlab" else "droneid_model"
-    import json
-
-    from ..export import input_sources
     provenance = json.loads(Path(args.result).read_text(encoding="utf-8")).get("provenance")
     # the reader options the model was identified with: a user's own CSV columns (--column),
     # MCAP topics, Motive body: what a reader of the header needs to feed the same signals
-    from ._common import options_text
     read_with = options_text(models.get("_reader_options") or {})
     source = f"{args.result} (logs read with {read_with})" if read_with else str(args.result)
-    text = export_models(finals, args.to, source=source, name=name,
-                         inputs=input_sources(provenance))
+    text = _export.export_models(finals, args.to, source=source, name=name,
+                         inputs=_export.input_sources(provenance))
     if args.output:
-        from ..io_util import atomic_write_text
         atomic_write_text(args.output, text)
         print(f"wrote {args.output}", file=sys.stderr)
     else:

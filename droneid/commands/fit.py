@@ -9,7 +9,12 @@ from pathlib import Path
 from ..errors import ConfigError
 from ..io_util import atomic_write_json
 from ..runner import default_jobs, startup_message
+from ..lazy import lazy_module
 from ._common import ProgressBar, print_json
+
+# the engine: loaded once the command runs (after sympy's import has started in the background)
+_fit = lazy_module("droneid.fit")
+_engine = lazy_module("droneid.sngp")
 
 
 def register(sub) -> None:
@@ -57,8 +62,6 @@ def register(sub) -> None:
 
 def run(args) -> int:
     _import_sympy_meanwhile()
-    from ..fit import FitConfig, fit, prepare   # the engine: only once the command runs
-    from ..sngp.kernels import set_up_target
     if args.save and Path(args.save).is_dir():
         raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
                           f"{Path(args.save) / 'model.json'}")
@@ -66,19 +69,19 @@ def run(args) -> int:
     if args.inputs and not inputs:
         raise ConfigError("no input columns (give --inputs)")
     functions = tuple(s.strip() for s in args.functions.split(",")) if args.functions else None
-    config = FitConfig(target=args.target, inputs=inputs, priors=tuple(args.prior),
+    config = _fit.FitConfig(target=args.target, inputs=inputs, priors=tuple(args.prior),
                        constraints=args.constraints, n_constraint_samples=args.constraint_samples,
                        generations=args.generations, population_size=args.population,
                        n_features=args.features, max_depth=args.depth, gamma=args.gamma,
                        seed=args.seed, functions=functions, simplify_s=args.simplify,
                        n_jobs=args.jobs if args.jobs is not None else default_jobs())
-    problem = prepare(args.train, config, test=args.test)
+    problem = _fit.prepare(args.train, config, test=args.test)
     for w in problem.warnings:
         print(f"droneid fit: warning: {w}", file=sys.stderr)
     bar = ProgressBar("fit", quiet=getattr(args, "quiet", False) or args.json)
     bar(0, args.generations, startup_message())
-    set_up_target(skip_blas_probe=True)   # this process runs only the SNGP kernels
-    res = fit(problem, config, progress=bar)
+    _engine.kernels.set_up_target(skip_blas_probe=True)   # this process runs only the SNGP kernels
+    res = _fit.fit(problem, config, progress=bar)
     if args.save:
         atomic_write_json(args.save, res.model_dict())
     if args.json:

@@ -5,7 +5,12 @@ import argparse
 import sys
 from dataclasses import replace
 
+from ..lazy import lazy_module
 from ._common import ProgressBar, add_log_options, log_options, print_json, read_logs
+
+_settings = lazy_module("droneid.settings")      # the engine's parameters: numba
+_identify = lazy_module("droneid.identify")
+_report = lazy_module("droneid.report.identify")
 
 
 def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
@@ -42,8 +47,7 @@ def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
 
 
 def config_from_args(args, **extra):
-    from ..identify import IdentifyConfig
-    return IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
+    return _settings.IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
                                jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
                                population_size=args.population, seed=args.seed, ts=args.ts, method=args.method,
                                test_fraction=args.holdout,
@@ -86,21 +90,19 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..identify import identify
-    from ..report import identify as identify_report
     cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints,
                            effects=args.effects, delays=args.delays, empirical=args.empirical, k_D=args.k_D)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
     # predict reads its logs with the reader options recorded here by default
-    result = replace(identify(train, test, cfg, progress=bar), reader_options=log_options(args))
+    result = replace(_identify.identify(train, test, cfg, progress=bar), reader_options=log_options(args))
     if args.report:
-        identify_report.write(result, args.report)
+        _report.write(result, args.report)
     if args.json:
-        print_json(identify_report.compact(result))
+        print_json(_report.compact(result))
     else:
-        print(identify_report.text(result))
+        print(_report.text(result))
         if args.report:
             print(f"\nreport written to {args.report}/ (result.json, report.html, report.md, figures)")
     if result.interrupted:

@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import math
 
+from ..lazy import lazy_module
 from ._common import add_log_options, print_json, read_logs
+
+_fitness = lazy_module("droneid.fitness")
+_flight = lazy_module("droneid.flight")
+_screening = lazy_module("droneid.screening")
 
 
 def register(sub):
@@ -24,11 +29,10 @@ def register(sub):
 
 
 def run(args) -> int:
-    from ..fitness import fitness_by_prior
     (flight,) = read_logs([args.path], args)
     summary = flight.summary()
     summary["signals"] = with_coverage(flight, summary["signals"])
-    summary["fitness"] = fitness_by_prior([flight], args.ts)
+    summary["fitness"] = _fitness.fitness_by_prior([flight], args.ts)
     summary["implausible"] = implausible_summary(flight)
     if args.json:
         print_json(summary)
@@ -41,19 +45,16 @@ def implausible_summary(flight) -> dict:
     """{signal: {"count", "detail"}} of the canonical signals where screening
     (:mod:`droneid.screening`) finds implausible samples or jumps: what identify, diagnose and
     predict leave out."""
-    from ..flight import is_canonical
-    from ..screening import screen_flight
-    screens = screen_flight(flight, [n for n in flight.names if is_canonical(n)])
+    screens = _screening.screen_flight(flight, [n for n in flight.names if _flight.is_canonical(n)])
     return {n: {"count": sc.implausible, "detail": sc.describe()} for n, sc in screens.items() if sc.implausible}
 
 
 def with_coverage(flight, rows: list) -> list:
     """The summary's signal rows (gap-aware rates: :attr:`droneid.flight.Signal.rate_hz`) with,
     for signals in bursts, where they are (:func:`droneid.fitness.coverage`)."""
-    from ..fitness import coverage
     out = []
     for g in rows:
-        c = coverage(flight[g["name"]])
+        c = _fitness.coverage(flight[g["name"]])
         out.append(dict(g, bursts=c.describe()) if len(c.bursts) > 1 else g)
     return out
 

@@ -1,7 +1,17 @@
 """``droneid predict``: apply a saved model (identify's result.json) to other logs, report its error."""
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..io_util import atomic_write_bytes
+from ..lazy import lazy_module
 from ._common import add_log_options, log_options, print_json, read_logs, recorded_options_note
+
+_predict = lazy_module("droneid.predict")
+_report = lazy_module("droneid.report.predict")
+_rollout_report = lazy_module("droneid.report.rollout")
 
 
 def _horizons(text: str) -> tuple[int, ...]:
@@ -44,33 +54,25 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..errors import ConfigError
-    from ..predict import load_models, predict_flights
-    from ..report import predict as predict_report
     if args.plot and not args.horizons:
         raise ConfigError("--plot draws the multi-step prediction: give --horizons too (e.g. --horizons 1,10,50)")
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
-    models = load_models(args.model, targets)
+    models = _predict.load_models(args.model, targets)
     recorded = models.get("_reader_options") or {}
     flights = read_logs(args.logs, args, recorded=recorded)
-    res = predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons,
+    res = _predict.predict_flights(models, flights, ts=args.ts, method=args.method, horizons=args.horizons,
                           open_loop=args.open_loop)
     given = {k: v for k, v in log_options(args).items() if v is not None}
     if recorded or given:
-        from dataclasses import replace
         res = replace(res, reader_options={"recorded": recorded, "given": given})
     written = []
     if args.plot and res.rollout is not None:
-        from pathlib import Path
-
-        from ..io_util import atomic_write_bytes
-        from ..report.rollout import horizon_figures
-        for name, png in horizon_figures(res.rollout.to_dict()).items():
+        for name, png in _rollout_report.horizon_figures(res.rollout.to_dict()).items():
             written.append(atomic_write_bytes(Path(args.plot) / f"{name}.png", png))
     if args.json:
         print_json(res.to_dict())
         return 0
-    print(predict_report.text(res))
+    print(_report.text(res))
     if recorded:
         print("\n" + recorded_options_note(recorded, args, args.logs))
     for p in written:

@@ -1,6 +1,11 @@
 """``droneid sample-logs``: regenerate the shipped sample logs (byte-identical for the same code)."""
 from __future__ import annotations
 
+from ..lazy import lazy_module
+from ._common import ProgressBar
+
+_samples = lazy_module("droneid.samples")
+
 
 def register(sub):
     p = sub.add_parser("sample-logs", description="Simulate and write every sample log defined in droneid/samples.py, "
@@ -12,9 +17,7 @@ def register(sub):
 
 
 def run(args) -> int:
-    from ..samples import generate
-    from ._common import ProgressBar
-    paths = generate(args.out, names=args.only, progress=ProgressBar("sample-logs", quiet=args.quiet))
+    paths = _samples.generate(args.out, names=args.only, progress=ProgressBar("sample-logs", quiet=args.quiet))
     if not args.quiet:
         for p in paths:
             print(p)

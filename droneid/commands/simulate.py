@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 from ..errors import ConfigError
+from ..lazy import lazy_module
+
+_simulate = lazy_module("droneid.simulate")
+_samples = lazy_module("droneid.samples")
 
 
 def register(sub):
-    from ..simulate import DEFAULT_PARAMS, EFFECTS, PATHS
+    DEFAULT_PARAMS, EFFECTS, PATHS = _simulate.DEFAULT_PARAMS, _simulate.EFFECTS, _simulate.PATHS
     p = sub.add_parser(
         "simulate",
         description="Simulate a quadrotor flight (tilt-drag dynamics, PID tracking, mocap-like noise; "
@@ -67,14 +71,12 @@ def parse_params(items) -> dict:
 
 
 def run(args) -> int:
-    from ..samples import save
-    from ..simulate import simulate
     formats = [f.strip() for f in args.format.split(",") if f.strip()]
-    res = simulate(path=args.path, duration_s=args.duration, rate_hz=args.rate,
+    res = _simulate.simulate(path=args.path, duration_s=args.duration, rate_hz=args.rate,
                    effects=parse_effect_args(args.effect), seed=args.seed, noise=not args.no_noise,
                    **parse_params(args.param))
     name = args.name or f"sim_{args.path}_s{args.seed}"
-    for p in save(res, args.out, name, formats):
+    for p in _samples.save(res, args.out, name, formats):
         if not args.quiet:
             print(p)
     return 0

@@ -3,8 +3,12 @@ from __future__ import annotations
 
 import sys
 
+from ..lazy import lazy_module
 from ._common import ProgressBar, add_log_options, print_json, read_logs
 from .identify import add_budget_arguments, config_from_args
+
+_study = lazy_module("droneid.study")
+_report = lazy_module("droneid.report.study")
 
 
 def register(sub) -> None:
@@ -31,7 +35,7 @@ def register(sub) -> None:
 
 def budget_line(cfg) -> str:
     """The study's whole budget in one line, said before it starts (a full study takes minutes)."""
-    from ..study import PRIOR_VARIANTS, SCENARIOS
+    SCENARIOS, PRIOR_VARIANTS = _study.SCENARIOS, _study.PRIOR_VARIANTS
     n = len(cfg.targets) * len(SCENARIOS) * len(PRIOR_VARIANTS) * cfg.runs
     line = (f"study: {n} SNGP runs ({len(cfg.targets)} target(s) x {len(SCENARIOS)} scenarios x "
             f"{len(PRIOR_VARIANTS)} prior variants x {cfg.runs} runs), each {cfg.generations} "
@@ -42,8 +46,6 @@ def budget_line(cfg) -> str:
 
 
 def run(args) -> int:
-    from ..report import study as study_report
-    from ..study import study
     if args.runs is None and not args.quick:
         args.runs = 10  # the study's own default (identify's is 4)
     cfg = config_from_args(args, constraints=args.constraints)
@@ -52,12 +54,12 @@ def run(args) -> int:
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)
-    result = study(train, test, cfg, progress=bar)
-    study_report.write(result, args.out)
+    result = _study.study(train, test, cfg, progress=bar)
+    _report.write(result, args.out)
     if args.json:
         print_json(result.to_dict())
     else:
-        print(study_report.text(result))
+        print(_report.text(result))
         print(f"\nstudy written to {args.out}/ (study.json, study.md, study.html)")
     if result.interrupted:
         print("droneid study: interrupted; the finished runs are reported", file=sys.stderr)

@@ -9,6 +9,9 @@ workers); :func:`kernels_ready` says whether the next fit would compile them fir
 from .estimator import SNGPRegressor
 from .operators import DEFAULT_FUNCTIONS, OPERATORS
 from .precompile import kernels_ready, warmup
+from ..lazy import lazy_module
+
+_model = lazy_module("droneid.sngp.model")
 
 __all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS", "kernels_ready",
            "warmup"]
@@ -17,6 +20,5 @@ __all__ = ["SNGPRegressor", "SymbolicModel", "DEFAULT_FUNCTIONS", "OPERATORS", "
 def __getattr__(name: str):
     # SymbolicModel (sympy) on first use: the search runs before sympy is imported
     if name == "SymbolicModel":
-        from .model import SymbolicModel
-        return SymbolicModel
+        return _model.SymbolicModel
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,6 +21,7 @@ import numpy as np
 from ..constraint_samples import ConstraintSamples, constraint_rmse
 from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
                       did_you_mean)
+from ..lazy import lazy_module
 from ..numerics import lstsq as _lstsq
 from ..numerics import rmse
 from . import kernels as K
@@ -31,6 +32,11 @@ from .operators import names as operator_names
 from .population import Population, Problem
 from .render import ArchiveEntry, import_symbolic_side, is_sympy, links_equation, node_exprs, render
 from .search import run_search
+
+# sympy's side, loaded when a fit has priors or writes its equation: without priors the search
+# runs before sympy is imported
+_expressions = lazy_module("droneid.expressions")
+_model = lazy_module("droneid.sngp.model")
 from .selection import best_index
 
 log = logging.getLogger(__name__)
@@ -300,17 +306,16 @@ class SNGPRegressor:
             return [], [], {}
         import sympy as sp
 
-        from ..expressions import parse_expression, symbol
         exprs, syms, labels = [], [], {}
         for i, p in enumerate(priors):
             label = prior_names[i] if prior_names else f"prior{i + 1}"
             if isinstance(p, str):
-                expr = parse_expression(p, names, what=f"prior {label!r}")
+                expr = _expressions.parse_expression(p, names, what=f"prior {label!r}")
             elif isinstance(p, sp.Basic):
                 unknown = sorted(s.name for s in p.free_symbols if s.name not in names)
                 if unknown:
                     raise MissingSignalError(unknown[0], names, where=f"prior {label!r}")
-                expr = p.xreplace({s: symbol(s.name) for s in p.free_symbols})
+                expr = p.xreplace({s: _expressions.symbol(s.name) for s in p.free_symbols})
             else:
                 raise ConfigError(f"prior {label!r} must be a string or a sympy expression, "
                                   f"got {type(p).__name__}")
@@ -394,8 +399,7 @@ class SNGPRegressor:
             else:
                 terms.append(node_expr(cols[k - 1]))
                 coefs.append(float(bta))
-        from .model import SymbolicModel
-        model = SymbolicModel(self._names, terms, coefs, intercept,
+        model = _model.SymbolicModel(self._names, terms, coefs, intercept,
                               {s: self._prior_exprs[s] for s in self._prior_syms},
                               dict(self._prior_labels))
         return model, ed, (ec if constrained else float("nan"))
@@ -403,17 +407,16 @@ class SNGPRegressor:
     def _prune_validation(self, validation, A, At, Ac, y, cols, keep, ec, n_prior, node_expr, cs):
         """Backward elimination of evolved features on the held-out rows, then a refit of the
         kept columns on all training rows. Returns (keep, beta, e_d over all rows, e_c)."""
-        from ..expressions import compile_expression
         X_all, y_all, val = validation
         env = {n: X_all[val, i] for i, n in enumerate(self._names)}
         for sym, expr in self._prior_exprs.items():   # as SymbolicModel.predict evaluates them
-            env[sym] = compile_expression(expr, self._names)(env)
+            env[sym] = _expressions.compile_expression(expr, self._names)(env)
         names = list(self._names) + list(self._prior_exprs)
         Av = np.empty((int(val.sum()), A.shape[1]))
         Av[:, 0] = 1.0
         for j, c in enumerate(cols, start=1):
             with np.errstate(all="ignore"):
-                Av[:, j] = compile_expression(node_expr(c), names)(env)
+                Av[:, j] = _expressions.compile_expression(node_expr(c), names)(env)
         if not np.isfinite(Av).all():   # a feature undefined on the held-out rows must go
             keep = [k for k in keep if k <= n_prior or np.isfinite(Av[:, k]).all()]
         yv = y_all[val]

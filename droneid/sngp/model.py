@@ -13,41 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
-from sympy.printing.str import StrPrinter
 
 from ..errors import ConfigError, DataError, MissingSignalError
-from ..expressions import compile_expression, parse_expression, symbol
+from ..expressions import compile_expression, parse_expression, round_expr, symbol, to_text
 
 __all__ = ["SymbolicModel", "to_text", "round_expr"]
 
 FORMAT = "droneid.sngp/1"
-SIG_FIGS = 4
-
-
-class _Printer(StrPrinter):
-    """sympy's str printer, spelled the way :func:`parse_expression` reads it back."""
-
-    def _print_Abs(self, expr):
-        return f"abs({self._print(expr.args[0])})"
-
-    def _print_Exp1(self, expr):
-        return "e"
-
-    def _print_Float(self, expr):
-        return repr(float(expr))
-
-
-def to_text(expr: sp.Expr) -> str:
-    return _Printer({"full_prec": True}).doprint(expr)
-
-
-def round_expr(expr: sp.Expr, digits: int = SIG_FIGS) -> sp.Expr:
-    """Every float in ``expr`` rounded to ``digits`` significant figures (for display)."""
-    reps = {}
-    for f in expr.atoms(sp.Float):
-        v = float(f)
-        reps[f] = sp.Float(float(f"{v:.{digits}g}")) if v != 0 else sp.Integer(0)
-    return expr.xreplace(reps)
 
 
 @dataclass

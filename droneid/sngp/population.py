@@ -16,9 +16,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import DataError
+from ..lazy import lazy_module
 from ..numerics import rmse
 from . import kernels as K
 from .operators import CONST, HEAD_OPERATORS, IDENT, VAR, by_name
+
+_expressions = lazy_module("droneid.expressions")   # sympy: only with priors
 
 CONSTANTS = (0.0, 0.5, 1.0, 2.0, 3.0, float(np.pi))
 
@@ -149,10 +152,8 @@ def terminal_rows(X, n_train, names, prior_syms, prior_exprs, prior_labels) -> n
     (rows ``n_train`` on are constraint samples); a prior that is not finite is a DataError."""
     cols = {n: X[:, i] for i, n in enumerate(names)}
     prior_vals = []
-    if prior_exprs:
-        from ..expressions import compile_expression   # sympy: only with priors
-    for sym, expr in zip(prior_syms, prior_exprs):
-        v = compile_expression(expr, names)(cols)
+    for sym, expr in zip(prior_syms, prior_exprs):   # sympy: only with priors
+        v = _expressions.compile_expression(expr, names)(cols)
         if not np.isfinite(v[:n_train]).all():
             raise DataError(f"prior {prior_labels[sym]!r} ({expr}) is not finite on "
                             f"{int((~np.isfinite(v[:n_train])).sum())} training samples")

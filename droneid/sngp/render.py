@@ -18,6 +18,10 @@ from typing import TYPE_CHECKING
 
 from . import kernels as K
 from .operators import CONST, IDENT, by_code
+from ..lazy import lazy_module
+
+#: the expression tools (sympy): loaded when a model is first written as an equation
+_expressions = lazy_module("droneid.expressions")
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -34,11 +38,10 @@ def node_exprs(pop: "Population", names, prior_syms):
     and prior terminals ``prior_syms`` as symbols, head nodes as their (constant) values."""
     import sympy as sp
 
-    from ..expressions import symbol
     consts = (sp.Integer(0), sp.Rational(1, 2), sp.Integer(1), sp.Integer(2), sp.Integer(3), sp.pi)
     lay = pop.lay
     head_end, tail0 = int(lay[K.L_HEAD]), int(lay[K.L_TAIL])
-    terminals = [symbol(n) for n in names] + [symbol(s) for s in prior_syms]
+    terminals = [_expressions.symbol(n) for n in names] + [_expressions.symbol(s) for s in prior_syms]
     memo: dict[int, "sp.Expr"] = {}
 
     def expr(n: int) -> "sp.Expr":
@@ -68,10 +71,8 @@ def render(model: "SymbolicModel", prior_syms, prior_labels, prior_exprs, simpli
     term is simplified by sympy within what is left of ``simplify_s`` seconds (0: none)."""
     import sympy as sp
 
-    from ..expressions import symbol
-    from .model import round_expr, to_text
     deadline = time.perf_counter() + float(simplify_s)
-    prior_set = {symbol(s) for s in prior_syms}
+    prior_set = {_expressions.symbol(s) for s in prior_syms}
     simple_terms = []
     for t in model.terms:
         left = deadline - time.perf_counter()
@@ -83,14 +84,14 @@ def render(model: "SymbolicModel", prior_syms, prior_labels, prior_exprs, simpli
         if t in prior_set:
             prior_coef[prior_labels[t.name]] = c
         else:
-            key = to_text(st)
+            key = _expressions.to_text(st)
             coef[key] = coef.get(key, 0.0) + c
         display = display + sp.Float(c) * st
-    shown = round_expr(display)
+    shown = _expressions.round_expr(display)
     return {"coef_": coef, "prior_coef_": prior_coef,
             "expr_raw_": model.expression(expand_priors=True),
-            "expr_": display.xreplace({symbol(s): e for s, e in prior_exprs.items()}),
-            "equation_": to_text(shown), "latex_": sp.latex(shown)}
+            "expr_": display.xreplace({_expressions.symbol(s): e for s, e in prior_exprs.items()}),
+            "equation_": _expressions.to_text(shown), "latex_": sp.latex(shown)}
 
 
 def links_equation(pop: "Population", names, prior_syms) -> str:
@@ -98,7 +99,6 @@ def links_equation(pop: "Population", names, prior_syms) -> str:
     search), unsimplified."""
     import sympy as sp
 
-    from .model import round_expr, to_text
     node_expr = node_exprs(pop, names, prior_syms)
     expr = sp.Integer(0)
     for c, bta in zip(pop.cols, pop.beta):
@@ -106,7 +106,7 @@ def links_equation(pop: "Population", names, prior_syms) -> str:
             expr += sp.Float(float(bta))
         elif c >= 0 and bta != 0.0:
             expr += sp.Float(float(bta)) * node_expr(int(c))
-    return to_text(round_expr(expr))
+    return _expressions.to_text(_expressions.round_expr(expr))
 
 
 class ArchiveEntry(Mapping):
