@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from priors.models import PriorFeature, PriorModel
+from priors.registry import PriorFeature, PriorModel
 
 from .decide import Decision
 from .differentiation import DIFFERENTIATORS
@@ -188,7 +188,7 @@ def with_test_errors(ev: dict, test_before: float | None, test_after: float | No
 
 
 def fold_into_prior(result: DiagnosisResult, prior):
-    """A new :class:`priors.models.PriorModel`: ``prior`` plus every foldable final effect's
+    """A new :class:`priors.registry.PriorModel`: ``prior`` plus every foldable final effect's
     features (each ``coefficient · expr``, role ``"other"``, description naming the effect), with
     the signals they use added to the prior's inputs. Effects that are not foldable (per-flight
     conditions, attitude delay, measured derivatives) are left out. Raises ConfigError when the

@@ -1,4 +1,4 @@
-"""Export final models (:class:`droneid.identified.IdentifiedModel`) as self-contained code.
+"""Export final models (:class:`droneid.closed_form.IdentifiedModel`) as self-contained code.
 
 ``export_models(models, to)`` returns the text of one file, generated through sympy's printers:
 
@@ -35,7 +35,7 @@ from . import __version__
 from .errors import ConfigError, MissingSignalError, check_choice
 from .expressions import round_expr
 from .flight import canonical_unit
-from .identified import IdentifiedModel
+from .closed_form import IdentifiedModel
 from .rotation import _SPEED_UNIT, KNOWN_TERMS, RotationModel, TranslationModel
 from .targets import state_of
 

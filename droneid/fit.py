@@ -27,7 +27,7 @@ from .sngp import SNGPRegressor
 
 # sympy's side, loaded only when a fit has priors or constraints: without them the search starts
 # before sympy is imported
-_registry = lazy_module("priors.models")
+_registry = lazy_module("priors.registry")
 _constraints = lazy_module("priors.constraints")
 _expressions = lazy_module("droneid.expressions")
 

@@ -36,8 +36,8 @@ from . import __version__, runner
 from .dataset_builder import reuse_datasets
 from .errors import ConfigError, DataError
 from .export import export_models, input_sources
-from .fitness import check_prior_data
-from .identified import SCHEMA, IdentifiedModel, check_schema
+from .suitability import check_prior_data
+from .closed_form import SCHEMA, IdentifiedModel, check_schema
 from .io_util import to_jsonable
 from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung
 from .predict import models_from_document, predict_flights

@@ -27,7 +27,7 @@ from .data import Dataset
 from .decide import decide
 from .errors import ConfigError, DataError
 from .expressions import round_expr, symbol, to_text
-from .identified import IdentifiedModel
+from .closed_form import IdentifiedModel
 from .numerics import rmse, to_float
 from .report.wording import display_term
 from .search import run_seeds
@@ -77,7 +77,7 @@ class Rung:
     terms : {label: fitted coefficient}; prior terms as ``⟨name⟩`` (a scale, 1 = nominal)
     intercept : the equation's constant (fitted plus known physics: gravity), None when nothing
         was fitted
-    model : the rung as an :class:`~droneid.identified.IdentifiedModel` (what predict applies)
+    model : the rung as an :class:`~droneid.closed_form.IdentifiedModel` (what predict applies)
     intervals : {label: Interval}; held : {label: value held at}, coefficients the data cannot
         identify; at_bound : {label: value}, coefficients the data pull to a physical bound
     evidence : sentences saying why (holds, bounds)

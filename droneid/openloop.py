@@ -386,7 +386,7 @@ class Constant:
 @dataclass(frozen=True)
 class IdentifiedTranslation:
     """identify's final v̇ models driven open loop: ``models`` {"vx_dot"|"vy_dot"|"vz_dot":
-    :class:`~droneid.identified.IdentifiedModel`} give v̇ (world ENU) from the simulated state
+    :class:`~droneid.closed_form.IdentifiedModel`} give v̇ (world ENU) from the simulated state
     (velocity, and roll, pitch, yaw from the simulated quaternion) and the logged motor speeds,
     each read at ``t − delay`` as identified (shifted by whole grid steps; a negative delay reads
     later samples). Alone it holds the body rates (ω̇ = 0), as the benchmark's Physics row; with a

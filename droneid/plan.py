@@ -1,7 +1,7 @@
 """The plan of an identification: every choice made from the TRAINING flights before any SNGP run.
 
 :func:`plan_identification` picks the prior (``auto``: the most physical one the logs' signals
-support, :func:`priors.models.prior_for`), sets the rotor-thrust prior's nominal thrust scale by
+support, :func:`priors.registry.prior_for`), sets the rotor-thrust prior's nominal thrust scale by
 hover balance, chooses the offset of the thrust signals against the state in both directions by
 the calibrated block test of :mod:`droneid.decide` (:func:`choose_offset`) and runs the diagnosis (:mod:`droneid.diagnose`) to find the
 effects to fold into the prior features. Rows held out as test data (``cuts``) are never seen.
@@ -14,14 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from priors.models import PriorFeature, prior_for, resolve_prior
+from priors.registry import PriorFeature, prior_for, resolve_prior
 
 from .data import Dataset
 from .dataset_builder import DatasetBuilder
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
-from .fitness import usable_signals
+from .suitability import usable_signals
 from .terms import prior_terms
 from .validation import split_time_block, time_blocks
 from .targets import targets_for

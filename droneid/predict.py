@@ -2,7 +2,7 @@
 
 Accepts either an identification result (``result.json`` of ``droneid identify``) or a bare model
 file (the engine's ``to_dict()``, with its target named by the caller). From a result, each
-target's FINAL model (``targets.<t>.final``, an :class:`droneid.identified.IdentifiedModel`) is
+target's FINAL model (``targets.<t>.final``, an :class:`droneid.closed_form.IdentifiedModel`) is
 evaluated next to the user's empirical model as given (``empirical_model``) and its least-squares
 refit (``refit_model``); results written before the final model existed fall back to the engine
 model (``model``) and the empirical terms. The data are built with the same sampling period and
@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from priors.models import get_prior
+from priors.registry import get_prior
 
 from .dataset_builder import DatasetBuilder, in_flight_intervals
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
-from .fitness import assess
-from .identified import IdentifiedModel, check_schema
+from .suitability import assess
+from .closed_form import IdentifiedModel, check_schema
 from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
@@ -86,7 +86,7 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     """{target: {"model", "inputs", "empirical_refit", ...}} plus "_config" and
     "_reader_options" (the reader options the result was identified with: read_flight keywords,
     ``{}`` when none were recorded) from a JSON file: an identify result.json (schema
-    :data:`droneid.identified.SCHEMA`; an older one is refused with one line) or a bare model."""
+    :data:`droneid.closed_form.SCHEMA`; an older one is refused with one line) or a bare model."""
     path = Path(path)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
@@ -332,7 +332,7 @@ def _out_of_range(ds, ranges: dict) -> dict:
 
 
 def _fitness(models: dict, flights, ts: float):
-    """:func:`droneid.fitness.assess` of the flights for the signals the models read: refuses
+    """:func:`droneid.suitability.assess` of the flights for the signals the models read: refuses
     (DataError) data they cannot be scored on (no airborne data, signals far too slow, a
     multirotor model on a fixed-wing log); None when the models name no signals."""
     needed = set()

@@ -20,11 +20,11 @@ import numpy as np
 import sympy as sp
 
 from priors import constraints as pc
-from priors.models import PRIORS, get_prior, resolve_prior
+from priors.registry import PRIORS, get_prior, resolve_prior
 
 from .data import Dataset
 from .errors import ConfigError, DataError
-from .identified import IdentifiedModel
+from .closed_form import IdentifiedModel
 from .ladder import fitted_thrust, physical_rungs
 from .plan import Plan, dataset_builder, fixed_plan, holdout_cuts, train_rows
 from .search import run_seeds

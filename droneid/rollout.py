@@ -38,7 +38,7 @@ from .errors import ConfigError, DataError, MissingSignalError
 from .expressions import compile_expression
 from .flight import Flight
 from .screening import screen_signal
-from .identified import IdentifiedModel
+from .closed_form import IdentifiedModel
 from .targets import TARGETS
 
 __all__ = ["RolloutResult", "RolloutSegment", "rollout_errors", "sample_inputs", "horizon_section",

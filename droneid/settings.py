@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from priors.models import PRIORS, is_prior_spec
+from priors.registry import PRIORS, is_prior_spec
 
 from .errors import ConfigError, check_choice
 from .sngp import SNGPRegressor
@@ -36,7 +36,7 @@ class IdentifyConfig:
     targets : derivative targets, e.g. ("vx_dot", "vy_dot"); None: every target the prior models
     prior : the physical model the search starts from: "auto" (rotor-thrust where the logs have
         motor speeds, motor commands or thrust, tilt-drag otherwise; the choice and its reason are
-        in the result), a built-in name (``priors.models.PRIORS``) or ``file.toml:name``
+        in the result), a built-in name (``priors.registry.PRIORS``) or ``file.toml:name``
     prior_features : 0 (no prior), 1 (the prior as one feature) or 3 (each of its terms, however
         many: 3 for tilt-drag)
     effects : "auto" (diagnose the refit prior on the training flights and fold every effect that

@@ -1,7 +1,7 @@
 """What kind of vehicle flew a log, judged from its data when the log does not say (issue 29):
 whether it ever hovers, how far it tilts while still, whether its horizontal acceleration follows
 its thrust axis (a multirotor's a_h = g·tan(tilt)), and how much it turns. The data-fitness check
-(:mod:`droneid.fitness`) and ``inspect`` show this evidence and refuse a multirotor prior on data
+(:mod:`droneid.suitability`) and ``inspect`` show this evidence and refuse a multirotor prior on data
 that do not look like one. Speeds in m/s, accelerations in m/s², angles in degrees, times in s.
 """
 from __future__ import annotations

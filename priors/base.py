@@ -1,7 +1,7 @@
 """The prior-model types: :class:`PriorFeature` (one term) and :class:`PriorModel` (an equation
 per target, with its inputs, parameters, vehicle kind and constraint set).
 
-Their own module so that the built-in models (:mod:`priors.models`) and the TOML loader
+Their own module so that the built-in models (:mod:`priors.registry`) and the TOML loader
 (:mod:`priors.user`) both build on them without importing each other in a circle.
 """
 from __future__ import annotations

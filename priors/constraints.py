@@ -55,7 +55,7 @@ from droneid.lazy import lazy_module
 from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
 #: the prior registry: its priors declare their constraint sets, so it imports this module
-_models = lazy_module("priors.models")
+_models = lazy_module("priors.registry")
 
 
 __all__ = ["Constraint", "ConstraintSet", "get_constraints", "load_constraints", "paper_drone",
@@ -297,7 +297,7 @@ CONSTRAINT_SETS = {"paper": {"tilt-drag": paper_drone, "unicycle": paper_turtleb
 
 
 def _registry():
-    """The built-in priors (:data:`priors.models.PRIORS`)."""
+    """The built-in priors (:data:`priors.registry.PRIORS`)."""
     return _models.PRIORS
 
 

@@ -2,7 +2,7 @@
 commands, collective thrust or throttle), its magnitude terms, and the thrust direction.
 
 Shared by the rotor-thrust prior (:mod:`priors.prior_catalogue.rotor_thrust`), the choice of
-prior for ``auto`` (:func:`priors.models.choose_prior`), the thrust-related effects
+prior for ``auto`` (:func:`priors.registry.choose_prior`), the thrust-related effects
 (:func:`priors.effects.thrust_proxy`, ``thrust_curve``, ``battery_sag``), identify and the
 simulator.
 """

@@ -20,7 +20,7 @@ _SIGNALS = ("vx", "vy", "vz", "roll", "pitch", "yaw", "z", "battery_voltage", "t
 
 
 class TiltDragStub:
-    """The paper's tilt-drag prior (3 features), standing in for priors.models.get_prior."""
+    """The paper's tilt-drag prior (3 features), standing in for priors.registry.get_prior."""
 
     _TEXT = {"vx_dot": ("g*cos(yaw)*tan(pitch)/cos(roll)", "g*sin(yaw)*tan(roll)", "-k_D*vx"),
              "vy_dot": ("g*sin(yaw)*tan(pitch)/cos(roll)", "-g*cos(yaw)*tan(roll)", "-k_D*vy")}

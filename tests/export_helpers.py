@@ -13,13 +13,13 @@ import numpy as np
 import sympy as sp
 
 from droneid.cli import main
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 
 CC = shutil.which("gcc") or shutil.which("cc")
 
 
 def rotor_thrust_sum(target: str) -> IdentifiedModel:
-    from priors.models import get_prior
+    from priors.registry import get_prior
     p = get_prior("rotor-thrust", source="rpm", motors=4)
     return IdentifiedModel(target, sp.Add(*[f.expr for f in p.features(target)]), {"rpm1": 0.02},
                            "rotor-thrust prior, summed")

@@ -7,7 +7,7 @@ import math
 from ..lazy import lazy_module
 from ._common import add_log_options, print_json, read_logs
 
-_fitness = lazy_module("droneid.fitness")
+_fitness = lazy_module("droneid.suitability")
 _flight = lazy_module("droneid.flight")
 _screening = lazy_module("droneid.screening")
 
@@ -51,7 +51,7 @@ def implausible_summary(flight) -> dict:
 
 def with_coverage(flight, rows: list) -> list:
     """The summary's signal rows (gap-aware rates: :attr:`droneid.flight.Signal.rate_hz`) with,
-    for signals in bursts, where they are (:func:`droneid.fitness.coverage`)."""
+    for signals in bursts, where they are (:func:`droneid.suitability.coverage`)."""
     out = []
     for g in rows:
         c = _fitness.coverage(flight[g["name"]])

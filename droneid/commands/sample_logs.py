@@ -4,11 +4,11 @@ from __future__ import annotations
 from ..lazy import lazy_module
 from ._common import ProgressBar
 
-_samples = lazy_module("droneid.samples")
+_samples = lazy_module("droneid.sample_logs")
 
 
 def register(sub):
-    p = sub.add_parser("sample-logs", description="Simulate and write every sample log defined in droneid/samples.py, "
+    p = sub.add_parser("sample-logs", description="Simulate and write every sample log defined in droneid/sample_logs.py, "
                                    "plus its README. The output is byte-identical on every run.")
     p.add_argument("--out", default="sample_logs", metavar="DIR", help="output folder (default sample_logs)")
     p.add_argument("--only", action="append", default=None, metavar="NAME",

@@ -5,7 +5,7 @@ from ..errors import ConfigError
 from ..lazy import lazy_module
 
 _simulate = lazy_module("droneid.simulate")
-_samples = lazy_module("droneid.samples")
+_samples = lazy_module("droneid.sample_logs")
 
 
 def register(sub):

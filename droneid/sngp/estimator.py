@@ -24,6 +24,7 @@ from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError
 from ..lazy import lazy_module
 from ..numerics import lstsq as _lstsq
 from ..numerics import rmse
+from ..validation import block_ids
 from . import kernels as K
 from . import population as popmod
 from .kernels import kernels_ready
@@ -519,7 +520,7 @@ def _validation_rows(n: int, fraction: float):
         log.warning("prune='validation' needs at least 80 training samples (got %d): "
                     "pruning only exactly dead features", n)
         return None
-    block = np.minimum(np.arange(n) * n_blocks // n, n_blocks - 1)
+    block = block_ids(np.arange(n, dtype=float), np.zeros(n, int), n_blocks)   # contiguous, equal counts
     held = set(np.round(np.linspace(1, n_blocks - 1, n_val_blocks, endpoint=False)).astype(int).tolist())
     return np.isin(block, sorted(held))
 

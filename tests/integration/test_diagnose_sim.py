@@ -2,7 +2,7 @@
 
 Training flights are 40 s, test flights 20 s of another path, both with the same planted effect;
 the open-ended search is off here (tested separately). The full pipeline runs: DatasetBuilder
-(central differences on a 0.05 s grid) and priors.models.get_prior("tilt-drag"). Tolerances are stated per effect.
+(central differences on a 0.05 s grid) and priors.registry.get_prior("tilt-drag"). Tolerances are stated per effect.
 """
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ import diag_synth as S
 from droneid.diagnose import DiagnoseConfig, diagnose_datasets
 from droneid.expressions import compile_expression
 from priors.effects import Effect, Interpretation, load_effects
-from priors.models import get_prior
+from priors.registry import get_prior
 
 CFG = DiagnoseConfig(generations=0)
 ROTOR = get_prior("rotor-thrust", source="rpm", motors=4)

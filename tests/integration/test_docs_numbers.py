@@ -267,7 +267,7 @@ def test_simulator_residual_table_is_current():
 
     from droneid.dataset_builder import DatasetBuilder
     from droneid.simulate import simulate
-    from priors.models import get_prior
+    from priors.registry import get_prior
     rows = _simulator_table()
     assert len(rows) == 10 and "none" in rows
     prior = get_prior("tilt-drag")

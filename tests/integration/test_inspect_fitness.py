@@ -9,7 +9,7 @@ import numpy as np
 
 from droneid.cli import main
 from droneid.commands.inspect import render_fitness
-from droneid.fitness import fitness_by_prior
+from droneid.suitability import fitness_by_prior
 from droneid.flight import Flight, Provenance, Signal
 
 

@@ -13,13 +13,13 @@ import pytest
 import sympy as sp
 
 from droneid.cli import main
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 
 TS = 0.05
 
 
 def _tilt_drag(target: str, k_D: float) -> IdentifiedModel:
-    from priors.models import get_prior
+    from priors.registry import get_prior
     p = get_prior("tilt-drag", k_D=k_D)
     return IdentifiedModel(target, sp.Add(*[f.expr for f in p.features(target)]), description=f"tilt-drag k_D={k_D}")
 

@@ -8,7 +8,7 @@ import pytest
 import sympy as sp
 
 from droneid.cli import main
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 from droneid.simulate import simulate
 
 

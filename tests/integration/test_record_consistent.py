@@ -104,7 +104,7 @@ def test_the_prior_really_used_is_named_everywhere(run):
 
 
 def test_the_constraint_sets_really_used_are_named_everywhere(run):
-    from priors.models import get_prior
+    from priors.registry import get_prior
     result, cli, md, page = run
     cfg = result["config"]
     per_target = {t: tr.get("constraints") for t, tr in result["targets"].items()}

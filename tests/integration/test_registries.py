@@ -8,7 +8,7 @@ from droneid.cli import main
 from droneid.differentiation import DIFFERENTIATORS
 from parsers import READERS
 from priors.effects import CATALOGUE
-from priors.models import PRIORS
+from priors.registry import PRIORS
 
 LOG = SAMPLE_LOGS / "paper_train_eight.tlog"
 

@@ -13,7 +13,7 @@ import pytest
 
 from droneid.dataset_builder import DatasetBuilder
 from droneid.simulate import simulate
-from priors.models import get_prior
+from priors.registry import get_prior
 from priors.thrust import RPM_SCALE
 
 KD = 0.28
@@ -147,10 +147,10 @@ def test_identify_reads_a_late_motor_stream_later_and_keeps_the_stop_and_go_flig
 
 
 def test_the_rotor_sample_log_shows_its_planted_delay():
-    """sample_logs/rotor_climb_eight (droneid/samples.py) is there to show the rotor-thrust prior
+    """sample_logs/rotor_climb_eight (droneid/sample_logs.py) is there to show the rotor-thrust prior
     and its delay: identify's plan on the simulated sample picks both."""
     from droneid.identify import IdentifyConfig, plan_identification
-    from droneid.samples import SAMPLES
+    from droneid.sample_logs import SAMPLES
     spec = next(s for s in SAMPLES if s.name == "rotor_climb_eight")
     res = simulate(**spec.sim)
     plan = plan_identification([res.flight], IdentifyConfig.make(runs=1, effects="none", delays="auto"))

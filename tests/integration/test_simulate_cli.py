@@ -9,7 +9,7 @@ import pytest
 from droneid.cli import main
 from droneid.commands.simulate import parse_effect_args
 from droneid.errors import ConfigError
-from droneid.samples import FORMATS, SAMPLES, sample_command
+from droneid.sample_logs import FORMATS, SAMPLES, sample_command
 
 from conftest import SAMPLE_LOGS
 
@@ -93,7 +93,7 @@ def test_flat_csv_output_carries_rpm_and_motor_commands(tmp_path):
     from droneid.simulate import simulate
     from parsers import read_flight
     res = simulate(path="circle", duration_s=2.0, rate_hz=20.0, seed=1, rpm_delay_s=0.04)
-    from droneid.samples import save
+    from droneid.sample_logs import save
     (p, _) = save(res, tmp_path, "c", formats=("flatcsv",))
     assert p.name == "c.flat.csv"
     got = read_flight(p)

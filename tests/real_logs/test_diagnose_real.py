@@ -8,7 +8,7 @@ from conftest import real_log
 from droneid.dataset_builder import DatasetBuilder
 from droneid.diagnose import DiagnoseConfig, diagnose, diagnose_datasets
 from diag_synth import decisions
-from priors.models import get_prior
+from priors.registry import get_prior
 
 pytestmark = [pytest.mark.slow, pytest.mark.real_logs]
 CF = "mocap/crazyflie_nanodrone/"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 
 from conftest import real_log
 from export_helpers import CC, c_eval, c_library, export_cli, python_module, rotor_thrust_sum, write_result

@@ -1,6 +1,6 @@
 """inspect and identify agree on every shared real log (issue 29, item 2): the fitness block of
 ``droneid inspect`` is the verdict identify reaches (the same prior resolution, the same
-:func:`droneid.fitness.prior_fitness`), and its sample count is the number of rows identify's
+:func:`droneid.suitability.prior_fitness`), and its sample count is the number of rows identify's
 dataset builder makes, within 5 %."""
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import pytest
 
 from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import DroneIdError
-from droneid.fitness import check_prior_data, fitness_by_prior, usable_signals
+from droneid.suitability import check_prior_data, fitness_by_prior, usable_signals
 from droneid.targets import targets_for
 from parsers import read_flight
-from priors.models import prior_for
+from priors.registry import prior_for
 
 from conftest import ROOT, real_log
 

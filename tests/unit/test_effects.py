@@ -14,7 +14,7 @@ from droneid.errors import ConfigError
 from droneid.targets import TARGETS
 from priors.effects import CATALOGUE, TILT, Effect, EffectContext, Interpretation, load_effects, \
     time_derivative
-from priors.models import get_prior
+from priors.registry import get_prior
 
 ROTOR = get_prior("rotor-thrust", source="rpm", motors=4)
 BASE = {"k_D": {"vx_dot": 0.28, "vy_dot": 0.28, "vz_dot": 0.3}}

@@ -1,4 +1,4 @@
-"""droneid.fitness.assess (issue 13): planted flights with known rates, airborne time, vehicle
+"""droneid.suitability.assess (issue 13): planted flights with known rates, airborne time, vehicle
 type and excitation; the inspect block. The verdicts on the shared real logs:
 tests/real_logs/test_fitness_real.py."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 from droneid.cli import main
 from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError
-from droneid.fitness import (MIN_AIRBORNE_S, TILT_DRAG_SIGNALS, assess)
+from droneid.suitability import (MIN_AIRBORNE_S, TILT_DRAG_SIGNALS, assess)
 from droneid.flight import Flight, Provenance, Signal
 from parsers import read_flight
 
@@ -211,7 +211,7 @@ def test_rates_and_samples_are_gap_aware():
     """A signal in bursts: its rate is per second of data, and only the bursts count as samples
     (a 100 Hz signal logged 2 s out of every 20 s is 100 Hz over 20 % of the time, not 100 Hz over
     all of it)."""
-    from droneid.fitness import coverage
+    from droneid.suitability import coverage
     f = _flight(duration=60.0)
     keep = (f["vx"].t % 20.0) < 2.0
     bursty = Signal("vx", f["vx"].t[keep], f["vx"].values[keep], "m/s")

@@ -7,7 +7,7 @@ import sympy as sp
 from droneid.dataset_builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError, MissingSignalError
 from droneid.expressions import symbol
-from priors.models import PRIORS, PriorFeature, get_prior, load_priors, resolve_prior
+from priors.registry import PRIORS, PriorFeature, get_prior, load_priors, resolve_prior
 
 from synth_flights import tilt_drag_flight
 
@@ -192,7 +192,7 @@ def test_a_new_module_in_the_prior_catalogue_is_a_built_in_prior(tmp_path, monke
     import sys
 
     import priors.prior_catalogue as package
-    from priors import models
+    from priors import registry as models
     (tmp_path / "hover_only.py").write_text(
         "from droneid.expressions import symbol\n"
         "from priors.base import PriorFeature, PriorModel\n"

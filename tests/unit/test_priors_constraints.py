@@ -7,7 +7,7 @@ from droneid.constraint_samples import EQ, GE, LE, constraint_rmse
 from droneid.errors import ConfigError, MissingSignalError
 from priors.constraints import (CONSTRAINT_SETS, Constraint, ConstraintSet, get_constraints,
                                 load_constraints)
-from priors.models import get_prior
+from priors.registry import get_prior
 
 A = math.pi / 15
 

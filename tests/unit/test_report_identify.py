@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError, DataError
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 from droneid.identify import (FeatureText, IdentificationResult, IdentifyConfig, PlanRecord, RunRecord,
                               TargetResult)
 from droneid.ladder import GuardReport, Interval, Rung

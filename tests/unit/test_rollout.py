@@ -15,7 +15,7 @@ import sympy as sp
 
 from droneid.errors import ConfigError, DataError
 from droneid.flight import Flight, Signal
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 from droneid.report.rollout import horizon_figures
 from droneid.rollout import CONSTANT_VELOCITY, horizon_section, rollout_errors
 

@@ -4,9 +4,9 @@ import pytest
 
 from droneid.errors import ConfigError
 from droneid.frames import euler_to_matrix
-from droneid.identified import IdentifiedModel
+from droneid.closed_form import IdentifiedModel
 from priors.constraints import rotor_thrust as rotor_constraints
-from priors.models import choose_prior, get_prior
+from priors.registry import choose_prior, get_prior
 
 
 def _columns(n=200, seed=0):

@@ -59,6 +59,6 @@ def test_a_target_the_prior_does_not_model_is_refused_before_any_work(tmp_path):
 
 
 def test_prior_specs_are_told_from_expressions():
-    from priors.models import is_prior_spec
+    from priors.registry import is_prior_spec
     assert is_prior_spec("tilt-drag") and is_prior_spec("my.toml:quad")
     assert not is_prior_spec("vx*pitch") and not is_prior_spec("a:b") and not is_prior_spec(3)

@@ -173,7 +173,7 @@ def _readme(rows, out_dir) -> str:
         "Simulated quadrotor flights written by droneid's own writers (`droneid/simulate.py`,",
         "`parsers/*_writer.py`). Generated, do not edit: `make sample-logs` (or",
         "`droneid sample-logs --out sample_logs`) rewrites every file here byte for byte; the",
-        "definitions are in `droneid/samples.py`. Each flight is written as",
+        "definitions are in `droneid/sample_logs.py`. Each flight is written as",
         "",
         "* `NAME.tlog`: MAVLink 2 telemetry log (ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED,",
         "  HIGHRES_IMU, SERVO_OUTPUT_RAW (motor commands), ESC_TELEMETRY_1_TO_4 (motor speeds),",

@@ -70,7 +70,7 @@ from .vehicle_evidence import (EVIDENCE_STEP_S, HOVER_ACCEL_MS2, HOVER_SPEED_MS,
 
 #: the prior registry (sympy) and the log readers, loaded when a verdict names a prior or a hint
 #: names a reader's option
-_registry = lazy_module("priors.models")
+_registry = lazy_module("priors.registry")
 _parsers = lazy_module("parsers")
 
 __all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
@@ -498,7 +498,7 @@ INSPECTED_PRIORS = ("tilt-drag", "rotor-thrust")
 
 def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIORS) -> dict:
     """{prior name: :meth:`Fitness.to_dict` plus ``applies`` and ``prior_reason``} for each of
-    ``priors``, resolved and judged exactly as identify does (:func:`priors.models.prior_for` on
+    ``priors``, resolved and judged exactly as identify does (:func:`priors.registry.prior_for` on
     the :func:`usable_signals`, then :func:`prior_fitness` of every target the prior models), and
     ``"auto"``: the prior ``--prior auto`` would choose and why. A prior whose signals exist only
     too slowly is judged on them (the rate refusal says so) rather than called inapplicable."""
