@@ -29,7 +29,7 @@ from .ladder import fitted_thrust, physical_rungs
 from .plan import Plan, dataset_builder, fixed_plan, holdout_cuts, train_rows
 from .search import run_seeds
 from .targets import HORIZONTAL, velocity_of
-from .terms import split_terms
+from .terms import evaluate_expr, split_terms
 from .validation import validation_blocks
 
 __all__ = ["TargetProblem", "prepare_target", "constraint_sets", "empirical_prior", "empirical_model",
@@ -141,6 +141,8 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
         train, test = ds, ds.subset(np.zeros(len(ds), bool))
         desc = ("no test flights given: all training data are used; the errors out of sample are the "
                 "validation column (give --test LOG for a transfer check, or --holdout 0.3)")
+    dropped: list[str] = []
+    train, test = (_finite_rows(d, base + effect_feats, what, dropped) for d, what in ((train, "training"), (test, "test")))
     for name, d in (("training", train), ("test", test)):
         if len(d) < 10 and (name == "training" or test_flights or holdout):
             raise DataError(f"the {name} data for {target} have only {len(d)} samples (need >= 10)")
@@ -154,6 +156,7 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                                   seed=test_seed)
     p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test,
                       plan=plan, n_base=len(base))
+    p.notes.extend(dropped)
     if eval_set is None and cfg.constraints != "none":
         p.notes.append(f"prior '{prior.name}' defines no constraints for {target}: the runs are "
                        f"unconstrained and e_c is not measured (give --constraints FILE.toml)")
@@ -195,6 +198,24 @@ def _ladder(p: TargetProblem, cfg, undelayed: tuple | None) -> None:
     p.series = {"t": p.test.t, "flight": p.test.flight, "y": p.test.y, "empirical": e0.pred_test,
                 "empirical_refit": r1.pred_test if len(r1.pred_test) == len(p.test) else
                 p.ladder[-1].pred_test}
+
+
+def _finite_rows(ds: Dataset, features, what: str, notes: list) -> Dataset:
+    """``ds`` without the rows where a prior or effect feature is not finite (e.g. a thrust share
+    with every motor stopped for a sample), counted in ``notes``: no fit or SNGP run may see them."""
+    if not len(ds):
+        return ds
+    cols, ok, bad = ds.columns(), np.ones(len(ds), bool), []
+    for f in features:
+        fin = np.isfinite(evaluate_expr(f.expr, cols, len(ds)))
+        if not fin.all():
+            bad.append(f"{f.name} on {int((~fin).sum())}")
+            ok &= fin
+    if ok.all():
+        return ds
+    notes.append(f"{int((~ok).sum())} {what} row(s) left out: a prior or effect feature is not finite "
+                 f"there ({', '.join(bad)}; e.g. a share of thrust with every motor stopped)")
+    return ds.subset(ok)
 
 
 def _same_rows(ds: Dataset, like: Dataset) -> Dataset:

@@ -166,3 +166,22 @@ def test_physical_terms_that_offset_each_other_do_not_cost_a_real_evolved_term()
     m = TermModel((U ** 2, U, V, sp.Abs(V) * V), ("u²", "u", "vx", "quadratic drag"))
     trimmed, notes = trim_terms(m, cols, y, blocks, keep_first=3)
     assert "quadratic drag" in trimmed.labels, notes
+
+
+def test_rows_where_a_feature_is_not_finite_are_left_out_and_counted():
+    """A folded feature such as a motor's share of thrust is 0/0 where every motor stops for a
+    sample; no fit or SNGP run may see such a row (it would fail every run), and the notes say so."""
+    from droneid.data import Dataset
+    from droneid.problem import _finite_rows
+    from priors.base import PriorFeature
+    n = 50
+    u = np.linspace(1.0, 2.0, n)
+    u[[7, 31]] = 0.0
+    X = np.column_stack([u, u])
+    ds = Dataset(X, np.ones(n), np.arange(n) * 0.05, ("rpm1", "rpm2"), "vz_dot", np.zeros(n, int))
+    share = PriorFeature("share", symbol("rpm1") / (symbol("rpm1") + symbol("rpm2")), "", "other")
+    notes = []
+    kept = _finite_rows(ds, (share,), "training", notes)
+    assert len(kept) == n - 2 and np.all(kept.column("rpm1") > 0)
+    assert notes and notes[0].startswith("2 training row(s) left out") and "share on 2" in notes[0]
+    assert _finite_rows(kept, (share,), "training", []) is kept     # nothing to drop: the same rows
