@@ -69,6 +69,12 @@ class ConstraintSamples:
         except KeyError:
             raise DataError(f"unknown constraint relation {relation!r}; use eq, le or ge") from None
 
+    def where(self, mask) -> "ConstraintSamples":
+        """The samples where ``mask`` (a boolean array over the samples) is true."""
+        mask = np.asarray(mask, bool)
+        return ConstraintSamples(self.X[mask], self.kind[mask], self.bound[mask], self.group[mask],
+                                 self.input_names, self.names)
+
     def reorder(self, input_names: Sequence[str]) -> "ConstraintSamples":
         """The same samples with columns in the order of ``input_names`` (all must be present)."""
         idx = [self.input_names.index(n) for n in input_names]

@@ -33,8 +33,8 @@ from .report.wording import display_term
 from .search import run_seeds
 from .sngp.model import SymbolicModel
 from .targets import velocity_of
-from .terms import (TermModel, drag_slope, drop_negligible, evaluate_expr, physical_fit, plausible,
-                    prior_terms, trim_terms)
+from .terms import (TermModel, defined_samples, drag_slope, drop_negligible, evaluate_expr, physical_fit,
+                    plausible, prior_terms, trim_terms)
 from .validation import time_blocks, validation_blocks
 
 if TYPE_CHECKING:
@@ -293,8 +293,8 @@ def final_rung(p: TargetProblem, cfg, done: Sequence[RunRecord]) -> tuple[Rung, 
     cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
     cs_sel, ec_limit = None, math.inf
     if cset is not None:  # a training draw of constraint samples (not the e_c^test draw)
-        cs_sel = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
-                             seed=run_seeds(cfg.seed + 1, 0)[0])
+        cs_sel, _ = defined_samples(cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
+                                                seed=run_seeds(cfg.seed + 1, 0)[0]), p.priors3)
         ec_phys = _ec(phys_tm.predict(_cs_columns(cs_sel), len(cs_sel)), cs_sel)
         ec_limit = max(cfg.gamma, 1.1 * ec_phys)
         g["constraint_limit"] = ec_limit

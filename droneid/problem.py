@@ -29,7 +29,7 @@ from .ladder import fitted_thrust, physical_rungs
 from .plan import Plan, dataset_builder, fixed_plan, holdout_cuts, train_rows
 from .search import run_seeds
 from .targets import HORIZONTAL, velocity_of
-from .terms import evaluate_expr, split_terms
+from .terms import defined_rows, defined_samples, split_terms
 from .validation import validation_blocks
 
 __all__ = ["TargetProblem", "prepare_target", "constraint_sets", "empirical_prior", "empirical_model",
@@ -152,8 +152,12 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
     test_seed, _ = run_seeds(cfg.seed, 0)
     cs_test = None
     if eval_set is not None:
-        cs_test = eval_set.sample(list(train.input_names), n_per_constraint=cfg.n_constraint_samples,
-                                  seed=test_seed)
+        cs_test, n_undefined = defined_samples(
+            eval_set.sample(list(train.input_names), n_per_constraint=cfg.n_constraint_samples, seed=test_seed),
+            priors3)
+        if n_undefined:
+            dropped.append(f"{n_undefined} constraint sample(s) left out: a prior or effect feature is not "
+                           f"finite there (e.g. a share of thrust at zero rotor speed)")
     p = TargetProblem(target, train, test, desc, holdout, priors3, prior1, train_set, eval_set, cs_test,
                       plan=plan, n_base=len(base))
     p.notes.extend(dropped)
@@ -205,12 +209,7 @@ def _finite_rows(ds: Dataset, features, what: str, notes: list) -> Dataset:
     with every motor stopped for a sample), counted in ``notes``: no fit or SNGP run may see them."""
     if not len(ds):
         return ds
-    cols, ok, bad = ds.columns(), np.ones(len(ds), bool), []
-    for f in features:
-        fin = np.isfinite(evaluate_expr(f.expr, cols, len(ds)))
-        if not fin.all():
-            bad.append(f"{f.name} on {int((~fin).sum())}")
-            ok &= fin
+    ok, bad = defined_rows(features, ds.columns(), len(ds))
     if ok.all():
         return ds
     notes.append(f"{int((~ok).sum())} {what} row(s) left out: a prior or effect feature is not finite "

@@ -21,6 +21,7 @@ import numpy as np
 
 from .errors import DataError
 from .expressions import round_expr, to_text
+from .terms import defined_samples
 from .io_util import to_jsonable
 from .numerics import rmse, to_float
 from .sngp import SNGPRegressor
@@ -82,8 +83,9 @@ def make_jobs(p: TargetProblem, cfg, *, prior_features: int | None = None,
     for i, (engine_seed, cs_seed) in enumerate(seeds):
         cs_train = None
         if constrained:
-            cs_train = cset.sample(list(p.train.input_names), n_per_constraint=cfg.n_constraint_samples,
-                                   seed=cs_seed)
+            cs_train, _ = defined_samples(cset.sample(list(p.train.input_names),
+                                                      n_per_constraint=cfg.n_constraint_samples, seed=cs_seed),
+                                          p.priors3)   # the problem's notes count them
         jobs.append(RunJob(p.target, variant, i, engine_seed, cfg.engine_params(), p.train.X[rows], p.train.y[rows],
                            p.test.X, p.test.y, tuple(p.train.input_names),
                            tuple(f.expr for f in feats), tuple(f.name for f in feats), cs_train, p.cs_test))

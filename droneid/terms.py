@@ -27,7 +27,7 @@ from .expressions import compile_expression
 from .numerics import rmse
 from .regression import block_bootstrap, blocked_cv, robust_fit
 
-__all__ = ["TermModel", "split_terms", "prior_terms", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
+__all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
            "nested_functions", "evaluate_expr", "drop_negligible", "trim_terms", "plausible"]
 
 
@@ -143,6 +143,27 @@ IDENTIFIABLE_REL = 0.5
 #: a physical term whose column has a variance inflation factor above this is collinear with
 #: the others (the data cannot separate them): it is held at its nominal value
 VIF_LIMIT = 100.0
+
+
+def defined_rows(features, columns: Mapping[str, np.ndarray], n: int) -> tuple[np.ndarray, list[str]]:
+    """(mask of the rows where every feature is finite, ["name on k", ...] for the features that
+    are not finite somewhere): a share of thrust, say, is 0/0 where every motor stops."""
+    ok, bad = np.ones(n, bool), []
+    for f in features:
+        fin = np.isfinite(evaluate_expr(f.expr, columns, n))
+        if not fin.all():
+            bad.append(f"{f.name} on {int((~fin).sum())}")
+            ok &= fin
+    return ok, bad
+
+
+def defined_samples(cs, features):
+    """(constraint samples without those where a feature is not finite, how many were left out):
+    a constraint at zero thrust says nothing about a feature that is undefined there."""
+    if cs is None or not len(cs):
+        return cs, 0
+    ok, _ = defined_rows(features, {n: cs.X[:, i] for i, n in enumerate(cs.input_names)}, len(cs))
+    return (cs if ok.all() else cs.where(ok)), int((~ok).sum())
 
 
 def split_terms(prior, target: str) -> tuple:

@@ -185,3 +185,19 @@ def test_rows_where_a_feature_is_not_finite_are_left_out_and_counted():
     assert len(kept) == n - 2 and np.all(kept.column("rpm1") > 0)
     assert notes and notes[0].startswith("2 training row(s) left out") and "share on 2" in notes[0]
     assert _finite_rows(kept, (share,), "training", []) is kept     # nothing to drop: the same rows
+
+
+def test_constraint_samples_where_a_feature_is_undefined_are_left_out():
+    """The rotor-thrust constraint "no thrust at rest" samples every rotor speed at 0, where a
+    motor's share of thrust is 0/0; those samples are left out instead of failing every run."""
+    from droneid.constraint_samples import ConstraintSamples
+    from droneid.terms import defined_samples
+    from priors.base import PriorFeature
+    X = np.array([[0.0, 0.0], [1.0, 2.0], [0.0, 0.0], [3.0, 1.0]])
+    cs = ConstraintSamples(X, np.zeros(4), np.array([-9.81, 0.0, -9.81, 0.0]), np.array([0, 1, 0, 1]),
+                           ("rpm1", "rpm2"), ("free fall", "level"))
+    share = PriorFeature("share", symbol("rpm1") / (symbol("rpm1") + symbol("rpm2")), "", "other")
+    kept, n = defined_samples(cs, (share,))
+    assert n == 2 and len(kept) == 2 and kept.X.tolist() == [[1.0, 2.0], [3.0, 1.0]]
+    assert kept.names == cs.names and kept.bound.tolist() == [0.0, 0.0]
+    assert defined_samples(kept, (share,)) == (kept, 0)
