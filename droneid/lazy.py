@@ -1,36 +1,45 @@
 """Modules loaded on first use, declared at the top of the module that uses them.
 
-``identify = lazy_module("droneid.identify")`` binds a module object whose code runs the first
-time an attribute is read (:class:`importlib.util.LazyLoader`, the mechanism of the scientific
-Python ecosystem's SPEC 1 lazy loading). A command's module lists what it needs at its top, like
-any import, yet ``droneid CMD --help`` does not pay for the engine, numba or sympy it only needs
-to run. Its parent packages are imported at once, so name a module of a light package
-(``droneid``, ``droneid.report``, ``priors``, ``parsers``): ``lazy_module("droneid.sngp")`` and
-then ``.precompile``, not ``lazy_module("droneid.sngp.precompile")``.
+``identify = lazy_module("droneid.identify")`` binds a stand-in whose first attribute read
+imports the module (``importlib.import_module``, under the import system's own per-module lock,
+so threads that reach it together get the same, fully executed module). A command's module
+lists what it needs at its top, like any import, yet ``droneid CMD --help`` does not pay for the
+engine, numba or sympy it only needs to run. Nothing is imported, not even parent packages,
+until then. (``importlib.util.LazyLoader`` does the same on Python 3.12+, but on 3.11 a second
+thread can see a half-executed module.)
 """
 from __future__ import annotations
 
-import importlib.util
-import sys
+import importlib
 from types import ModuleType
 
-__all__ = ["lazy_module"]
+__all__ = ["lazy_module", "LazyModule"]
 
 
-def lazy_module(name: str) -> ModuleType:
-    """The module ``name`` (absolute), executed on first attribute access; the module itself
-    when it is already imported."""
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.find_spec(name)
-    if spec is None or spec.loader is None:
-        raise ModuleNotFoundError(f"No module named {name!r}", name=name)
-    loader = importlib.util.LazyLoader(spec.loader)
-    spec.loader = loader
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    loader.exec_module(module)
-    parent, _, child = name.rpartition(".")
-    if parent:
-        setattr(sys.modules[parent], child, module)
-    return module
+class LazyModule:
+    """A module by name, imported at the first attribute read; ``loaded`` says whether it was."""
+
+    __slots__ = ("_name", "_module")
+
+    def __init__(self, name: str):
+        self._name = name
+        self._module: ModuleType | None = None
+
+    @property
+    def loaded(self) -> bool:
+        return self._module is not None
+
+    def __getattr__(self, attr: str):
+        module = self._module
+        if module is None:
+            module = importlib.import_module(self._name)
+            self._module = module
+        return getattr(module, attr)
+
+    def __repr__(self) -> str:
+        return f"<lazy module {self._name!r}{'' if self.loaded else ' (not loaded)'}>"
+
+
+def lazy_module(name: str) -> LazyModule:
+    """The module ``name`` (absolute), imported on first attribute access."""
+    return LazyModule(name)

@@ -23,10 +23,12 @@ its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages wi
 """
 from __future__ import annotations
 
+import gc
 import logging
 import math
 import os
 import re
+import warnings
 from operator import attrgetter
 
 import numpy as np
@@ -93,10 +95,16 @@ _REQUIRED = {
 
 def _open(path):
     from pymavlink import DFReader  # wrapped here: pymavlink reads globals at import
-    try:
-        return DFReader.DFReader_binary(path, zero_time_base=True)
-    except Exception as exc:  # pymavlink raises bare exceptions on broken headers
-        raise LogFormatError(path, f"not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
+    # a reader that fails half-built leaves its file open; it is closed here, when the reader is
+    # collected, instead of a ResourceWarning reaching the user later from the garbage collector
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResourceWarning)
+        try:
+            return DFReader.DFReader_binary(path, zero_time_base=True)
+        except Exception as exc:  # pymavlink raises bare exceptions on broken headers
+            why = f"{type(exc).__name__}: {exc}"
+        gc.collect()
+    raise LogFormatError(path, f"not a readable DataFlash log ({why})")
 
 
 class _TypeRows:
