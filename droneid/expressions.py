@@ -7,6 +7,7 @@ functions are accepted. Nothing is ever passed to ``eval``/``sympify`` of a stri
 from __future__ import annotations
 
 import ast
+import functools
 import math
 import re
 import string
@@ -231,6 +232,13 @@ def compile_expression(expr: sp.Expr, names: Iterable[str]):
     if not isinstance(expr, sp.Basic):
         raise ConfigError(f"compile_expression needs a sympy expression, got {type(expr).__name__} "
                           "(parse text with parse_expression first)")
+    return _compiled(expr, tuple(names))
+
+
+@functools.lru_cache(maxsize=4096)
+def _compiled(expr: sp.Expr, names: tuple[str, ...]):
+    """:func:`compile_expression` once per (expression, names): the ladder and the guards
+    evaluate the same terms hundreds of times, and sympy's code generation costs ~2 ms each."""
     names = list(names)
     syms = [symbol(n) for n in names]
     try:
