@@ -40,26 +40,37 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class TargetProblem:
-    """Everything the runs of one target share (lives in memory only)."""
+    """Everything the runs of one target share (lives in memory only; built by :func:`prepare_target`).
+
+    train, test : the datasets (test: empty without test flights or a held-out block)
+    priors3 : the prior's terms and the folded effects' features (``priors3[:n_base]`` the prior's)
+    prior1 : the prior as one feature; constraint_set : the set the constrained runs train on;
+    eval_constraint_set : the one e_c is measured against (the prior's own when runs are
+    unconstrained); cs_test : its samples for e_c^test, common to every run
+    empirical, empirical_refit, series : errors and test predictions of the first two rungs
+    plan : the :class:`~droneid.plan.Plan` it was built from; ladder : its physical
+    :class:`~droneid.ladder.Rung` s (empirical, refit, offset, effects); blocks, validation : the
+    training rows' validation blocks and how they were made; notes : sentences for the result
+    """
     target: str
     train: Dataset
     test: Dataset
     test_description: str
     holdout: bool
-    priors3: tuple          # PriorFeature x3 (the empirical model's terms)
-    prior1: tuple           # PriorFeature x1 (the empirical model as given)
-    constraint_set: object | None   # the ConstraintSet the constrained runs train on (or None)
-    eval_constraint_set: object | None  # the one e_c is measured against (paper's when 'none')
-    cs_test: object | None  # ConstraintSamples for e_c^test, common to every run
+    priors3: tuple
+    prior1: tuple
+    constraint_set: object | None
+    eval_constraint_set: object | None
+    cs_test: object | None
     empirical: dict = field(default_factory=dict)
     empirical_refit: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
-    plan: object | None = None      # the Plan (prior, delays, effects) the problem was built from
-    n_base: int = 0                 # priors3[:n_base] are the prior's terms, the rest effects
-    ladder: list = field(default_factory=list)   # rungs before SNGP (see ladder_rungs)
-    blocks: np.ndarray | None = None             # CV blocks of the training rows
-    validation: str = ""                         # how the blocks were made
+    plan: Plan | None = None
+    n_base: int = 0
+    ladder: list = field(default_factory=list)
+    blocks: np.ndarray | None = None
+    validation: str = ""
 
 
 def constraint_sets(cfg, target: str, prior=None, train: Dataset | None = None):
