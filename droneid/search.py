@@ -19,12 +19,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import DataError
+from .errors import ConfigError, DataError
 from .expressions import round_expr, to_text
 from .terms import defined_samples
 from .io_util import to_jsonable
 from .numerics import rmse, to_float
 from .sngp import SNGPRegressor
+from .sngp.population import min_population
 from .sngp.precompile import kernels_ready, warmup
 from .sngp.selection import best_index
 
@@ -73,6 +74,11 @@ def make_jobs(p: TargetProblem, cfg, *, prior_features: int | None = None,
     nprior = cfg.prior_features if prior_features is None else prior_features
     constrained = cfg.constrained if constrained is None else constrained
     feats = {0: (), 1: p.prior1, 3: p.priors3}[nprior]
+    need = min_population(len(p.train.input_names), len(feats), cfg.n_features - len(feats))
+    if cfg.population_size < need:   # said before any run starts, not by every worker
+        raise ConfigError(f"The 'population_size' parameter must be at least {need} for {p.target} "
+                          f"({len(p.train.input_names)} inputs, {len(feats)} prior features, {cfg.n_features} "
+                          f"features in all). Got {cfg.population_size} instead.")
     cset = p.constraint_set if p.constraint_set is not None else p.eval_constraint_set
     constrained = constrained and cset is not None  # a prior without constraints: said in the notes
     _, seeds = run_seeds(cfg.seed, cfg.runs)

@@ -66,6 +66,12 @@ class Population:
         return self.V[self.buf[n], n]
 
 
+def min_population(n_inputs: int, n_priors: int, n_identity: int) -> int:
+    """The smallest population that holds the constants, one terminal per input and prior, the
+    identity (feature) nodes and the two tail nodes a feature needs below it."""
+    return len(CONSTANTS) + n_inputs + n_priors + n_identity + 2
+
+
 def build_population(functions: tuple[str, ...], population_size: int, n_inputs: int,
                      n_priors: int, n_identity: int, max_depth: int, nt: int, n_columns: int,
                      constrained: bool, rng: np.random.Generator,
@@ -76,7 +82,9 @@ def build_population(functions: tuple[str, ...], population_size: int, n_inputs:
     n_head = int(round(head_fraction * slots))
     n_tail = slots - n_head
     if n_tail < 2:
-        raise ValueError("population too small for the inputs, priors and features")
+        raise ValueError(f"population too small for the inputs, priors and features: at least "
+                         f"{min_population(n_inputs, n_priors, n_identity)} for {n_inputs} inputs, "
+                         f"{n_priors} priors and {n_identity} evolved features")
     head_end = n_const + n_head
     tail0 = head_end + n_inputs + n_priors
     id0 = tail0 + n_tail

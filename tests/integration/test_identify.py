@@ -189,6 +189,9 @@ def test_study_table_shape_and_p_values(logs, tmp_path, capsys):
     (["identify", "{train}", "--target", "vx_dott"], "did you mean 'vx_dot'"),
     (["identify", "{train}", "--constraints", "nofile.toml"], "constraints"),
     (["predict", "/nonexistent.json", "{train}"], "nonexistent.json"),
+    # a population too small for the problem: said once, before any run (no worker's traceback)
+    (["identify", "{train}", "--quick", "--runs", "1", "--population", "20", "--quiet"],
+     "'population_size' parameter must be at least"),
 ])
 def test_bad_input_is_one_line_exit_2(logs, capsys, argv, message):
     argv = [a.replace("{train}", str(logs[0])) for a in argv]
