@@ -280,7 +280,7 @@ def breakdown(table: Path) -> None:
                        text=True, check=True, env=_ENV)
     whole = time.perf_counter() - t0
     rows, inside = ast.literal_eval(r.stdout.strip().splitlines()[-1])
-    print(f"\n## Where one `droneid fit` process (160 samples) spends its time (wall s, one run)")
+    print("\n## Where one `droneid fit` process (160 samples) spends its time (wall s, one run)")
     for label, s in rows:
         print(f"{s:7.3f}  {label}")
     print(f"{whole - inside:7.3f}  interpreter start and teardown (this run keeps the teardown that "

@@ -36,13 +36,14 @@ from . import __version__, runner
 from .dataset_builder import reuse_datasets
 from .errors import ConfigError, DataError
 from .export import export_models, input_sources
+from .flight import Flight
 from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
 from .io_util import to_jsonable
 from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung
 from .predict import models_from_document, predict_flights
 from .plan import holdout_cuts, plan_identification, resolve_plan_prior
-from .problem import TargetProblem, empirical_model, feature_dicts, prepare_target
+from .problem import TargetProblem, empirical_model, prepare_target
 from .report.wording import readable_equation, split_leading_number, verdict
 from .rollout import horizon_section
 from .search import RunRecord, compile_once, make_jobs, run_job, select_best
@@ -71,7 +72,13 @@ class FeatureText:
 
     @classmethod
     def of(cls, d: Mapping) -> "FeatureText":
+        """From result.json's ``{"name", "expr", "description"}``."""
         return cls(str(d["name"]), str(d["expr"]), str(d.get("description") or ""))
+
+    @classmethod
+    def of_feature(cls, f) -> "FeatureText":
+        """From a :class:`priors.base.PriorFeature`."""
+        return cls(f.name, str(f.expr), f.description)
 
 
 @dataclass(frozen=True)
@@ -237,8 +244,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         target=p.target, inputs=tuple(p.train.input_names), n_train=len(p.train), n_test=len(p.test),
         test_data=p.test_description, holdout=p.holdout,
         constraints=(getattr(cset, "name", "") or "custom") if cset is not None and cfg.constrained else "none",
-        prior_features=tuple(FeatureText.of(f) for f in feature_dicts(feats)),
-        empirical_terms=tuple(FeatureText.of(f) for f in feature_dicts(p.priors3)),
+        prior_features=tuple(map(FeatureText.of_feature, feats)),
+        empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
         ladder=ladder, guards=guards, verdict=str(vd), verdict_kind=vd.kind,
         equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
         readable_equation(p.target, {}, {}, final.intercept),
@@ -294,7 +301,7 @@ class IdentificationResult:
         """The final models on other flights (a Flight or a sequence), as ``droneid predict``
         scores them: a :class:`droneid.predict.PredictionResult` (``options``: ``horizons``,
         ``open_loop``, ``ts``, ``method`` of :func:`droneid.predict.predict_flights`)."""
-        flights = [flights] if hasattr(flights, "signals") else list(flights)
+        flights = [flights] if isinstance(flights, Flight) else list(flights)
         return predict_flights(models_from_document(self.to_dict(), where="this result"), flights, **options)
 
     def export(self, lang: str = "python", name: str = "droneid_model") -> str:

@@ -33,7 +33,7 @@ from .terms import defined_rows, defined_samples, split_terms
 from .validation import validation_blocks
 
 __all__ = ["TargetProblem", "prepare_target", "constraint_sets", "empirical_prior", "empirical_model",
-           "range_notes", "feature_dicts"]
+           "range_notes"]
 
 log = logging.getLogger(__name__)
 
@@ -275,7 +275,3 @@ def range_notes(train: Dataset, test: Dataset, margin: float = 0.05) -> list[str
     return ["the test data leave the training range, where evolved terms extrapolate (test errors "
             "of single runs can grow without bound there): " + "; ".join(out)]
 
-
-def feature_dicts(feats) -> list:
-    return [{"name": f.name, "expr": str(f.expr), "description": getattr(f, "description", "")}
-            for f in feats]

@@ -2,7 +2,6 @@
 its ratio; healthy motors are not; the decision is the one rule of droneid.decide."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from droneid.diagnose import DiagnoseConfig, diagnose
