@@ -100,13 +100,26 @@ def test_a_new_flights_balance_point_is_found_from_its_own_motor_speeds(drag_fli
 
 @pytest.mark.slow   # shares a ~10 s simulated-flight fixture
 def test_selection_keeps_the_planted_structure(drag_flights):
+    """Three training flights: winning on all three held-out flights has probability 1/8 under
+    exchangeable rungs, so the test is run at that level; every axis climbs to the planted torque
+    model, which beats the rung below on every flight in every regime."""
     cands = [{"terms": ("damping",), "balance_weight_s": 1.0},
              {"terms": DRAG_TERMS, "balance_weight_s": 1.0}]
-    choice = select_rotation(drag_flights, candidates=cands, translation_delay_steps=0, stride=10)
-    assert choice.chosen == 1 and choice.beats_held
+    choice = select_rotation(drag_flights, candidates=cands, translation_delay_steps=0, stride=10, alpha=0.125)
+    assert choice.axis_choice == ("torque", "torque", "torque") and choice.beats_held
     assert choice.table[1]["rates_simerr"] < choice.table[0]["rates_simerr"] < choice.held["rates_simerr"]
+    row = choice.table[choice.chosen]
+    assert row["method"] == "per-axis" and row["torque_candidate"] == 1
     # per body axis (each rotational target's verdict against the rates held)
-    assert all(m < h for m, h in zip(choice.table[1]["rates_axis_simerr"], choice.held["rates_axis_simerr"]))
+    assert all(m < h for m, h in zip(row["rates_axis_simerr"], choice.held["rates_axis_simerr"]))
+    for k in range(3):   # the refitted model is the planted one on every axis
+        got = dict(zip(choice.model.columns(k), choice.model.coef[k]))
+        assert got["pattern"] == pytest.approx(DRAG_COEF[k][0], rel=0.05), k
+    assert [step["flights"] for step in choice.ladder] == [[f.name for f in drag_flights]] * 3
+    # at the default level (0.05) three flights cannot establish any rung: every rate is held
+    strict = select_rotation(drag_flights, candidates=cands[1:], translation_delay_steps=0, stride=10)
+    assert strict.model is None and strict.axis_choice == ("held", "held", "held")
+    assert strict.ladder[0]["level"] == 0.125 and not strict.ladder[0]["steps"][-1]["taken"]
 
 
 def test_selection_holds_the_rates_when_no_model_beats_holding_them():

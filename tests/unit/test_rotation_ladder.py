@@ -1,0 +1,101 @@
+"""The per-axis ladder of droneid.rotation_choice (issue 28): the rate decay fitted by its worst
+regime, the decision rule (a rung is taken only if it beats the rung below on every held-out
+flight in every regime, at the sign test's level), and the per-axis model it builds."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from droneid.errors import DataError
+from droneid.openloop import StateLog
+from droneid.rotation import RotationModel
+from droneid.rotation_choice import _climb, fit_damping, per_axis_model
+from priors.torque import get_layout
+
+DT = 0.01
+LAYOUT = get_layout("crazyflie_x")
+
+
+def _decaying_flight(seed, c, n=3000, name="decay"):
+    """Body rates kicked to random values at random times and decaying as ``ω̇ = −c ω`` between
+    kicks (per axis its own ``c``); the vehicle airborne, motors turning."""
+    rng = np.random.default_rng(seed)
+    w = np.zeros((n, 3))
+    kicks = set(rng.choice(n, size=n // 150, replace=False).tolist()) | {0}
+    for i in range(n):
+        if i in kicks:
+            w[i] = rng.normal(0.0, rng.choice([0.05, 0.5, 2.0]), 3)
+        else:
+            w[i] = w[i - 1] * np.exp(-np.asarray(c) * DT)
+    state = np.zeros((n, 13))
+    state[:, 2] = 1.0
+    state[:, 6] = 1.0
+    state[:, 10:13] = w
+    return StateLog(name, DT * np.arange(n), state, np.full((n, 4), 90000.0), DT)
+
+
+def test_fit_damping_recovers_a_planted_decay_per_axis():
+    logs = [_decaying_flight(1, [4.0, 8.0, 1.0], name="a"), _decaying_flight(2, [4.0, 8.0, 1.0], name="b")]
+    np.testing.assert_array_equal(fit_damping(logs), [4.0, 8.0, 1.0])
+    np.testing.assert_array_equal(fit_damping(logs, regimes=1), [4.0, 8.0, 1.0])
+    with pytest.raises(DataError, match="longer than"):
+        fit_damping([StateLog("short", DT * np.arange(30), np.zeros((30, 13)), np.ones((30, 4)), DT)])
+
+
+def _folds(new_by_regime, n_flights=5, n=400, seed=0):
+    """Hand-built validation errors of one axis: held errors spread over four decades (calm to
+    manoeuvre), and a rung whose error is the held one times ``new_by_regime[q]`` in regime ``q``."""
+    rng = np.random.default_rng(seed)
+    folds = []
+    for j in range(n_flights):
+        held = np.exp(rng.uniform(np.log(0.1), np.log(100.0), n))
+        q = np.digitize(held, np.quantile(held, [0.25, 0.5, 0.75]))
+        new = held * np.asarray(new_by_regime)[q]
+        axis = lambda e: {"axis": np.column_stack([e, e, e])}   # noqa: E731 - same on every axis
+        folds.append({"name": f"f{j}", "errs": {"held": axis(held), "damping": axis(new), "torque": axis(held * 2.0)}})
+    return folds
+
+
+def test_a_rung_that_wins_pooled_but_loses_in_calm_flight_is_not_taken():
+    # 3x worse in the calmest quarter, 5x better in the hardest: far better pooled
+    folds = _folds([3.0, 0.9, 0.8, 0.2])
+    pooled = sum(f["errs"]["damping"]["axis"][:, 0].sum() for f in folds) / sum(f["errs"]["held"]["axis"][:, 0].sum() for f in folds)
+    assert pooled < 0.5
+    rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
+    assert rung == "held"
+    assert steps[0]["wins"][0] == [False, True, True, True] and not steps[0]["taken"]
+
+
+def test_a_rung_that_wins_everywhere_is_taken_only_at_a_level_the_flights_can_reach():
+    folds = _folds([0.9, 0.9, 0.8, 0.5])
+    rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
+    assert rung == "damping" and steps[0]["taken"]
+    assert steps[1]["against"] == "damping" and not steps[1]["taken"]   # the torque rung is 2x worse
+    four = folds[:4]   # 1/16 > 0.05: four flights cannot establish it
+    assert _climb(four, 0, 4, 0.5 ** 4, 0.05)[0] == "held"
+    assert _climb(four, 0, 4, 0.5 ** 4, 0.1)[0] == "damping"
+
+
+def test_per_axis_model_holds_damps_or_keeps_the_torque_per_axis():
+    torque = RotationModel(LAYOUT, ("centre", "rotor_drag"), (np.array([6.0, 0.1, 2.0]), np.array([5.0, 0.0, 1.5]),
+                           np.array([1.5, 0.2])), np.array([0.3, -0.2, 0.1]), balance_weight_s=1.0,
+                           balance_prior=np.full(4, 2.0), flight_trims=np.array([[0.2, -0.1, 0.1], [0.4, -0.3, 0.1]]))
+    m = per_axis_model(("torque", "damping", "held"), [4.0, 8.0, 1.0], torque, LAYOUT, 1.0)
+    assert m.terms == ("centre", "rotor_drag", "damping")
+    assert dict(zip(m.columns(0), m.coef[0])) == {"pattern": 6.0, "centre": 0.1, "damping": 0.0, "rotor_drag": 2.0}
+    assert dict(zip(m.columns(1), m.coef[1])) == {"pattern": 0.0, "centre": 0.0, "damping": 8.0, "rotor_drag": 0.0}
+    assert not np.any(m.coef[2])
+    np.testing.assert_array_equal(m.trim, [0.3, 0.0, 0.0])
+    np.testing.assert_array_equal(m.flight_trims, [[0.2, 0.0, 0.0], [0.4, 0.0, 0.0]])
+    x = np.array([[0, 0, 1.0, 0.5, -0.3, 0, 1, 0, 0, 0, 0.3, -0.2, 0.1]])
+    rng = np.random.default_rng(1)
+    log = StateLog("x", DT * np.arange(20), np.zeros((20, 13)), 95000.0 + 500 * rng.standard_normal((20, 4)), DT)
+    u = m.inputs(log)[5:6]
+    got = m.ang_accel(x, u)[0]
+    assert got[0] == pytest.approx(torque.ang_accel(x, torque.inputs(log)[5:6])[0, 0])
+    assert got[1] == pytest.approx(-8.0 * -0.2) and got[2] == 0.0
+    damped = per_axis_model(("damping", "held", "damping"), [4.0, 8.0, 1.0], None, LAYOUT, 1.0)
+    np.testing.assert_allclose(damped.ang_accel(x, damped.inputs(log)[5:6])[0], [-1.2, 0.0, -0.1])
+    assert per_axis_model(("held",) * 3, [4.0, 8.0, 1.0], torque, LAYOUT, 1.0) is None
+    with pytest.raises(DataError, match="no torque model"):
+        per_axis_model(("torque", "held", "held"), [1.0] * 3, None, LAYOUT, 1.0)
