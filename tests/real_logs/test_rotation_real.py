@@ -1,41 +1,79 @@
-"""The rotational model on the shared Crazyflie squares (issue 28): chosen by blocked validation
-on the training flights only (the melon runs are test flights and take no part here)."""
+"""The rotational model on the shared Crazyflie flights (issue 28): chosen per body axis by blocked
+validation on the five squares only; the melon runs are test flights, scored after the choice.
+
+What was measured (docs/use-the-model.md): on the held-out squares the torque model is three
+times better than holding the rates when pooled (the corners, where the controller stops the
+rotation), but in the calmer half of the windows it is worse than holding them, on every square;
+the ladder refuses it for roll and pitch, roll takes the rate decay. On the melon runs that model
+is below holding the rates in all four of the metric's quantities.
+"""
 from __future__ import annotations
 
 import pytest
 
 from droneid.dataset_builder import in_flight_intervals
-from droneid.openloop import state_log
-from droneid.rotation_choice import select_rotation
+from droneid.openloop import IdentifiedVehicle, StateLog, open_loop, state_log
+from droneid.rotation import fit_translation
+from droneid.rotation_choice import _HeldRates, select_rotation
 from parsers import read_flight
 
 from conftest import real_log
 
 pytestmark = pytest.mark.real_logs
 CF = "mocap/crazyflie_nanodrone/"
+SQUARES = [f"square_run{i}" for i in range(1, 6)]
 
 
-@pytest.mark.slow   # about 25 s: 5 folds x 6 candidates
-def test_rotation_chosen_on_the_squares_beats_holding_the_rates_and_has_physical_signs():
+def _squares():
+    """The squares' in-flight stretches, each named by its flight (one validation block each)."""
     logs = []
-    for i in range(1, 6):
-        f = read_flight(real_log(CF + f"square_run{i}.csv"))
-        logs += [state_log(f.between(a, b)) for a, b in in_flight_intervals(f)[0] if b - a > 0.6]
-    choice = select_rotation(logs)
-    assert choice.beats_held
-    row = choice.table[choice.chosen]
-    # held-out squares: the body rates and the attitude both at least a third better than held
-    assert row["rates_simerr"] < 2.0 / 3.0 * choice.held["rates_simerr"]
-    assert row["attitude_simerr"] < 2.0 / 3.0 * choice.held["attitude_simerr"]
-    for k, (m, h) in enumerate(zip(row["rates_axis_simerr"], choice.held["rates_axis_simerr"])):
-        assert m < h, k                          # roll, pitch and yaw each beat holding their rate
-    m = choice.model
-    assert "rotor_drag" in m.terms
+    for name in SQUARES:
+        f = read_flight(real_log(CF + name + ".csv"))
+        for a, b in in_flight_intervals(f)[0]:
+            if b - a > 0.6:
+                log = state_log(f.between(a, b))
+                logs.append(StateLog(name, log.t_s, log.state, log.rpm, log.dt_s))
+    return logs
+
+
+@pytest.fixture(scope="module")
+def squares():
+    return _squares()
+
+
+@pytest.fixture(scope="module")
+def choice(squares):
+    return select_rotation(squares)
+
+
+@pytest.mark.slow   # about 4 s: 5 folds x (held, decay, 2 torque candidates)
+def test_the_choice_sees_the_squares_only_and_refuses_the_torque_model_that_fails_in_calm_flight(choice):
+    for step in choice.ladder:
+        assert step["flights"] == SQUARES and step["level"] == 1 / 32
+    torque_rows = [r for r in choice.table if "terms" in r]
     for k in (0, 1):
-        drag = m.columns(k).index("rotor_drag")
-        assert m.coef[k][0] > 0                  # torque along the layout's pattern
-        assert m.coef[k][drag] > 0               # the rotor drag moment opposes the body velocity
-    # the balance point: the moment's ratio to the torque gain is the same on roll and pitch
-    # within a factor 2 (an arm-length symmetric frame)
-    r = [m.coef[k][m.columns(k).index("rotor_drag")] / m.coef[k][0] for k in (0, 1)]
-    assert 0.5 < r[0] / r[1] < 2.0
+        # pooled over the held-out squares the torque model is far better than the rates held ...
+        assert min(r["rates_axis_simerr"][k] for r in torque_rows) < 0.5 * choice.held["rates_axis_simerr"][k]
+        torque = [s for s in choice.ladder[k]["steps"] if s["rung"] == "torque"][0]
+        # ... because it wins the hardest quarter of the windows on every square, while it loses
+        # the calmest quarter on every square: it is not taken
+        assert all(w[-1] for w in torque["wins"]) and not any(w[0] for w in torque["wins"])
+        assert not torque["taken"] and choice.axis_choice[k] != "torque"
+    assert choice.axis_choice[0] == "damping"
+    row = choice.table[choice.chosen]
+    assert row["method"] == "per-axis"
+    for k, rung in enumerate(choice.axis_choice):
+        if rung == "held":
+            assert row["rates_axis_simerr"][k] == pytest.approx(choice.held["rates_axis_simerr"][k], rel=1e-9)
+        else:
+            assert row["rates_axis_simerr"][k] < choice.held["rates_axis_simerr"][k], k
+    assert row["attitude_simerr"] < choice.held["attitude_simerr"]
+
+
+@pytest.mark.slow   # about 15 s: every start of both melon runs, twice
+def test_on_the_melon_runs_the_chosen_model_is_below_holding_the_rates(choice, squares):
+    melon = [state_log(read_flight(real_log(CF + f"melon_run{i}.csv"))) for i in (1, 4)]
+    tr = fit_translation(squares, delay_steps=3)
+    res = open_loop({"held": IdentifiedVehicle(tr, _HeldRates()), "chosen": IdentifiedVehicle(tr, choice.model)}, melon)
+    for q in ("position", "velocity", "attitude", "rates"):
+        assert res["chosen"].simerr[q] < res["held"].simerr[q], q
