@@ -41,11 +41,12 @@ from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
 from .io_util import to_jsonable
 from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung
-from .predict import models_from_document, predict_flights
+from .predict import models_from_document, open_loop_section, predict_flights
 from .plan import holdout_cuts, plan_identification, resolve_plan_prior
 from .problem import TargetProblem, empirical_model, prepare_target
 from .report.wording import readable_equation, split_leading_number, verdict
 from .rollout import horizon_section
+from .rotation_stage import RotationResult, identify_rotation
 from .search import RunRecord, compile_once, make_jobs, run_job, select_best
 from .settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
 from .targets import targets_for
@@ -296,6 +297,7 @@ class IdentificationResult:
     notes: tuple[str, ...] = ()
     horizons: Mapping[str, object] = field(default_factory=dict)   # multi-step prediction on the test flights
     reader_options: Mapping[str, object] = field(default_factory=dict)
+    rotation: RotationResult | None = None   # the rotational targets (issue 28); None: not modelled
 
     def predict(self, flights, **options):
         """The final models on other flights (a Flight or a sequence), as ``droneid predict``
@@ -316,7 +318,8 @@ class IdentificationResult:
             "config": {**self.config.to_dict(), **asdict(self.plan)}, "provenance": dict(self.provenance),
             "versions": dict(self.versions), "interrupted": self.interrupted, "wall_s": self.wall_s,
             "backend": self.backend, "notes": list(self.notes), "horizons": dict(self.horizons),
-            "reader_options": dict(self.reader_options)})
+            "reader_options": dict(self.reader_options),
+            "rotation": None if self.rotation is None else self.rotation.to_dict()})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "IdentificationResult":
@@ -334,7 +337,8 @@ class IdentificationResult:
         return cls({k: TargetResult.from_dict(v) for k, v in d["targets"].items()}, config, plan,
                    dict(d.get("provenance") or {}), dict(d.get("versions") or {}),
                    bool(d.get("interrupted", False)), float(d.get("wall_s") or 0.0), str(d.get("backend") or ""),
-                   tuple(d.get("notes") or ()), dict(d.get("horizons") or {}), dict(d.get("reader_options") or {}))
+                   tuple(d.get("notes") or ()), dict(d.get("horizons") or {}), dict(d.get("reader_options") or {}),
+                   RotationResult.from_dict(d["rotation"]) if d.get("rotation") else None)
 
 
 def versions() -> dict:
@@ -408,8 +412,41 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
                 if plan.offset is not None else None),
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     horizons = _horizons(results, test_flights, notes) if test_flights else {}
-    return IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted,
-                                time.perf_counter() - t0, outcome.backend, tuple(notes), horizons)
+    rotation = _rotation(train_flights, test_flights, cfg, results, notes, progress)
+    res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted,
+                               time.perf_counter() - t0, outcome.backend, tuple(notes), horizons,
+                               rotation=rotation)
+    if rotation is not None and test_flights:
+        res = replace(res, rotation=replace(rotation, open_loop_test=_open_loop_test(res, test_flights, notes)),
+                      notes=tuple(notes), wall_s=time.perf_counter() - t0)
+    return res
+
+
+def _rotation(train_flights, test_flights, cfg: IdentifyConfig, results: Mapping[str, TargetResult],
+              notes: list, progress) -> RotationResult | None:
+    """The rotational stage (:mod:`droneid.rotation_stage`) where asked for and possible; a note
+    says why not otherwise."""
+    if cfg.rotation == "none":
+        return None
+    translation = None
+    if all(t in results for t in ("vx_dot", "vy_dot", "vz_dot")):
+        translation = {t: IdentifiedModel.from_dict(results[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
+    try:
+        return identify_rotation(train_flights, test_flights, cfg.frame, translation, progress)
+    except DataError as exc:
+        notes.append(f"rotation not modelled: {exc}")
+        return None
+
+
+def _open_loop_test(res: "IdentificationResult", test_flights, notes: list) -> dict:
+    """The benchmark's open-loop metric on the test flights, as ``droneid predict --open-loop``
+    computes it from result.json (the same digits)."""
+    try:
+        return open_loop_section(models_from_document(res.to_dict(), where="this result"), test_flights,
+                                 horizons=tuple(range(1, 51)))
+    except (ConfigError, DataError) as exc:
+        notes.append(f"no open-loop figures on the test flights: {exc}")
+        return {}
 
 
 def _grouped(warnings) -> list[str]:

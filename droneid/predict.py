@@ -30,7 +30,8 @@ from .closed_form import IdentifiedModel, check_schema
 from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
-from .openloop import Constant, IdentifiedTranslation, NominalPhysics, open_loop, state_log
+from .openloop import Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, open_loop, state_log
+from .rotation import RotationModel
 from .rollout import RolloutResult, rollout_errors, sample_inputs
 from .screening import implausible_counts, screen_flight
 from .sngp import SymbolicModel
@@ -52,7 +53,8 @@ class PredictionResult:
     (m)}}} of multi-step prediction and horizon_info its step (s), counts and notes (None
     without ``horizons``); rollout : the :class:`~droneid.rollout.RolloutResult` behind them,
     with its traces (for figures; not part of :meth:`to_dict`); open_loop : the open-loop
-    metric (None without it); reader_options : {"recorded": the options the result was identified
+    metric (None without it) and open_loop_rotation whether its "identified" row has a
+    rotational model (else the rates are held); reader_options : {"recorded": the options the result was identified
     with, "given": the options given to predict} (None when neither exists; set by the CLI).
     """
     ts: float
@@ -65,6 +67,7 @@ class PredictionResult:
     rollout: RolloutResult | None = field(default=None, repr=False, compare=False)
     open_loop: dict | None = None
     reader_options: dict | None = None
+    open_loop_rotation: bool = False
 
     def to_dict(self) -> dict:
         """The JSON document of ``droneid predict --json``."""
@@ -123,7 +126,23 @@ def models_from_document(doc: dict, targets: Sequence[str] | None = None, where:
     out = {t: _entry(where, t, doc["targets"][t]) for t in chosen}
     out["_config"] = doc.get("config") or {}
     out["_reader_options"] = _reader_options(where, doc.get("reader_options"))
+    out["_rotation"] = _rotation_model(where, doc.get("rotation"))
     return out
+
+
+def _rotation_model(where: str, section) -> RotationModel | None:
+    """The identified rotational model of a result's ``rotation`` section, or None (none
+    modelled, or the rates are held)."""
+    if not section:
+        return None
+    if not isinstance(section, dict):
+        raise DataError(f"{where}: 'rotation' must be an object")
+    if section.get("model") is None:
+        return None
+    try:
+        return RotationModel.from_dict(section["model"])
+    except DroneIdError as exc:
+        raise DataError(f"{where}: rotation.model: {exc}") from None
 
 
 #: the reader options a result may record (identify's ``reader_options``: the read_flight keywords
@@ -219,14 +238,17 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     """The nanodrone benchmark's open-loop metric (:mod:`droneid.openloop`) on ``flights``:
     ``{"identified" | "nominal physics" | "constant": {"1": {"position", "velocity", "attitude",
     "rates"}, ..., "simerr": {...}}}`` over 50 steps at the log's rate from every start.
-    "identified" drives the final v̇ models by the simulated state and the logged motor speeds
-    with the body rates held (no rotational model yet); "nominal physics" is thrust from the motor
+    "identified" drives the final v̇ models by the simulated state and the logged motor speeds,
+    with the result's rotational model (``_rotation``: :mod:`droneid.rotation_stage`) or, without
+    one, the body rates held; "nominal physics" is thrust from the motor
     speeds with the prior's nominal (hover-calibrated on the TRAINING flights) thrust scale, no
     drag, rates held; "constant" holds the state."""
     sets = model_sets(models)
     if "identified" not in sets:
         raise ConfigError("--open-loop needs the final models of vx_dot, vy_dot and vz_dot (targets.<t>.final)")
-    chosen = {"identified": IdentifiedTranslation(sets["identified"])}
+    translation = IdentifiedTranslation(sets["identified"])
+    rotation = models.get("_rotation")
+    chosen = {"identified": translation if rotation is None else IdentifiedVehicle(translation, rotation)}
     nominal = _nominal_physics(models.get("_config") or {})
     if nominal is not None:
         chosen["nominal physics"] = nominal
@@ -291,7 +313,8 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         table = info.pop("rmse")
     ol = open_loop_section(models, flights, tuple(horizons or (1, 10, 50))) if open_loop else None
     return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
-                            tuple(fit.warnings) if fit is not None else (), table, info, roll, ol)
+                            tuple(fit.warnings) if fit is not None else (), table, info, roll, ol,
+                            open_loop_rotation=models.get("_rotation") is not None)
 
 
 def _screened(flights, ds, signals) -> dict:

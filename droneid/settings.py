@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from priors.registry import PRIORS, is_prior_spec
+from priors.torque import LAYOUTS
 
 from .errors import ConfigError, check_choice
 from .sngp import SNGPRegressor
@@ -68,6 +69,10 @@ class IdentifyConfig:
         evolved feature only if it lowers the error on the held-out 25 %, then refits on all
         rows; equations stay short and terms fitting noise go) or "exact" (the spec: drop only
         features whose removal changes the training error by < 1e-6; the paper's protocol)
+    rotation : "auto" (where the flights log the attitude quaternion, body rates and per-motor
+        speeds, also model ω̇x, ω̇y, ω̇z: :mod:`droneid.rotation_stage`) or "none"
+    frame : the rotor layout of the rotational model: "auto" (identified from the training
+        flights as a torque sign pattern) or a name of ``priors.torque.LAYOUTS``
     """
     targets: tuple[str, ...] | None = None
     prior: str = "auto"
@@ -95,6 +100,8 @@ class IdentifyConfig:
     k_D: float = 0.28
     margin: float = 0.05
     search_rows: int = 1000
+    rotation: str = "auto"
+    frame: str = "auto"
 
     @classmethod
     def make(cls, *, quick: bool = False, **given) -> "IdentifyConfig":
@@ -129,6 +136,8 @@ class IdentifyConfig:
         check_choice("prior_features", self.prior_features, (0, 1, 3))
         check_choice("effects", self.effects, ("auto", "none"))
         check_choice("delays", self.delays, ("auto", "none"))
+        check_choice("rotation", self.rotation, ("auto", "none"))
+        check_choice("frame", self.frame, ("auto", *LAYOUTS))
         if not is_prior_spec(self.empirical):
             raise ConfigError(f"The 'empirical' parameter must name a prior (built-in: {', '.join(PRIORS)}; "
                               f"or FILE.toml:NAME). Got {self.empirical!r} instead.")

@@ -82,6 +82,13 @@ def register(sub) -> None:
                         "FILE.toml:NAME (default tilt-drag with --kD; v̇z = 0 where it has no model)")
     p.add_argument("--kD", dest="k_D", type=float, default=0.28, metavar="1/s",
                    help="the empirical model's drag constant k_D, when it has one (default 0.28 1/s)")
+    p.add_argument("--rotation", default="auto", choices=("auto", "none"),
+                   help="auto (default): where the logs have the attitude quaternion, body rates and per-motor "
+                        "speeds, also model the body rates (ω̇x, ω̇y, ω̇z), chosen by holding each training flight "
+                        "out in turn, and score the whole vehicle open loop on the test flights; none: v̇ only")
+    p.add_argument("--frame", default="auto", metavar="LAYOUT",
+                   help="rotor layout of the rotational model: auto (default: identified from the training "
+                        "flights' torque signs) or a layout of priors/torque.py, e.g. crazyflie_x, quad_x")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="write result.json, report.md, report.html and PNG figures into DIR")
     p.add_argument("--json", action="store_true", help="print the result summary as one JSON line")
@@ -91,7 +98,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     cfg = config_from_args(args, prior_features=args.prior_features, constraints=args.constraints,
-                           effects=args.effects, delays=args.delays, empirical=args.empirical, k_D=args.k_D)
+                           effects=args.effects, delays=args.delays, empirical=args.empirical, k_D=args.k_D,
+                           rotation=args.rotation, frame=args.frame)
     train = read_logs(args.train, args)
     test = read_logs(args.test, args) if args.test else None
     bar = ProgressBar("SNGP runs", quiet=args.quiet or args.json)

@@ -18,6 +18,7 @@ from ..errors import ConfigError
 from ..expressions import parse_expression
 from ..identify import IdentificationResult, TargetResult
 from .rollout import horizon_figures
+from .rotation import rotation_lines, rotation_section
 from ..numerics import to_float
 from ..regression import LOSS
 from .document import Document, break_gaps, efmt, fmt, new_figure, text_table
@@ -133,6 +134,7 @@ def text(result) -> str:
         out += screened_lines(tr)
         out += [f"NOTE: {note}" for note in tr.notes if note != tr.test_data]
     out += horizon_lines(result.horizons)
+    out += rotation_lines(result.rotation)
     return "\n".join(out)
 
 
@@ -412,6 +414,7 @@ def document(result) -> Document:
         for name, png in horizon_figures(h).items():
             doc.png(png, name, "multi-step prediction: error against horizon" if "error" in name
                     else "predicted velocity traces over the measured one")
+    rotation_section(doc, result.rotation)
     doc.paragraph("Versions: " + ", ".join(f"{k} {v}" for k, v in result.versions.items()))
     return doc
 

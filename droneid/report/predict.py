@@ -46,13 +46,14 @@ def text(res) -> str:
         out.append("errors: RMSE at the horizon over every start (skipped starts: "
                    + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
     if res.open_loop is not None:
-        out += open_loop_lines(res.open_loop)
+        out += open_loop_lines(res.open_loop, res.open_loop_rotation)
     return "\n".join(out)
 
 
-def open_loop_lines(ol: dict) -> list[str]:
+def open_loop_lines(ol: dict, rotation: bool = False) -> list[str]:
     """The open-loop table: per model, MAE at each horizon and SimErr, for position (m), velocity
-    (m/s), attitude (rad) and body rates (rad/s)."""
+    (m/s), attitude (rad) and body rates (rad/s). ``rotation``: whether the identified row has a
+    rotational model (else its body rates are held)."""
     qs = ("position", "velocity", "attitude", "rates")
     header = ["model", "horizon"] + [f"{q} ({u})" for q, u in zip(qs, ("m", "m/s", "rad", "rad/s"))]
     rows = [[m, "SimErr" if h == "simerr" else f"{h} steps"] + [fmt(e[q]) for q in qs]
@@ -60,6 +61,8 @@ def open_loop_lines(ol: dict) -> list[str]:
     return ["== open loop (the nanodrone benchmark's metric): full state simulated from the motor speeds, "
             "MAE over every start; SimErr = sum of MAE over 1..50 steps",
             text_table(header, rows),
-            "identified: the final v̇ models, attitude from the simulated quaternion, body rates held (no "
-            "rotational model yet); nominal physics: thrust from the motor speeds at the prior's nominal scale, "
+            "identified: the final v̇ models, attitude from the simulated quaternion, "
+            + ("body rates from the identified rotational model" if rotation else
+               "body rates held (no rotational model beat holding them, or none was identified)")
+            + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, "
             "no drag, rates held; constant: the state held\n"]

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from ..numerics import to_float
 
 __all__ = ["round_floats", "display_term", "readable_equation", "split_leading_number", "Verdict",
-           "VERDICT_KINDS", "verdict", "improvement_pct"]
+           "VERDICT_KINDS", "verdict", "improvement_pct", "axis_verdict", "MARGIN_PCT"]
 
 
 def improvement_pct(reference: float, value: float) -> float:
@@ -91,6 +91,9 @@ def split_leading_number(label: str, coefficient: float) -> tuple[float, str]:
 
 
 #: what a verdict says, and the colour the report gives it
+#: a model is called better (worse) than its baseline only at an improvement of at least this much
+#: (per cent of the baseline's error), in validation and on the test data alike
+MARGIN_PCT = 5.0
 VERDICT_KINDS = {"better": "green", "no better": "grey", "worse": "red", "not to be trusted": "amber",
                  "no verdict": "grey"}
 
@@ -148,16 +151,43 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
         return Verdict("not to be trusted",
                        f"{target}: the {what} is NOT TO BE TRUSTED: " + "; ".join(problems)
                        + f" ({gain:+.0f} % vs the empirical model {where}: {errs}{extra}); keep the empirical model")
-    if gain >= 5 and (not has_test or vgain >= 5):
+    if gain >= MARGIN_PCT and (not has_test or vgain >= MARGIN_PCT):
         return Verdict("better", f"{target}: the {what} beats the empirical model by {gain:.0f} % {where} "
                                  f"({errs}{extra})")
-    if gain >= 5:
+    if gain >= MARGIN_PCT:
         return Verdict("no better", f"{target}: the {what} is better {where} ({gain:+.0f} %: {errs}) but not "
                                     f"in validation on the training flights ({vgain:+.0f} %): keep the empirical model")
-    if gain > -5:
+    if gain > -MARGIN_PCT:
         return Verdict("no better", f"{target}: the {what} is no better than the empirical model {where} "
                                     f"({gain:+.0f} %: {errs}): keep the empirical model")
     why = ("the training flights do not represent the test flights" if has_test else
            "its fitted terms do not hold across the validation blocks")
     return Verdict("worse", f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %: "
                             f"{errs}{extra}): {why}; keep the empirical model")
+
+
+def axis_verdict(target: str, chosen: bool, val_held: float, val_model: float, test_held: float,
+                 test_model: float) -> Verdict:
+    """A rotational target's verdict: its body-rate SimErr (rad/s) with the rotational model
+    against its empirical baseline, the nominal rigid body with the rates held, in validation on
+    held-out training flights and (where finite) on the test flights. ``chosen``: whether the
+    choice took a model at all (else the rates are held and there is nothing to compare)."""
+    if not chosen:
+        return Verdict("no better", f"{target}: no rotational model beat holding the body rates on held-out "
+                                    f"training flights (SimErr {val_held:.3g} rad/s held): the rates are held")
+    vgain = improvement_pct(val_held, val_model)
+    has_test = math.isfinite(test_held) and math.isfinite(test_model) and test_held > 0
+    gain = improvement_pct(test_held, test_model) if has_test else vgain
+    where = "on the test flights" if has_test else "on held-out training flights"
+    errs = (f"SimErr {test_model:.3g} vs {test_held:.3g} rad/s held" if has_test
+            else f"SimErr {val_model:.3g} vs {val_held:.3g} rad/s held")
+    extra = f"; validation {vgain:+.0f} %" if has_test else ""
+    if gain >= MARGIN_PCT and vgain >= MARGIN_PCT:
+        return Verdict("better", f"{target}: the rotational model beats holding the rates by {gain:.0f} % "
+                                 f"{where} ({errs}{extra})")
+    if gain > -MARGIN_PCT:
+        return Verdict("no better", f"{target}: the rotational model is no better than holding the rates "
+                                    f"{where} ({gain:+.0f} %: {errs}{extra}): hold the rates")
+    return Verdict("worse", f"{target}: the rotational model is WORSE than holding the rates {where} "
+                            f"({gain:+.0f} %: {errs}{extra}): the training flights do not represent the test "
+                            f"flights; hold the rates")

@@ -1,0 +1,214 @@
+"""identify's rotational stage (issue 28): the body-rate targets ω̇x, ω̇y, ω̇z of the whole vehicle.
+
+From the training flights only, :func:`identify_rotation`
+
+1. reads each flight's full state (position, velocity, attitude quaternion, body rates) and motor
+   speeds onto one grid (:func:`droneid.openloop.state_log`), in-flight stretches only;
+2. takes the rotor layout from ``--frame`` or, failing that, identifies it from the data as a
+   torque sign pattern (:func:`droneid.rotation.identify_layout`) and names the known layout
+   (:data:`priors.torque.LAYOUTS`) it matches;
+3. chooses the rotational model by leave-one-flight-out open-loop validation
+   (:func:`droneid.rotation_choice.select_rotation`): each candidate against the **empirical
+   baseline of rotation, the nominal rigid body with the body rates held** (ω̇ = 0, the
+   benchmark's Physics row);
+4. gives each axis a verdict: the body-rate SimErr of that axis (Σ_{h=1..50} mean |Δω_k|, rad/s)
+   of the chosen model against the rates held, in validation and, where there are test flights,
+   on them (open loop, with identify's final v̇ models as the translation).
+
+The test flights never take part in a choice: they are scored after it. Rates in rad/s, angular
+accelerations in rad/s², motor speeds converted to rad/s by their recorded unit (``rpm``: 2π/60;
+``erpm``: the Crazyflie 2.1 Brushless's 6 electrical rpm per mechanical revolution, said in the
+result: the model's coefficients scale with it, its predictions do not).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from priors.torque import LAYOUTS, get_layout
+
+from .errors import DataError, DroneIdError
+from .in_flight import in_flight_intervals
+from .io_util import to_jsonable
+from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedTranslation, IdentifiedVehicle, StateLog, state_log
+from .report.wording import Verdict, axis_verdict
+from .rotation import RotationModel, identify_layout
+from .rotation_choice import _HeldRates as HeldRates, _validation_sums as validation_sums, select_rotation
+
+__all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "identify_rotation", "rotation_logs",
+           "speed_scale"]
+
+#: the rotational targets, body FLU axes x (roll), y (pitch), z (yaw)
+ROTATION_TARGETS = ("wx_dot", "wy_dot", "wz_dot")
+#: open-loop windows scored on the test flights: every start
+_TEST_STRIDE = 1
+_MIN_STRETCH_S = 0.6   # shorter in-flight stretches hold no 50-step window at 100 Hz
+
+
+@dataclass(frozen=True)
+class AxisResult:
+    """One rotational target: its body-rate SimErr (Σ_h mean |Δω_k|, rad/s) with the rates held
+    (the empirical baseline) and with the chosen model, in validation (held-out training flights)
+    and on the test flights (NaN without any), and the verdict."""
+    target: str
+    validation_held: float
+    validation_model: float
+    test_held: float
+    test_model: float
+    verdict: str
+    verdict_kind: str
+
+    def to_dict(self) -> dict:
+        return to_jsonable({"target": self.target, "validation": {"held": self.validation_held,
+                                                                  "model": self.validation_model},
+                            "test": {"held": self.test_held, "model": self.test_model},
+                            "verdict": self.verdict, "verdict_kind": self.verdict_kind})
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "AxisResult":
+        def num(v):
+            return math.nan if v is None else float(v)
+        return cls(str(d["target"]), num(d["validation"]["held"]), num(d["validation"]["model"]),
+                   num(d["test"]["held"]), num(d["test"]["model"]), str(d["verdict"]), str(d["verdict_kind"]))
+
+
+@dataclass(frozen=True)
+class RotationResult:
+    """result.json's ``rotation`` (docs/result-json.md).
+
+    layout, layout_source : the rotor layout used and where it came from
+    rad_s_per_rpm : the motor speeds' conversion to rad/s, and ``speed_note`` why
+    model : the chosen rotational model, or None (rates held: no candidate beat them in validation)
+    choice : :meth:`droneid.rotation_choice.RotationChoice.to_dict` (every candidate's validation)
+    axes : one :class:`AxisResult` per rotational target
+    open_loop_test : the benchmark's metric on the test flights ({} without any):
+        :func:`droneid.predict.open_loop_section`'s document
+    notes : sentences
+    """
+    layout: str
+    layout_source: str
+    rad_s_per_rpm: float
+    speed_note: str
+    model: RotationModel | None
+    choice: Mapping[str, object]
+    axes: tuple[AxisResult, ...]
+    open_loop_test: Mapping[str, object] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        return to_jsonable({"targets": list(ROTATION_TARGETS), "layout": self.layout,
+                            "layout_source": self.layout_source, "rad_s_per_rpm": self.rad_s_per_rpm,
+                            "speed_note": self.speed_note,
+                            "model": None if self.model is None else self.model.to_dict(),
+                            "choice": dict(self.choice), "axes": [a.to_dict() for a in self.axes],
+                            "open_loop_test": dict(self.open_loop_test), "notes": list(self.notes)})
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "RotationResult":
+        """Read back :meth:`to_dict` (DataError naming what is missing)."""
+        try:
+            model = None if d.get("model") is None else RotationModel.from_dict(d["model"])
+            return cls(str(d["layout"]), str(d["layout_source"]), float(d["rad_s_per_rpm"]),
+                       str(d.get("speed_note") or ""), model, dict(d["choice"]),
+                       tuple(AxisResult.from_dict(a) for a in d["axes"]), dict(d.get("open_loop_test") or {}),
+                       tuple(d.get("notes") or ()))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"the result's rotation section is damaged: {exc}") from None
+
+
+def speed_scale(flight) -> tuple[float, str]:
+    """(rad/s per logged motor-speed unit, why) from the recorded unit of ``rpm1``; DataError
+    when the motor signals are not speeds (commands, duty cycles)."""
+    if "rpm1" not in flight:
+        raise DataError(f"{flight.name}: the rotational model needs per-motor rotor speeds (rpm1..), "
+                        f"which the log lacks")
+    unit = flight["rpm1"].unit
+    if unit == "rpm":
+        return 2.0 * math.pi / 60.0, "motor speeds in rpm: 2π/60 rad/s per rpm"
+    if unit == "erpm":
+        return CRAZYFLIE_RAD_S_PER_ERPM, ("motor speeds in electrical rpm, converted with 6 electrical "
+                                          "rpm per mechanical revolution (Crazyflie 2.1 Brushless); the "
+                                          "coefficients scale with it, the predictions do not")
+    raise DataError(f"{flight.name}: the rotational model needs rotor speeds (rpm1..); "
+                    f"rpm1 is in {unit or 'no unit'}")
+
+
+def rotation_logs(flights: Sequence) -> list[StateLog]:
+    """The airborne, pre-crash stretches of ``flights`` as :class:`StateLog` (each named by its
+    flight, so that a flight's stretches form one validation block). DataError when a flight
+    lacks the full state or the per-motor speeds."""
+    out = []
+    for f in flights:
+        for a, b in in_flight_intervals(f)[0]:
+            if b - a > _MIN_STRETCH_S:
+                log = state_log(f.between(a, b))
+                out.append(StateLog(f.name, log.t_s, log.state, log.rpm, log.dt_s))
+    return out
+
+
+def _layout(logs: Sequence[StateLog], frame: str, rad_s_per_rpm: float) -> tuple[str, str]:
+    """(layout name, where it came from): ``frame`` when given, else the known layout whose torque
+    sign pattern the training data show."""
+    if frame != "auto":
+        return get_layout(frame).name, "--frame"
+    signs, _ = identify_layout(logs, rad_s_per_rpm=rad_s_per_rpm)
+    for name, lay in LAYOUTS.items():
+        if lay.motors == signs.shape[1] and np.array_equal(np.sign(lay.patterns()), signs):
+            shown = "; ".join(f"{ax} {''.join('+' if s > 0 else '−' for s in row)}"
+                              for ax, row in zip(("roll", "pitch", "yaw"), signs))
+            return name, f"identified from the training flights' torque signs ({shown})"
+    raise DataError("the training flights' torque sign pattern matches no known rotor layout "
+                    f"({', '.join(LAYOUTS)}); name it with --frame")
+
+
+def identify_rotation(train_flights: Sequence, test_flights: Sequence | None, frame: str = "auto",
+                      translation: Mapping | None = None, progress: Callable | None = None) -> RotationResult:
+    """The rotational stage: see the module docstring. ``translation``: identify's final v̇
+    models {"vx_dot", "vy_dot", "vz_dot": IdentifiedModel}, the translation of the open-loop test
+    figures (without them the test flights are not scored). DataError when the flights cannot
+    give a rotational model (missing signals, fewer than two training flights)."""
+    scale, why = speed_scale(train_flights[0])
+    train = rotation_logs(train_flights)
+    if len({log.name for log in train}) < 2:
+        raise DataError("the rotational model is chosen by holding each training flight out in turn: "
+                        "it needs at least two training flights with an in-flight stretch")
+    layout, source = _layout(train, frame, scale)
+    if progress:
+        progress(0, 1, f"choosing the rotational model ({layout}) on {len({lg.name for lg in train})} "
+                       f"training flights")
+    choice = select_rotation(train, layout, rad_s_per_rpm=scale)
+    if progress:
+        progress(1, 1, "rotational model chosen")
+    axes_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
+        choice.held["rates_axis_simerr"]
+    test_held = test_model = [math.nan] * 3
+    notes = []
+    if test_flights and translation is not None:
+        try:
+            test = rotation_logs(test_flights)
+            tr = IdentifiedTranslation(translation)
+            test_held = _axis_simerr(IdentifiedVehicle(tr, HeldRates()), test)
+            test_model = _axis_simerr(IdentifiedVehicle(tr, choice.model), test) if choice.model is not None \
+                else test_held
+        except DroneIdError as exc:
+            notes.append(f"rotation not scored on the test flights: {exc}")
+    axes = []
+    for k, target in enumerate(ROTATION_TARGETS):
+        v: Verdict = axis_verdict(target, choice.model is not None, choice.held["rates_axis_simerr"][k],
+                                  axes_model[k], test_held[k], test_model[k])
+        axes.append(AxisResult(target, choice.held["rates_axis_simerr"][k], axes_model[k], test_held[k],
+                               test_model[k], v.text, v.kind))
+    return RotationResult(layout, source, scale, why, choice.model, choice.to_dict(), tuple(axes),
+                          notes=tuple(notes))
+
+
+def _axis_simerr(model, logs: Sequence[StateLog]) -> list[float]:
+    """Per body axis Σ_{h=1..50} mean |Δω_k| (rad/s) of ``model`` open loop over every start of
+    ``logs`` (their in-flight parts)."""
+    n, sums = validation_sums(model, logs, _TEST_STRIDE)
+    if n == 0:
+        raise DataError("no test flight has an in-flight stretch longer than 50 steps")
+    return [float(v) for v in sums[2:] / n]

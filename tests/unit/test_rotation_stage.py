@@ -1,0 +1,76 @@
+"""identify's rotational stage (droneid.rotation_stage): what it chooses on, what it says, and
+that its record reads back."""
+import math
+
+import numpy as np
+import pytest
+
+from droneid.errors import DataError
+from droneid.report.wording import axis_verdict
+from droneid.rotation_stage import AxisResult, RotationResult, identify_rotation, speed_scale
+
+
+def test_axis_verdict_needs_validation_and_test_alike():
+    assert axis_verdict("wx_dot", False, 60.0, 60.0, math.nan, math.nan).kind == "no better"
+    better = axis_verdict("wx_dot", True, 60.0, 20.0, 16.0, 10.0)
+    assert better.kind == "better" and "38 %" in better.text
+    worse = axis_verdict("wy_dot", True, 58.0, 21.0, 18.0, 41.6)
+    assert worse.kind == "worse" and "WORSE" in worse.text and "hold the rates" in worse.text
+    # without test flights the validation decides, and says where it was measured
+    v = axis_verdict("wz_dot", True, 5.5, 4.6, math.nan, math.nan)
+    assert v.kind == "better" and "held-out training flights" in v.text
+    assert axis_verdict("wz_dot", True, 5.5, 5.4, 6.6, 6.5).kind == "no better"
+
+
+def test_speed_scale_follows_the_recorded_unit():
+    from droneid.simulate import simulate
+    flight = simulate(path="circle", duration_s=3, seed=1).flight
+    scale, why = speed_scale(flight)
+    assert scale == pytest.approx(2 * math.pi / 60) and "rpm" in why
+    with pytest.raises(DataError, match="rotor speeds"):
+        speed_scale(flight.without("rpm1"))
+
+
+def test_the_test_flights_never_reach_the_choice(monkeypatch):
+    """select_rotation sees the training flights' stretches only; the test flights are scored
+    after the choice."""
+    import droneid.rotation_stage as stage
+    from droneid.rotation_choice import RotationChoice
+    from droneid.simulate import simulate
+    seen = []
+
+    def fake_select(logs, layout, **kw):
+        seen.extend(log.name for log in logs)
+        held = {"rates_simerr": 3.0, "attitude_simerr": 1.0, "rates_axis_simerr": [1.0, 1.0, 1.0]}
+        return RotationChoice(None, (), held, None)
+
+    monkeypatch.setattr(stage, "select_rotation", fake_select)
+    train = [_named(simulate(path="circle", duration_s=6, seed=s).flight, f"train{s}") for s in (1, 2)]
+    test = [_named(simulate(path="circle", duration_s=6, seed=3).flight, "test3")]
+    res = identify_rotation(train, test, frame="quad_x")
+    assert seen and set(seen) == {"train1", "train2"}
+    assert res.model is None and [a.verdict_kind for a in res.axes] == ["no better"] * 3
+    assert res.layout == "quad_x" and res.layout_source == "--frame"
+
+
+def _named(flight, name):
+    from dataclasses import replace
+    return replace(flight, provenance=replace(flight.provenance, files=(f"{name}.csv",)))
+
+
+def test_one_training_flight_cannot_choose():
+    from droneid.simulate import simulate
+    with pytest.raises(DataError, match="at least two training flights"):
+        identify_rotation([simulate(path="circle", duration_s=6, seed=1).flight], None, frame="quad_x")
+
+
+def test_the_record_reads_back():
+    axes = tuple(AxisResult(t, 60.0, 20.0, math.nan, math.nan, "text", "better")
+                 for t in ("wx_dot", "wy_dot", "wz_dot"))
+    rot = RotationResult("crazyflie_x", "--frame", 0.0175, "erpm", None, {"held": {}}, axes,
+                         {"constant": {"1": {"position": 0.1}}}, ("a note",))
+    back = RotationResult.from_dict(rot.to_dict())
+    assert back.to_dict() == rot.to_dict()
+    assert math.isnan(back.axes[0].test_held)
+    with pytest.raises(DataError, match="rotation section is damaged"):
+        RotationResult.from_dict({"layout": "x"})
