@@ -50,10 +50,12 @@ _MIN_STRETCH_S = 0.6   # shorter in-flight stretches hold no 50-step window at 1
 
 @dataclass(frozen=True)
 class AxisResult:
-    """One rotational target: its body-rate SimErr (Σ_h mean |Δω_k|, rad/s) with the rates held
-    (the empirical baseline) and with the chosen model, in validation (held-out training flights)
-    and on the test flights (NaN without any), and the verdict."""
+    """One rotational target: the rung its ladder took (:data:`droneid.rotation_choice.RUNGS`:
+    held, damping, torque), its body-rate SimErr (Σ_h mean |Δω_k|, rad/s) with the rates held (the
+    empirical baseline) and with the chosen model, in validation (held-out training flights) and on
+    the test flights (NaN without any), and the verdict."""
     target: str
+    rung: str
     validation_held: float
     validation_model: float
     test_held: float
@@ -62,7 +64,7 @@ class AxisResult:
     verdict_kind: str
 
     def to_dict(self) -> dict:
-        return to_jsonable({"target": self.target, "validation": {"held": self.validation_held,
+        return to_jsonable({"target": self.target, "rung": self.rung, "validation": {"held": self.validation_held,
                                                                   "model": self.validation_model},
                             "test": {"held": self.test_held, "model": self.test_model},
                             "verdict": self.verdict, "verdict_kind": self.verdict_kind})
@@ -71,7 +73,7 @@ class AxisResult:
     def from_dict(cls, d: Mapping) -> "AxisResult":
         def num(v):
             return math.nan if v is None else float(v)
-        return cls(str(d["target"]), num(d["validation"]["held"]), num(d["validation"]["model"]),
+        return cls(str(d["target"]), str(d["rung"]), num(d["validation"]["held"]), num(d["validation"]["model"]),
                    num(d["test"]["held"]), num(d["test"]["model"]), str(d["verdict"]), str(d["verdict_kind"]))
 
 
@@ -197,9 +199,10 @@ def identify_rotation(train_flights: Sequence, test_flights: Sequence | None, fr
             notes.append(f"rotation not scored on the test flights: {exc}")
     axes = []
     for k, target in enumerate(ROTATION_TARGETS):
-        v: Verdict = axis_verdict(target, choice.model is not None, choice.held["rates_axis_simerr"][k],
-                                  axes_model[k], test_held[k], test_model[k])
-        axes.append(AxisResult(target, choice.held["rates_axis_simerr"][k], axes_model[k], test_held[k],
+        rung = choice.axis_choice[k]
+        v: Verdict = axis_verdict(target, rung, choice.held["rates_axis_simerr"][k], axes_model[k],
+                                  test_held[k], test_model[k])
+        axes.append(AxisResult(target, rung, choice.held["rates_axis_simerr"][k], axes_model[k], test_held[k],
                                test_model[k], v.text, v.kind))
     return RotationResult(layout, source, scale, why, choice.model, choice.to_dict(), tuple(axes),
                           notes=tuple(notes))

@@ -13,6 +13,9 @@ __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "fig_open_lo
 
 _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("rates", "rad/s"))
 _SHOWN = ("1", "10", "50")
+#: how droneid/rotation.py's term names read (s_i = (rotor speed / 1000 rad/s)², P the layout's patterns)
+_TERM_TEXT = {"damping": "(−ω)", "pattern": "(P s)", "centre": "Σs", "rotor_drag": "v_b", "gyro": "ω_j ω_l",
+              "spinup": "(P ṡpin)", "rotor_drag_thrust": "v_b Σs"}
 
 
 def _axes_table(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
@@ -23,15 +26,18 @@ def _axes_table(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
 
 
 def _model_line(rot: RotationResult) -> str:
-    if rot.model is None:
-        return "rotational model: none beat holding the body rates in validation; the rates are held"
+    """The rotational model per axis, in rad/s²: its rung and the terms it kept."""
     m = rot.model
     parts = []
-    for k, ax in enumerate(("ω̇x", "ω̇y", "ω̇z")):
-        terms = " ".join(f"{c:+.4g}·{n}" for n, c in zip(m.columns(k), m.coef[k]))
-        parts.append(f"{ax} = {terms} {m.trim[k]:+.4g}")
-    return ("rotational model (terms of droneid/rotation.py; s = (rotor speed / 1000 rad/s)², rotor speeds "
-            f"{m.delay_steps} step(s) earlier): " + "; ".join(parts))
+    for k, (ax, a) in enumerate(zip(("ω̇x", "ω̇y", "ω̇z"), rot.axes)):
+        if m is None or a.rung == "held":
+            parts.append(f"{ax} = 0 (rate held)")
+            continue
+        terms = [f"{c:+.4g}·{_TERM_TEXT.get(n, n)}" for n, c in zip(m.columns(k), m.coef[k]) if c != 0]
+        if m.trim[k] != 0:
+            terms.append(f"{m.trim[k]:+.4g}")
+        parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})")
+    return "rotational model (rad/s²): " + "; ".join(parts)
 
 
 def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:

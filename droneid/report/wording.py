@@ -166,15 +166,20 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
                             f"{errs}{extra}): {why}; keep the empirical model")
 
 
-def axis_verdict(target: str, chosen: bool, val_held: float, val_model: float, test_held: float,
+_RUNG_WORDS = {"damping": "the rate decay", "torque": "the torque model"}
+
+
+def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test_held: float,
                  test_model: float) -> Verdict:
-    """A rotational target's verdict: its body-rate SimErr (rad/s) with the rotational model
-    against its empirical baseline, the nominal rigid body with the rates held, in validation on
-    held-out training flights and (where finite) on the test flights. ``chosen``: whether the
-    choice took a model at all (else the rates are held and there is nothing to compare)."""
-    if not chosen:
-        return Verdict("no better", f"{target}: no rotational model beat holding the body rates on held-out "
-                                    f"training flights (SimErr {val_held:.3g} rad/s held): the rates are held")
+    """A rotational target's verdict: its body-rate SimErr (rad/s) with the rung its ladder took
+    (``rung``: held, damping or torque) against its empirical baseline, the nominal rigid body
+    with the rates held, in validation on held-out training flights and (where finite) on the
+    test flights. ``held``: no rung passed its test, so there is nothing to compare."""
+    if rung == "held":
+        return Verdict("no better", f"{target}: no rotational term beat holding this body rate on every held-out "
+                                    f"training flight (validation SimErr {val_held:.3g} rad/s held): the rate is "
+                                    f"held")
+    what = _RUNG_WORDS.get(rung, rung)
     vgain = improvement_pct(val_held, val_model)
     has_test = math.isfinite(test_held) and math.isfinite(test_model) and test_held > 0
     gain = improvement_pct(test_held, test_model) if has_test else vgain
@@ -183,11 +188,11 @@ def axis_verdict(target: str, chosen: bool, val_held: float, val_model: float, t
             else f"SimErr {val_model:.3g} vs {val_held:.3g} rad/s held")
     extra = f"; validation {vgain:+.0f} %" if has_test else ""
     if gain >= MARGIN_PCT and vgain >= MARGIN_PCT:
-        return Verdict("better", f"{target}: the rotational model beats holding the rates by {gain:.0f} % "
+        return Verdict("better", f"{target}: {what} beats holding the rate by {gain:.0f} % "
                                  f"{where} ({errs}{extra})")
     if gain > -MARGIN_PCT:
-        return Verdict("no better", f"{target}: the rotational model is no better than holding the rates "
-                                    f"{where} ({gain:+.0f} %: {errs}{extra}): hold the rates")
-    return Verdict("worse", f"{target}: the rotational model is WORSE than holding the rates {where} "
+        return Verdict("no better", f"{target}: {what} is no better than holding the rate "
+                                    f"{where} ({gain:+.0f} %: {errs}{extra}): hold the rate")
+    return Verdict("worse", f"{target}: {what} is WORSE than holding the rate {where} "
                             f"({gain:+.0f} %: {errs}{extra}): the training flights do not represent the test "
-                            f"flights; hold the rates")
+                            f"flights; hold the rate")

@@ -11,15 +11,16 @@ from droneid.rotation_stage import AxisResult, RotationResult, identify_rotation
 
 
 def test_axis_verdict_needs_validation_and_test_alike():
-    assert axis_verdict("wx_dot", False, 60.0, 60.0, math.nan, math.nan).kind == "no better"
-    better = axis_verdict("wx_dot", True, 60.0, 20.0, 16.0, 10.0)
+    held = axis_verdict("wx_dot", "held", 60.0, 60.0, math.nan, math.nan)
+    assert held.kind == "no better" and "held" in held.text
+    better = axis_verdict("wx_dot", "damping", 60.0, 20.0, 16.0, 10.0)
     assert better.kind == "better" and "38 %" in better.text
-    worse = axis_verdict("wy_dot", True, 58.0, 21.0, 18.0, 41.6)
-    assert worse.kind == "worse" and "WORSE" in worse.text and "hold the rates" in worse.text
+    worse = axis_verdict("wy_dot", "torque", 58.0, 21.0, 18.0, 41.6)
+    assert worse.kind == "worse" and "WORSE" in worse.text and "torque model" in worse.text
     # without test flights the validation decides, and says where it was measured
-    v = axis_verdict("wz_dot", True, 5.5, 4.6, math.nan, math.nan)
+    v = axis_verdict("wz_dot", "torque", 5.5, 4.6, math.nan, math.nan)
     assert v.kind == "better" and "held-out training flights" in v.text
-    assert axis_verdict("wz_dot", True, 5.5, 5.4, 6.6, 6.5).kind == "no better"
+    assert axis_verdict("wz_dot", "torque", 5.5, 5.4, 6.6, 6.5).kind == "no better"
 
 
 def test_speed_scale_follows_the_recorded_unit():
@@ -65,7 +66,7 @@ def test_one_training_flight_cannot_choose():
 
 
 def test_the_record_reads_back():
-    axes = tuple(AxisResult(t, 60.0, 20.0, math.nan, math.nan, "text", "better")
+    axes = tuple(AxisResult(t, "damping", 60.0, 20.0, math.nan, math.nan, "text", "better")
                  for t in ("wx_dot", "wy_dot", "wz_dot"))
     rot = RotationResult("crazyflie_x", "--frame", 0.0175, "erpm", None, {"held": {}}, axes,
                          {"constant": {"1": {"position": 0.1}}}, ("a note",))
