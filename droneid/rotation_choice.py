@@ -355,7 +355,10 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
 
 def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
            min_windows: int = 3) -> tuple[str, list[dict]]:
-    """Axis ``k``'s ladder (:func:`select_rotation`): (the rung taken, one record per step)."""
+    """Axis ``k``'s ladder (:func:`select_rotation`): (the rung taken, one record per step: the
+    rung, the rung it is tested against, ``wins`` per held-out flight and regime (None: too few
+    windows), ``ratio`` per regime of its mean error to the other's pooled over the flights,
+    calmest regime first, and whether it was taken)."""
     held = np.concatenate([f["errs"]["held"]["axis"][:, k] for f in folds])
     current, steps = "held", []
     for rung in RUNGS[1:]:
@@ -367,7 +370,12 @@ def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
                          for q in range(regimes)])
         cells = [w for row in wins for w in row if w is not None]
         taken = bool(cells) and all(cells) and level <= alpha
-        steps.append({"rung": rung, "against": current, "wins": wins, "taken": taken})
+        cls = _regime(held, regimes)
+        new = np.concatenate([f["errs"][rung]["axis"][:, k] for f in folds])
+        old = np.concatenate([f["errs"][current]["axis"][:, k] for f in folds])
+        ratio = [float(new[cls == q].mean() / old[cls == q].mean()) if (cls == q).any() and old[cls == q].mean() > 0
+                 else None for q in range(regimes)]
+        steps.append({"rung": rung, "against": current, "wins": wins, "ratio": ratio, "taken": taken})
         if taken:
             current = rung
     return current, steps
