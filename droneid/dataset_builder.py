@@ -47,7 +47,7 @@ from .differentiation import DIFFERENTIATORS, get_differentiator
 from .errors import ConfigError, DataError, MissingSignalError, check_choice
 from .flight import CANONICAL_SIGNALS, Flight, Signal, is_canonical
 from .frames import quat_to_euler
-from .in_flight import (Interval, _Detect, _fmt_iv, _intersect, _is_angle, _subtract, in_flight_intervals,
+from .in_flight import (Interval, _Detect, _fmt_iv, _intersect, _is_angle, in_flight_intervals, subtract_intervals,
                         resample_signal, signal_gaps)
 from .screening import screen_signal
 from .targets import TARGETS, state_of
@@ -359,12 +359,12 @@ class DatasetBuilder:
         holes: list[Interval] = []
         for n, sig in need.items():
             d = float(delays.get(n, 0.0))      # a delayed input is read at t - d: its gaps and holes move by d
-            ivs = _subtract(_intersect(ivs, [(sig.start_s, sig.end_s)]),
+            ivs = subtract_intervals(_intersect(ivs, [(sig.start_s, sig.end_s)]),
                             [(a + d, b + d) for a, b in signal_gaps(sig, self.max_gap_s)])
             sc = _reused(("screen",), sig, lambda: screen_signal(sig))   # implausible samples: holes no row may use
             if sc.implausible:
                 if diff.name == "spline" and n in (source, _POSITION_OF.get(source)):
-                    ivs = _subtract(ivs, sc.holes)   # a spline smooths the whole interval
+                    ivs = subtract_intervals(ivs, sc.holes)   # a spline smooths the whole interval
                 holes += [(a + d, b + d) for a, b in sc.holes]
                 screened[n] = sc.implausible
                 notes.append(f"screened {sc.describe()}: rows that use them are left out")

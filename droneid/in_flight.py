@@ -16,7 +16,7 @@ import numpy as np
 from .flight import Flight, Signal
 from .frames import wrap_angle
 
-__all__ = ["Interval", "in_flight_intervals", "signal_gaps", "resample_signal"]
+__all__ = ["Interval", "in_flight_intervals", "signal_gaps", "resample_signal", "subtract_intervals"]
 
 Interval = tuple[float, float]
 _EULER = ("roll", "pitch", "yaw")
@@ -33,7 +33,8 @@ def _intersect(a: Sequence[Interval], b: Sequence[Interval]) -> list[Interval]:
     return sorted(out)
 
 
-def _subtract(a: Sequence[Interval], holes: Sequence[Interval]) -> list[Interval]:
+def subtract_intervals(a: Sequence[Interval], holes: Sequence[Interval]) -> list[Interval]:
+    """The parts of intervals ``a`` outside every interval of ``holes`` (seconds)."""
     out = list(a)
     for h0, h1 in holes:
         nxt = []
@@ -242,7 +243,7 @@ def in_flight_intervals(flight: Flight, *, ts: float = 0.05, detect: _Detect | N
     # ground contact is trimmed from the log's segments too
     holes, why = _ground_holes(flight, ts, p)
     if holes:
-        kept = [iv for iv in _subtract(ivs, holes) if iv[1] - iv[0] >= p.min_segment_s]
+        kept = [iv for iv in subtract_intervals(ivs, holes) if iv[1] - iv[0] >= p.min_segment_s]
         notes.append(f"{why}; airborne: {_fmt_iv(kept)}")
         ivs = kept
     else:

@@ -40,9 +40,11 @@ import numpy as np
 
 from .errors import ConfigError, DataError
 from .frames import qmul, quat_to_euler, quat_to_matrix
+from .in_flight import in_flight_intervals, signal_gaps, subtract_intervals
+from .screening import screen_signal
 
 __all__ = [
-    "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log",
+    "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log", "flight_state_logs",
     "quat_derivative", "quat_angle", "simulate", "rollout", "window_errors", "OpenLoopScore",
     "OpenLoopResult", "score_model", "open_loop", "NominalPhysics", "Constant",
     "CRAZYFLIE_RAD_S_PER_ERPM", "IdentifiedTranslation", "IdentifiedVehicle",
@@ -98,14 +100,9 @@ def _continuous_quat(q: np.ndarray) -> np.ndarray:
     return q * sign[:, None]
 
 
-def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> StateLog:
-    """A :class:`StateLog` from a :class:`~droneid.flight.Flight` with position, velocity,
-    attitude quaternion, body rates and per-motor speeds (``rpm1..M``).
-
-    Every signal is linearly interpolated onto one uniform grid over the span they all cover
-    (step ``dt_s``, default the median step of ``x``); the quaternion is made sign-continuous,
-    interpolated and renormalised. ``motors`` defaults to every consecutive ``rpmN`` present.
-    """
+def _signals(flight, motors: int | None = None) -> tuple[list[str], list[str]]:
+    """(state signals, motor-speed signals rpm1..M) a :class:`StateLog` reads; DataError naming
+    what the flight lacks."""
     need = ("x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz")
     missing = [n for n in need if n not in flight]
     if motors is None:
@@ -117,7 +114,38 @@ def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> S
     if missing or not rpm_names:
         raise DataError(f"{flight.name}: open-loop simulation needs "
                         f"{', '.join(missing) or 'per-motor speeds rpm1..rpmN'}, which the log lacks")
-    names = list(need) + rpm_names
+    return list(need), rpm_names
+
+
+def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
+    """The stretches of ``flights`` the open-loop metric may use, as :class:`StateLog` each named
+    by its flight (so that a flight's stretches form one validation block): airborne and before
+    any crash (:func:`droneid.in_flight.in_flight_intervals`: a window on the ground with the
+    motors off would score free fall against a vehicle at rest), with every gap and every
+    screened implausible sample (:mod:`droneid.screening`, the rule of the datasets and of the
+    multi-step prediction) of the signals it reads cut out, so that no window interpolates across
+    one. Stretches shorter than ``min_s`` seconds (no 50-step window at 100 Hz) are left out."""
+    out = []
+    for f in flights:
+        need, rpm_names = _signals(f)
+        screened = [n for n in (*need, *rpm_names, "roll", "pitch", "yaw") if f.has(n)]
+        holes = [h for n in screened for h in (*signal_gaps(f[n], 0.0), *screen_signal(f[n]).holes)]
+        for a, b in subtract_intervals(in_flight_intervals(f)[0], sorted(holes)):
+            if b - a > min_s:
+                out.append(state_log(f.between(a, b)))
+    return out
+
+
+def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> StateLog:
+    """A :class:`StateLog` from a :class:`~droneid.flight.Flight` with position, velocity,
+    attitude quaternion, body rates and per-motor speeds (``rpm1..M``).
+
+    Every signal is linearly interpolated onto one uniform grid over the span they all cover
+    (step ``dt_s``, default the median step of ``x``); the quaternion is made sign-continuous,
+    interpolated and renormalised. ``motors`` defaults to every consecutive ``rpmN`` present.
+    """
+    need, rpm_names = _signals(flight, motors)
+    names = need + rpm_names
     t0 = max(flight[n].t[0] for n in names)
     t1 = min(flight[n].t[-1] for n in names)
     if dt_s is None:

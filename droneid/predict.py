@@ -22,7 +22,7 @@ import numpy as np
 
 from priors.registry import get_prior
 
-from .dataset_builder import DatasetBuilder, in_flight_intervals
+from .dataset_builder import DatasetBuilder
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
 from .suitability import assess
@@ -30,7 +30,8 @@ from .closed_form import IdentifiedModel, check_schema
 from .targets import TARGETS, state_of
 from .io_util import to_jsonable
 from .numerics import rmse
-from .openloop import Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, open_loop, state_log
+from .openloop import (Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, flight_state_logs,
+                       open_loop)
 from .rotation import RotationModel
 from .rollout import RolloutResult, rollout_errors, sample_inputs
 from .screening import implausible_counts, screen_flight
@@ -253,11 +254,7 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     if nominal is not None:
         chosen["nominal physics"] = nominal
     chosen["constant"] = Constant()
-    # the airborne, pre-crash stretches only (as the multi-step prediction): a window on the
-    # ground with the motors off would score free fall against a vehicle at rest
-    logs = [state_log(f.between(a, b)) for f in flights for a, b in in_flight_intervals(f)[0]
-            if b - a > 0.6]
-    return open_loop(chosen, logs, max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
+    return open_loop(chosen, flight_state_logs(flights), max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 
 
 def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,

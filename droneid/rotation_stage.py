@@ -3,7 +3,8 @@
 From the training flights only, :func:`identify_rotation`
 
 1. reads each flight's full state (position, velocity, attitude quaternion, body rates) and motor
-   speeds onto one grid (:func:`droneid.openloop.state_log`), in-flight stretches only;
+   speeds onto one grid, in-flight stretches clear of gaps and screened samples only
+   (:func:`droneid.openloop.flight_state_logs`);
 2. takes the rotor layout from ``--frame`` or, failing that, identifies it from the data as a
    torque sign pattern (:func:`droneid.rotation.identify_layout`) and names the known layout
    (:data:`priors.torque.LAYOUTS`) it matches;
@@ -31,21 +32,18 @@ import numpy as np
 from priors.torque import LAYOUTS, get_layout
 
 from .errors import DataError, DroneIdError
-from .in_flight import in_flight_intervals
 from .io_util import to_jsonable
-from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedTranslation, IdentifiedVehicle, StateLog, state_log
+from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedTranslation, IdentifiedVehicle, StateLog, flight_state_logs
 from .report.wording import Verdict, axis_verdict
 from .rotation import RotationModel, identify_layout
 from .rotation_choice import _HeldRates as HeldRates, _validation_sums as validation_sums, select_rotation
 
-__all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "identify_rotation", "rotation_logs",
-           "speed_scale"]
+__all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "identify_rotation", "speed_scale"]
 
 #: the rotational targets, body FLU axes x (roll), y (pitch), z (yaw)
 ROTATION_TARGETS = ("wx_dot", "wy_dot", "wz_dot")
 #: open-loop windows scored on the test flights: every start
 _TEST_STRIDE = 1
-_MIN_STRETCH_S = 0.6   # shorter in-flight stretches hold no 50-step window at 100 Hz
 
 
 @dataclass(frozen=True)
@@ -138,19 +136,6 @@ def speed_scale(flight) -> tuple[float, str]:
                     f"rpm1 is in {unit or 'no unit'}")
 
 
-def rotation_logs(flights: Sequence) -> list[StateLog]:
-    """The airborne, pre-crash stretches of ``flights`` as :class:`StateLog` (each named by its
-    flight, so that a flight's stretches form one validation block). DataError when a flight
-    lacks the full state or the per-motor speeds."""
-    out = []
-    for f in flights:
-        for a, b in in_flight_intervals(f)[0]:
-            if b - a > _MIN_STRETCH_S:
-                log = state_log(f.between(a, b))
-                out.append(StateLog(f.name, log.t_s, log.state, log.rpm, log.dt_s))
-    return out
-
-
 def _layout(logs: Sequence[StateLog], frame: str, rad_s_per_rpm: float) -> tuple[str, str]:
     """(layout name, where it came from): ``frame`` when given, else the known layout whose torque
     sign pattern the training data show."""
@@ -173,7 +158,7 @@ def identify_rotation(train_flights: Sequence, test_flights: Sequence | None, fr
     figures (without them the test flights are not scored). DataError when the flights cannot
     give a rotational model (missing signals, fewer than two training flights)."""
     scale, why = speed_scale(train_flights[0])
-    train = rotation_logs(train_flights)
+    train = flight_state_logs(train_flights)
     if len({log.name for log in train}) < 2:
         raise DataError("the rotational model is chosen by holding each training flight out in turn: "
                         "it needs at least two training flights with an in-flight stretch")
@@ -190,7 +175,7 @@ def identify_rotation(train_flights: Sequence, test_flights: Sequence | None, fr
     notes = []
     if test_flights and translation is not None:
         try:
-            test = rotation_logs(test_flights)
+            test = flight_state_logs(test_flights)
             tr = IdentifiedTranslation(translation)
             test_held = _axis_simerr(IdentifiedVehicle(tr, HeldRates()), test)
             test_model = _axis_simerr(IdentifiedVehicle(tr, choice.model), test) if choice.model is not None \
