@@ -1,25 +1,28 @@
 """Start-up of the engine in a fresh process (issue 26): what `droneid fit` imports, and that
-setting numba up without its BLAS probe leaves the results bit for bit the same."""
+reading the cached kernels without numba's target set-up (precompile.load_from_cache_lightly)
+leaves the results bit for bit the same."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+
+import pytest
 
 _FIT = """
 import json, sys
 import numpy as np
-from droneid.sngp import SNGPRegressor, kernels
-if sys.argv[1] == "skip":
-    kernels.set_up_target(skip_blas_probe=True)
+from droneid.sngp import SNGPRegressor, kernels, precompile
+if sys.argv[1] == "numba":
+    precompile.load_from_cache_lightly(on=False)    # numba's own loading, full target set-up
 rng = np.random.default_rng(3)
 X = rng.uniform(-1, 1, (120, 3))
 y = np.sin(X[:, 0]) * X[:, 1] + 0.3 * X[:, 2] ** 2 + 0.01 * rng.normal(size=120)
 m = SNGPRegressor(generations=3000, population_size=100, seed=5, simplify_s=0).fit(X, y)
-scipy_linalg = "scipy.linalg" in sys.modules
-import scipy.linalg.cython_blas   # still importable afterwards
 print(json.dumps({"model": m.model_.to_dict(), "rmse": m.rmse_train_.hex(),
-                  "scipy_linalg": scipy_linalg}))
+                  "full_set_up": "numba.np.arraymath" in sys.modules,
+                  "scipy_linalg": "scipy.linalg" in sys.modules}))
 """
 
 
@@ -27,13 +30,31 @@ def _fit(mode: str) -> dict:
     r = subprocess.run([sys.executable, "-c", _FIT, mode], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0, r.stderr
+    assert r.stderr == "", r.stderr     # no warning from either way of loading
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def test_skipping_numbas_blas_probe_keeps_scipy_out_and_the_model_bit_for_bit():
-    plain, skipped = _fit("plain"), _fit("skip")
-    assert skipped["model"] == plain["model"] and skipped["rmse"] == plain["rmse"]
-    assert plain["scipy_linalg"] and not skipped["scipy_linalg"]
+def test_light_kernel_loading_skips_numbas_set_up_and_keeps_the_model_bit_for_bit():
+    numba_own, light = _fit("numba"), _fit("light")
+    assert light["model"] == numba_own["model"] and light["rmse"] == numba_own["rmse"]
+    assert numba_own["full_set_up"] and numba_own["scipy_linalg"]
+    assert not light["full_set_up"] and not light["scipy_linalg"]
+
+
+@pytest.mark.slow   # compiles every kernel once (~30 s)
+def test_light_loading_falls_back_to_numba_when_the_cache_has_no_entry(tmp_path):
+    # an empty cache folder: every kernel is compiled by numba, with its full set-up, then read
+    # back lightly by a second process; three processes, one model
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    outs = []
+    for _ in range(2):
+        r = subprocess.run([sys.executable, "-c", _FIT, "light"], capture_output=True, text=True,
+                           timeout=600, env=env)
+        assert r.returncode == 0, r.stderr
+        outs.append(json.loads(r.stdout.strip().splitlines()[-1]))
+    compiled, loaded = outs
+    assert compiled["full_set_up"] and not loaded["full_set_up"]
+    assert compiled["model"] == loaded["model"] == _fit("light")["model"]
 
 
 _PROBE = """
@@ -57,4 +78,5 @@ def test_droneid_fit_imports_neither_pandas_nor_scipy_on_a_plain_table(tmp_path)
     assert out["rc"] == 0, r.stderr
     loaded = set(out["modules"])
     assert "pandas" not in loaded and "scipy.linalg" not in loaded
+    assert "numba.np.arraymath" not in loaded    # numba's compiler set-up was not needed
     assert "sympy" in loaded   # the equation is printed: sympy comes, in the background
