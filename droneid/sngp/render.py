@@ -190,8 +190,10 @@ def guarded_simplify(expr: "sp.Expr", seconds: float, max_ops: int = 60) -> "sp.
 
 def is_sympy(obj) -> bool:
     """Whether ``obj`` is a sympy object (without importing sympy: none exists before it is)."""
-    sympy = sys.modules.get("sympy")
-    return sympy is not None and isinstance(obj, sympy.Basic)
+    # sympy.core.basic, not sympy: another thread may be importing sympy (import_symbolic_side),
+    # and a half-imported sympy has no Basic yet; no object is a Basic before its class exists
+    basic = sys.modules.get("sympy.core.basic")
+    return basic is not None and isinstance(obj, getattr(basic, "Basic", ()))
 
 
 def import_symbolic_side() -> None:
