@@ -47,7 +47,7 @@ def test_python_export_steps_as_droneid_simulates():
     exec(compile(export_vehicle(veh.translation, veh.rotation, "python"), "vehicle.py", "exec"), ns)
     cond, x = ns["Inputs"](), list(x0)
     for k in range(N):
-        x = ns["step"](x, *cond.push(rpm[k]))
+        x = ns["step"](x, cond.push(rpm[k]))
         np.testing.assert_allclose(x, ref[k], rtol=1e-9, atol=1e-9, err_msg=f"step {k}")
     assert abs(np.linalg.norm(x[6:10]) - 1.0) < 1e-12
     assert np.ptp(ref[:, 10:13], axis=0).min() > 0.05     # the rates move: the rotation is exercised
@@ -66,13 +66,13 @@ static const double RPM[{N}][4] = {{{rows}}};
 int main(void)
 {{
     double x[13] = {{{", ".join(repr(float(v)) for v in x0)}}};
-    double s_t[4], s_r[4], rate_r[4];
+    double u[DRONEID_U];
     droneid_inputs c;
     int k, i;
     droneid_inputs_init(&c, DRONEID_DT);
     for (k = 0; k < {N}; k++) {{
-        droneid_inputs_push(&c, RPM[k], s_t, s_r, rate_r);
-        droneid_step(x, s_t, s_r, rate_r, DRONEID_DT);
+        droneid_inputs_push(&c, RPM[k], u);
+        droneid_step(x, u, DRONEID_DT);
         for (i = 0; i < 13; i++) printf("%.17g%c", x[i], i == 12 ? '\\n' : ' ');
     }}
     return 0;
