@@ -358,7 +358,8 @@ def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
     """Axis ``k``'s ladder (:func:`select_rotation`): (the rung taken, one record per step: the
     rung, the rung it is tested against, ``wins`` per held-out flight and regime (None: too few
     windows), ``ratio`` per regime of its mean error to the other's pooled over the flights,
-    calmest regime first, and whether it was taken)."""
+    calmest regime first, the test's ``level`` (2^-F with F the fewest flights counted in a
+    regime) and whether it was taken)."""
     held = np.concatenate([f["errs"]["held"]["axis"][:, k] for f in folds])
     current, steps = "held", []
     for rung in RUNGS[1:]:
@@ -369,13 +370,16 @@ def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
             wins.append([None if (cls == q).sum() < min_windows else bool(new[cls == q].mean() < old[cls == q].mean())
                          for q in range(regimes)])
         cells = [w for row in wins for w in row if w is not None]
-        taken = bool(cells) and all(cells) and level <= alpha
+        # the sign test's level: in each regime, 2^-(flights with enough windows there)
+        step_level = max(0.5 ** sum(row[q] is not None for row in wins) for q in range(regimes))
+        taken = bool(cells) and all(cells) and max(level, step_level) <= alpha
         cls = _regime(held, regimes)
         new = np.concatenate([f["errs"][rung]["axis"][:, k] for f in folds])
         old = np.concatenate([f["errs"][current]["axis"][:, k] for f in folds])
         ratio = [float(new[cls == q].mean() / old[cls == q].mean()) if (cls == q).any() and old[cls == q].mean() > 0
                  else None for q in range(regimes)]
-        steps.append({"rung": rung, "against": current, "wins": wins, "ratio": ratio, "taken": taken})
+        steps.append({"rung": rung, "against": current, "wins": wins, "ratio": ratio,
+                      "level": max(level, step_level), "taken": taken})
         if taken:
             current = rung
     return current, steps

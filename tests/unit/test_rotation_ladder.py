@@ -99,3 +99,18 @@ def test_per_axis_model_holds_damps_or_keeps_the_torque_per_axis():
     assert per_axis_model(("held",) * 3, [4.0, 8.0, 1.0], torque, LAYOUT, 1.0) is None
     with pytest.raises(DataError, match="no torque model"):
         per_axis_model(("torque", "held", "held"), [1.0] * 3, None, LAYOUT, 1.0)
+
+
+def test_a_regime_seen_on_too_few_flights_cannot_establish_a_rung():
+    """Two of five flights have no calm windows: the calm regime is judged on three flights only
+    (level 1/8 > 0.05), so even a rung that wins every cell there is not taken."""
+    folds = _folds([0.9, 0.9, 0.8, 0.5])
+    for f in folds[:2]:
+        e = f["errs"]
+        keep = e["held"]["axis"][:, 0] > 50.0          # the hard windows only
+        for name in e:
+            e[name] = {"axis": e[name]["axis"][keep]}
+    rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
+    assert steps[0]["wins"][0][0] is None and all(c for row in steps[0]["wins"] for c in row if c is not None)
+    assert steps[0]["level"] == 0.125 and rung == "held"
+    assert _climb(folds, 0, 4, 0.5 ** 5, 0.125)[0] == "damping"

@@ -116,6 +116,10 @@ def test_selection_keeps_the_planted_structure(drag_flights):
         got = dict(zip(choice.model.columns(k), choice.model.coef[k]))
         assert got["pattern"] == pytest.approx(DRAG_COEF[k][0], rel=0.05), k
     assert [step["flights"] for step in choice.ladder] == [[f.name for f in drag_flights]] * 3
+    import json
+    back = json.loads(json.dumps(choice.to_dict()))
+    assert back["axis_choice"] == ["torque"] * 3 and back["chosen"] == choice.chosen
+    assert back["ladder"][0]["steps"][-1]["taken"] and len(back["ladder"][0]["steps"][-1]["ratio"]) == 4
     # at the default level (0.05) three flights cannot establish any rung: every rate is held
     strict = select_rotation(drag_flights, candidates=cands[1:], translation_delay_steps=0, stride=10)
     assert strict.model is None and strict.axis_choice == ("held", "held", "held")
