@@ -13,7 +13,7 @@ import numpy as np
 
 from priors.torque import RotorLayout, get_layout
 
-from .errors import DataError
+from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
 from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation,
@@ -309,6 +309,11 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
         raise DataError("select_rotation needs at least two training flights to validate on")
     if not candidates:
         raise DataError("select_rotation: no candidate settings")
+    if int(regimes) != regimes or regimes < 1:
+        raise ConfigError(f"The 'regimes' parameter of select_rotation must be a positive integer. Got {regimes!r} instead.")
+    if not 0.0 < alpha <= 1.0:
+        raise ConfigError(f"The 'alpha' parameter of select_rotation must be in (0, 1]. Got {alpha!r} instead.")
+    regimes = int(regimes)
     layout = get_layout(layout) if isinstance(layout, str) else layout
     folds = []   # per held-out flight: name, test segments, translation, damping c, torque fits, errors
     for name in names:

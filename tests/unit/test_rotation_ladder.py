@@ -114,3 +114,13 @@ def test_a_regime_seen_on_too_few_flights_cannot_establish_a_rung():
     assert steps[0]["wins"][0][0] is None and all(c for row in steps[0]["wins"] for c in row if c is not None)
     assert steps[0]["level"] == 0.125 and rung == "held"
     assert _climb(folds, 0, 4, 0.5 ** 5, 0.125)[0] == "damping"
+
+
+def test_select_rotation_rejects_a_bad_regime_count_or_level():
+    from droneid.errors import ConfigError
+    from droneid.rotation_choice import select_rotation
+    logs = [_decaying_flight(1, [4.0] * 3, n=300, name="a"), _decaying_flight(2, [4.0] * 3, n=300, name="b")]
+    with pytest.raises(ConfigError, match="'regimes' parameter"):
+        select_rotation(logs, regimes=0)
+    with pytest.raises(ConfigError, match="'alpha' parameter"):
+        select_rotation(logs, alpha=0.0)
