@@ -228,17 +228,17 @@ def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> 
 
 
 #: one `droneid fit` in a subprocess with time stamps between its phases (the engine's own
-#: functions wrapped; run through cli.main with an argv, so the process keeps its teardown)
+#: functions wrapped once the command imports them; run through cli.main with an argv, so the
+#: process keeps its teardown). The background import of sympy is timed apart: it overlaps them.
 _PHASES = r"""
-import contextlib, io, sys, time
+import contextlib, importlib, io, sys, time
 T0 = time.perf_counter()
-marks = []
+marks, side = [], []
 def mark(label):
     marks.append((label, time.perf_counter()))
 import droneid.cli as cli
-mark("interpreter + droneid.cli + registry")
-import droneid.fit as F
-from droneid.sngp import estimator as E, kernels as K, population as popmod
+import droneid.commands.fit as C
+mark("interpreter + droneid.cli + the fit command's module")
 
 def wrap(owner, name, before=None, after=None, once=False):
     orig = getattr(owner, name)
@@ -253,13 +253,32 @@ def wrap(owner, name, before=None, after=None, once=False):
         return out
     setattr(owner, name, inner)
 
-wrap(F, "prepare", "imports of the fit command (numpy, numba, the engine; sympy starts in the "
-     "background)", "reading and checking the table")
-wrap(K, "set_up_target", None, "numba's target set-up (kernels.set_up_target)")
-wrap(popmod, "init", None, "first kernel call: loading the cached kernels", once=True)
-wrap(E, "run_search", "estimator set-up", "the search (threads on every core)")
-wrap(E, "render", "final model, pruning, test error (waits for sympy if still importing)",
-     "building the equation's text (sympy; no simplification by default)")
+def instrument(F):
+    from droneid.sngp import estimator as E, kernels as K, population as popmod
+    wrap(F, "prepare", None, "reading and checking the table")
+    wrap(K, "set_up_target", None, "numba's run-time set-up (kernels.set_up_target)")
+    wrap(popmod, "init", None, "first kernel call: loading the cached kernels", once=True)
+    wrap(E, "run_search", "estimator set-up", "the search (threads on every core)")
+    wrap(E, "render", "final model, pruning, test error",
+         "building the equation's text (sympy; no simplification by default)")
+
+real_import = importlib.import_module
+def hooked(name, package=None):
+    first = name == "droneid.fit" and name not in sys.modules
+    module = real_import(name, package)
+    if first:
+        mark("imports of the engine (numpy, numba, droneid.fit, droneid.sngp)")
+        instrument(module)
+    return module
+importlib.import_module = hooked
+
+side_import = C._import_quietly
+def timed_side_import():
+    t = time.perf_counter()
+    side_import()
+    side.append((t - T0, time.perf_counter() - T0))
+C._import_quietly = timed_side_import
+
 with contextlib.redirect_stdout(io.StringIO()):
     cli.main(["fit", sys.argv[1], "--target", "vx_dot", "-q"])
 mark("printing")
@@ -268,7 +287,7 @@ rows = []
 for label, t in marks:
     rows.append((label, t - prev))
     prev = t
-print(repr((rows, prev - T0)))
+print(repr((rows, prev - T0, side)))
 """
 
 
@@ -279,13 +298,17 @@ def breakdown(table: Path) -> None:
     r = subprocess.run([sys.executable, "-c", _PHASES, str(table)], cwd=ROOT, capture_output=True,
                        text=True, check=True, env=_ENV)
     whole = time.perf_counter() - t0
-    rows, inside = ast.literal_eval(r.stdout.strip().splitlines()[-1])
-    print("\n## Where one `droneid fit` process (160 samples) spends its time (wall s, one run)")
+    rows, inside, side = ast.literal_eval(r.stdout.strip().splitlines()[-1])
+    print(f"\n## Where one `droneid fit` process (160 samples) spends its time (wall s, one run; "
+          f"load average {os.getloadavg()[0]:.1f})")
     for label, s in rows:
         print(f"{s:7.3f}  {label}")
     print(f"{whole - inside:7.3f}  interpreter start and teardown (this run keeps the teardown that "
           f"`droneid fit` skips)")
     print(f"{whole:7.3f}  whole process")
+    for start, end in side:
+        print(f"meanwhile, in a background thread: sympy's import from {start:.3f} to {end:.3f} s "
+              f"({end - start:.3f} s, sharing the cores with the rows above)")
 
 
 def main(argv=None) -> int:
