@@ -318,12 +318,19 @@ def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> _Part:
     M, P, o = spec["M"], spec["P"], offset
     lp, ce = _alpha(spec["lp"], dt_s), _alpha(spec["centre"], dt_s)
     bw = "None" if spec["bw"] is None else _f(spec["bw"])
+    steps = [f"the motor speeds of {spec['d_r']} step(s) earlier as rotor speeds (rpm * "
+             f"{_f(rotation.rad_s_per_rpm)} rad/s)"]
+    if spec["lp"] is not None:
+        steps.append(f"low-passed (first order, time constant {spec['lp']:g} s)")
+    steps.append("squared as (rotor speed / 1000 rad/s)^2")
+    if spec["centre"] is not None:
+        steps.append(f"taken about their moving average (time constant {spec['centre']:g} s)")
+    if spec["bw"] is not None:
+        steps.append(f"balanced about their mean since the first step (the training mean weighted as {spec['bw']:g} s)")
     header = (
         f"Rotation (rad/s^2, body FLU), rotor layout {spec['layout']}: u[{o}:{o + M}] = s_r, u[{o + M}:{o + 2 * M}] = rate_r:",
-        f"  s_r: the motor speeds {spec['d_r']} step(s) earlier, rotor speed = rpm * {_f(rotation.rad_s_per_rpm)} rad/s,",
-        f"  low-passed (time constant {spec['lp']} s), squared as (rotor speed / 1000 rad/s)^2, centred",
-        f"  ({spec['centre']} s) and balanced about their mean since the first step (prior weight {spec['bw']} s);",
-        "  rate_r: the (low-passed) rotor speeds' rate, 1/s.",
+        *(f"  {'s_r: ' if i == 0 else '  then '}{t}" for i, t in enumerate(steps)),
+        "  rate_r: the rate of the (low-passed) rotor speeds, (rad/s)/s, backward difference over one step.",
         "  w'_k = coefficients . columns + trim; mix = P s_r (roll, pitch, yaw patterns of the layout),",
         "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r:",
         *[f"  w'_{k} = {_axis_expr(spec, k)}" for k in range(3)])
@@ -507,10 +514,10 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict) -
               "and the Z-Y-X Euler angles",
               "  roll, pitch, yaw of the simulated quaternion (pitch clipped to [-pi/2, pi/2]):",
               *("  " + line for line in equations), *notes,
-              f"  u[0:{3 * K}]: model by model (vx_dot, vy_dot, vz_dot), the logged motor speeds "
-              f"{', '.join(names) or '(none)'} read whole steps earlier:",
-              *(f"    u[{col[a, n]}] = {n} of {steps[m.target, n]} step(s) earlier ({m.target})"
-                for a, m in enumerate(ordered) for n in names))
+              f"  u[0:{3 * K}]: the logged motor speeds each model reads, at their delays in whole steps:",
+              *(f"    u[{a * K}:{(a + 1) * K}] ({m.target}): "
+                + ", ".join(f"{n} of {steps[m.target, n]} step(s) earlier" for n in names)
+                for a, m in enumerate(ordered) if names))
     # the Python equations keep sympy's numpy printing; the header's text is Python's
     langs = {"python": lambda m, n: f"h[-1 - {steps[m.target, n]}][{_rpm_index(n)}]",
              "c": lambda m, n: f"c->hist[DRONEID_HIST - 1 - {steps[m.target, n]}][{_rpm_index(n)}]"}
@@ -634,7 +641,7 @@ M = {M}
 DT = {_f(dt_s)}
 U = {width}
 HIST = {max(p.history for p in parts) + 1}
-''' + "".join(c["defs"] + "\n" for c in code if c["defs"]) + f'''
+''' + "".join("\n\n" + c["defs"].strip() + "\n" for c in code if c["defs"]) + f'''
 
 class Inputs:
     """The logged motor speeds to the model's inputs u, one step at a time (causal)."""

@@ -1,11 +1,12 @@
-"""``droneid export``: the final models of an identify result.json as Python, C, MATLAB or LaTeX."""
+"""``droneid export``: the final models of an identify result.json as Python, C, MATLAB or LaTeX;
+with ``--vehicle``, the whole vehicle (6-DOF step function) as Python or C."""
 from __future__ import annotations
 
 import json
 import sys
 from pathlib import Path
 
-from ..errors import DataError
+from ..errors import ConfigError, DataError
 from ..io_util import atomic_write_text
 from ..lazy import lazy_module
 from ._common import options_text
@@ -19,17 +20,51 @@ def register(sub) -> None:
                        description="Write each target's final model (targets.<t>.final of an identify "
                                    "result.json: prior terms, effects and evolved terms expanded into one "
                                    "expression) as self-contained code; the header states the inputs, units, "
-                                   "conventions and delays. See docs/use-the-model.md.")
+                                   "conventions and delays. With --vehicle: the whole vehicle instead, a step "
+                                   "function of the state and the motor speeds. See docs/use-the-model.md.")
     p.add_argument("result", metavar="RESULT.json", help="result.json of droneid identify")
     p.add_argument("--to", required=True, choices=("python", "c", "matlab", "latex"), help="output language")
     p.add_argument("-o", "--output", default=None, metavar="FILE",
                    help="write to FILE (atomically) instead of stdout; for matlab the file name "
                         "(without .m) is the function name")
     p.add_argument("--target", default=None, help="target(s), comma separated (default: every final model)")
+    p.add_argument("--vehicle", action="store_true",
+                   help="the whole vehicle (python or c): the final vx_dot, vy_dot, vz_dot models and the "
+                        "result's rotational model (rotation.model; null: the body rates held), stepped by RK4 "
+                        "from the state and the logged motor speeds, as predict --open-loop simulates it")
+    p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
+                   help="with --vehicle: the step the motor speeds are fed at; the delays are whole steps "
+                        "of it (default: the step of the logs as identify recorded it, horizons.dt_s)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    if args.vehicle:
+        text = _vehicle(args)
+    else:
+        if args.dt is not None:
+            raise ConfigError("--dt applies to --vehicle only (the v̇ equations hold no step)")
+        text = _equations(args)
+    if args.output:
+        atomic_write_text(args.output, text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+def _source(path, models: dict) -> str:
+    # the reader options the model was identified with: a user's own CSV columns (--column),
+    # MCAP topics, Motive body: what a reader of the header needs to feed the same signals
+    read_with = options_text(models.get("_reader_options") or {})
+    return f"{path} (logs read with {read_with})" if read_with else str(path)
+
+
+def _provenance(path):
+    return json.loads(Path(path).read_text(encoding="utf-8")).get("provenance")
+
+
+def _equations(args) -> str:
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
     models = _predict.load_models(args.result, targets)
     finals = [m["identified"] for t, m in models.items() if not t.startswith("_") and "identified" in m]
@@ -37,16 +72,45 @@ def run(args) -> int:
         raise DataError(f"{args.result}: no final model to export (targets.<t>.final is written by "
                         f"droneid identify; older results hold only the engine model)")
     name = Path(args.output).stem if args.output and args.to == "matlab" else "droneid_model"
-    provenance = json.loads(Path(args.result).read_text(encoding="utf-8")).get("provenance")
-    # the reader options the model was identified with: a user's own CSV columns (--column),
-    # MCAP topics, Motive body: what a reader of the header needs to feed the same signals
-    read_with = options_text(models.get("_reader_options") or {})
-    source = f"{args.result} (logs read with {read_with})" if read_with else str(args.result)
-    text = _export.export_models(finals, args.to, source=source, name=name,
-                         inputs=_export.input_sources(provenance))
-    if args.output:
-        atomic_write_text(args.output, text)
-        print(f"wrote {args.output}", file=sys.stderr)
-    else:
-        sys.stdout.write(text)
-    return 0
+    return _export.export_models(finals, args.to, source=_source(args.result, models), name=name,
+                                 inputs=_export.input_sources(_provenance(args.result)))
+
+
+def _vehicle(args) -> str:
+    if args.to not in _export.VEHICLE_FORMATS:
+        raise ConfigError(f"--vehicle writes python or c, not {args.to}")
+    if args.target:
+        raise ConfigError("--vehicle exports vx_dot, vy_dot and vz_dot together: drop --target")
+    models = _predict.load_models(args.result)
+    doc = json.loads(Path(args.result).read_text(encoding="utf-8"))
+    if not isinstance(doc.get("rotation"), dict):
+        raise DataError(f"{args.result}: no rotational stage in the result ('rotation' is absent or null: "
+                        "identified with --rotation none, by an older droneid, or from logs without body rates "
+                        "and motor speeds); re-run droneid identify on such logs")
+    finals = {t: models[t]["identified"] for t in ("vx_dot", "vy_dot", "vz_dot")
+              if "identified" in models.get(t, {})}
+    missing = [t for t in ("vx_dot", "vy_dot", "vz_dot") if t not in finals]
+    if missing:
+        raise DataError(f"{args.result}: --vehicle needs the final models of vx_dot, vy_dot and vz_dot; "
+                        f"the result has none of {', '.join(missing)}")
+    dt, note = _step(args, doc)
+    try:
+        return _export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),
+                                      dt_s=dt, inputs=_export.input_sources(doc.get("provenance")),
+                                      dt_note=note)
+    except ConfigError as exc:
+        raise ConfigError(f"{args.result}: {exc}") from None
+
+
+def _step(args, doc) -> tuple[float, str]:
+    """The step (s) and where it came from: --dt, else the logs' step identify recorded."""
+    if args.dt is not None:
+        if not args.dt > 0:
+            raise ConfigError(f"--dt must be a positive number of seconds, got {args.dt:g}")
+        return float(args.dt), "given by --dt"
+    for where, sec in (("rotation.dt_s", doc.get("rotation")), ("horizons.dt_s", doc.get("horizons"))):
+        dt = sec.get("dt_s") if isinstance(sec, dict) else None
+        if isinstance(dt, (int, float)) and dt > 0:
+            return float(f"{dt:.6g}"), f"the logs' step that identify recorded, {where}; --dt to change it"
+    raise ConfigError(f"{args.result}: the result records no log step (horizons.dt_s): pass --dt SECONDS, "
+                      "the step of the logs the models were identified on")
