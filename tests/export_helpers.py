@@ -57,3 +57,56 @@ def c_eval(lib, m: IdentifiedModel, cols) -> np.ndarray:
     fn.argtypes = [ctypes.c_double] * len(m.signals)
     args = [np.asarray(cols[s], float) for s in m.signals]
     return np.array([fn(*(float(a[i]) for a in args)) for i in range(len(args[0]))])
+
+
+# -- the whole vehicle (export --vehicle) ----------------------------------------------------------
+def vehicle_python_rollout(text: str, rpm, x0, start: int, steps: int, u_ref=None) -> np.ndarray:
+    """States (steps, 13) of an exported Python vehicle: its conditioner fed ``rpm[0:start]``
+    first (the history a window's delays and balance read), then stepped from ``x0`` with
+    ``rpm[start:start + steps]``; ``u_ref`` (N, U), if given, must equal each step's inputs."""
+    ns: dict = {}
+    exec(compile(text, "vehicle.py", "exec"), ns)
+    cond = ns["Inputs"]()
+    for k in range(start):
+        cond.push(rpm[k])
+    x, out = list(x0), []
+    for k in range(start, start + steps):
+        u = cond.push(rpm[k])
+        if u_ref is not None:
+            np.testing.assert_allclose(u, u_ref[k], rtol=1e-12, atol=1e-12, err_msg=f"inputs at step {k}")
+        x = ns["step"](x, u)
+        out.append(x)
+    return np.array(out)
+
+
+def vehicle_c_rollout(tmp_path, text: str, rpm, x0, start: int, steps: int) -> np.ndarray:
+    """:func:`vehicle_python_rollout` of an exported C vehicle, compiled with gcc
+    ``-std=c99 -Wall -Werror`` (a warning fails the build) and run with a small main."""
+    rpm = np.asarray(rpm, float)[:start + steps]
+    (tmp_path / "vehicle.c").write_text(text)
+    rows = ",\n".join("{" + ", ".join(repr(float(v)) for v in r) + "}" for r in rpm)
+    (tmp_path / "main.c").write_text(f'''#include <stdio.h>
+#include "vehicle.c"
+static const double RPM[{rpm.shape[0]}][{rpm.shape[1]}] = {{{rows}}};
+int main(void)
+{{
+    double x[13] = {{{", ".join(repr(float(v)) for v in x0)}}};
+    double u[DRONEID_U];
+    droneid_inputs c;
+    int k, i;
+    droneid_inputs_init(&c, DRONEID_DT);
+{f"    for (k = 0; k < {start}; k++) droneid_inputs_push(&c, RPM[k], u);" if start else ""}
+    for (k = {start}; k < {start + steps}; k++) {{
+        droneid_inputs_push(&c, RPM[k], u);
+        droneid_step(x, u, DRONEID_DT);
+        for (i = 0; i < 13; i++) printf("%.17g%c", x[i], i == 12 ? '\\n' : ' ');
+    }}
+    return 0;
+}}
+''')
+    exe = tmp_path / "vehicle"
+    build = subprocess.run([CC, "-std=c99", "-Wall", "-Werror", "-o", str(exe), str(tmp_path / "main.c"), "-lm"],
+                           capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    return np.array([[float(v) for v in line.split()] for line in out.strip().splitlines()])

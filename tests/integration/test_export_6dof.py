@@ -3,9 +3,6 @@ functions reproduce droneid's own open-loop simulation (openloop.simulate of the
 step by step from the motor speeds alone, input conditioning included."""
 from __future__ import annotations
 
-import shutil
-import subprocess
-
 import numpy as np
 import pytest
 
@@ -14,6 +11,8 @@ from droneid.export import export_vehicle
 from droneid.openloop import IdentifiedVehicle, StateLog, simulate
 from droneid.rotation import RotationModel, TranslationModel
 from priors.torque import get_layout
+
+from export_helpers import CC, vehicle_c_rollout, vehicle_python_rollout
 
 DT = 0.01
 N = 150
@@ -43,46 +42,18 @@ def _case():
 
 def test_python_export_steps_as_droneid_simulates():
     veh, rpm, x0, ref = _case()
-    ns: dict = {}
-    exec(compile(export_vehicle(veh.translation, veh.rotation, "python"), "vehicle.py", "exec"), ns)
-    cond, x = ns["Inputs"](), list(x0)
-    for k in range(N):
-        x = ns["step"](x, cond.push(rpm[k]))
-        np.testing.assert_allclose(x, ref[k], rtol=1e-9, atol=1e-9, err_msg=f"step {k}")
+    got = vehicle_python_rollout(export_vehicle(veh.translation, veh.rotation, "python"), rpm, x0, 0, N)
+    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
+    x = got[-1]
     assert abs(np.linalg.norm(x[6:10]) - 1.0) < 1e-12
     assert np.ptp(ref[:, 10:13], axis=0).min() > 0.05     # the rates move: the rotation is exercised
 
 
 def test_c_export_compiles_and_steps_as_droneid_simulates(tmp_path):
-    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if cc is None:
-        pytest.skip("no C compiler (cc, gcc or clang) on this machine")
+    if CC is None:
+        pytest.skip("no C compiler (gcc / cc) on this machine")
     veh, rpm, x0, ref = _case()
-    (tmp_path / "vehicle.c").write_text(export_vehicle(veh.translation, veh.rotation, "c"))
-    rows = ",\n".join("{" + ", ".join(repr(float(v)) for v in r) + "}" for r in rpm[:N])
-    (tmp_path / "main.c").write_text(f'''#include <stdio.h>
-#include "vehicle.c"
-static const double RPM[{N}][4] = {{{rows}}};
-int main(void)
-{{
-    double x[13] = {{{", ".join(repr(float(v)) for v in x0)}}};
-    double u[DRONEID_U];
-    droneid_inputs c;
-    int k, i;
-    droneid_inputs_init(&c, DRONEID_DT);
-    for (k = 0; k < {N}; k++) {{
-        droneid_inputs_push(&c, RPM[k], u);
-        droneid_step(x, u, DRONEID_DT);
-        for (i = 0; i < 13; i++) printf("%.17g%c", x[i], i == 12 ? '\\n' : ' ');
-    }}
-    return 0;
-}}
-''')
-    exe = tmp_path / "vehicle"
-    subprocess.run([cc, "-std=c99", "-Wall", "-Werror", "-O2", "-o", str(exe), str(tmp_path / "main.c"), "-lm"],
-                   check=True, capture_output=True, text=True)
-    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
-    got = np.array([[float(v) for v in line.split()] for line in out.strip().splitlines()])
+    got = vehicle_c_rollout(tmp_path, export_vehicle(veh.translation, veh.rotation, "c"), rpm, x0, 0, N)
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
 
 

@@ -12,8 +12,6 @@ steps. The C is compiled with ``-std=c99 -Wall -Werror`` and must match the Pyth
 from __future__ import annotations
 
 import json
-import shutil
-import subprocess
 
 import numpy as np
 import pytest
@@ -27,7 +25,8 @@ from droneid.openloop import IdentifiedTranslation, IdentifiedVehicle, StateLog,
 from droneid.rotation import RotationModel
 from priors.torque import get_layout
 
-CC = shutil.which("gcc")
+from export_helpers import CC, vehicle_c_rollout, vehicle_python_rollout
+
 DT = 0.01
 N = 260          # log length (steps)
 START = 200      # the window starts here: the conditioner has been fed 200 steps of history
@@ -82,19 +81,7 @@ def _reference(rotation):
 
 
 def _python_rollout(text, log, u_ref=None):
-    ns: dict = {}
-    exec(compile(text, "vehicle.py", "exec"), ns)
-    cond = ns["Inputs"]()
-    for k in range(START):
-        u = cond.push(log.rpm[k])
-    x, out = list(log.state[START]), []
-    for k in range(START, START + H):
-        u = cond.push(log.rpm[k])
-        if u_ref is not None:      # the conditioner gives exactly the inputs droneid simulates with
-            np.testing.assert_allclose(u, u_ref[k], rtol=1e-12, atol=1e-12, err_msg=f"inputs at step {k}")
-        x = ns["step"](x, u)
-        out.append(x)
-    return np.array(out)
+    return vehicle_python_rollout(text, log.rpm, log.state[START], START, H, u_ref)
 
 
 @pytest.mark.parametrize("with_rotation", [True, False], ids=["rotation", "rates-held"])
@@ -114,37 +101,12 @@ def test_python_vehicle_reproduces_the_open_loop_rollout(with_rotation):
 @pytest.mark.parametrize("with_rotation", [True, False], ids=["rotation", "rates-held"])
 def test_c_vehicle_compiles_strictly_and_steps_as_the_python(tmp_path, with_rotation):
     if CC is None:
-        pytest.skip("gcc is not on this machine: the C export cannot be compiled here")
+        pytest.skip("no C compiler (gcc / cc) on this machine: the C export cannot be compiled here")
     rotation = _rotation() if with_rotation else None
     log, _, ref = _reference(rotation)
     py = _python_rollout(export_vehicle(_translation(), rotation, "python", dt_s=DT), log)
-    (tmp_path / "vehicle.c").write_text(export_vehicle(_translation(), rotation, "c", dt_s=DT))
-    rows = ",\n".join("{" + ", ".join(repr(float(v)) for v in r) + "}" for r in log.rpm[:START + H])
-    (tmp_path / "main.c").write_text(f'''#include <stdio.h>
-#include "vehicle.c"
-static const double RPM[{START + H}][4] = {{{rows}}};
-int main(void)
-{{
-    double x[13] = {{{", ".join(repr(float(v)) for v in log.state[START])}}};
-    double u[DRONEID_U];
-    droneid_inputs c;
-    int k, i;
-    droneid_inputs_init(&c, DRONEID_DT);
-    for (k = 0; k < {START}; k++) droneid_inputs_push(&c, RPM[k], u);
-    for (k = {START}; k < {START + H}; k++) {{
-        droneid_inputs_push(&c, RPM[k], u);
-        droneid_step(x, u, DRONEID_DT);
-        for (i = 0; i < 13; i++) printf("%.17g%c", x[i], i == 12 ? '\\n' : ' ');
-    }}
-    return 0;
-}}
-''')
-    exe = tmp_path / "vehicle"
-    build = subprocess.run([CC, "-std=c99", "-Wall", "-Werror", "-o", str(exe), str(tmp_path / "main.c"), "-lm"],
-                           capture_output=True, text=True)
-    assert build.returncode == 0, build.stderr
-    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
-    got = np.array([[float(v) for v in line.split()] for line in out.strip().splitlines()])
+    got = vehicle_c_rollout(tmp_path, export_vehicle(_translation(), rotation, "c", dt_s=DT), log.rpm,
+                            log.state[START], START, H)
     np.testing.assert_allclose(got, py, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
 
