@@ -22,6 +22,13 @@ conventions (ENU world, FLU body, Z-Y-X Euler, positive pitch = nose down, secon
 delays (which input to feed at t − d) and where the models come from (droneid version, source
 result). The equations in the header are written in the file's own language (C and MATLAB
 never show Python's ``**``).
+
+``export_vehicle(translation, rotation, to)`` returns the whole vehicle (issue 28) as one Python or
+C file: a step function of the 13-element state and the logged motor speeds. The translation is
+identify's final v̇ models (their own expressions, generated as above, fed the simulated velocity
+and Euler angles) or the library's :class:`droneid.rotation.TranslationModel`; the rotation a
+:class:`droneid.rotation.RotationModel` or None (body rates held). It steps as
+:func:`droneid.openloop.simulate` steps ``IdentifiedVehicle`` (``droneid export --vehicle``).
 """
 from __future__ import annotations
 
@@ -38,7 +45,7 @@ from .errors import ConfigError, MissingSignalError, check_choice
 from .expressions import round_expr
 from .flight import canonical_unit
 from .closed_form import IdentifiedModel
-from .rotation import _SPEED_UNIT, KNOWN_TERMS, RotationModel, TranslationModel
+from .rotation import _SPEED_UNIT, RotationModel, TranslationModel
 from .targets import state_of
 
 __all__ = ["FORMATS", "export_models", "input_sources", "CONVENTIONS", "VEHICLE_FORMATS", "export_vehicle"]
@@ -259,51 +266,58 @@ class _Part:
     (module level), ``state`` (Python: lines of ``Inputs.__init__``; C: members of the
     ``droneid_inputs`` struct), ``fill`` (in the conditioner, after the motor speeds of this step
     joined the history ``h``, oldest first: its columns of ``u``) and ``deriv`` (in the
-    derivative: v̇ or ω̇ from ``x``, ``R``, ``vb`` and its columns of ``u``)."""
+    derivative: v̇ or ω̇ from ``x``, ``R``, ``vb`` and its columns of ``u``); ``euler``: it reads
+    ``roll``, ``pitch``, ``yaw`` of the simulated quaternion (the derivative then computes them)."""
     header: tuple
     width: int
     history: int
     code: Mapping
     imports: tuple = ()
+    euler: bool = False
 
 
 def _rotation_spec(rotation: RotationModel) -> dict:
-    """Constants of a :class:`droneid.rotation.RotationModel`, checked for export."""
-    unknown = [t for t in rotation.terms if t not in KNOWN_TERMS]
-    if unknown:
-        raise ConfigError(f"export_vehicle: unknown rotational term(s) {', '.join(unknown)}")
+    """Constants of a :class:`droneid.rotation.RotationModel`, checked for export: ``cols[k]`` are
+    axis ``k``'s columns as expressions of the generated derivative (:func:`_column_code`)."""
+    cols = [[_column_code(name, k) for name in rotation.columns(k)] for k in range(3)]
+    for k in range(3):
+        if len(cols[k]) != np.asarray(rotation.coef[k]).size:
+            raise ConfigError(f"export_vehicle: axis {k} has {np.asarray(rotation.coef[k]).size} coefficients for "
+                              f"{len(cols[k])} columns")
+    level = getattr(rotation, "level_rad", None)
     return {"M": rotation.layout.motors, "P": rotation.layout.patterns(),
             "scale": rotation.rad_s_per_rpm / _SPEED_UNIT, "d_r": int(rotation.delay_steps),
             "lp": rotation.lowpass_tau_s, "centre": rotation.centre_tau_s, "bw": rotation.balance_weight_s,
             "prior": (np.zeros(rotation.layout.motors) if rotation.balance_prior is None
                       else np.asarray(rotation.balance_prior, float)),
-            "terms": tuple(rotation.terms), "coef": [np.asarray(c, float) for c in rotation.coef],
-            "trim": np.asarray(rotation.trim, float), "layout": rotation.layout.name}
+            "cols": cols, "coef": [np.asarray(c, float) for c in rotation.coef],
+            "trim": np.asarray(rotation.trim, float), "layout": rotation.layout.name,
+            "level": np.zeros(2) if level is None else np.asarray(level, float),
+            "euler": any("attitude" in rotation.columns(k) for k in range(3))}
+
+
+def _column_code(name: str, k: int) -> str:
+    """Column ``name`` of axis ``k`` (:meth:`droneid.rotation.RotationModel.columns`) in the
+    generated derivative, C and Python alike: ``mix[k]`` = (P s_r)_k, ``S`` = Σ s_r, ``w[]`` body
+    rates, ``vb[]`` body velocity, ``spin`` = yaw pattern · rate_r, ``roll``/``pitch`` (rad) and
+    ``LEVEL[]`` the level attitude."""
+    i, j = [(1, 2), (2, 0), (0, 1)][k]
+    code = {"pattern": f"mix[{k}]", "centre": "S", "damping": f"(-w[{k}])", "gyro": f"w[{i}]*w[{j}]",
+            "spinup": "spin"}
+    if k < 2:
+        jv, sign = ((1, "+"), (0, "-"))[k]
+        code.update({"rotor_drag": f"({sign}vb[{jv}])", "rotor_drag_thrust": f"({sign}vb[{jv}]*S)",
+                     "attitude": f"(-({('roll', 'pitch')[k]} - LEVEL[{k}]))"})
+    if name not in code:
+        raise ConfigError(f"export_vehicle: the rotational term {name!r} of axis {k} cannot be written "
+                          f"(known: {', '.join(code)})")
+    return code[name]
 
 
 def _axis_expr(spec: dict, k: int) -> str:
-    """ω̇_k as an expression in ``mix[k]``, ``S``, ``w[]``, ``vb[]``, ``spin`` (C and Python alike),
-    the columns in the order of :func:`droneid.rotation._rotation_columns`."""
-    terms, c = spec["terms"], spec["coef"][k]
-    cols = [f"mix[{k}]"]
-    if "centre" in terms:
-        cols.append("S")
-    if "damping" in terms:
-        cols.append(f"(-w[{k}])")
-    if "gyro" in terms:
-        i, j = [(1, 2), (2, 0), (0, 1)][k]
-        cols.append(f"w[{i}]*w[{j}]")
-    if "spinup" in terms and k == 2:
-        cols.append("spin")
-    if k < 2:
-        j, sign = ((1, "+"), (0, "-"))[k]
-        if "rotor_drag" in terms:
-            cols.append(f"({sign}vb[{j}])")
-        if "rotor_drag_thrust" in terms:
-            cols.append(f"({sign}vb[{j}]*S)")
-    if len(cols) != c.size:
-        raise ConfigError(f"export_vehicle: axis {k} has {c.size} coefficients for {len(cols)} columns")
-    return " + ".join([f"({_f(ci)})*{col}" for ci, col in zip(c, cols)] + [f"({_f(spec['trim'][k])})"])
+    """ω̇_k as an expression of the generated derivative (C and Python alike)."""
+    return " + ".join([f"({_f(ci)})*{col}" for ci, col in zip(spec["coef"][k], spec["cols"][k])]
+                      + [f"({_f(spec['trim'][k])})"])
 
 
 def _alpha(tau, dt_s: float) -> str:
@@ -332,7 +346,8 @@ def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> _Part:
         *(f"  {'s_r: ' if i == 0 else '  then '}{t}" for i, t in enumerate(steps)),
         "  rate_r: the rate of the (low-passed) rotor speeds, (rad/s)/s, backward difference over one step.",
         "  w'_k = coefficients . columns + trim; mix = P s_r (roll, pitch, yaw patterns of the layout),",
-        "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r:",
+        "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r,",
+        f"  roll, pitch (rad) as for the translation, LEVEL = {', '.join(_f(v) for v in spec['level'])} rad:",
         *[f"  w'_{k} = {_axis_expr(spec, k)}" for k in range(3)])
     py_defs = f'''SCALE_R = {_f(spec["scale"])}          # (rotor speed / 1000 rad/s) per logged rpm
 DELAY_R = {spec["d_r"]}
@@ -341,6 +356,7 @@ CENTRE_A = {ce}
 BALANCE_W = {bw}
 PRIOR = {_floats(spec["prior"], "python")}
 P = [{", ".join(_floats(P[k], "python") for k in range(3))}]
+LEVEL = {_floats(spec["level"], "python")}          # level roll, pitch (rad) of the term attitude
 '''
     py_state = '''        self.lp = self.ema = self.prev = None
         self.sum = [0.0] * M
@@ -377,6 +393,7 @@ static const double LOWPASS_A = {"0.0" if lp == "None" else lp}, CENTRE_A = {"0.
 static const double BALANCE_W = {"0.0" if spec["bw"] is None else _f(spec["bw"])};
 static const double PRIOR[DRONEID_M] = {_floats(spec["prior"], "c")};
 static const double P[3][DRONEID_M] = {{{", ".join(_floats(P[k], "c") for k in range(3))}}};
+static const double LEVEL[2] = {_floats(spec["level"], "c")};
 '''
     c_state = "    double lp[DRONEID_M], ema[DRONEID_M], prev[DRONEID_M], sum[DRONEID_M], t;\n"
     c_fill = f'''    {{
@@ -413,12 +430,12 @@ static const double P[3][DRONEID_M] = {{{", ".join(_floats(P[k], "c") for k in r
         dx[10] = {_axis_expr(spec, 0)};
         dx[11] = {_axis_expr(spec, 1)};
         dx[12] = {_axis_expr(spec, 2)};
-        (void)S; (void)spin;
+        (void)S; (void)spin; (void)LEVEL;
     }}
 '''
     return _Part(header, 2 * M, spec["d_r"], {
         "python": {"defs": py_defs, "state": py_state, "fill": py_fill, "deriv": py_deriv},
-        "c": {"defs": c_defs, "state": c_state, "fill": c_fill, "deriv": c_deriv}})
+        "c": {"defs": c_defs, "state": c_state, "fill": c_fill, "deriv": c_deriv}}, euler=spec["euler"])
 
 
 def _held_rates_part() -> _Part:
@@ -528,40 +545,15 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict) -
         vals = [_STATE_ARGS[s] if s in _STATE_ARGS else f"u[{col[a, s]}]" for s in m.signals]
         return ", ".join(f"{s}={v}" for s, v in zip(m.signals, vals)) if to == "python" else ", ".join(vals)
 
-    py_defs = "\n".join(_python_defs(ordered, sources)).strip() + '''
-
-
-def _euler(q):
-    """Z-Y-X (roll, pitch, yaw) in rad of the quaternion q (normalised first; pitch clipped at gimbal
-    lock), as droneid.frames.quat_to_euler."""
-    n = math.sqrt(sum(c * c for c in q))
-    w, x, y, z = (c / n for c in q)
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(min(1.0, max(-1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
-'''
-    py_deriv = ("    roll, pitch, yaw = _euler(x[6:10])\n    dv = ["
+    py_defs = "\n".join(_python_defs(ordered, sources)).strip() + "\n"
+    py_deriv = ("    dv = ["
                 + ",\n          ".join(f"float({m.target}({args(a, m, 'python')}))" for a, m in enumerate(ordered))
                 + "]\n")
-    c_defs = "\n".join(_c_defs(ordered)) + '''
-/* Z-Y-X roll, pitch, yaw (rad) of the quaternion q (normalised first; pitch clipped at gimbal lock) */
-static void droneid_euler(const double *q, double *roll, double *pitch, double *yaw)
-{
-    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-    double sp = 2.0 * (w * y - z * x);
-    *roll = atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y));
-    *pitch = asin(sp < -1.0 ? -1.0 : (sp > 1.0 ? 1.0 : sp));
-    *yaw = atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
-}
-'''
-    c_deriv = ("    {\n        double roll, pitch, yaw;\n        droneid_euler(x + 6, &roll, &pitch, &yaw);\n"
-               + "".join(f"        dx[{3 + a}] = {m.target}({args(a, m, 'c')});\n" for a, m in enumerate(ordered))
-               + "        (void)roll; (void)pitch; (void)yaw;\n    }\n")
+    c_defs = "\n".join(_c_defs(ordered))
+    c_deriv = "".join(f"    dx[{3 + a}] = {m.target}({args(a, m, 'c')});\n" for a, m in enumerate(ordered))
     part = _Part(header, 3 * K, max(steps.values(), default=0), {
         "python": {"defs": py_defs, "state": "", "fill": py_fill, "deriv": py_deriv},
-        "c": {"defs": c_defs, "state": "", "fill": c_fill, "deriv": c_deriv}}, imports=("numpy",))
+        "c": {"defs": c_defs, "state": "", "fill": c_fill, "deriv": c_deriv}}, imports=("numpy",), euler=True)
     return part, max((_rpm_index(n) + 1 for n in names), default=0)
 
 
@@ -631,8 +623,36 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
     return build([tpart, rpart], header, motors, width, float(dt_s))
 
 
+_PY_EULER = '''def _euler(q):
+    """Z-Y-X (roll, pitch, yaw) in rad of the quaternion q (normalised first; pitch clipped at gimbal
+    lock), as droneid.frames.quat_to_euler."""
+    n = math.sqrt(sum(c * c for c in q))
+    w, x, y, z = (c / n for c in q)
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(min(1.0, max(-1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+'''
+
+_C_EULER = '''/* Z-Y-X roll, pitch, yaw (rad) of the quaternion q (normalised first; pitch clipped at gimbal lock) */
+static void droneid_euler(const double *q, double *roll, double *pitch, double *yaw)
+{
+    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
+    double sp = 2.0 * (w * y - z * x);
+    *roll = atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y));
+    *pitch = asin(sp < -1.0 ? -1.0 : (sp > 1.0 ? 1.0 : sp));
+    *yaw = atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
+}
+
+'''
+
+
 def _vehicle_python(parts, header, M: int, width: int, dt_s: float) -> str:
     imports = sorted({"math", *(i for p in parts for i in p.imports)})
+    euler = any(p.euler for p in parts)
     code = [p.code["python"] for p in parts]
     return '\n'.join(['"""' + "\n".join(header).replace('"""', "'''").replace("\\", "\\\\") + "\n\nUsage: "
                       "inputs = Inputs() (one per flight); per step: x = step(x, inputs.push(rpm)).\n"
@@ -663,7 +683,7 @@ class Inputs:
 {"".join(c["fill"] for c in code)}        return u
 
 
-def _rot(q):
+{_PY_EULER if euler else ""}def _rot(q):
     n = math.sqrt(sum(c * c for c in q))
     w, x, y, z = (c / n for c in q)
     return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -676,7 +696,7 @@ def derivative(x, u):
     R = _rot(x[6:10])
     v, w = x[3:6], x[10:13]
     vb = [sum(R[i][j] * v[i] for i in range(3)) for j in range(3)]
-{"".join(c["deriv"] for c in code)}    qw, qx, qy, qz = x[6:10]
+{"    roll, pitch, yaw = _euler(x[6:10])" + chr(10) if euler else ""}{"".join(c["deriv"] for c in code)}    qw, qx, qy, qz = x[6:10]
     dq = [0.5 * (-qx * w[0] - qy * w[1] - qz * w[2]), 0.5 * (qw * w[0] + qy * w[2] - qz * w[1]),
           0.5 * (qw * w[1] - qx * w[2] + qz * w[0]), 0.5 * (qw * w[2] + qx * w[1] - qy * w[0])]
     return list(v) + dv + dq + dw
@@ -700,6 +720,7 @@ def step(x, u, dt=DT):
 
 def _vehicle_c(parts, header, M: int, width: int, dt_s: float) -> str:
     code = [p.code["c"] for p in parts]
+    euler = any(p.euler for p in parts)
     lines = ["/*"] + [(" * " + h).rstrip() for h in header] + [
         " *", " * C99; compile with -lm. Usage: droneid_inputs c; droneid_inputs_init(&c, DRONEID_DT); per step:",
         " * droneid_inputs_push(&c, rpm, u); droneid_step(x, u, DRONEID_DT); with double u[DRONEID_U].", " */"]
@@ -736,7 +757,7 @@ void droneid_inputs_push(droneid_inputs *c, const double rpm[DRONEID_M], double 
     (void)u;
 }}
 
-static void rotation_matrix(const double *q, double R[3][3])
+{_C_EULER if euler else ""}static void rotation_matrix(const double *q, double R[3][3])
 {{
     double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
     double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
@@ -753,11 +774,11 @@ void droneid_derivative(const double x[13], const double u[DRONEID_U], double dx
     rotation_matrix(x + 6, R);
     for (j = 0; j < 3; j++) {{ vb[j] = 0.0; for (i = 0; i < 3; i++) vb[j] += R[i][j] * v[i]; }}
     for (i = 0; i < 3; i++) dx[i] = v[i];
-{"".join(c["deriv"] for c in code)}    dx[6] = 0.5 * (-x[7] * w[0] - x[8] * w[1] - x[9] * w[2]);
+{"    double roll, pitch, yaw;" + chr(10) + "    droneid_euler(x + 6, &roll, &pitch, &yaw);" + chr(10) if euler else ""}{"".join(c["deriv"] for c in code)}    dx[6] = 0.5 * (-x[7] * w[0] - x[8] * w[1] - x[9] * w[2]);
     dx[7] = 0.5 * (x[6] * w[0] + x[8] * w[2] - x[9] * w[1]);
     dx[8] = 0.5 * (x[6] * w[1] - x[7] * w[2] + x[9] * w[0]);
     dx[9] = 0.5 * (x[6] * w[2] + x[7] * w[1] - x[8] * w[0]);
-    (void)u; (void)vb;
+    (void)u; (void)vb;{" (void)roll; (void)pitch; (void)yaw;" if euler else ""}
 }}
 
 static void unit_q(double *x)

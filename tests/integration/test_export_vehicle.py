@@ -51,8 +51,19 @@ def _translation() -> dict:
     }
 
 
-def _rotation() -> RotationModel:
-    """Every rotational term, every conditioning step (delay, low-pass, centring, balance)."""
+def _rotation(kind: str = "rigid") -> RotationModel | None:
+    """``rigid``: every rigid-body term and every conditioning step (delay, low-pass, centring,
+    balance); ``closed-loop``: rate damping and the pull back to a level attitude (term
+    ``attitude``, roll and pitch, which reads the simulated attitude); ``held``: None."""
+    if kind == "held":
+        return None
+    if kind == "closed-loop":
+        import droneid.rotation
+        if "attitude" not in getattr(droneid.rotation, "CLOSED_LOOP_TERMS", ()):
+            pytest.skip("droneid.rotation has no closed-loop attitude term in this tree")
+        coef = (np.array([4.0, 3.0, 30.0]), np.array([3.0, 2.5, 25.0]), np.array([1.0, 1.5]))
+        return RotationModel(get_layout("crazyflie_x"), ("damping", "attitude"), coef, np.array([0.05, -0.1, 0.02]),
+                             delay_steps=1, rad_s_per_rpm=2 * np.pi / 360.0, level_rad=np.array([0.01, -0.02]))
     coef = (np.array([6.0, 0.05, 3.0, -0.8, 2.0, 0.1]), np.array([5.0, -0.03, 3.0, 0.9, 1.5, -0.1]),
             np.array([1.5, 0.02, 3.0, -0.1, 0.5]))
     return RotationModel(get_layout("crazyflie_x"), TERMS, coef, np.array([0.1, -0.2, 0.05]), delay_steps=2,
@@ -71,6 +82,9 @@ def _log() -> StateLog:
     return StateLog("synthetic", DT * np.arange(N), state, rpm, DT)
 
 
+KINDS = ["rigid", "closed-loop", "held"]
+
+
 def _reference(rotation):
     """droneid's own open-loop rollout of the window (H, 13) and the model inputs of the log."""
     tr = IdentifiedTranslation(_translation())
@@ -84,25 +98,25 @@ def _python_rollout(text, log, u_ref=None):
     return vehicle_python_rollout(text, log.rpm, log.state[START], START, H, u_ref)
 
 
-@pytest.mark.parametrize("with_rotation", [True, False], ids=["rotation", "rates-held"])
-def test_python_vehicle_reproduces_the_open_loop_rollout(with_rotation):
-    rotation = _rotation() if with_rotation else None
+@pytest.mark.parametrize("kind", KINDS)
+def test_python_vehicle_reproduces_the_open_loop_rollout(kind):
+    rotation = _rotation(kind)
     log, u, ref = _reference(rotation)
     got = _python_rollout(export_vehicle(_translation(), rotation, "python", dt_s=DT), log, u)
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
     assert np.linalg.norm(ref[-1, 0:3] - log.state[START, 0:3]) > 0.02      # the vehicle moved
     assert np.ptp(ref[:, 3:6], axis=0).max() > 0.05                         # the velocity changed
-    if with_rotation:
+    if rotation is not None:
         assert np.ptp(ref[:, 10:13], axis=0).min() > 0.05                   # every rate moved
     else:
         np.testing.assert_array_equal(got[:, 10:13], np.repeat(log.state[START:START + 1, 10:13], H, axis=0))
 
 
-@pytest.mark.parametrize("with_rotation", [True, False], ids=["rotation", "rates-held"])
-def test_c_vehicle_compiles_strictly_and_steps_as_the_python(tmp_path, with_rotation):
+@pytest.mark.parametrize("kind", KINDS)
+def test_c_vehicle_compiles_strictly_and_steps_as_the_python(tmp_path, kind):
     if CC is None:
         pytest.skip("no C compiler (gcc / cc) on this machine: the C export cannot be compiled here")
-    rotation = _rotation() if with_rotation else None
+    rotation = _rotation(kind)
     log, _, ref = _reference(rotation)
     py = _python_rollout(export_vehicle(_translation(), rotation, "python", dt_s=DT), log)
     got = vehicle_c_rollout(tmp_path, export_vehicle(_translation(), rotation, "c", dt_s=DT), log.rpm,
