@@ -346,8 +346,9 @@ def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> _Part:
         *(f"  {'s_r: ' if i == 0 else '  then '}{t}" for i, t in enumerate(steps)),
         "  rate_r: the rate of the (low-passed) rotor speeds, (rad/s)/s, backward difference over one step.",
         "  w'_k = coefficients . columns + trim; mix = P s_r (roll, pitch, yaw patterns of the layout),",
-        "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r,",
-        f"  roll, pitch (rad) as for the translation, LEVEL = {', '.join(_f(v) for v in spec['level'])} rad:",
+        "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r"
+        + (f", roll and pitch (rad, Z-Y-X, of the simulated quaternion) about the level LEVEL = "
+           f"{', '.join(_f(v) for v in spec['level'])} rad:" if spec["euler"] else ":"),
         *[f"  w'_{k} = {_axis_expr(spec, k)}" for k in range(3)])
     py_defs = f'''SCALE_R = {_f(spec["scale"])}          # (rotor speed / 1000 rad/s) per logged rpm
 DELAY_R = {spec["d_r"]}
@@ -495,7 +496,7 @@ def _rpm_index(name: str) -> int:
     return int(name[3:]) - 1
 
 
-def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict) -> tuple[_Part, int]:
+def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str) -> tuple[_Part, int]:
     """identify's final v̇ models (:class:`droneid.openloop.IdentifiedTranslation`), fed the simulated
     velocity and Euler angles and their motor speeds at ``t − delay`` in whole steps of ``dt_s``,
     as :meth:`IdentifiedTranslation.inputs` reads them; columns model by model, motor by motor.
@@ -526,7 +527,7 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict) -
             steps[m.target, name] = k
     K = len(names)
     col = {(a, name): a * K + i for a in range(3) for i, name in enumerate(names)}
-    equations = _header(ordered, source, "python", sources)[3:]
+    equations = _header(ordered, source, to, sources)[3:]     # in the syntax of the file's language
     header = ("Translation (m/s^2, world ENU): identify's final models, fed the simulated velocity vx, vy, vz "
               "and the Z-Y-X Euler angles",
               "  roll, pitch, yaw of the simulated quaternion (pitch clipped to [-pi/2, pi/2]):",
@@ -535,7 +536,6 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict) -
               *(f"    u[{a * K}:{(a + 1) * K}] ({m.target}): "
                 + ", ".join(f"{n} of {steps[m.target, n]} step(s) earlier" for n in names)
                 for a, m in enumerate(ordered) if names))
-    # the Python equations keep sympy's numpy printing; the header's text is Python's
     langs = {"python": lambda m, n: f"h[-1 - {steps[m.target, n]}][{_rpm_index(n)}]",
              "c": lambda m, n: f"c->hist[DRONEID_HIST - 1 - {steps[m.target, n]}][{_rpm_index(n)}]"}
     py_fill = "        u += [" + ", ".join(langs["python"](m, n) for m in ordered for n in names) + "]\n"
@@ -596,7 +596,7 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         tpart = _linear_part(translation, motors)
     elif isinstance(translation, Mapping) or hasattr(translation, "models"):
         models = translation if isinstance(translation, Mapping) else translation.models
-        tpart, read = _identified_part(models, float(dt_s), source, inputs or {})
+        tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to)
         motors = rotation.layout.motors if rotation is not None else max(read, 1)
         if read > motors:
             raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")

@@ -134,6 +134,7 @@ def test_header_states_layout_units_frames_step_and_delays_in_steps():
                  "the motor speeds of 2 step(s) earlier", "low-passed (first order, time constant 0.05 s)",
                  "quaternion renormalised at every stage", "double vx_dot(double pitch, double roll, double rpm1"):
         assert must in text, must
+    assert "**" not in text and "pow(rpm1, 2)" in text      # the header's equations in C's own syntax
     held = export_vehicle(_translation(), None, "python", dt_s=DT)
     assert "every body rate is held, w' = 0" in held and "U = 12" in held
 
