@@ -22,6 +22,11 @@ the rotor speeds ``d`` steps earlier, ``P`` the layout's torque patterns, :mod:`
 * ``c_k ω_k``: rate damping (rotor flapping, drag); ``γ_k``: gyroscopic ``ω_j ω_l`` terms, e.g.
   ``ω̇x ∋ (J_y − J_z)/J_x · ω_y ω_z``; ``r_k`` (yaw only): reaction to the rotors' spin-up;
 * ``b_k``: trim. It is fitted per training flight; a new flight gets their mean.
+* ``−κ_k (θ_k − θ0_k)`` (term ``attitude``, roll and pitch; ``θ`` the Z-Y-X roll and pitch
+  angles of the attitude, ``θ0`` the training flights' median ``level_rad``): the closed loop's
+  attitude controller pulling the vehicle back to its level attitude. With ``damping`` it is the
+  closed-loop spring-damper of a vehicle whose controller holds it level (a model of the vehicle
+  with its controller, not of the rigid body: it reads no motor speed);
 * ``h_k v_b`` (term ``rotor_drag``, roll and pitch): the rotors' drag moment (blade flapping):
   a body velocity ``v_b`` pitches the vehicle back against it, ``ω̇x ∋ +h v_by``,
   ``ω̇y ∋ −h v_bx``; ``rotor_drag_thrust`` adds ``h' v_b (Σ s_i)`` (the moment grows with thrust).
@@ -62,18 +67,21 @@ from priors.torque import RotorLayout, get_layout
 
 from .differentiation import get_differentiator
 from .errors import DataError
-from .frames import quat_to_matrix
+from .frames import quat_to_euler, quat_to_matrix
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, IdentifiedVehicle, StateLog
 from .regression import robust_fit
 
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
            "fit_vehicle", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed",
-           "derivative", "spin_rate", "ROTATION_TERMS", "KNOWN_TERMS", "balanced", "body_velocity"]
+           "derivative", "spin_rate", "ROTATION_TERMS", "KNOWN_TERMS", "CLOSED_LOOP_TERMS", "balanced",
+           "body_velocity", "tilt"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
-#: every optional rotational term :func:`fit_rotation` knows
+#: every optional rigid-body term :func:`fit_rotation` knows (the terms the 6-DOF export writes)
 KNOWN_TERMS = ROTATION_TERMS + ("rotor_drag", "rotor_drag_thrust")
+#: closed-loop terms: the vehicle with its controller (``attitude``: pulled back to level)
+CLOSED_LOOP_TERMS = ("attitude",)
 #: roll gets +v_by, pitch −v_bx (the rotor drag moment opposes the body velocity)
 _DRAG_AXIS = ((1, 1.0), (0, -1.0))
 _SPEED_UNIT = 1000.0  # rad/s: s_i = (ω_i / 1000 rad/s)², coefficients near one
@@ -165,12 +173,21 @@ def _speeds(log: StateLog, rad_s_per_rpm: float) -> np.ndarray:
 
 
 # -- rotation ------------------------------------------------------------------------------------
+def tilt(q: np.ndarray) -> np.ndarray:
+    """Roll and pitch (W, 2) in rad, Z-Y-X, of the attitude quaternions ``q`` (W, 4)."""
+    roll, pitch, _ = quat_to_euler(q)
+    return np.stack([roll, pitch], axis=-1)
+
+
 def _rotation_named(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
-                    terms: tuple[str, ...], vb: np.ndarray | None = None) -> list[tuple[str, np.ndarray]]:
-    """(name, column) of axis ``k``'s regressors, in the order of its coefficients."""
-    unknown = [t for t in terms if t not in KNOWN_TERMS]
+                    terms: tuple[str, ...], vb: np.ndarray | None = None,
+                    att: np.ndarray | None = None) -> list[tuple[str, np.ndarray]]:
+    """(name, column) of axis ``k``'s regressors, in the order of its coefficients; ``att`` (W, 2)
+    the roll and pitch about the level attitude (rad), for the term ``attitude``."""
+    unknown = [t for t in terms if t not in KNOWN_TERMS + CLOSED_LOOP_TERMS]
     if unknown:
-        raise DataError(f"unknown rotational term(s) {', '.join(unknown)}; known: {', '.join(KNOWN_TERMS)}")
+        raise DataError(f"unknown rotational term(s) {', '.join(unknown)}; known: "
+                        f"{', '.join(KNOWN_TERMS + CLOSED_LOOP_TERMS)}")
     cols = [("pattern", s @ P[k])]
     if "centre" in terms:
         cols.append(("centre", s.sum(axis=-1)))
@@ -189,12 +206,17 @@ def _rotation_named(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
             cols.append(("rotor_drag", sign * vb[:, j]))
         if "rotor_drag_thrust" in terms:
             cols.append(("rotor_drag_thrust", sign * vb[:, j] * s.sum(axis=-1)))
+    if k < 2 and "attitude" in terms:
+        if att is None:
+            raise DataError("the attitude term needs the roll and pitch angles")
+        cols.append(("attitude", -att[:, k]))
     return cols
 
 
 def _rotation_columns(k: int, P: np.ndarray, s: np.ndarray, w: np.ndarray, rates,
-                      terms: tuple[str, ...], vb: np.ndarray | None = None) -> list[np.ndarray]:
-    return [c for _, c in _rotation_named(k, P, s, w, rates, terms, vb)]
+                      terms: tuple[str, ...], vb: np.ndarray | None = None,
+                      att: np.ndarray | None = None) -> list[np.ndarray]:
+    return [c for _, c in _rotation_named(k, P, s, w, rates, terms, vb, att)]
 
 
 @dataclass(frozen=True)
@@ -219,6 +241,8 @@ class RotationModel:
     balance_weight_s: float | None = None
     #: the training flights' mean ``s`` (M,), the prior of :func:`balanced`
     balance_prior: np.ndarray | None = None
+    #: the level attitude (roll, pitch) in rad of the term ``attitude`` (None: (0, 0))
+    level_rad: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """JSON-able: the layout by name with its geometry, and every field as plain lists."""
@@ -232,7 +256,8 @@ class RotationModel:
                 "flight_trims": np.asarray(self.flight_trims, float).tolist(),
                 "centre_tau_s": self.centre_tau_s, "lowpass_tau_s": self.lowpass_tau_s,
                 "balance_weight_s": self.balance_weight_s,
-                "balance_prior": None if self.balance_prior is None else np.asarray(self.balance_prior, float).tolist()}
+                "balance_prior": None if self.balance_prior is None else np.asarray(self.balance_prior, float).tolist(),
+                "level_rad": None if self.level_rad is None else np.asarray(self.level_rad, float).tolist()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "RotationModel":
@@ -240,22 +265,24 @@ class RotationModel:
         try:
             lay = d["layout"]
             layout = RotorLayout(lay["name"], tuple(lay["x"]), tuple(lay["y"]), tuple(lay["spin"]), lay.get("source", ""))
-            prior = d.get("balance_prior")
+            prior, level = d.get("balance_prior"), d.get("level_rad")
             return cls(layout, tuple(d["terms"]), tuple(np.asarray(c, float) for c in d["coef"]),
                        np.asarray(d["trim"], float), int(d["delay_steps"]), float(d["rad_s_per_rpm"]),
                        np.asarray(d.get("flight_trims") or np.zeros((0, 3)), float).reshape(-1, 3),
                        d.get("centre_tau_s"), d.get("lowpass_tau_s"), d.get("balance_weight_s"),
-                       None if prior is None else np.asarray(prior, float))
+                       None if prior is None else np.asarray(prior, float),
+                       None if level is None else np.asarray(level, float))
         except (KeyError, TypeError, ValueError) as e:
             raise DataError(f"a rotation model record is damaged: {e}") from None
 
     def columns(self, k: int) -> tuple[str, ...]:
         """Names of axis ``k``'s terms in the order of ``coef[k]`` (``pattern``, ``centre``,
-        ``damping``, ``gyro``, ``spinup``, ``rotor_drag``, ``rotor_drag_thrust`` as present)."""
+        ``damping``, ``gyro``, ``spinup``, ``rotor_drag``, ``rotor_drag_thrust``, ``attitude`` as
+        present)."""
         m = self.layout.motors
         z = np.zeros((1, m))
         return tuple(n for n, _ in _rotation_named(k, self.layout.patterns(), z, np.zeros((1, 3)), z,
-                                                   self.terms, np.zeros((1, 3))))
+                                                   self.terms, np.zeros((1, 3)), np.zeros((1, 2))))
 
     @property
     def input_width(self) -> int:
@@ -282,16 +309,22 @@ class RotationModel:
         """ω̇ (W, 3) from the state (W, 13) and a row of :meth:`inputs` (W, 2M)."""
         m = self.layout.motors
         vb = body_velocity(state[:, 6:10], state[:, 3:6])
-        return self.ang_accel_from(state[:, 10:13], u[:, :m], u[:, m:2 * m], vb)
+        att = self.about_level(state[:, 6:10]) if "attitude" in self.terms else None
+        return self.ang_accel_from(state[:, 10:13], u[:, :m], u[:, m:2 * m], vb, att)
+
+    def about_level(self, q: np.ndarray) -> np.ndarray:
+        """Roll and pitch (W, 2) in rad of the attitudes ``q`` (W, 4) about ``level_rad``."""
+        return tilt(q) - (np.zeros(2) if self.level_rad is None else np.asarray(self.level_rad, float))
 
     def ang_accel_from(self, w: np.ndarray, s: np.ndarray, rates: np.ndarray,
-                       vb: np.ndarray | None = None) -> np.ndarray:
-        """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²``, rotor speed rates and (for
-        the rotor drag moment) the body velocity ``vb`` (W, 3) in m/s."""
+                       vb: np.ndarray | None = None, att: np.ndarray | None = None) -> np.ndarray:
+        """ω̇ (W, 3) from body rates ``w`` (W, 3), ``s = (ω_i/1000)²``, rotor speed rates, (for
+        the rotor drag moment) the body velocity ``vb`` (W, 3) in m/s and (for the term
+        ``attitude``) the roll and pitch about the level ``att`` (W, 2) in rad."""
         P = self.layout.patterns()
         out = np.empty((w.shape[0], 3))
         for k in range(3):
-            cols = _rotation_columns(k, P, s, w, rates, self.terms, vb)
+            cols = _rotation_columns(k, P, s, w, rates, self.terms, vb, att)
             out[:, k] = np.column_stack(cols) @ self.coef[k] + self.trim[k]
         return out
 
@@ -311,6 +344,10 @@ def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyfli
     P = layout.patterns()
     shell = RotationModel(layout, tuple(terms), (np.zeros(0),) * 3, np.zeros(3), int(delay_steps),
                           float(rad_s_per_rpm), lowpass_tau_s=lowpass_tau_s)
+    if "attitude" in terms:
+        flying = [tilt(log.state[flying_mask(log), 6:10]) for log in logs]
+        if any(f.size for f in flying):
+            shell = dataclasses.replace(shell, level_rad=np.median(np.concatenate(flying), axis=0))
     prior = None
     if balance_weight_s is not None:
         flying = [shell.conditioned(log.rpm, log.dt_s)[0][flying_mask(log)] for log in logs]
@@ -325,15 +362,16 @@ def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyfli
         s, rate = shell.conditioned(log.rpm, log.dt_s)
         wd = _mid(derivative(log, slice(10, 13), window_s))
         vb = _mid(body_velocity(log.state[:, 6:10], log.state[:, 3:6]))
-        rows.append((m, s[:-1], _mid(log.state[:, 10:13]), rate[:-1], wd, vb))
+        att = _mid(shell.about_level(log.state[:, 6:10]))
+        rows.append((m, s[:-1], _mid(log.state[:, 10:13]), rate[:-1], wd, vb, att))
     if not any(r[0].any() for r in rows):
         raise DataError("fit_rotation: no training row with every motor turning in flight")
     n_f = len(logs)
     coef, trims = [], np.zeros((n_f, 3))
     for k in range(3):
         A, y = [], []
-        for j, (m, s, w, sr, wd, vb) in enumerate(rows):
-            cols = _rotation_columns(k, P, s[m], w[m], sr[m], terms, vb[m])
+        for j, (m, s, w, sr, wd, vb, att) in enumerate(rows):
+            cols = _rotation_columns(k, P, s[m], w[m], sr[m], terms, vb[m], att[m])
             onehot = np.zeros((int(m.sum()), n_f))
             onehot[:, j] = 1.0
             A.append(np.column_stack(cols + [onehot]))
@@ -344,6 +382,8 @@ def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyfli
         lo[0] = 0.0                       # torque along the layout's pattern: positive scale
         if "damping" in terms:
             lo[1 + ("centre" in terms)] = 0.0   # damping never feeds energy in
+        if k < 2 and "attitude" in terms:
+            lo[nc - 1] = 0.0                    # the level attitude restores, never repels
         beta = robust_fit(A, y, lo=lo).beta
         coef.append(beta[:nc])
         trims[:, k] = beta[nc:]

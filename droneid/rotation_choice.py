@@ -17,10 +17,10 @@ from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
 from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation,
-                       flying_mask, flying_segments)
+                       flying_mask, flying_segments, tilt)
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "DAMPING_GRID", "RUNGS",
-           "fit_damping", "per_axis_model",
+           "fit_damping", "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID",
            "DEFAULT_CANDIDATES"]
 
 
@@ -141,8 +141,10 @@ def _fit_multistep_at(logs, shell, H, stride, damping_grid, spinup, rotor_drag=F
 DEFAULT_CANDIDATES = tuple(
     {"terms": terms, "delay_steps": 0, "lowpass_tau_s": 0.05, "balance_weight_s": 1.0}
     for terms in (("centre", "rotor_drag", "damping"), ("centre", "rotor_drag", "rotor_drag_thrust", "damping")))
-#: the rungs of each axis's ladder, simplest first
-RUNGS = ("held", "damping", "torque")
+#: the rungs of each axis's ladder, simplest first (``attitude``: roll and pitch only)
+RUNGS = ("held", "damping", "attitude", "torque")
+#: attitude stiffness values (1/s²) tried by :func:`fit_attitude`
+STIFFNESS_GRID = (0.0, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
 _AXES = ("roll", "pitch", "yaw")
 
 
@@ -152,8 +154,9 @@ class RotationChoice:
 
     ``model``: the per-axis model refitted on every training flight (each axis at its rung of
     ``axis_choice``), or ``None`` when every axis holds its rate. ``table``: one row per model
-    validated: the torque candidates (their settings), the ``{"method": "damping"}`` rung and, last,
-    the ``{"method": "per-axis"}`` model actually chosen; each with its validation SimErr of body
+    validated: the torque candidates (their settings), the ``{"method": "damping"}`` rung, the
+    ``{"method": "attitude"}`` rung (roll and pitch; its yaw decays as the damping rung's) and,
+    last, the ``{"method": "per-axis"}`` model actually chosen; each with its validation SimErr of body
     rates (rad/s) and attitude (rad), summed over ``h = 1..50`` (the nanodrone metric), pooled over
     the held-out flights, and per body axis ``rates_axis_simerr`` (Σ_h mean |Δω_k|: each
     rotational target's verdict); ``held``: the same for the rates held (ω̇ = 0, the benchmark's
@@ -235,6 +238,65 @@ def _regime(held_error: np.ndarray, regimes: int, edges_from: np.ndarray | None 
     return np.digitize(held_error, edges)
 
 
+@dataclass(frozen=True)
+class AttitudeSpring:
+    """The closed loop holding the vehicle level, roll and pitch (:func:`fit_attitude`):
+    ``ω̇_k = −c_k ω_k − κ_k (θ_k − θ0_k)``. ``damping_per_s`` ``c`` (2,) 1/s, ``stiffness_per_s2``
+    ``κ`` (2,) 1/s², ``level_rad`` ``θ0`` (2,) rad (Z-Y-X roll and pitch)."""
+    damping_per_s: np.ndarray
+    stiffness_per_s2: np.ndarray
+    level_rad: np.ndarray
+
+
+def fit_attitude(logs: Sequence[StateLog], *, damping_grid: Sequence[float] = DAMPING_GRID,
+                 stiffness_grid: Sequence[float] = STIFFNESS_GRID, horizon: int = 50, stride: int = 5,
+                 regimes: int = 4) -> AttitudeSpring:
+    """Roll and pitch as a spring-damper about the level attitude, ``ω̇_k = −c_k ω_k − κ_k (θ_k −
+    θ0_k)``: the onboard attitude controller pulling the vehicle back to level through its rate
+    loop (a model of the vehicle with its controller). ``θ0`` is the training flights' median
+    roll and pitch in flight (the level as the log's frames see it). ``(c, κ)`` per axis is the
+    pair of the grids with the lowest worst-regime open-loop error of the rate, as
+    :func:`fit_damping` (the angle and rate predicted together by the linear spring-damper,
+    ``θ̇ = ω`` for small angles, stepped by RK4, from every ``stride``-th start in flight)."""
+    H = int(horizon)
+    th_all = [tilt(log.state[a:b, 6:10]) for log in logs for a, b in _segment_bounds(log, H + 1)]
+    if not th_all:
+        raise DataError(f"fit_attitude: no flight segment longer than {H} steps")
+    level = np.median(np.concatenate(th_all), axis=0)
+    dt = logs[0].dt_s
+    pairs = [(float(c), float(kap)) for c in damping_grid for kap in stiffness_grid]
+    A = np.zeros((len(pairs), 2, 2))
+    A[:, 0, 1] = 1.0
+    A[:, 1, 0] = [-kap for _, kap in pairs]
+    A[:, 1, 1] = [-c for c, _ in pairs]
+    Ad = A * dt                                   # one RK4 step of the linear system, as simulate
+    step = np.eye(2) + Ad + Ad @ Ad / 2.0 + Ad @ Ad @ Ad / 6.0 + Ad @ Ad @ Ad @ Ad / 24.0
+    gain = np.empty((len(pairs), H, 2))           # ω_{t+h} = gain[., h] · (θ_t, ω_t)
+    cur = np.broadcast_to(np.eye(2), step.shape)
+    for h in range(H):
+        cur = step @ cur
+        gain[:, h] = cur[:, 1]
+    c_out, k_out = np.zeros(2), np.zeros(2)
+    for k in range(2):
+        w0, th0, wt = [], [], []
+        for log in logs:
+            for a, b in _segment_bounds(log, H + 1):
+                starts = np.arange(0, b - a - H, stride)
+                w = log.state[a:b, 10 + k]
+                w0.append(w[starts])
+                th0.append(tilt(log.state[a + starts, 6:10])[:, k] - level[k])
+                wt.append(w[starts[:, None] + np.arange(1, H + 1)[None, :]])
+        w0, th0, wt = np.concatenate(w0), np.concatenate(th0), np.concatenate(wt)
+        held = np.abs(wt - w0[:, None]).sum(axis=1)
+        cls = _regime(held, regimes)
+        worst = np.zeros(len(pairs))
+        for i in range(len(pairs)):
+            err = np.abs(wt - (gain[i, None, :, 0] * th0[:, None] + gain[i, None, :, 1] * w0[:, None])).sum(axis=1)
+            worst[i] = max(err[cls == q].mean() / max(held[cls == q].mean(), 1e-300) for q in np.unique(cls))
+        c_out[k], k_out[k] = pairs[int(np.argmin(worst))]
+    return AttitudeSpring(c_out, k_out, level)
+
+
 def _damping_model(layout: RotorLayout, c, rad_s_per_rpm: float) -> RotationModel:
     """``ω̇_k = −c_k ω_k`` as a :class:`RotationModel` (its torque pattern at zero)."""
     return RotationModel(layout, ("damping",), tuple(np.array([0.0, float(ck)]) for ck in c), np.zeros(3),
@@ -242,29 +304,37 @@ def _damping_model(layout: RotorLayout, c, rad_s_per_rpm: float) -> RotationMode
 
 
 def per_axis_model(rungs: Sequence[str], damping, torque: RotationModel | None, layout: RotorLayout,
-                   rad_s_per_rpm: float) -> RotationModel | None:
-    """One :class:`RotationModel` whose axis ``k`` is held (ω̇_k = 0), damped (``−damping[k] ω_k``)
-    or the torque model's, as ``rungs[k]`` says; ``None`` when every axis is held. The torque
-    model's conditioning (delay, low-pass, balance) is kept; its terms gain ``damping`` if needed."""
+                   rad_s_per_rpm: float, attitude: AttitudeSpring | None = None) -> RotationModel | None:
+    """One :class:`RotationModel` whose axis ``k`` is held (ω̇_k = 0), damped (``−damping[k] ω_k``),
+    the attitude spring's (roll and pitch: ``attitude``) or the torque model's, as ``rungs[k]``
+    says; ``None`` when every axis is held. The torque model's conditioning (delay, low-pass,
+    balance) is kept; its terms gain ``damping`` (and ``attitude``) if needed."""
     if all(r == "held" for r in rungs):
         return None
+    for need, have in (("torque", torque), ("attitude", attitude)):
+        if need in rungs and have is None:
+            raise DataError(f"per_axis_model: an axis takes the {need} rung but no {need} model is given")
+    if any(r == "attitude" for r in rungs[2:]):
+        raise DataError("per_axis_model: the attitude rung is for roll and pitch only")
+    extra = ("damping",) + (("attitude",) if "attitude" in rungs else ())
     if torque is None:
-        if "torque" in rungs:
-            raise DataError("per_axis_model: an axis takes the torque rung but no torque model is given")
-        base = _damping_model(layout, np.zeros(3), rad_s_per_rpm)
+        base = RotationModel(layout, extra, (np.zeros(0),) * 3, np.zeros(3), rad_s_per_rpm=float(rad_s_per_rpm))
     else:
-        terms = torque.terms if "damping" in torque.terms else tuple(torque.terms) + ("damping",)
-        base = dataclasses.replace(torque, terms=terms)
+        base = dataclasses.replace(torque, terms=tuple(torque.terms) + tuple(t for t in extra if t not in torque.terms))
+    if attitude is not None and "attitude" in rungs:
+        base = dataclasses.replace(base, level_rad=np.asarray(attitude.level_rad, float))
     coef, trim = [], np.zeros(3)
     for k, rung in enumerate(rungs):
         names = base.columns(k)
         if rung == "torque":
             have = dict(zip(torque.columns(k), torque.coef[k]))
-            coef.append(np.array([float(have.get(nm, 0.0)) for nm in names]))
-            trim[k] = torque.trim[k]
+        elif rung == "attitude":
+            have = {"damping": attitude.damping_per_s[k], "attitude": attitude.stiffness_per_s2[k]}
         else:
-            c = float(damping[k]) if rung == "damping" else 0.0
-            coef.append(np.array([c if nm == "damping" else 0.0 for nm in names]))
+            have = {"damping": damping[k]} if rung == "damping" else {}
+        coef.append(np.array([float(have.get(nm, 0.0)) for nm in names]))
+        if rung == "torque":
+            trim[k] = torque.trim[k]
     flight_trims = base.flight_trims.copy()
     if flight_trims.size:
         flight_trims[:, [k for k, r in enumerate(rungs) if r != "torque"]] = 0.0
@@ -280,14 +350,15 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
 
     Each flight (logs of the same name form one block) is held out in turn. On the others are
     fitted a :class:`TranslationModel` (``translation_delay_steps``), the rate decay of
-    :func:`fit_damping` and every torque candidate (keyword arguments of :func:`fit_rotation`, or
+    :func:`fit_damping`, the attitude spring of :func:`fit_attitude` and every torque candidate (keyword arguments of :func:`fit_rotation`, or
     with ``"method": "multistep"`` of :func:`fit_rotation_multistep`); the vehicle is run open
     loop on the held-out flight's in-flight stretches from every ``stride``-th start. The torque
     candidate with the lowest pooled body-rate SimErr (attitude breaks ties) stands for the torque
     rung.
 
-    Each axis then climbs a ladder, ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k) → ``torque``,
-    one rung at a time, and a rung is taken only if it beats the axis's current rung on EVERY
+    Each axis then climbs a ladder, ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k, :func:`fit_damping`)
+    → ``attitude`` (roll and pitch: −c_k ω_k − κ_k (θ_k − θ0_k), the controller holding the
+    vehicle level, :func:`fit_attitude`) → ``torque``, one rung at a time, and a rung is taken only if it beats the axis's current rung on EVERY
     held-out flight in EVERY regime: the validation windows are split into ``regimes`` classes by
     how far the held rate drifts in them (quantiles of the held body-rate error of the axis, so
     calm stretches, ordinary flight and hard manoeuvres each count on their own), and per flight
@@ -324,17 +395,24 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
         tr = fit_translation(train, delay_steps=translation_delay_steps, window_s=window_s,
                              rad_s_per_rpm=rad_s_per_rpm)
         c = fit_damping(train, grid=damping_grid, regimes=regimes)
+        spring = fit_attitude(train, damping_grid=damping_grid, regimes=regimes)
         torques = [_fit_candidate(train, layout, cand, window_s, rad_s_per_rpm) for cand in candidates]
+        springs = per_axis_model(("attitude", "attitude", "damping"), c, None, layout, rad_s_per_rpm, spring)
         errs = {"held": _window_errors(IdentifiedVehicle(tr, _HeldRates()), test, stride),
-                "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride)}
+                "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride),
+                "attitude": _window_errors(IdentifiedVehicle(tr, springs), test, stride)}
         errs.update({i: _window_errors(IdentifiedVehicle(tr, m), test, stride) for i, m in enumerate(torques)})
-        folds.append({"name": name, "test": test, "tr": tr, "c": c, "torques": torques, "errs": errs})
+        folds.append({"name": name, "test": test, "tr": tr, "c": c, "spring": spring, "torques": torques, "errs": errs})
     if not folds:
         raise DataError("select_rotation: no held-out flight has an in-flight stretch to validate on")
     held_row = _pooled(f["errs"]["held"] for f in folds)
     cand_rows = [{**dict(cand), **_pooled(f["errs"][i] for f in folds)} for i, cand in enumerate(candidates)]
     damp_row = {"method": "damping", "damping_per_s": [float(v) for v in np.median([f["c"] for f in folds], axis=0)],
                 **_pooled(f["errs"]["damping"] for f in folds)}
+    att_row = {"method": "attitude",
+               "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],
+               "stiffness_per_s2": [float(v) for v in np.median([f["spring"].stiffness_per_s2 for f in folds], axis=0)],
+               **_pooled(f["errs"]["attitude"] for f in folds)}
     best = min(range(len(candidates)), key=lambda i: (cand_rows[i]["rates_simerr"], cand_rows[i]["attitude_simerr"]))
     for f in folds:
         f["errs"]["torque"] = f["errs"][best]
@@ -345,16 +423,18 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
         rungs.append(rung)
         ladder.append({"axis": _AXES[k], "choice": rung, "level": level, "alpha": float(alpha), "regimes": int(regimes),
                        "flights": [f["name"] for f in folds], "steps": steps})
-    table = tuple(cand_rows) + (damp_row,)
+    table = tuple(cand_rows) + (damp_row, att_row)
     if all(r == "held" for r in rungs):
         return RotationChoice(None, table, held_row, None, tuple(rungs), tuple(ladder))
     sums = []
     for f in folds:
-        m = per_axis_model(rungs, f["c"], f["torques"][best], layout, rad_s_per_rpm)
+        m = per_axis_model(rungs, f["c"], f["torques"][best], layout, rad_s_per_rpm, f["spring"])
         sums.append(_window_errors(IdentifiedVehicle(f["tr"], m), f["test"], stride))
     mixed_row = {"method": "per-axis", "axes": list(rungs), "torque_candidate": best, **_pooled(sums)}
     torque = _fit_candidate(logs, layout, candidates[best], window_s, rad_s_per_rpm) if "torque" in rungs else None
-    model = per_axis_model(rungs, fit_damping(logs, grid=damping_grid, regimes=regimes), torque, layout, rad_s_per_rpm)
+    spring = fit_attitude(logs, damping_grid=damping_grid, regimes=regimes) if "attitude" in rungs else None
+    model = per_axis_model(rungs, fit_damping(logs, grid=damping_grid, regimes=regimes), torque, layout,
+                           rad_s_per_rpm, spring)
     return RotationChoice(model, table + (mixed_row,), held_row, len(table), tuple(rungs), tuple(ladder))
 
 
@@ -368,6 +448,8 @@ def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
     held = np.concatenate([f["errs"]["held"]["axis"][:, k] for f in folds])
     current, steps = "held", []
     for rung in RUNGS[1:]:
+        if rung == "attitude" and k == 2:
+            continue            # no level to return to in yaw
         wins = []
         for f in folds:
             cls = _regime(f["errs"]["held"]["axis"][:, k], regimes, held)

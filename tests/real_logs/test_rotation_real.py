@@ -3,9 +3,12 @@ validation on the five squares only; the melon runs are test flights, scored aft
 
 What was measured (docs/use-the-model.md): on the held-out squares the torque model is three
 times better than holding the rates when pooled (the corners, where the controller stops the
-rotation), but in the calmer half of the windows it is worse than holding them, on every square;
-the ladder refuses it for roll and pitch, roll takes the rate decay. On the melon runs that model
-is below holding the rates in all four of the metric's quantities.
+rotation), but in the calmer half of the windows it is worse than the rung below, on every
+square: the ladder refuses it. Roll and pitch take the attitude spring (the controller pulling the
+vehicle back to level), which beats the rung below on every square in every regime; yaw is held.
+On the melon runs that model is below holding the rates in position and velocity SimErr and in
+the body rates at 50 steps, but ABOVE it in body-rate and attitude SimErr: the squares' choice
+does not transfer there in full, and the test says so.
 """
 from __future__ import annotations
 
@@ -46,7 +49,7 @@ def choice(squares):
     return select_rotation(squares)
 
 
-@pytest.mark.slow   # about 4 s: 5 folds x (held, decay, 2 torque candidates)
+@pytest.mark.slow   # about 5 s: 5 folds x (held, decay, spring, 2 torque candidates)
 def test_the_choice_sees_the_squares_only_and_refuses_the_torque_model_that_fails_in_calm_flight(choice):
     for step in choice.ladder:
         assert step["flights"] == SQUARES and step["level"] == 1 / 32
@@ -59,7 +62,10 @@ def test_the_choice_sees_the_squares_only_and_refuses_the_torque_model_that_fail
         # the calmest quarter on every square: it is not taken
         assert all(w[-1] for w in torque["wins"]) and not any(w[0] for w in torque["wins"])
         assert not torque["taken"] and choice.axis_choice[k] != "torque"
-    assert choice.axis_choice[0] == "damping"
+        # the attitude spring beats the rung below on every square in every regime
+        spring = [s for s in choice.ladder[k]["steps"] if s["rung"] == "attitude"][0]
+        assert spring["taken"] and all(all(w) for w in spring["wins"])
+    assert choice.axis_choice == ("attitude", "attitude", "held")
     row = choice.table[choice.chosen]
     assert row["method"] == "per-axis"
     for k, rung in enumerate(choice.axis_choice):
@@ -71,9 +77,15 @@ def test_the_choice_sees_the_squares_only_and_refuses_the_torque_model_that_fail
 
 
 @pytest.mark.slow   # about 15 s: every start of both melon runs, twice
-def test_on_the_melon_runs_the_chosen_model_is_below_holding_the_rates(choice, squares):
+def test_on_the_melon_runs_the_chosen_model_is_scored_against_holding_the_rates(choice, squares):
+    """As measured: better in position and velocity SimErr and in the rates at 50 steps; worse in
+    the rates' and the attitude's SimErr (docs/use-the-model.md says so: update both together)."""
     melon = [state_log(read_flight(real_log(CF + f"melon_run{i}.csv"))) for i in (1, 4)]
     tr = fit_translation(squares, delay_steps=3)
     res = open_loop({"held": IdentifiedVehicle(tr, _HeldRates()), "chosen": IdentifiedVehicle(tr, choice.model)}, melon)
-    for q in ("position", "velocity", "attitude", "rates"):
-        assert res["chosen"].simerr[q] < res["held"].simerr[q], q
+    chosen, held = res["chosen"], res["held"]
+    for q in ("position", "velocity"):
+        assert chosen.simerr[q] < held.simerr[q], q
+    assert chosen.at(50)["rates"] < 0.8 * held.at(50)["rates"]
+    for q in ("rates", "attitude"):
+        assert chosen.simerr[q] > held.simerr[q], q

@@ -3,13 +3,15 @@ regime, the decision rule (a rung is taken only if it beats the rung below on ev
 flight in every regime, at the sign test's level), and the per-axis model it builds."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from droneid.errors import DataError
 from droneid.openloop import StateLog
-from droneid.rotation import RotationModel
-from droneid.rotation_choice import _climb, fit_damping, per_axis_model
+from droneid.rotation import RotationModel, fit_rotation, tilt
+from droneid.rotation_choice import _climb, fit_attitude, fit_damping, per_axis_model
 from priors.torque import get_layout
 
 DT = 0.01
@@ -44,7 +46,8 @@ def test_fit_damping_recovers_a_planted_decay_per_axis():
 
 def _folds(new_by_regime, n_flights=5, n=400, seed=0):
     """Hand-built validation errors of one axis: held errors spread over four decades (calm to
-    manoeuvre), and a rung whose error is the held one times ``new_by_regime[q]`` in regime ``q``."""
+    manoeuvre), a rung whose error is the held one times ``new_by_regime[q]`` in regime ``q``, and
+    the attitude and torque rungs 3x and 2x worse than held everywhere."""
     rng = np.random.default_rng(seed)
     folds = []
     for j in range(n_flights):
@@ -52,7 +55,8 @@ def _folds(new_by_regime, n_flights=5, n=400, seed=0):
         q = np.digitize(held, np.quantile(held, [0.25, 0.5, 0.75]))
         new = held * np.asarray(new_by_regime)[q]
         axis = lambda e: {"axis": np.column_stack([e, e, e])}   # noqa: E731 - same on every axis
-        folds.append({"name": f"f{j}", "errs": {"held": axis(held), "damping": axis(new), "torque": axis(held * 2.0)}})
+        folds.append({"name": f"f{j}", "errs": {"held": axis(held), "damping": axis(new), "attitude": axis(held * 3.0),
+                                                 "torque": axis(held * 2.0)}})
     return folds
 
 
@@ -70,7 +74,8 @@ def test_a_rung_that_wins_everywhere_is_taken_only_at_a_level_the_flights_can_re
     folds = _folds([0.9, 0.9, 0.8, 0.5])
     rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
     assert rung == "damping" and steps[0]["taken"]
-    assert steps[1]["against"] == "damping" and not steps[1]["taken"]   # the torque rung is 2x worse
+    assert [(st["rung"], st["against"], st["taken"]) for st in steps] == [
+        ("damping", "held", True), ("attitude", "damping", False), ("torque", "damping", False)]   # 3x, 2x worse
     four = folds[:4]   # 1/16 > 0.05: four flights cannot establish it
     assert _climb(four, 0, 4, 0.5 ** 4, 0.05)[0] == "held"
     assert _climb(four, 0, 4, 0.5 ** 4, 0.1)[0] == "damping"
@@ -124,3 +129,55 @@ def test_select_rotation_rejects_a_bad_regime_count_or_level():
         select_rotation(logs, regimes=0)
     with pytest.raises(ConfigError, match="'alpha' parameter"):
         select_rotation(logs, alpha=0.0)
+
+
+def _sprung_flight(seed, c, kappa, level, n=3000, name="spring"):
+    """Roll and pitch as a planted spring-damper about ``level`` (rad), ``θ̇ = ω``,
+    ``ω̇ = −c ω − κ (θ − level)`` (stepped by RK4), the rates kicked at random times; yaw 0."""
+    from droneid.frames import euler_to_quat
+    rng = np.random.default_rng(seed)
+    A = [np.array([[0.0, 1.0], [-k, -cc]]) * DT for cc, k in zip(c, kappa)]
+    step = [np.eye(2) + a + a @ a / 2 + a @ a @ a / 6 + a @ a @ a @ a / 24 for a in A]
+    x = np.zeros((n, 2, 2))                       # [axis, (angle about level, rate)]
+    kicks = set(rng.choice(n, size=n // 100, replace=False).tolist())
+    for i in range(1, n):
+        x[i] = [step[k] @ x[i - 1, k] for k in range(2)]
+        if i in kicks:
+            x[i, :, 1] += rng.normal(0.0, rng.choice([0.05, 0.5, 1.5]), 2)
+    state = np.zeros((n, 13))
+    state[:, 2] = 1.0
+    state[:, 6:10] = euler_to_quat(x[:, 0, 0] + level[0], x[:, 1, 0] + level[1], np.zeros(n))
+    state[:, 10:12] = x[:, :, 1]
+    return StateLog(name, DT * np.arange(n), state, np.full((n, 4), 90000.0), DT)
+
+
+def test_fit_attitude_recovers_a_planted_spring_and_its_level():
+    level = [0.02, -0.03]
+    logs = [_sprung_flight(s, [8.0, 4.0], [40.0, 20.0], level, name=f"f{s}") for s in (1, 2)]
+    spring = fit_attitude(logs)
+    np.testing.assert_array_equal(spring.damping_per_s, [8.0, 4.0])
+    np.testing.assert_array_equal(spring.stiffness_per_s2, [40.0, 20.0])
+    np.testing.assert_allclose(spring.level_rad, level, atol=0.005)
+    # the rung as a RotationModel: ω̇ = −c ω − κ (θ − θ0) on roll and pitch, yaw decays
+    m = per_axis_model(("attitude", "attitude", "damping"), [1.0, 1.0, 2.0], None, LAYOUT, 1.0, spring)
+    assert m.columns(0) == ("pattern", "damping", "attitude") and m.columns(2) == ("pattern", "damping")
+    x = logs[0].state[100:101].copy()
+    x[0, 12] = 0.5
+    th = tilt(x[:, 6:10])[0] - spring.level_rad
+    want = [-8.0 * x[0, 10] - 40.0 * th[0], -4.0 * x[0, 11] - 20.0 * th[1], -2.0 * 0.5]
+    np.testing.assert_allclose(m.ang_accel(x, m.inputs(logs[0])[100:101])[0], want, rtol=1e-12)
+    back = RotationModel.from_dict(json.loads(json.dumps(m.to_dict())))
+    np.testing.assert_array_equal(back.level_rad, spring.level_rad)
+    np.testing.assert_array_equal(back.ang_accel(x, m.inputs(logs[0])[100:101]), m.ang_accel(x, m.inputs(logs[0])[100:101]))
+    with pytest.raises(DataError, match="roll and pitch only"):
+        per_axis_model(("held", "held", "attitude"), [1.0] * 3, None, LAYOUT, 1.0, spring)
+    with pytest.raises(DataError, match="no attitude model"):
+        per_axis_model(("attitude", "held", "held"), [1.0] * 3, None, LAYOUT, 1.0)
+
+
+def test_the_equation_error_fit_recovers_the_attitude_spring():
+    logs = [_sprung_flight(s, [8.0, 4.0], [40.0, 20.0], [0.02, -0.03], name=f"f{s}") for s in (3, 4)]
+    m = fit_rotation(logs, LAYOUT, terms=("damping", "attitude"), rad_s_per_rpm=1.0, window_s=0.03)
+    for k, (c, kap) in enumerate([(8.0, 40.0), (4.0, 20.0)]):
+        got = dict(zip(m.columns(k), m.coef[k]))
+        assert got["damping"] == pytest.approx(c, rel=0.1) and got["attitude"] == pytest.approx(kap, rel=0.1), k
