@@ -181,6 +181,8 @@ def test_cli_writes_the_vehicle_of_a_result(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "every body rate is held" in text and "dx[10] = dx[11] = dx[12] = 0.0;" in text
     assert "Step: dt = 0.01 s (given by --dt)" in text
+    assert main(["export", held, "--to", "c", "--dt", "0.01"]) == 2           # the equations hold no step
+    assert "--dt applies to --vehicle only" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("case, expect", [
