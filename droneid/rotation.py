@@ -78,7 +78,7 @@ __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", 
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
-#: every optional rigid-body term :func:`fit_rotation` knows (the terms the 6-DOF export writes)
+#: every optional rigid-body term :func:`fit_rotation` knows
 KNOWN_TERMS = ROTATION_TERMS + ("rotor_drag", "rotor_drag_thrust")
 #: closed-loop terms: the vehicle with its controller (``attitude``: pulled back to level)
 CLOSED_LOOP_TERMS = ("attitude",)
