@@ -87,6 +87,8 @@ class RotationResult:
     open_loop_test : the benchmark's metric on the test flights ({} without any):
         :func:`droneid.predict.open_loop_section`'s document
     notes : sentences
+    dt_s : the grid step (s) of the training flights' state logs: the step the model's delays and
+        time constants were fitted at (the exported step function's default step)
     """
     layout: str
     layout_source: str
@@ -97,6 +99,7 @@ class RotationResult:
     axes: tuple[AxisResult, ...]
     open_loop_test: Mapping[str, object] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    dt_s: float = math.nan
 
     def to_dict(self) -> dict:
         return to_jsonable({"targets": list(ROTATION_TARGETS), "layout": self.layout,
@@ -104,7 +107,8 @@ class RotationResult:
                             "speed_note": self.speed_note,
                             "model": None if self.model is None else self.model.to_dict(),
                             "choice": dict(self.choice), "axes": [a.to_dict() for a in self.axes],
-                            "open_loop_test": dict(self.open_loop_test), "notes": list(self.notes)})
+                            "open_loop_test": dict(self.open_loop_test), "notes": list(self.notes),
+                            "dt_s": self.dt_s})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "RotationResult":
@@ -114,7 +118,7 @@ class RotationResult:
             return cls(str(d["layout"]), str(d["layout_source"]), float(d["rad_s_per_rpm"]),
                        str(d.get("speed_note") or ""), model, dict(d["choice"]),
                        tuple(AxisResult.from_dict(a) for a in d["axes"]), dict(d.get("open_loop_test") or {}),
-                       tuple(d.get("notes") or ()))
+                       tuple(d.get("notes") or ()), math.nan if d.get("dt_s") is None else float(d["dt_s"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(f"the result's rotation section is damaged: {exc}") from None
 
@@ -190,7 +194,7 @@ def identify_rotation(train_flights: Sequence, test_flights: Sequence | None, fr
         axes.append(AxisResult(target, rung, choice.held["rates_axis_simerr"][k], axes_model[k], test_held[k],
                                test_model[k], v.text, v.kind))
     return RotationResult(layout, source, scale, why, choice.model, choice.to_dict(), tuple(axes),
-                          notes=tuple(notes))
+                          notes=tuple(notes), dt_s=float(np.median([log.dt_s for log in train])))
 
 
 def _axis_simerr(model, logs: Sequence[StateLog]) -> list[float]:

@@ -34,7 +34,7 @@ def register(sub) -> None:
                         "from the state and the logged motor speeds, as predict --open-loop simulates it")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
                    help="with --vehicle: the step the motor speeds are fed at; the delays are whole steps "
-                        "of it (default: the step of the logs as identify recorded it, horizons.dt_s)")
+                        "of it (default: the training logs' step the rotational model was fitted at, rotation.dt_s)")
     p.set_defaults(func=run)
 
 
@@ -108,9 +108,9 @@ def _step(args, doc) -> tuple[float, str]:
         if not args.dt > 0:
             raise ConfigError(f"--dt must be a positive number of seconds, got {args.dt:g}")
         return float(args.dt), "given by --dt"
-    for where, sec in (("rotation.dt_s", doc.get("rotation")), ("horizons.dt_s", doc.get("horizons"))):
-        dt = sec.get("dt_s") if isinstance(sec, dict) else None
-        if isinstance(dt, (int, float)) and dt > 0:
-            return float(f"{dt:.6g}"), f"the logs' step that identify recorded, {where}; --dt to change it"
-    raise ConfigError(f"{args.result}: the result records no log step (horizons.dt_s): pass --dt SECONDS, "
-                      "the step of the logs the models were identified on")
+    sec = doc.get("rotation")
+    dt = sec.get("dt_s") if isinstance(sec, dict) else None
+    if isinstance(dt, (int, float)) and dt > 0:
+        return float(f"{dt:.6g}"), "the training logs' step the rotational model was fitted at (rotation.dt_s); --dt to change it"
+    raise ConfigError(f"{args.result}: the result records no step for its rotational model (rotation.dt_s): "
+                      "pass --dt SECONDS, the step of the logs the models were identified on")

@@ -161,8 +161,8 @@ def _result(tmp_path, models, rotation="held", horizons=True) -> str:
     if rotation is not None:
         doc["rotation"] = {"targets": ["wx_dot", "wy_dot", "wz_dot"],
                            "model": None if rotation == "held" else rotation.to_dict()}
-    if horizons:
-        doc["horizons"] = {"dt_s": 0.009999999999999787}
+        if horizons:
+            doc["rotation"]["dt_s"] = 0.009999999999999787
     path = tmp_path / "result.json"
     path.write_text(json.dumps(doc))
     return str(path)
@@ -174,7 +174,7 @@ def test_cli_writes_the_vehicle_of_a_result(tmp_path, capsys):
     out = tmp_path / "vehicle.py"
     assert main(["export", result, "--vehicle", "--to", "python", "-o", str(out)]) == 0
     text = out.read_text()
-    assert "dt = 0.01 s (the logs' step that identify recorded, horizons.dt_s" in text and "result.json" in text
+    assert "dt = 0.01 s (the training logs' step the rotational model was fitted at (rotation.dt_s)" in text and "result.json" in text
     np.testing.assert_allclose(_python_rollout(text, log, u), ref, rtol=1e-9, atol=1e-9)
     held = _result(tmp_path, _translation(), "held", horizons=False)
     assert main(["export", held, "--vehicle", "--to", "c", "--dt", "0.01"]) == 0
@@ -189,7 +189,7 @@ def test_cli_writes_the_vehicle_of_a_result(tmp_path, capsys):
     ("no rotation", "result.json: no rotational stage in the result"),
     ("no vz_dot", "result.json: --vehicle needs the final models of vx_dot, vy_dot and vz_dot; the result has "
                   "none of vz_dot"),
-    ("no step", "result.json: the result records no log step (horizons.dt_s): pass --dt SECONDS"),
+    ("no step", "result.json: the result records no step for its rotational model (rotation.dt_s): pass --dt"),
     ("latex", "--vehicle writes python or c, not latex"),
     ("negative delay", "result.json: cannot export the vehicle: the vx_dot model reads rpm1 0.01 s ahead"),
 ])
