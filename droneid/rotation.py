@@ -74,7 +74,7 @@ from .regression import robust_fit
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
            "fit_vehicle", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed",
            "derivative", "spin_rate", "ROTATION_TERMS", "KNOWN_TERMS", "CLOSED_LOOP_TERMS", "balanced",
-           "body_velocity", "tilt"]
+           "body_velocity", "tilt", "translation_rows", "fit_translation_rows"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
@@ -435,26 +435,38 @@ def fit_translation(logs: Sequence[StateLog], *, delay_steps: int = 0, window_s:
                     drag: bool = True, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM
                     ) -> TranslationModel:
     """Fit ``k_T > 0`` and the body drag ``D ≥ 0`` on training flights (g fixed at 9.81)."""
-    A, y = [], []
-    for log in logs:
-        # rows at the step midpoints k + 1/2: the input u_k is held over [k, k+1]
-        m = _mid(flying_mask(log).astype(float)) == 1.0
-        if not m.any():
-            continue
-        s = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)[:-1][m] ** 2
-        R = _mid(quat_to_matrix(log.state[:, 6:10]))[m]
-        v = _mid(log.state[:, 3:6])[m]
-        vb = np.einsum("nji,nj->ni", R, v)
-        cols = [R[:, :, 2] * s.sum(axis=1)[:, None]]               # (n, 3) per thrust scale
-        if drag:
-            cols += [-R[:, :, j] * vb[:, j:j + 1] for j in range(3)]
-        A.append(np.stack(cols, axis=-1).reshape(-1, len(cols)))    # rows: (sample, world axis)
-        vd = _mid(derivative(log, slice(3, 6), window_s))[m]
-        vd[:, 2] += G
-        y.append(vd.reshape(-1))
-    if not A:
+    rows = [translation_rows(log, delay_steps=delay_steps, window_s=window_s, drag=drag,
+                             rad_s_per_rpm=rad_s_per_rpm) for log in logs]
+    return fit_translation_rows(rows, delay_steps=delay_steps, drag=drag, rad_s_per_rpm=rad_s_per_rpm)
+
+
+def translation_rows(log: StateLog, *, delay_steps: int = 0, window_s: float = 0.05, drag: bool = True,
+                     rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> tuple[np.ndarray, np.ndarray] | None:
+    """One log's least-squares rows of :func:`fit_translation`, ``(A, y)``, or None when it has no
+    row in flight: computed once per log when several fits share the logs (blocked validation)."""
+    # rows at the step midpoints k + 1/2: the input u_k is held over [k, k+1]
+    m = _mid(flying_mask(log).astype(float)) == 1.0
+    if not m.any():
+        return None
+    s = _delayed(_speeds(log, rad_s_per_rpm), delay_steps)[:-1][m] ** 2
+    R = _mid(quat_to_matrix(log.state[:, 6:10]))[m]
+    v = _mid(log.state[:, 3:6])[m]
+    vb = np.einsum("nji,nj->ni", R, v)
+    cols = [R[:, :, 2] * s.sum(axis=1)[:, None]]               # (n, 3) per thrust scale
+    if drag:
+        cols += [-R[:, :, j] * vb[:, j:j + 1] for j in range(3)]
+    vd = _mid(derivative(log, slice(3, 6), window_s))[m]
+    vd[:, 2] += G
+    return np.stack(cols, axis=-1).reshape(-1, len(cols)), vd.reshape(-1)    # rows: (sample, world axis)
+
+
+def fit_translation_rows(rows: Sequence[tuple[np.ndarray, np.ndarray] | None], *, delay_steps: int = 0,
+                         drag: bool = True, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM) -> TranslationModel:
+    """:func:`fit_translation` from the logs' :func:`translation_rows` (made with the same settings)."""
+    rows = [r for r in rows if r is not None]
+    if not rows:
         raise DataError("fit_translation: no training row with every motor turning in flight")
-    A, y = np.vstack(A), np.concatenate(y)
+    A, y = np.vstack([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
     beta = robust_fit(A, y, lo=np.zeros(A.shape[1])).beta
     return TranslationModel(float(beta[0]), np.asarray(beta[1:4]) if drag else np.zeros(3),
                             int(delay_steps), float(rad_s_per_rpm))

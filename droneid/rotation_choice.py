@@ -16,8 +16,8 @@ from priors.torque import RotorLayout, get_layout
 from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
-from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation,
-                       flying_mask, flying_segments, tilt)
+from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
+                       flying_mask, flying_segments, tilt, translation_rows)
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "DAMPING_GRID", "RUNGS",
            "fit_damping", "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID",
@@ -135,17 +135,17 @@ def _fit_multistep_at(logs, shell, H, stride, damping_grid, spinup, rotor_drag=F
 #: the torque models :func:`select_rotation` tries by default (keywords of :func:`fit_rotation`):
 #: terms, rotor-speed delay (steps), low-pass time constant (s) and balance prior weight (s).
 #: Narrowed by their validation on the shared Crazyflie squares (docs/use-the-model.md): from a
-#: 36-candidate grid (also no rotor drag, no low-pass, no balance, worse everywhere), then from
-#: delays 0-2 steps (delays 1 and 2 lost to 0 with either set of terms: pooled body-rate SimErr
-#: 37.5 / 38.0 / 39.6 and 36.7 / 37.1 / 38.5 rad/s)
-DEFAULT_CANDIDATES = tuple(
-    {"terms": terms, "delay_steps": 0, "lowpass_tau_s": 0.05, "balance_weight_s": 1.0}
-    for terms in (("centre", "rotor_drag", "damping"), ("centre", "rotor_drag", "rotor_drag_thrust", "damping")))
+#: 36-candidate grid (also no rotor drag, no low-pass, no balance: worse everywhere), then from
+#: delays 0-2 steps and terms with and without ``rotor_drag_thrust`` (pooled body-rate SimErr of
+#: delays 0 / 1 / 2: 37.5 / 38.0 / 39.6 without it, 36.7 / 37.1 / 38.5 with it, rad/s)
+DEFAULT_CANDIDATES = ({"terms": ("centre", "rotor_drag", "rotor_drag_thrust", "damping"), "delay_steps": 0,
+                       "lowpass_tau_s": 0.05, "balance_weight_s": 1.0},)
 #: the rungs of each axis's ladder, simplest first (``attitude``: roll and pitch only)
 RUNGS = ("held", "damping", "attitude", "torque")
 #: attitude stiffness values (1/s²) tried by :func:`fit_attitude`
 STIFFNESS_GRID = (0.0, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
 _AXES = ("roll", "pitch", "yaw")
+_CHUNK = 8192   # windows simulated at once
 
 
 @dataclass(frozen=True)
@@ -386,14 +386,15 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
         raise ConfigError(f"The 'alpha' parameter of select_rotation must be in (0, 1]. Got {alpha!r} instead.")
     regimes = int(regimes)
     layout = get_layout(layout) if isinstance(layout, str) else layout
+    tkw = {"delay_steps": translation_delay_steps, "rad_s_per_rpm": rad_s_per_rpm}
+    trows = [translation_rows(log, window_s=window_s, **tkw) for log in logs]   # once per log
     folds = []   # per held-out flight: name, test segments, translation, damping c, torque fits, errors
     for name in names:
         train = [log for log in logs if log.name != name]
         test = [seg for log in logs if log.name == name for seg in flying_segments(log)]
         if not test or not _windows_in(test, stride):
             continue
-        tr = fit_translation(train, delay_steps=translation_delay_steps, window_s=window_s,
-                             rad_s_per_rpm=rad_s_per_rpm)
+        tr = fit_translation_rows([r for r, log in zip(trows, logs) if log.name != name], **tkw)
         c = fit_damping(train, grid=damping_grid, regimes=regimes)
         spring = fit_attitude(train, damping_grid=damping_grid, regimes=regimes)
         torques = [_fit_candidate(train, layout, cand, window_s, rad_s_per_rpm) for cand in candidates]
@@ -479,21 +480,28 @@ def _windows_in(logs: Sequence[StateLog], stride: int, H: int = 50) -> int:
 def _window_errors(model, logs: Sequence[StateLog], stride: int, H: int = 50) -> dict[str, np.ndarray]:
     """Per window of ``model`` open loop from every ``stride``-th start of each log (the nanodrone
     metric's windows, :func:`droneid.openloop.score_model`): ``rates`` and ``attitude`` SimErr
-    (W,) and ``axis`` (W, 3), Σ_h |Δω_k|."""
-    rates, att, axis = [], [], []
+    (W,) and ``axis`` (W, 3), Σ_h |Δω_k|. The windows of all logs are simulated together, in
+    chunks of ``_CHUNK``."""
+    x0, uw, true = [], [], []
     for log in logs:
         if len(log) <= H:
             continue
         u = model.inputs(log)
         starts = np.arange(0, len(log) - H, stride)
         idx = starts[:, None] + np.arange(H)[None, :]
-        pred, true = rollout(model, log.state[starts], u[idx], log.dt_s), log.state[idx + 1]
-        err = window_errors(pred, true)
+        x0.append(log.state[starts])
+        uw.append(u[idx])
+        true.append(log.state[idx + 1])
+    if not x0:
+        return {"rates": np.zeros(0), "attitude": np.zeros(0), "axis": np.zeros((0, 3))}
+    x0, uw, true = np.concatenate(x0), np.concatenate(uw), np.concatenate(true)
+    rates, att, axis = [], [], []
+    for c in range(0, x0.shape[0], _CHUNK):
+        pred, tr = rollout(model, x0[c:c + _CHUNK], uw[c:c + _CHUNK], logs[0].dt_s), true[c:c + _CHUNK]
+        err = window_errors(pred, tr)
         rates.append(err["rates"].sum(axis=1))
         att.append(err["attitude"].sum(axis=1))
-        axis.append(np.abs(pred[..., 10:13] - true[..., 10:13]).sum(axis=1))
-    if not rates:
-        return {"rates": np.zeros(0), "attitude": np.zeros(0), "axis": np.zeros((0, 3))}
+        axis.append(np.abs(pred[..., 10:13] - tr[..., 10:13]).sum(axis=1))
     return {"rates": np.concatenate(rates), "attitude": np.concatenate(att), "axis": np.concatenate(axis)}
 
 
