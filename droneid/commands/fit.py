@@ -148,8 +148,27 @@ def _import_sympy_meanwhile() -> None:
         threading.Thread(target=_import_quietly, name="droneid-import-sympy", daemon=True).start()
 
 
+#: what building the equation and the test error import besides droneid.sngp.model (sympy and
+#: the expression tools), each on first use: sympy's sums sympy.tensor.tensor (and with it
+#: sympy.combinatorics), its code printer sympy.codegen.ast, sets sympy.sets.setexpr, and
+#: sympy.lambdify's numpy namespace is ``from numpy import *`` and ``from numpy.linalg import *``,
+#: which loads numpy's lazy submodules (f2py, testing, fft, ...): ~0.1 s of CPU that came after
+#: the search, on the path to the printed equation
+_SYMBOLIC_SIDE = ("droneid.sngp.model", "sympy.tensor.tensor", "sympy.codegen.ast",
+                  "sympy.sets.setexpr")
+_STAR_IMPORTED = ("numpy", "numpy.linalg")
+
+
 def _import_quietly() -> None:
-    try:
-        importlib.import_module("droneid.sngp.model")   # sympy and the expression tools
-    except Exception:   # noqa: BLE001 - the engine's own import of it reports the error
-        return
+    """Import the symbolic side (:data:`_SYMBOLIC_SIDE`, :data:`_STAR_IMPORTED`'s names). Only
+    imports, each under the import system's own lock: a thread that needs a module meanwhile
+    waits for it, fully executed, and none of sympy's own state is touched. A module that fails
+    (another sympy or numpy) is skipped: whoever needs it imports it and reports the error."""
+    for name in _SYMBOLIC_SIDE + _STAR_IMPORTED:
+        try:
+            module = importlib.import_module(name)
+            if name in _STAR_IMPORTED:
+                for attr in getattr(module, "__all__", ()):
+                    getattr(module, attr, None)
+        except Exception:   # noqa: BLE001 - see above
+            continue
