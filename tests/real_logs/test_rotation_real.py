@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.dataset_builder import in_flight_intervals
-from droneid.openloop import IdentifiedVehicle, StateLog, open_loop, state_log
+from droneid.openloop import IdentifiedVehicle, flight_state_logs, open_loop
 from droneid.rotation import fit_translation
 from droneid.rotation_choice import _HeldRates, select_rotation
 from parsers import read_flight
@@ -27,21 +26,15 @@ CF = "mocap/crazyflie_nanodrone/"
 SQUARES = [f"square_run{i}" for i in range(1, 6)]
 
 
-def _squares():
-    """The squares' in-flight stretches, each named by its flight (one validation block each)."""
-    logs = []
-    for name in SQUARES:
-        f = read_flight(real_log(CF + name + ".csv"))
-        for a, b in in_flight_intervals(f)[0]:
-            if b - a > 0.6:
-                log = state_log(f.between(a, b))
-                logs.append(StateLog(name, log.t_s, log.state, log.rpm, log.dt_s))
-    return logs
+def _flights(names):
+    """Airborne stretches cut at gaps and glitches, each named by its flight (one validation block
+    each), as identify and predict --open-loop read them."""
+    return flight_state_logs([read_flight(real_log(CF + name + ".csv")) for name in names])
 
 
 @pytest.fixture(scope="module")
 def squares():
-    return _squares()
+    return _flights(SQUARES)
 
 
 @pytest.fixture(scope="module")
@@ -78,14 +71,13 @@ def test_the_choice_sees_the_squares_only_and_refuses_the_torque_model_that_fail
 
 @pytest.mark.slow   # about 15 s: every start of both melon runs, twice
 def test_on_the_melon_runs_the_chosen_model_is_scored_against_holding_the_rates(choice, squares):
-    """As measured: better in position and velocity SimErr and in the rates at 50 steps; worse in
-    the rates' and the attitude's SimErr (docs/use-the-model.md says so: update both together)."""
-    melon = [state_log(read_flight(real_log(CF + f"melon_run{i}.csv"))) for i in (1, 4)]
+    """As measured: better in position SimErr and in the rates at 50 steps; worse in the rates'
+    and the attitude's SimErr (docs/use-the-model.md says so: update both together)."""
+    melon = _flights(["melon_run1", "melon_run4"])
     tr = fit_translation(squares, delay_steps=3)
     res = open_loop({"held": IdentifiedVehicle(tr, _HeldRates()), "chosen": IdentifiedVehicle(tr, choice.model)}, melon)
     chosen, held = res["chosen"], res["held"]
-    for q in ("position", "velocity"):
-        assert chosen.simerr[q] < held.simerr[q], q
+    assert chosen.simerr["position"] < 0.9 * held.simerr["position"]
     assert chosen.at(50)["rates"] < 0.8 * held.at(50)["rates"]
     for q in ("rates", "attitude"):
         assert chosen.simerr[q] > held.simerr[q], q
