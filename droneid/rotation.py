@@ -3,13 +3,14 @@ squares, for open-loop simulation (:mod:`droneid.openloop`) (issue 28).
 
 The rotational model is chosen per body axis by :func:`droneid.rotation_choice.select_rotation`
 (leave-one-flight-out open-loop validation on training flights only): each axis holds its rate,
-decays it (``ω̇_k = −c_k ω_k``: the closed loop stopping a rotation) or takes the torque model
-below, a rung being taken only if it beats the one below on every held-out flight in every
-regime of calm to hard flight. It steps with a translational model in
+decays it (``ω̇_k = −c_k ω_k``: the closed loop stopping a rotation), is pulled back to level
+(roll and pitch, the term ``attitude`` below: the attitude controller) or takes the torque model,
+a rung being taken only if it beats the one below on every held-out flight in every regime of
+calm to hard flight. It steps with a translational model in
 :class:`droneid.openloop.IdentifiedVehicle`; :func:`droneid.export.export_vehicle` writes it as
-Python or C. On the shared Crazyflie squares the torque model is three times better than holding
-the rates when pooled, but worse in their calm windows; it does not transfer to the calmer melon
-runs (roll and pitch), and the choice refuses it: see docs/use-the-model.md.
+Python or C. On the shared Crazyflie squares the torque model is the best pooled, but worse than
+the simpler rungs in their calm windows, and the choice refuses it; the spring it takes for roll
+and pitch does not transfer in full to the melon runs (see docs/use-the-model.md).
 
 Rotation (body FLU, per axis ``k`` = roll, pitch, yaw; ``s_i = (ω_i / 1000 rad/s)²`` with ``ω_i``
 the rotor speeds ``d`` steps earlier, ``P`` the layout's torque patterns, :mod:`priors.torque`)::

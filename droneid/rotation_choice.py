@@ -350,30 +350,33 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
 
     Each flight (logs of the same name form one block) is held out in turn. On the others are
     fitted a :class:`TranslationModel` (``translation_delay_steps``), the rate decay of
-    :func:`fit_damping`, the attitude spring of :func:`fit_attitude` and every torque candidate (keyword arguments of :func:`fit_rotation`, or
-    with ``"method": "multistep"`` of :func:`fit_rotation_multistep`); the vehicle is run open
-    loop on the held-out flight's in-flight stretches from every ``stride``-th start. The torque
-    candidate with the lowest pooled body-rate SimErr (attitude breaks ties) stands for the torque
-    rung.
+    :func:`fit_damping`, the attitude spring of :func:`fit_attitude` and every torque candidate
+    (keyword arguments of :func:`fit_rotation`, or with ``"method": "multistep"`` of
+    :func:`fit_rotation_multistep`); the vehicle is run open loop on the held-out flight's
+    in-flight stretches from every ``stride``-th start. The torque candidate with the lowest
+    pooled body-rate SimErr (attitude breaks ties) stands for the torque rung.
 
-    Each axis then climbs a ladder, ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k, :func:`fit_damping`)
-    → ``attitude`` (roll and pitch: −c_k ω_k − κ_k (θ_k − θ0_k), the controller holding the
-    vehicle level, :func:`fit_attitude`) → ``torque``, one rung at a time, and a rung is taken only if it beats the axis's current rung on EVERY
-    held-out flight in EVERY regime: the validation windows are split into ``regimes`` classes by
-    how far the held rate drifts in them (quantiles of the held body-rate error of the axis, so
-    calm stretches, ordinary flight and hard manoeuvres each count on their own), and per flight
-    and regime the mean body-rate error of the axis is compared. The pooled SimErr alone is ruled
-    by the few windows where the rates change most (the squares' corners: the top quarter of the
-    held error is ~4× its median), and a model that wins there and loses in calm flight does not
-    transfer to flights that are mostly calm. As a test: if in some regime the two rungs were
-    exchangeable between flights, winning on all ``F`` held-out flights has probability ``2^−F``,
-    and requiring it in every regime keeps that level (an intersection-union test); a rung is
-    taken only when ``2^−F ≤ alpha`` (so with ``alpha = 0.05`` at least five training flights).
-    Regime-flight cells with fewer than 3 windows are left out of the count.
+    Each axis then climbs the ladder :data:`RUNGS`: ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k)
+    → ``attitude`` (roll and pitch only: −c_k ω_k − κ_k (θ_k − θ0_k), the controller holding the
+    vehicle level) → ``torque``, one rung at a time. A rung is taken only if it beats the axis's
+    current rung on EVERY held-out flight in EVERY regime: the validation windows are split into
+    ``regimes`` classes by how far the held rate drifts in them (quantiles of the held body-rate
+    error of the axis, so calm stretches, ordinary flight and hard manoeuvres each count on their
+    own), and per flight and regime the mean body-rate error of the axis is compared. The pooled
+    SimErr alone is ruled by the few windows where the rates change most (the squares' corners:
+    the top quarter of the held error is ~4× its median), and a model that wins there and loses
+    in calm flight does not transfer to flights that are mostly calm.
+
+    As a test: if in some regime the two rungs were exchangeable between flights, winning on all
+    ``F`` held-out flights has probability ``2^−F``, and requiring it in every regime keeps that
+    level (an intersection-union test; nominal, as the folds share training flights). A rung is
+    taken only when ``2^−F ≤ alpha`` (so with ``alpha = 0.05`` at least five training flights);
+    regime-flight cells with fewer than 3 windows are left out, and ``F`` is then the fewest
+    flights counted in a regime.
 
     The chosen rungs are refitted on every training flight and combined by
     :func:`per_axis_model`; the per-axis model's own validation (its folds combined alike) is
-    the last row of the table.
+    the last row of the table. ConfigError for ``regimes`` < 1 or ``alpha`` outside (0, 1].
     """
     names = list(dict.fromkeys(log.name for log in logs))
     if len(names) < 2:
