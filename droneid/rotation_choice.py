@@ -19,7 +19,7 @@ from .regression import robust_fit
 from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
                        flying_mask, flying_segments, tilt, translation_rows)
 
-__all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "DAMPING_GRID", "RUNGS",
+__all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "DAMPING_GRID", "RUNGS", "VEHICLE_RUNGS",
            "fit_damping", "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID",
            "DEFAULT_CANDIDATES"]
 
@@ -142,6 +142,12 @@ DEFAULT_CANDIDATES = ({"terms": ("centre", "rotor_drag", "rotor_drag_thrust", "d
                        "lowpass_tau_s": 0.05, "balance_weight_s": 1.0},)
 #: the rungs of each axis's ladder, simplest first (``attitude``: roll and pitch only)
 RUNGS = ("held", "damping", "attitude", "torque")
+#: the rungs :func:`select_rotation` climbs by default: the airframe's own physics only. The
+#: attitude spring is the onboard controller holding the vehicle level, not the vehicle: it
+#: assumes the flight's attitude setpoint is level (true of the squares between corners, false of
+#: any flight that holds a tilt) and, in a simulator that closes its own controller around the
+#: model, it would count the controller twice. Opt in with ``rungs=RUNGS``.
+VEHICLE_RUNGS = ("held", "damping", "torque")
 #: attitude stiffness values (1/s²) tried by :func:`fit_attitude`
 STIFFNESS_GRID = (0.0, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
 _AXES = ("roll", "pitch", "yaw")
@@ -345,7 +351,8 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
                     candidates: Sequence[dict] = DEFAULT_CANDIDATES, translation_delay_steps: int = 3,
                     stride: int = 20, window_s: float = 0.05,
                     rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM, regimes: int = 4,
-                    alpha: float = 0.05, damping_grid: Sequence[float] = DAMPING_GRID) -> RotationChoice:
+                    alpha: float = 0.05, damping_grid: Sequence[float] = DAMPING_GRID,
+                    rungs: Sequence[str] = VEHICLE_RUNGS) -> RotationChoice:
     """Choose the rotational model per body axis by blocked validation on TRAINING flights only.
 
     Each flight (logs of the same name form one block) is held out in turn. On the others are
@@ -356,9 +363,10 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     in-flight stretches from every ``stride``-th start. The torque candidate with the lowest
     pooled body-rate SimErr (attitude breaks ties) stands for the torque rung.
 
-    Each axis then climbs the ladder :data:`RUNGS`: ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k)
-    → ``attitude`` (roll and pitch only: −c_k ω_k − κ_k (θ_k − θ0_k), the controller holding the
-    vehicle level) → ``torque``, one rung at a time. A rung is taken only if it beats the axis's
+    Each axis then climbs the ladder ``rungs`` (a subsequence of :data:`RUNGS` starting at
+    ``held``; default :data:`VEHICLE_RUNGS`): ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k) →
+    [``attitude``, opt-in: roll and pitch only: −c_k ω_k − κ_k (θ_k − θ0_k), the controller
+    holding the vehicle level] → ``torque``, one rung at a time. A rung is taken only if it beats the axis's
     current rung on EVERY held-out flight in EVERY regime: the validation windows are split into
     ``regimes`` classes by how far the held rate drifts in them (quantiles of the held body-rate
     error of the axis, so calm stretches, ordinary flight and hard manoeuvres each count on their
@@ -388,6 +396,12 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     if not 0.0 < alpha <= 1.0:
         raise ConfigError(f"The 'alpha' parameter of select_rotation must be in (0, 1]. Got {alpha!r} instead.")
     regimes = int(regimes)
+    rungs = tuple(rungs)
+    if not rungs or rungs[0] != "held" or any(r not in RUNGS for r in rungs) \
+            or list(rungs) != sorted(set(rungs), key=RUNGS.index):
+        raise ConfigError(f"The 'rungs' parameter of select_rotation must start at 'held' and follow the order of "
+                          f"{', '.join(RUNGS)}. Got {rungs!r} instead.")
+    spring_rung = "attitude" in rungs
     layout = get_layout(layout) if isinstance(layout, str) else layout
     tkw = {"delay_steps": translation_delay_steps, "rad_s_per_rpm": rad_s_per_rpm}
     trows = [translation_rows(log, window_s=window_s, **tkw) for log in logs]   # once per log
@@ -399,12 +413,14 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
             continue
         tr = fit_translation_rows([r for r, log in zip(trows, logs) if log.name != name], **tkw)
         c = fit_damping(train, grid=damping_grid, regimes=regimes)
-        spring = fit_attitude(train, damping_grid=damping_grid, regimes=regimes)
         torques = [_fit_candidate(train, layout, cand, window_s, rad_s_per_rpm) for cand in candidates]
-        springs = per_axis_model(("attitude", "attitude", "damping"), c, None, layout, rad_s_per_rpm, spring)
         errs = {"held": _window_errors(IdentifiedVehicle(tr, _HeldRates()), test, stride),
-                "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride),
-                "attitude": _window_errors(IdentifiedVehicle(tr, springs), test, stride)}
+                "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride)}
+        spring = None
+        if spring_rung:
+            spring = fit_attitude(train, damping_grid=damping_grid, regimes=regimes)
+            springs = per_axis_model(("attitude", "attitude", "damping"), c, None, layout, rad_s_per_rpm, spring)
+            errs["attitude"] = _window_errors(IdentifiedVehicle(tr, springs), test, stride)
         errs.update({i: _window_errors(IdentifiedVehicle(tr, m), test, stride) for i, m in enumerate(torques)})
         folds.append({"name": name, "test": test, "tr": tr, "c": c, "spring": spring, "torques": torques, "errs": errs})
     if not folds:
@@ -413,21 +429,21 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     cand_rows = [{**dict(cand), **_pooled(f["errs"][i] for f in folds)} for i, cand in enumerate(candidates)]
     damp_row = {"method": "damping", "damping_per_s": [float(v) for v in np.median([f["c"] for f in folds], axis=0)],
                 **_pooled(f["errs"]["damping"] for f in folds)}
-    att_row = {"method": "attitude",
-               "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],
-               "stiffness_per_s2": [float(v) for v in np.median([f["spring"].stiffness_per_s2 for f in folds], axis=0)],
-               **_pooled(f["errs"]["attitude"] for f in folds)}
+    att_rows = ({"method": "attitude",
+                 "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],
+                 "stiffness_per_s2": [float(v) for v in np.median([f["spring"].stiffness_per_s2 for f in folds], axis=0)],
+                 **_pooled(f["errs"]["attitude"] for f in folds)},) if spring_rung else ()
     best = min(range(len(candidates)), key=lambda i: (cand_rows[i]["rates_simerr"], cand_rows[i]["attitude_simerr"]))
     for f in folds:
         f["errs"]["torque"] = f["errs"][best]
-    rungs, ladder = [], []
+    ladder_rungs, rungs, ladder = rungs, [], []
     level = 0.5 ** len(folds)
     for k in range(3):
-        rung, steps = _climb(folds, k, regimes, level, alpha)
+        rung, steps = _climb(folds, k, regimes, level, alpha, ladder_rungs)
         rungs.append(rung)
         ladder.append({"axis": _AXES[k], "choice": rung, "level": level, "alpha": float(alpha), "regimes": int(regimes),
                        "flights": [f["name"] for f in folds], "steps": steps})
-    table = tuple(cand_rows) + (damp_row, att_row)
+    table = tuple(cand_rows) + (damp_row, *att_rows)
     if all(r == "held" for r in rungs):
         return RotationChoice(None, table, held_row, None, tuple(rungs), tuple(ladder))
     sums = []
@@ -442,7 +458,7 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     return RotationChoice(model, table + (mixed_row,), held_row, len(table), tuple(rungs), tuple(ladder))
 
 
-def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
+def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float, rungs: Sequence[str] = RUNGS,
            min_windows: int = 3) -> tuple[str, list[dict]]:
     """Axis ``k``'s ladder (:func:`select_rotation`): (the rung taken, one record per step: the
     rung, the rung it is tested against, ``wins`` per held-out flight and regime (None: too few
@@ -451,7 +467,7 @@ def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float,
     regime) and whether it was taken)."""
     held = np.concatenate([f["errs"]["held"]["axis"][:, k] for f in folds])
     current, steps = "held", []
-    for rung in RUNGS[1:]:
+    for rung in rungs[1:]:
         if rung == "attitude" and k == 2:
             continue            # no level to return to in yaw
         wins = []

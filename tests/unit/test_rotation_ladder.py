@@ -129,6 +129,9 @@ def test_select_rotation_rejects_a_bad_regime_count_or_level():
         select_rotation(logs, regimes=0)
     with pytest.raises(ConfigError, match="'alpha' parameter"):
         select_rotation(logs, alpha=0.0)
+    for rungs in (("damping",), ("held", "torque", "damping"), ("held", "spring")):
+        with pytest.raises(ConfigError, match="'rungs' parameter"):
+            select_rotation(logs, rungs=rungs)
 
 
 def _sprung_flight(seed, c, kappa, level, n=3000, name="spring"):
