@@ -65,32 +65,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    with _collector_paused():
-        return _run(args)
-
-
-def _run(args) -> int:
-    if args.save and Path(args.save).is_dir():
-        raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
-                          f"{Path(args.save) / 'model.json'}")
-    inputs = tuple(s.strip() for s in args.inputs.split(",") if s.strip()) if args.inputs else None
-    if args.inputs and not inputs:
-        raise ConfigError("no input columns (give --inputs)")
-    functions = tuple(s.strip() for s in args.functions.split(",")) if args.functions else None
-    config = _fit.FitConfig(target=args.target, inputs=inputs, priors=tuple(args.prior),
-                       constraints=args.constraints, n_constraint_samples=args.constraint_samples,
-                       generations=args.generations, population_size=args.population,
-                       n_features=args.features, max_depth=args.depth, gamma=args.gamma,
-                       seed=args.seed, functions=functions, simplify_s=args.simplify,
-                       n_jobs=args.jobs if args.jobs is not None else default_jobs())
-    _import_sympy_meanwhile()    # the engine (numba) is imported now: see there
-    problem = _fit.prepare(args.train, config, test=args.test)
-    for w in problem.warnings:
-        print(f"droneid fit: warning: {w}", file=sys.stderr)
-    bar = ProgressBar("fit", quiet=getattr(args, "quiet", False) or args.json)
-    bar(0, args.generations, startup_message())
-    _engine.kernels.set_up_target(skip_blas_probe=True)   # this process runs only the SNGP kernels
-    res = _fit.fit(problem, config, progress=bar)
+    with _collector_paused():   # the imports and the search; the equation is built after
+        res = _fitted(args)
     if args.save:
         atomic_write_json(args.save, res.model_dict())
     if args.json:
@@ -117,13 +93,38 @@ def _run(args) -> int:
     return 0
 
 
+def _fitted(args):
+    """Check the options, read the table(s) and fit: the :class:`~droneid.fit.FitResult`."""
+    if args.save and Path(args.save).is_dir():
+        raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
+                          f"{Path(args.save) / 'model.json'}")
+    inputs = tuple(s.strip() for s in args.inputs.split(",") if s.strip()) if args.inputs else None
+    if args.inputs and not inputs:
+        raise ConfigError("no input columns (give --inputs)")
+    functions = tuple(s.strip() for s in args.functions.split(",")) if args.functions else None
+    config = _fit.FitConfig(target=args.target, inputs=inputs, priors=tuple(args.prior),
+                       constraints=args.constraints, n_constraint_samples=args.constraint_samples,
+                       generations=args.generations, population_size=args.population,
+                       n_features=args.features, max_depth=args.depth, gamma=args.gamma,
+                       seed=args.seed, functions=functions, simplify_s=args.simplify,
+                       n_jobs=args.jobs if args.jobs is not None else default_jobs())
+    _import_sympy_meanwhile()    # the engine (numba) is imported now: see there
+    problem = _fit.prepare(args.train, config, test=args.test)
+    for w in problem.warnings:
+        print(f"droneid fit: warning: {w}", file=sys.stderr)
+    bar = ProgressBar("fit", quiet=getattr(args, "quiet", False) or args.json)
+    bar(0, args.generations, startup_message())
+    _engine.kernels.set_up_target(skip_blas_probe=True)   # this process runs only the SNGP kernels
+    return _fit.fit(problem, config, progress=bar)
+
+
 @contextlib.contextmanager
 def _collector_paused():
-    """Python's cyclic garbage collector off while the command runs (restored after): the
-    imports of numpy, numba and sympy create ~170,000 objects, and the collections they trigger
-    scan them again and again (~0.1 s CPU of a ``droneid fit`` start-up); the search itself
-    makes few Python objects, and the process ends after printing. Memory only: the results
-    are the same. On the way out every object is moved to the oldest generation (freeze, then
+    """Python's cyclic garbage collector off while the command imports and searches (restored
+    after, before the equation is built: ``--simplify`` may run sympy for long): the imports of
+    numpy, numba and sympy create ~170,000 objects, and the collections they trigger scan them
+    again and again (~0.1 s CPU of a ``droneid fit`` start-up); the search makes few Python
+    objects. Memory only: the results are the same. On the way out every object is moved to the oldest generation (freeze, then
     unfreeze), where the young collections that resume do not scan them again: else the first
     allocation after ``gc.enable`` would scan them all at once."""
     enabled = gc.isenabled()
