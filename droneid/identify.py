@@ -46,7 +46,7 @@ from .plan import holdout_cuts, plan_identification, resolve_plan_prior
 from .problem import TargetProblem, empirical_model, prepare_target
 from .report.wording import readable_equation, split_leading_number, verdict
 from .rollout import horizon_section
-from .rotation_stage import RotationResult, identify_rotation
+from .rotation_stage import RotationJob, RotationResult, rotation_job, score_rotation
 from .search import RunRecord, compile_once, make_jobs, run_job, select_best
 from .settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
 from .targets import targets_for
@@ -385,9 +385,15 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     cfg = replace(cfg, targets=plan.targets)
     problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
     jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
+    notes_early = []
+    if cfg.rotation != "none":   # the rotational choice needs no SNGP result: a job beside the runs, first
+        try:
+            jobs.insert(0, rotation_job(train_flights, cfg.frame))
+        except DataError as exc:
+            notes_early.append(f"rotation not modelled: {exc}")
     compile_once(progress)
-    outcome = runner.run_jobs(run_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
-                              label="SNGP run")
+    outcome = runner.run_jobs(run_stage_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
+                              label="job")
     results = {}
     for t in cfg.targets:
         idx = [i for i, j in enumerate(jobs) if j.target == t]
@@ -399,7 +405,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
         results[t] = summarise_target(problems[t], cfg, runs, errors)
     notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes,
              *(f"data ({role}): {w}" for role, f in fitness.items() if f is not None
-               for w in _grouped(f.warnings))]
+               for w in _grouped(f.warnings)), *notes_early]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
@@ -412,7 +418,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
                 if plan.offset is not None else None),
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     horizons = _horizons(results, test_flights, notes) if test_flights else {}
-    rotation = _rotation(train_flights, test_flights, cfg, results, notes, progress)
+    rotation = _rotation(outcome, jobs, test_flights, results, notes)
     res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted,
                                time.perf_counter() - t0, outcome.backend, tuple(notes), horizons,
                                rotation=rotation)
@@ -422,20 +428,26 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     return res
 
 
-def _rotation(train_flights, test_flights, cfg: IdentifyConfig, results: Mapping[str, TargetResult],
-              notes: list, progress) -> RotationResult | None:
-    """The rotational stage (:mod:`droneid.rotation_stage`) where asked for and possible; a note
-    says why not otherwise."""
-    if cfg.rotation == "none":
+def run_stage_job(job):
+    """One job of identify's batch (:func:`droneid.runner.run_jobs`): an SNGP run
+    (:func:`droneid.search.run_job`) or the rotational choice (:class:`RotationJob`)."""
+    return job.run() if isinstance(job, RotationJob) else run_job(job)
+
+
+def _rotation(outcome, jobs, test_flights, results: Mapping[str, TargetResult], notes: list) -> RotationResult | None:
+    """The rotational job's result, scored on the test flights where there are any (a note says
+    why there is none otherwise)."""
+    idx = next((i for i, j in enumerate(jobs) if isinstance(j, RotationJob)), None)
+    if idx is None:
         return None
-    translation = None
-    if all(t in results for t in ("vx_dot", "vy_dot", "vz_dot")):
-        translation = {t: IdentifiedModel.from_dict(results[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
-    try:
-        return identify_rotation(train_flights, test_flights, cfg.frame, translation, progress)
-    except DataError as exc:
-        notes.append(f"rotation not modelled: {exc}")
+    rot = outcome.results[idx]
+    if rot is None:
+        notes.append(f"rotation not modelled: {outcome.errors.get(idx, 'the job did not finish')}")
         return None
+    if test_flights and all(t in results for t in ("vx_dot", "vy_dot", "vz_dot")):
+        rot = score_rotation(rot, test_flights, {t: IdentifiedModel.from_dict(results[t].final.to_dict())
+                                                 for t in ("vx_dot", "vy_dot", "vz_dot")})
+    return rot
 
 
 def _open_loop_test(res: "IdentificationResult", test_flights, notes: list) -> dict:

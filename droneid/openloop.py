@@ -119,20 +119,26 @@ def _signals(flight, motors: int | None = None) -> tuple[list[str], list[str]]:
 
 def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
     """The stretches of ``flights`` the open-loop metric may use, as :class:`StateLog` each named
-    by its flight (so that a flight's stretches form one validation block): airborne and before
+    by its flight (so that a flight's stretches form one validation block; flights that share a
+    name get their position in ``flights`` too): airborne and before
     any crash (:func:`droneid.in_flight.in_flight_intervals`: a window on the ground with the
     motors off would score free fall against a vehicle at rest), with every gap and every
     screened implausible sample (:mod:`droneid.screening`, the rule of the datasets and of the
     multi-step prediction) of the signals it reads cut out, so that no window interpolates across
     one. Stretches shorter than ``min_s`` seconds (no 50-step window at 100 Hz) are left out."""
+    flights = list(flights)
+    names = [f.name for f in flights]
     out = []
-    for f in flights:
+    for i, f in enumerate(flights):
+        # two flights with one name (the same file stem from two folders) are two blocks
+        name = f.name if names.count(f.name) == 1 else f"{f.name} ({i + 1})"
         need, rpm_names = _signals(f)
         screened = [n for n in (*need, *rpm_names, "roll", "pitch", "yaw") if f.has(n)]
         holes = [h for n in screened for h in (*signal_gaps(f[n], 0.0), *screen_signal(f[n]).holes)]
         for a, b in subtract_intervals(in_flight_intervals(f)[0], sorted(holes)):
             if b - a > min_s:
-                out.append(state_log(f.between(a, b)))
+                log = state_log(f.between(a, b))
+                out.append(log if name == log.name else StateLog(name, log.t_s, log.state, log.rpm, log.dt_s))
     return out
 
 

@@ -24,8 +24,8 @@ result: the model's coefficients scale with it, its predictions do not).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,7 +38,9 @@ from .report.wording import Verdict, axis_verdict
 from .rotation import RotationModel, identify_layout
 from .rotation_choice import _HeldRates as HeldRates, _validation_sums as validation_sums, select_rotation
 
-__all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "identify_rotation", "speed_scale"]
+__all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "RotationJob", "rotation_job", "choose_rotation",
+           "score_rotation",
+           "identify_rotation", "speed_scale"]
 
 #: the rotational targets, body FLU axes x (roll), y (pitch), z (yaw)
 ROTATION_TARGETS = ("wx_dot", "wy_dot", "wz_dot")
@@ -155,46 +157,77 @@ def _layout(logs: Sequence[StateLog], frame: str, rad_s_per_rpm: float) -> tuple
                     f"({', '.join(LAYOUTS)}); name it with --frame")
 
 
-def identify_rotation(train_flights: Sequence, test_flights: Sequence | None, frame: str = "auto",
-                      translation: Mapping | None = None, progress: Callable | None = None) -> RotationResult:
-    """The rotational stage: see the module docstring. ``translation``: identify's final v̇
-    models {"vx_dot", "vy_dot", "vz_dot": IdentifiedModel}, the translation of the open-loop test
-    figures (without them the test flights are not scored). DataError when the flights cannot
-    give a rotational model (missing signals, fewer than two training flights)."""
+def choose_rotation(train_flights: Sequence, frame: str = "auto") -> RotationResult:
+    """The choice, from the training flights only (see the module docstring): the layout, the
+    rotational model and each axis's validation verdict (its test figures NaN). DataError when
+    the flights cannot give a rotational model (missing signals, fewer than two training flights)."""
+    return rotation_job(train_flights, frame).run()
+
+
+def rotation_job(train_flights: Sequence, frame: str = "auto") -> "RotationJob":
+    """The rotational choice as a job (:class:`RotationJob`): the training flights' state logs and
+    their motor-speed unit, checked here (DataError: missing signals, fewer than two training
+    flights with an in-flight stretch)."""
     scale, why = speed_scale(train_flights[0])
-    train = flight_state_logs(train_flights)
+    train = tuple(flight_state_logs(train_flights))
     if len({log.name for log in train}) < 2:
         raise DataError("the rotational model is chosen by holding each training flight out in turn: "
                         "it needs at least two training flights with an in-flight stretch")
-    layout, source = _layout(train, frame, scale)
-    if progress:
-        progress(0, 1, f"choosing the rotational model ({layout}) on {len({lg.name for lg in train})} "
-                       f"training flights")
-    choice = select_rotation(train, layout, rad_s_per_rpm=scale)
-    if progress:
-        progress(1, 1, "rotational model chosen")
-    axes_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
-        choice.held["rates_axis_simerr"]
-    test_held = test_model = [math.nan] * 3
-    notes = []
-    if test_flights and translation is not None:
-        try:
-            test = flight_state_logs(test_flights)
-            tr = IdentifiedTranslation(translation)
-            test_held = _axis_simerr(IdentifiedVehicle(tr, HeldRates()), test)
-            test_model = _axis_simerr(IdentifiedVehicle(tr, choice.model), test) if choice.model is not None \
-                else test_held
-        except DroneIdError as exc:
-            notes.append(f"rotation not scored on the test flights: {exc}")
-    axes = []
-    for k, target in enumerate(ROTATION_TARGETS):
-        rung = choice.axis_choice[k]
-        v: Verdict = axis_verdict(target, rung, choice.held["rates_axis_simerr"][k], axes_model[k],
-                                  test_held[k], test_model[k])
-        axes.append(AxisResult(target, rung, choice.held["rates_axis_simerr"][k], axes_model[k], test_held[k],
-                               test_model[k], v.text, v.kind))
-    return RotationResult(layout, source, scale, why, choice.model, choice.to_dict(), tuple(axes),
-                          notes=tuple(notes), dt_s=float(np.median([log.dt_s for log in train])))
+    return RotationJob(train, scale, why, frame)
+
+
+def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Mapping) -> RotationResult:
+    """``rot`` with each axis's test figures and verdict: the body-rate SimErr per axis on the
+    test flights, open loop with identify's final v̇ models {"vx_dot", "vy_dot", "vz_dot":
+    IdentifiedModel} as the translation, against the rates held (a note when they cannot be scored)."""
+    try:
+        test = flight_state_logs(test_flights)
+        tr = IdentifiedTranslation(translation)
+        held = _axis_simerr(IdentifiedVehicle(tr, HeldRates()), test)
+        model = _axis_simerr(IdentifiedVehicle(tr, rot.model), test) if rot.model is not None else held
+    except DroneIdError as exc:
+        return replace(rot, notes=(*rot.notes, f"rotation not scored on the test flights: {exc}"))
+    axes = tuple(_axis(a.target, a.rung, a.validation_held, a.validation_model, h, m)
+                 for a, h, m in zip(rot.axes, held, model))
+    return replace(rot, axes=axes)
+
+
+def identify_rotation(train_flights: Sequence, test_flights: Sequence | None = None, frame: str = "auto",
+                      translation: Mapping | None = None) -> RotationResult:
+    """:func:`choose_rotation` on the training flights, then :func:`score_rotation` on the test
+    flights when there are both test flights and a translation."""
+    rot = choose_rotation(train_flights, frame)
+    return score_rotation(rot, test_flights, translation) if test_flights and translation is not None else rot
+
+
+@dataclass(frozen=True)
+class RotationJob:
+    """:func:`choose_rotation` as a job of :func:`droneid.runner.run_jobs`, beside identify's SNGP
+    runs (it needs none of their results): the training flights' in-flight state logs, the motor
+    speeds' rad/s per logged unit and why, and ``frame``. :meth:`run` returns the
+    :class:`RotationResult`."""
+    train: tuple[StateLog, ...]
+    rad_s_per_rpm: float
+    speed_note: str
+    frame: str = "auto"
+    target: str = "rotation"
+
+    def run(self) -> RotationResult:
+        train = list(self.train)
+        layout, source = _layout(train, self.frame, self.rad_s_per_rpm)
+        choice = select_rotation(train, layout, rad_s_per_rpm=self.rad_s_per_rpm)
+        axes_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
+            choice.held["rates_axis_simerr"]
+        axes = tuple(_axis(target, choice.axis_choice[k], choice.held["rates_axis_simerr"][k], axes_model[k],
+                           math.nan, math.nan) for k, target in enumerate(ROTATION_TARGETS))
+        return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, choice.to_dict(),
+                              axes, dt_s=float(np.median([log.dt_s for log in train])))
+
+
+def _axis(target: str, rung: str, val_held: float, val_model: float, test_held: float,
+          test_model: float) -> AxisResult:
+    v: Verdict = axis_verdict(target, rung, val_held, val_model, test_held, test_model)
+    return AxisResult(target, rung, val_held, val_model, test_held, test_model, v.text, v.kind)
 
 
 def _axis_simerr(model, logs: Sequence[StateLog]) -> list[float]:

@@ -15,7 +15,7 @@ _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("ra
 _SHOWN = ("1", "10", "50")
 #: how droneid/rotation.py's term names read (s_i = (rotor speed / 1000 rad/s)², P the layout's patterns)
 _TERM_TEXT = {"damping": "(−ω)", "pattern": "(P s)", "centre": "Σs", "rotor_drag": "v_b", "gyro": "ω_j ω_l",
-              "spinup": "(P ṡpin)", "rotor_drag_thrust": "v_b Σs"}
+              "spinup": "(P ṡpin)", "rotor_drag_thrust": "v_b Σs", "attitude": "(−(θ − θ0))"}
 
 
 def _axes_table(rot: RotationResult) -> tuple[list[str], list[list[str]]]:

@@ -166,7 +166,8 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
                             f"{errs}{extra}): {why}; keep the empirical model")
 
 
-_RUNG_WORDS = {"damping": "the rate decay", "torque": "the torque model"}
+_RUNG_WORDS = {"damping": "the rate decay", "attitude": "the attitude spring (the controller, opt-in)",
+               "torque": "the torque model"}
 
 
 def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test_held: float,

@@ -7,6 +7,7 @@ on planted structure, not on observed numbers.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 
 import numpy as np
@@ -315,3 +316,25 @@ def test_identify_folds_the_effect_the_diagnosis_finds(planted):
             assert rung.rmse_validation < 0.9 * tr.ladder[rungs.index("effect:quadratic_drag") - 1].rmse_validation
         else:
             assert not any(r.startswith("effect:") for r in rungs), (t, rungs, res.notes)
+
+
+def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_do():
+    """Two simulated training flights with the full state and motor speeds: the rotational job
+    runs in the batch, and with two flights no rung can reach the test's level (2^-2 > 0.05), so
+    every axis holds its rate and says so. A log without motor speeds gets a note, not a failure."""
+    from droneid.identify import IdentifyConfig, identify
+    from droneid.simulate import simulate
+    cfg = IdentifyConfig.make(runs=1, generations=100, population_size=60, jobs=1, seed=1)
+    train = [simulate(path=p, duration_s=15, seed=s).flight for p, s in (("circle", 1), ("eight", 2))]
+    res = identify(train, None, cfg)
+    rot = res.rotation
+    assert rot is not None and [a.target for a in rot.axes] == ["wx_dot", "wy_dot", "wz_dot"]
+    assert all(a.rung == "held" and a.verdict_kind == "no better" for a in rot.axes)
+    assert rot.model is None and rot.dt_s > 0
+    assert all(step["level"] == 0.25 for step in rot.choice["ladder"])
+    back = type(res).from_dict(res.to_dict()).rotation
+    assert back.to_dict() == rot.to_dict()
+    no_rpm = [f.without("rpm1", "rpm2", "rpm3", "rpm4") for f in train]
+    res = identify(no_rpm, None, replace(cfg, targets=("vx_dot",)))
+    assert res.rotation is None
+    assert any(n.startswith("rotation not modelled:") and "rotor speeds" in n for n in res.notes)
