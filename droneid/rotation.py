@@ -7,7 +7,7 @@ decays it (``ω̇_k = −c_k ω_k``: the closed loop stopping a rotation), is pu
 (roll and pitch, the term ``attitude`` below: the attitude controller) or takes the torque model,
 a rung being taken only if it beats the one below on every held-out flight in every regime of
 calm to hard flight. It steps with a translational model in
-:class:`droneid.openloop.IdentifiedVehicle`; :func:`droneid.export.export_vehicle` writes it as
+:class:`droneid.openloop.IdentifiedVehicle`; :func:`droneid.vehicle_export.export_vehicle` writes it as
 Python or C. On the shared Crazyflie squares the torque model is the best pooled, but worse than
 the simpler rungs in their calm windows, and the choice refuses it; the spring it takes for roll
 and pitch does not transfer in full to the melon runs (see docs/use-the-model.md).

@@ -13,6 +13,7 @@ from ._common import options_text
 
 _export = lazy_module("droneid.export")
 _predict = lazy_module("droneid.predict")
+_vehicle_export = lazy_module("droneid.vehicle_export")
 
 
 def register(sub) -> None:
@@ -77,7 +78,7 @@ def _equations(args) -> str:
 
 
 def _vehicle(args) -> str:
-    if args.to not in _export.VEHICLE_FORMATS:
+    if args.to not in _vehicle_export.VEHICLE_FORMATS:
         raise ConfigError(f"--vehicle writes python or c, not {args.to}")
     if args.target:
         raise ConfigError("--vehicle exports vx_dot, vy_dot and vz_dot together: drop --target")
@@ -95,7 +96,7 @@ def _vehicle(args) -> str:
                         f"the result has none of {', '.join(missing)}")
     dt, note = _step(args, doc)
     try:
-        return _export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),
+        return _vehicle_export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),
                                       dt_s=dt, inputs=_export.input_sources(doc.get("provenance")),
                                       dt_note=note)
     except ConfigError as exc:

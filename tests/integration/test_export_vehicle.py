@@ -20,7 +20,7 @@ import sympy as sp
 from droneid.cli import main
 from droneid.closed_form import IdentifiedModel
 from droneid.errors import ConfigError
-from droneid.export import export_vehicle
+from droneid.vehicle_export import export_vehicle
 from droneid.openloop import IdentifiedTranslation, IdentifiedVehicle, StateLog, simulate
 from droneid.rotation import RotationModel
 from priors.torque import get_layout

@@ -55,7 +55,7 @@ def test_vehicle_export_steps_as_the_open_loop_simulation_on_a_real_crazyflie_fl
     models = {t: rotor_thrust_sum(t) for t in ("vx_dot", "vy_dot", "vz_dot")}
     path = write_result(tmp_path, list(models.values()))
     doc = json.loads(open(path).read())
-    doc.update(rotation={"model": rotation.to_dict()}, horizons={"dt_s": log.dt_s})
+    doc.update(rotation={"model": rotation.to_dict(), "dt_s": log.dt_s})
     open(path, "w").write(json.dumps(doc))
     from droneid.cli import main
     assert main(["export", path, "--vehicle", "--to", "python", "-o", str(tmp_path / "v.py")]) == 0
