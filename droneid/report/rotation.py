@@ -82,7 +82,6 @@ def fig_open_loop_drift(ol: Mapping):
         ax.set_ylabel(f"{q} MAE ({unit})")
         ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
     return fig
 
 

@@ -75,3 +75,22 @@ def test_the_record_reads_back():
     assert math.isnan(back.axes[0].test_held)
     with pytest.raises(DataError, match="rotation section is damaged"):
         RotationResult.from_dict({"layout": "x"})
+
+
+def test_the_report_section_draws_the_drift_without_a_warning():
+    import warnings
+    from droneid.report.document import Document
+    from droneid.report.rotation import rotation_lines, rotation_section
+    per = {str(h): {"position": 0.01 * h, "velocity": 0.02 * h, "attitude": 0.005 * h, "rates": 0.1}
+           for h in range(1, 51)}
+    per["simerr"] = {"position": 12.75, "velocity": 25.5, "attitude": 6.4, "rates": 5.0}
+    axes = tuple(AxisResult(t, "held", 5.0, 5.0, 6.0, 6.0, f"{t}: held", "no better") for t in ("wx_dot", "wy_dot", "wz_dot"))
+    rot = RotationResult("quad_x", "--frame", 0.1047, "rpm", None, {}, axes, {"identified": per, "constant": per})
+    doc = Document("t")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rotation_section(doc, rot)
+        files = doc.files("report")
+    assert "open_loop_drift.png" in files and "ω̇x = 0 (rate held)" in files["report.md"]
+    text = "\n".join(rotation_lines(rot))
+    assert "50 steps" in text and "SimErr" in text and "wz_dot: held" in text
