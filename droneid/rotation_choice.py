@@ -428,6 +428,9 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     held_row = _pooled(f["errs"]["held"] for f in folds)
     cand_rows = [{**dict(cand), **_pooled(f["errs"][i] for f in folds)} for i, cand in enumerate(candidates)]
     damp_row = {"method": "damping", "damping_per_s": [float(v) for v in np.median([f["c"] for f in folds], axis=0)],
+                # per axis the lowest and highest decay of the leave-one-flight-out refits (1/s)
+                "damping_per_s_range": [[float(v) for v in np.min([f["c"] for f in folds], axis=0)],
+                                        [float(v) for v in np.max([f["c"] for f in folds], axis=0)]],
                 **_pooled(f["errs"]["damping"] for f in folds)}
     att_rows = ({"method": "attitude",
                  "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],

@@ -9,7 +9,7 @@ from ..rotation_stage import RotationResult
 from .document import Document, fmt, new_figure, text_table
 from .wording import VERDICT_KINDS
 
-__all__ = ["rotation_lines", "rotation_section", "open_loop_table", "fig_open_loop_drift"]
+__all__ = ["rotation_lines", "rotation_section", "open_loop_table", "fig_open_loop_drift", "ladder_rows"]
 
 _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("rates", "rad/s"))
 _SHOWN = ("1", "10", "50")
@@ -25,6 +25,30 @@ def _axes_table(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def _decay_range(rot: RotationResult, k: int) -> str:
+    """`` (held-out refits: lo-hi /s)`` of axis ``k``'s decay, from the choice's damping row."""
+    for row in rot.choice.get("table", ()):
+        if row.get("method") == "damping" and "damping_per_s_range" in row:
+            lo, hi = row["damping_per_s_range"][0][k], row["damping_per_s_range"][1][k]
+            return f" [decay {lo:.3g}-{hi:.3g} /s over the leave-one-flight-out refits]"
+    return ""
+
+
+def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
+    """(header, rows): each axis's ladder step by step, from the choice's ``ladder``: the rung
+    against the one below, the held-out flight-regime cells it won, its error ratio per regime
+    (calmest first), the test's level and whether it was taken."""
+    header = ["axis", "rung", "against", "cells won", "error ratio by regime (calm -> hard)", "level", "taken"]
+    rows = []
+    for axis in rot.choice.get("ladder", ()):
+        for st in axis["steps"]:
+            cells = [w for row in st["wins"] for w in row if w is not None]
+            ratio = ", ".join("—" if r is None else f"{r:.2f}" for r in st["ratio"])
+            rows.append([axis["axis"], st["rung"], st["against"], f"{sum(cells)}/{len(cells)}", ratio,
+                         f"{st['level']:.3g}", "yes" if st["taken"] else "no"])
+    return header, rows
+
+
 def _model_line(rot: RotationResult) -> str:
     """The rotational model per axis, in rad/s²: its rung and the terms it kept."""
     m = rot.model
@@ -36,7 +60,7 @@ def _model_line(rot: RotationResult) -> str:
         terms = [f"{c:+.4g}·{_TERM_TEXT.get(n, n)}" for n, c in zip(m.columns(k), m.coef[k]) if c != 0]
         if m.trim[k] != 0:
             terms.append(f"{m.trim[k]:+.4g}")
-        parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})")
+        parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})" + (_decay_range(rot, k) if a.rung == "damping" else ""))
     return "rotational model (rad/s²): " + "; ".join(parts)
 
 
@@ -59,6 +83,11 @@ def rotation_lines(rot: RotationResult | None) -> list[str]:
     out += [text_table(header, rows),
             "body-rate SimErr per axis (Σ over 1..50 steps of the mean |Δω|, rad/s), open loop; validation: each "
             "training flight held out in turn (the choice); test: the test flights (never part of a choice)"]
+    header, rows = ladder_rows(rot)
+    if rows:
+        out += [text_table(header, rows),
+                "a rung is taken only if it beats the one below on every held-out flight in every regime of the "
+                "held drift (sign test at the level shown, taken when <= 0.05)"]
     out += [f"NOTE: {n}" for n in rot.notes]
     if rot.open_loop_test:
         header, rows = open_loop_table(rot.open_loop_test)
@@ -100,6 +129,12 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
                   "from the motor speeds. Validation holds each training flight out in turn (this is what "
                   "chooses); the test flights are scored after the choice. The baseline is the nominal rigid "
                   "body with the body rates held (ω̇ = 0).")
+    header, rows = ladder_rows(rot)
+    if rows:
+        doc.paragraph("Each axis's ladder: a rung is taken only if it beats the one below on every held-out "
+                      "training flight in every regime of the held drift, from calm flight to hard manoeuvres "
+                      "(a sign test at the level shown; taken when it is at most 0.05).")
+        doc.table(header, rows)
     for n in rot.notes:
         doc.paragraph(f"NOTE: {n}")
     if rot.open_loop_test:
