@@ -441,8 +441,8 @@ def _rotation(outcome, jobs, test_flights, results: Mapping[str, TargetResult], 
     if idx is None:
         return None
     rot = outcome.results[idx]
-    if rot is None:
-        notes.append(f"rotation not modelled: {outcome.errors.get(idx, 'the job did not finish')}")
+    if rot is None or isinstance(rot, str):
+        notes.append(f"rotation not modelled: {rot or outcome.errors.get(idx, 'the job did not finish')}")
         return None
     if test_flights and all(t in results for t in ("vx_dot", "vy_dot", "vz_dot")):
         rot = score_rotation(rot, test_flights, {t: IdentifiedModel.from_dict(results[t].final.to_dict())

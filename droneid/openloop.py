@@ -125,9 +125,14 @@ def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
     motors off would score free fall against a vehicle at rest), with every gap and every
     screened implausible sample (:mod:`droneid.screening`, the rule of the datasets and of the
     multi-step prediction) of the signals it reads cut out, so that no window interpolates across
-    one. Stretches shorter than ``min_s`` seconds (no 50-step window at 100 Hz) are left out."""
+    one. Stretches shorter than ``min_s`` seconds (no 50-step window at 100 Hz) are left out. Every
+    stretch is on one grid step: the median step of ``x`` over all the flights."""
     flights = list(flights)
     names = [f.name for f in flights]
+    # one grid step for every stretch (each stretch's own median step would differ on jittery
+    # stamps, and windows of different steps cannot be pooled): the median over all the flights
+    steps = np.concatenate([np.diff(f["x"].t) for f in flights if "x" in f and len(f["x"]) > 1] or [np.zeros(0)])
+    dt_s = float(np.median(steps)) if steps.size else None
     out = []
     for i, f in enumerate(flights):
         # two flights with one name (the same file stem from two folders) are two blocks
@@ -137,7 +142,7 @@ def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
         holes = [h for n in screened for h in (*signal_gaps(f[n], 0.0), *screen_signal(f[n]).holes)]
         for a, b in subtract_intervals(in_flight_intervals(f)[0], sorted(holes)):
             if b - a > min_s:
-                log = state_log(f.between(a, b))
+                log = state_log(f.between(a, b), dt_s)
                 out.append(log if name == log.name else StateLog(name, log.t_s, log.state, log.rpm, log.dt_s))
     return out
 
@@ -220,24 +225,28 @@ def simulate(model, x0, u, dt_s: float) -> np.ndarray:
 
     ``x0`` (W, 13) initial states; ``u`` (W, H, K) the model's inputs, ``u[:, k]`` held over the
     step from ``k`` to ``k + 1``; ``dt_s`` the step. Returns the states after each step,
-    (W, H, 13). The quaternion is renormalised at every RK4 stage and after every step.
+    (W, H, 13). The quaternion is renormalised at every RK4 stage and after every step. A window
+    whose model diverges holds inf or NaN from there on, silently (numpy's warnings are off).
     """
     x = np.array(x0, dtype=float)
     u = np.asarray(u, dtype=float)
     if x.ndim != 2 or x.shape[1] != STATE_SIZE or u.ndim != 3 or u.shape[0] != x.shape[0]:
         raise DataError(f"simulate: x0 must be (W, {STATE_SIZE}) and u (W, H, K); "
                         f"got {x.shape} and {u.shape}")
-    x[:, _Q] = _normalise(x[:, _Q])
     out = np.empty((x.shape[0], u.shape[1], STATE_SIZE))
-    for k in range(u.shape[1]):
-        uk = u[:, k]
-        k1 = _deriv(model, x, uk)
-        k2 = _deriv(model, _stage(x, k1, 0.5 * dt_s), uk)
-        k3 = _deriv(model, _stage(x, k2, 0.5 * dt_s), uk)
-        k4 = _deriv(model, _stage(x, k3, dt_s), uk)
-        x = x + (dt_s / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    # a model that diverges in a window gives inf/NaN there (scored as such), never a numpy
+    # warning in the user's terminal (as droneid.rollout)
+    with np.errstate(all="ignore"):
         x[:, _Q] = _normalise(x[:, _Q])
-        out[:, k] = x
+        for k in range(u.shape[1]):
+            uk = u[:, k]
+            k1 = _deriv(model, x, uk)
+            k2 = _deriv(model, _stage(x, k1, 0.5 * dt_s), uk)
+            k3 = _deriv(model, _stage(x, k2, 0.5 * dt_s), uk)
+            k4 = _deriv(model, _stage(x, k3, dt_s), uk)
+            x = x + (dt_s / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            x[:, _Q] = _normalise(x[:, _Q])
+            out[:, k] = x
     return out
 
 

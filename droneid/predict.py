@@ -33,6 +33,7 @@ from .numerics import rmse
 from .openloop import (Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, flight_state_logs,
                        open_loop)
 from .rotation import RotationModel
+from .rotation_stage import speed_scale
 from .rollout import RolloutResult, rollout_errors, sample_inputs
 from .screening import implausible_counts, screen_flight
 from .sngp import SymbolicModel
@@ -81,6 +82,7 @@ class PredictionResult:
             out["horizon_info"] = self.horizon_info
         if self.open_loop is not None:
             out["open_loop"] = self.open_loop
+            out["open_loop_rotation"] = self.open_loop_rotation
         if self.reader_options is not None:
             out["reader_options"] = self.reader_options
         return to_jsonable(out)
@@ -249,6 +251,12 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
         raise ConfigError("--open-loop needs the final models of vx_dot, vy_dot and vz_dot (targets.<t>.final)")
     translation = IdentifiedTranslation(sets["identified"])
     rotation = models.get("_rotation")
+    if rotation is not None:
+        for f in flights:   # the rotational model reads rotor speeds in the unit it was fitted on
+            scale, why = speed_scale(f)
+            if not math.isclose(scale, rotation.rad_s_per_rpm, rel_tol=1e-9):
+                raise DataError(f"{f.name}: the rotational model was identified on motor speeds at "
+                                f"{rotation.rad_s_per_rpm:.6g} rad/s per logged unit; this log's are not ({why})")
     chosen = {"identified": translation if rotation is None else IdentifiedVehicle(translation, rotation)}
     nominal = _nominal_physics(models.get("_config") or {})
     if nominal is not None:

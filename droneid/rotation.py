@@ -75,7 +75,7 @@ from .regression import robust_fit
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
            "fit_vehicle", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed",
            "derivative", "spin_rate", "ROTATION_TERMS", "KNOWN_TERMS", "CLOSED_LOOP_TERMS", "balanced",
-           "body_velocity", "tilt", "translation_rows", "fit_translation_rows"]
+           "body_velocity", "tilt", "translation_rows", "fit_translation_rows", "segment_bounds", "SPEED_UNIT"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
@@ -85,7 +85,7 @@ KNOWN_TERMS = ROTATION_TERMS + ("rotor_drag", "rotor_drag_thrust")
 CLOSED_LOOP_TERMS = ("attitude",)
 #: roll gets +v_by, pitch −v_bx (the rotor drag moment opposes the body velocity)
 _DRAG_AXIS = ((1, 1.0), (0, -1.0))
-_SPEED_UNIT = 1000.0  # rad/s: s_i = (ω_i / 1000 rad/s)², coefficients near one
+SPEED_UNIT = 1000.0  # rad/s: s_i = (ω_i / 1000 rad/s)², coefficients near one
 
 
 def _delayed(a: np.ndarray, d: int) -> np.ndarray:
@@ -120,10 +120,10 @@ def flying_segments(log: StateLog, min_steps: int = 100) -> list[StateLog]:
     """The stretches of a log where :func:`flying_mask` holds, as logs of their own (at least
     ``min_steps`` samples each): validation scores windows in flight only."""
     return [StateLog(f"{log.name}[{a}:{b}]", log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s)
-            for a, b in _segment_bounds(log, min_steps)]
+            for a, b in segment_bounds(log, min_steps)]
 
 
-def _segment_bounds(log: StateLog, min_steps: int) -> list[tuple[int, int]]:
+def segment_bounds(log: StateLog, min_steps: int) -> list[tuple[int, int]]:
     m = flying_mask(log).astype(int)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_steps]
@@ -170,7 +170,7 @@ def _mid(a: np.ndarray) -> np.ndarray:
 
 
 def _speeds(log: StateLog, rad_s_per_rpm: float) -> np.ndarray:
-    return log.rpm * (rad_s_per_rpm / _SPEED_UNIT)
+    return log.rpm * (rad_s_per_rpm / SPEED_UNIT)
 
 
 # -- rotation ------------------------------------------------------------------------------------
@@ -294,7 +294,7 @@ class RotationModel:
         """``(s, rates)`` (N, M) each, from motor speeds ``rpm`` (N, M) as logged on a uniform grid
         of step ``dt_s``: delayed, low-passed, squared in (1000 rad/s)², centred and balanced as
         this model was fitted. Causal: row ``i`` reads ``rpm[:i + 1]`` only."""
-        om = smoothed(_delayed(np.asarray(rpm, float) * (self.rad_s_per_rpm / _SPEED_UNIT), self.delay_steps),
+        om = smoothed(_delayed(np.asarray(rpm, float) * (self.rad_s_per_rpm / SPEED_UNIT), self.delay_steps),
                       dt_s, self.lowpass_tau_s)
         s = balanced(centred(om ** 2, dt_s, self.centre_tau_s), dt_s, self.balance_prior, self.balance_weight_s)
         return s, spin_rate(om, dt_s)

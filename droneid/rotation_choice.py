@@ -16,12 +16,12 @@ from priors.torque import RotorLayout, get_layout
 from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
-from .rotation import (RotationModel, _segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
+from .rotation import (RotationModel, segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
                        flying_mask, flying_segments, tilt, translation_rows)
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "DAMPING_GRID", "RUNGS", "VEHICLE_RUNGS",
            "fit_damping", "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID",
-           "DEFAULT_CANDIDATES"]
+           "DEFAULT_CANDIDATES", "HeldRates", "validation_sums"]
 
 
 # -- simulation-error fit of the rotation --------------------------------------------------------
@@ -77,7 +77,7 @@ def _fit_multistep_at(logs, shell, H, stride, damping_grid, spinup, rotor_drag=F
     for j, log in enumerate(logs):
         s_all, rate_all = shell.conditioned(log.rpm, log.dt_s)
         vb_all = body_velocity(log.state[:, 6:10], log.state[:, 3:6])
-        for a, b in _segment_bounds(log, H + 1):
+        for a, b in segment_bounds(log, H + 1):
             seg = StateLog(log.name, log.t_s[a:b], log.state[a:b], log.rpm[a:b], log.dt_s)
             s = s_all[a:b]
             vb = vb_all[a:b]
@@ -191,7 +191,7 @@ class RotationChoice:
                 "ladder": [dict(r) for r in self.ladder]}
 
 
-class _HeldRates:
+class HeldRates:
     """ω̇ = 0 (the body rates held), as a rotational model for :class:`IdentifiedVehicle`."""
     input_width = 0
 
@@ -214,7 +214,7 @@ def fit_damping(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRI
     H = int(horizon)
     errs = []
     for log in logs:
-        for a, b in _segment_bounds(log, H + 1):
+        for a, b in segment_bounds(log, H + 1):
             w = log.state[a:b, 10:13]
             starts = np.arange(0, b - a - H, stride)
             if not starts.size:
@@ -265,7 +265,7 @@ def fit_attitude(logs: Sequence[StateLog], *, damping_grid: Sequence[float] = DA
     :func:`fit_damping` (the angle and rate predicted together by the linear spring-damper,
     ``θ̇ = ω`` for small angles, stepped by RK4, from every ``stride``-th start in flight)."""
     H = int(horizon)
-    th_all = [tilt(log.state[a:b, 6:10]) for log in logs for a, b in _segment_bounds(log, H + 1)]
+    th_all = [tilt(log.state[a:b, 6:10]) for log in logs for a, b in segment_bounds(log, H + 1)]
     if not th_all:
         raise DataError(f"fit_attitude: no flight segment longer than {H} steps")
     level = np.median(np.concatenate(th_all), axis=0)
@@ -286,7 +286,7 @@ def fit_attitude(logs: Sequence[StateLog], *, damping_grid: Sequence[float] = DA
     for k in range(2):
         w0, th0, wt = [], [], []
         for log in logs:
-            for a, b in _segment_bounds(log, H + 1):
+            for a, b in segment_bounds(log, H + 1):
                 starts = np.arange(0, b - a - H, stride)
                 w = log.state[a:b, 10 + k]
                 w0.append(w[starts])
@@ -414,7 +414,7 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
         tr = fit_translation_rows([r for r, log in zip(trows, logs) if log.name != name], **tkw)
         c = fit_damping(train, grid=damping_grid, regimes=regimes)
         torques = [_fit_candidate(train, layout, cand, window_s, rad_s_per_rpm) for cand in candidates]
-        errs = {"held": _window_errors(IdentifiedVehicle(tr, _HeldRates()), test, stride),
+        errs = {"held": _window_errors(IdentifiedVehicle(tr, HeldRates()), test, stride),
                 "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride)}
         spring = None
         if spring_rung:
@@ -536,7 +536,7 @@ def _pooled(errs) -> dict:
             "rates_axis_simerr": [float(v) for v in sum(e["axis"].sum(axis=0) for e in errs) / n]}
 
 
-def _validation_sums(model, logs: Sequence[StateLog], stride: int, H: int = 50) -> tuple[int, np.ndarray]:
+def validation_sums(model, logs: Sequence[StateLog], stride: int, H: int = 50) -> tuple[int, np.ndarray]:
     """(windows, sums over windows of [rates SimErr, attitude SimErr, Σ_h |Δω_x|, |Δω_y|, |Δω_z|])
     of ``model`` open loop from every ``stride``-th start of each log."""
     e = _window_errors(model, logs, stride, H)

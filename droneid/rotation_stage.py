@@ -36,7 +36,7 @@ from .io_util import to_jsonable
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedTranslation, IdentifiedVehicle, StateLog, flight_state_logs
 from .report.wording import Verdict, axis_verdict
 from .rotation import RotationModel, identify_layout
-from .rotation_choice import _HeldRates as HeldRates, _validation_sums as validation_sums, select_rotation
+from .rotation_choice import HeldRates, select_rotation, validation_sums
 
 __all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "RotationJob", "rotation_job", "choose_rotation",
            "score_rotation",
@@ -160,15 +160,20 @@ def _layout(logs: Sequence[StateLog], frame: str, rad_s_per_rpm: float) -> tuple
 def choose_rotation(train_flights: Sequence, frame: str = "auto") -> RotationResult:
     """The choice, from the training flights only (see the module docstring): the layout, the
     rotational model and each axis's validation verdict (its test figures NaN). DataError when
-    the flights cannot give a rotational model (missing signals, fewer than two training flights)."""
-    return rotation_job(train_flights, frame).run()
+    the flights cannot give a rotational model (missing signals, fewer than two training flights,
+    a layout that matches none)."""
+    return rotation_job(train_flights, frame)._choose()
 
 
 def rotation_job(train_flights: Sequence, frame: str = "auto") -> "RotationJob":
     """The rotational choice as a job (:class:`RotationJob`): the training flights' state logs and
     their motor-speed unit, checked here (DataError: missing signals, fewer than two training
     flights with an in-flight stretch)."""
-    scale, why = speed_scale(train_flights[0])
+    scales = {speed_scale(f) for f in train_flights}
+    if len(scales) > 1:
+        raise DataError("the training flights log their motor speeds in different units ("
+                        + "; ".join(sorted(w for _, w in scales)) + "): one rotational model cannot read both")
+    scale, why = scales.pop()
     train = tuple(flight_state_logs(train_flights))
     if len({log.name for log in train}) < 2:
         raise DataError("the rotational model is chosen by holding each training flight out in turn: "
@@ -187,8 +192,10 @@ def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Map
         model = _axis_simerr(IdentifiedVehicle(tr, rot.model), test) if rot.model is not None else held
     except DroneIdError as exc:
         return replace(rot, notes=(*rot.notes, f"rotation not scored on the test flights: {exc}"))
-    axes = tuple(_axis(a.target, a.rung, a.validation_held, a.validation_model, h, m)
-                 for a, h, m in zip(rot.axes, held, model))
+    ladder = list(rot.choice.get("ladder") or ())
+    axes = tuple(_axis(a.target, a.rung, a.validation_held, a.validation_model, h, m,
+                       _why_held(ladder[k]) if k < len(ladder) else "")
+                 for k, (a, h, m) in enumerate(zip(rot.axes, held, model)))
     return replace(rot, axes=axes)
 
 
@@ -212,22 +219,44 @@ class RotationJob:
     frame: str = "auto"
     target: str = "rotation"
 
-    def run(self) -> RotationResult:
+    def run(self) -> RotationResult | str:
+        """The :class:`RotationResult`, or the one-line reason the flights cannot give one (a
+        layout that matches none, no stretch long enough: a note of the result, not a failed job)."""
+        try:
+            return self._choose()
+        except DroneIdError as exc:
+            return str(exc)
+
+    def _choose(self) -> RotationResult:
         train = list(self.train)
         layout, source = _layout(train, self.frame, self.rad_s_per_rpm)
         choice = select_rotation(train, layout, rad_s_per_rpm=self.rad_s_per_rpm)
         axes_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
             choice.held["rates_axis_simerr"]
         axes = tuple(_axis(target, choice.axis_choice[k], choice.held["rates_axis_simerr"][k], axes_model[k],
-                           math.nan, math.nan) for k, target in enumerate(ROTATION_TARGETS))
+                           math.nan, math.nan, _why_held(choice.ladder[k]) if k < len(choice.ladder) else "")
+                     for k, target in enumerate(ROTATION_TARGETS))
         return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, choice.to_dict(),
                               axes, dt_s=float(np.median([log.dt_s for log in train])))
 
 
 def _axis(target: str, rung: str, val_held: float, val_model: float, test_held: float,
-          test_model: float) -> AxisResult:
-    v: Verdict = axis_verdict(target, rung, val_held, val_model, test_held, test_model)
+          test_model: float, why_held: str = "") -> AxisResult:
+    v: Verdict = axis_verdict(target, rung, val_held, val_model, test_held, test_model, why_held=why_held)
     return AxisResult(target, rung, val_held, val_model, test_held, test_model, v.text, v.kind)
+
+
+def _why_held(ladder: Mapping) -> str:
+    """Why an axis could not leave ``held`` whatever the data said: the sign test's level with
+    this few held-out flights is above alpha (one rung must win on every flight: 2^-F <= alpha);
+    "" when the test could have passed."""
+    steps = ladder.get("steps") or ()
+    alpha = float(ladder.get("alpha", 0.05))
+    if not steps or any(st["level"] <= alpha for st in steps):
+        return ""
+    need = math.ceil(math.log2(1.0 / alpha))
+    return (f"with {len(ladder.get('flights') or ())} held-out training flight(s) no rung can pass the test "
+            f"(a rung must win on every flight, and 2^-F <= α = {alpha:g} needs at least {need})")
 
 
 def _axis_simerr(model, logs: Sequence[StateLog]) -> list[float]:

@@ -21,7 +21,7 @@ from . import __version__
 from .errors import ConfigError, check_choice
 from .export import CONVENTIONS, c_functions, checked_models, input_unit, model_header, python_functions
 from .openloop import IdentifiedTranslation
-from .rotation import _SPEED_UNIT, RotationModel, TranslationModel
+from .rotation import SPEED_UNIT, RotationModel, TranslationModel
 
 __all__ = ["VEHICLE_FORMATS", "export_vehicle"]
 
@@ -73,7 +73,7 @@ def _rotation_spec(rotation: RotationModel) -> dict:
                               f"{len(cols[k])} columns")
     level = getattr(rotation, "level_rad", None)
     return {"M": rotation.layout.motors, "P": rotation.layout.patterns(),
-            "scale": rotation.rad_s_per_rpm / _SPEED_UNIT, "d_r": int(rotation.delay_steps),
+            "scale": rotation.rad_s_per_rpm / SPEED_UNIT, "d_r": int(rotation.delay_steps),
             "lp": rotation.lowpass_tau_s, "centre": rotation.centre_tau_s, "bw": rotation.balance_weight_s,
             "prior": (np.zeros(rotation.layout.motors) if rotation.balance_prior is None
                       else np.asarray(rotation.balance_prior, float)),
@@ -237,7 +237,7 @@ def _held_rates_part() -> _Part:
 def _linear_part(tr: TranslationModel, motors: int) -> _Part:
     """:class:`droneid.rotation.TranslationModel`: thrust along body z, body drag, gravity;
     columns ``u[0:M]`` are ``s_t``."""
-    scale, d = tr.rad_s_per_rpm / _SPEED_UNIT, int(tr.delay_steps)
+    scale, d = tr.rad_s_per_rpm / SPEED_UNIT, int(tr.delay_steps)
     header = (
         "Translation (m/s^2, world ENU): v' = R e_z k_T sum(s_t) - R diag(drag) R^T v - g e_z;",
         f"  k_T = {_f(tr.k_thrust)} m/s^2, drag = {', '.join(_f(v) for v in tr.drag)} 1/s, g = {_f(tr.g)};",

@@ -3,6 +3,7 @@ with ``--vehicle``, the whole vehicle (6-DOF step function) as Python or C."""
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -106,7 +107,7 @@ def _vehicle(args) -> str:
 def _step(args, doc) -> tuple[float, str]:
     """The step (s) and where it came from: --dt, else the logs' step identify recorded."""
     if args.dt is not None:
-        if not args.dt > 0:
+        if not (args.dt > 0 and math.isfinite(args.dt)):
             raise ConfigError(f"--dt must be a positive number of seconds, got {args.dt:g}")
         return float(args.dt), "given by --dt"
     sec = doc.get("rotation")

@@ -34,6 +34,11 @@ def _decay_range(rot: RotationResult, k: int) -> str:
     return ""
 
 
+def _alpha(rot: RotationResult) -> float:
+    """The ladder's test level α as the choice recorded it."""
+    return float(next(iter(rot.choice.get("ladder") or ()), {}).get("alpha", 0.05))
+
+
 def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
     """(header, rows): each axis's ladder step by step, from the choice's ``ladder``: the rung
     against the one below, the held-out flight-regime cells it won, its error ratio per regime
@@ -87,7 +92,7 @@ def rotation_lines(rot: RotationResult | None) -> list[str]:
     if rows:
         out += [text_table(header, rows),
                 "a rung is taken only if it beats the one below on every held-out flight in every regime of the "
-                "held drift (sign test at the level shown, taken when <= 0.05)"]
+                f"held drift (sign test at the level shown, taken when <= {_alpha(rot):g})"]
     out += [f"NOTE: {n}" for n in rot.notes]
     if rot.open_loop_test:
         header, rows = open_loop_table(rot.open_loop_test)
@@ -133,7 +138,7 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
     if rows:
         doc.paragraph("Each axis's ladder: a rung is taken only if it beats the one below on every held-out "
                       "training flight in every regime of the held drift, from calm flight to hard manoeuvres "
-                      "(a sign test at the level shown; taken when it is at most 0.05).")
+                      f"(a sign test at the level shown; taken when it is at most {_alpha(rot):g}).")
         doc.table(header, rows)
     for n in rot.notes:
         doc.paragraph(f"NOTE: {n}")

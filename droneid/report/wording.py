@@ -90,10 +90,10 @@ def split_leading_number(label: str, coefficient: float) -> tuple[float, str]:
     return coefficient, label
 
 
-#: what a verdict says, and the colour the report gives it
 #: a model is called better (worse) than its baseline only at an improvement of at least this much
 #: (per cent of the baseline's error), in validation and on the test data alike
 MARGIN_PCT = 5.0
+#: what a verdict says, and the colour the report gives it
 VERDICT_KINDS = {"better": "green", "no better": "grey", "worse": "red", "not to be trusted": "amber",
                  "no verdict": "grey"}
 
@@ -171,29 +171,37 @@ _RUNG_WORDS = {"damping": "the rate decay", "attitude": "the attitude spring (th
 
 
 def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test_held: float,
-                 test_model: float) -> Verdict:
+                 test_model: float, *, why_held: str = "") -> Verdict:
     """A rotational target's verdict: its body-rate SimErr (rad/s) with the rung its ladder took
-    (``rung``: held, damping or torque) against its empirical baseline, the nominal rigid body
-    with the rates held, in validation on held-out training flights and (where finite) on the
-    test flights. ``held``: no rung passed its test, so there is nothing to compare."""
+    (``rung``: held, damping, attitude or torque) against its empirical baseline, the nominal
+    rigid body with the rates held, in validation on held-out training flights and (where finite)
+    on the test flights. ``held``: no rung passed its test (``why_held``: why, when the test could
+    not pass at all), so there is nothing to compare. The model keeps the rung whatever the test
+    flights say (they never choose); the verdict says how far to trust it."""
     if rung == "held":
-        return Verdict("no better", f"{target}: no rotational term beat holding this body rate on every held-out "
-                                    f"training flight (validation SimErr {val_held:.3g} rad/s held): the rate is "
-                                    f"held")
+        why = why_held or (f"no rotational term beat holding this body rate on every held-out training flight "
+                           f"(validation SimErr {val_held:.3g} rad/s held)")
+        return Verdict("no better", f"{target}: {why}: the rate is held")
     what = _RUNG_WORDS.get(rung, rung)
     vgain = improvement_pct(val_held, val_model)
     has_test = math.isfinite(test_held) and math.isfinite(test_model) and test_held > 0
     gain = improvement_pct(test_held, test_model) if has_test else vgain
+    if not (math.isfinite(gain) and math.isfinite(vgain)):
+        return Verdict("no verdict", f"{target}: no verdict: the body-rate errors could not be measured")
     where = "on the test flights" if has_test else "on held-out training flights"
     errs = (f"SimErr {test_model:.3g} vs {test_held:.3g} rad/s held" if has_test
             else f"SimErr {val_model:.3g} vs {val_held:.3g} rad/s held")
     extra = f"; validation {vgain:+.0f} %" if has_test else ""
     if gain >= MARGIN_PCT and vgain >= MARGIN_PCT:
-        return Verdict("better", f"{target}: {what} beats holding the rate by {gain:.0f} % "
-                                 f"{where} ({errs}{extra})")
+        return Verdict("better", f"{target}: {what} beats holding the rate by {gain:.0f} % {where} ({errs}{extra})")
+    if gain >= MARGIN_PCT:
+        return Verdict("no better", f"{target}: {what} is better {where} ({gain:+.0f} %: {errs}) but not in "
+                                    f"validation on the training flights ({vgain:+.0f} %): do not count on it")
     if gain > -MARGIN_PCT:
-        return Verdict("no better", f"{target}: {what} is no better than holding the rate "
-                                    f"{where} ({gain:+.0f} %: {errs}{extra}): hold the rate")
-    return Verdict("worse", f"{target}: {what} is WORSE than holding the rate {where} "
-                            f"({gain:+.0f} %: {errs}{extra}): the training flights do not represent the test "
-                            f"flights; hold the rate")
+        return Verdict("no better", f"{target}: {what} is no better than holding the rate {where} "
+                                    f"({gain:+.0f} %: {errs}{extra}): holding the rate does as well")
+    why = ("the training flights do not represent the test flights" if has_test else
+           "it does not hold across the held-out training flights")
+    return Verdict("worse", f"{target}: {what} is WORSE than holding the rate {where} ({gain:+.0f} %: "
+                            f"{errs}{extra}): {why}; hold the rate instead (--rotation none, or a simulator "
+                            f"with ω̇ = 0 on this axis)")

@@ -330,6 +330,7 @@ def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_d
     rot = res.rotation
     assert rot is not None and [a.target for a in rot.axes] == ["wx_dot", "wy_dot", "wz_dot"]
     assert all(a.rung == "held" and a.verdict_kind == "no better" for a in rot.axes)
+    assert all("with 2 held-out training flight(s) no rung can pass the test" in a.verdict for a in rot.axes)
     assert rot.model is None and rot.dt_s > 0
     assert all(step["level"] == 0.25 for step in rot.choice["ladder"])
     back = type(res).from_dict(res.to_dict()).rotation

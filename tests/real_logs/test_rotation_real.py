@@ -20,7 +20,7 @@ import pytest
 
 from droneid.openloop import IdentifiedVehicle, flight_state_logs, open_loop
 from droneid.rotation import fit_translation
-from droneid.rotation_choice import RUNGS, _HeldRates, select_rotation
+from droneid.rotation_choice import RUNGS, HeldRates, select_rotation
 from parsers import read_flight
 
 from conftest import real_log
@@ -81,7 +81,7 @@ def test_on_the_melon_runs_the_chosen_model_is_scored_against_holding_the_rates(
     4.53 rad); position is unchanged (2.10 vs 2.09 m)."""
     melon = _flights(["melon_run1", "melon_run4"])
     tr = fit_translation(squares, delay_steps=3)
-    res = open_loop({"held": IdentifiedVehicle(tr, _HeldRates()), "chosen": IdentifiedVehicle(tr, choice.model)}, melon)
+    res = open_loop({"held": IdentifiedVehicle(tr, HeldRates()), "chosen": IdentifiedVehicle(tr, choice.model)}, melon)
     chosen, held = res["chosen"], res["held"]
     assert chosen.simerr["rates"] < 0.95 * held.simerr["rates"]
     assert chosen.simerr["attitude"] < held.simerr["attitude"]

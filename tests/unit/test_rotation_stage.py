@@ -21,6 +21,14 @@ def test_axis_verdict_needs_validation_and_test_alike():
     v = axis_verdict("wz_dot", "torque", 5.5, 4.6, math.nan, math.nan)
     assert v.kind == "better" and "held-out training flights" in v.text
     assert axis_verdict("wz_dot", "torque", 5.5, 5.4, 6.6, 6.5).kind == "no better"
+    # better on the test flights but not in validation: no better, and it says so
+    lucky = axis_verdict("wx_dot", "damping", 60.0, 59.0, 16.0, 12.0)
+    assert lucky.kind == "no better" and "not in validation" in lucky.text
+    # an error that cannot be measured gives no verdict, never a "+nan %"
+    assert axis_verdict("wx_dot", "damping", 0.0, 0.0, math.nan, math.nan).kind == "no verdict"
+    # worse without test flights says so without blaming test flights
+    held_out = axis_verdict("wx_dot", "damping", 10.0, 12.0, math.nan, math.nan)
+    assert held_out.kind == "worse" and "test flights" not in held_out.text
 
 
 def test_speed_scale_follows_the_recorded_unit():
