@@ -43,7 +43,7 @@ def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
     """(header, rows): each axis's ladder step by step, from the choice's ``ladder``: the rung
     against the one below, the held-out flight-regime cells it won, its error ratio per regime
     (calmest first), the test's level and whether it was taken."""
-    header = ["axis", "rung", "against", "cells won", "error ratio by regime (calm -> hard)", "level", "taken"]
+    header = ["axis", "rung", "against", "cells won", "error ratio by regime, calm to hard", "level", "taken"]
     rows = []
     for axis in rot.choice.get("ladder", ()):
         for st in axis["steps"]:
@@ -126,7 +126,7 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
     doc.heading("Rotation: ω̇x, ω̇y, ω̇z")
     for a in rot.axes:
         doc.verdict(a.verdict, VERDICT_KINDS.get(a.verdict_kind, "grey"))
-    doc.paragraph(f"Rotor layout {rot.layout}: {rot.layout_source}. {rot.speed_note}.")
+    doc.paragraph(f"Rotor layout {rot.layout}: {rot.layout_source}; {rot.speed_note}.")
     doc.code(_model_line(rot))
     header, rows = _axes_table(rot)
     doc.table(header, rows)
