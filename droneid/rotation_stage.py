@@ -84,7 +84,8 @@ class RotationResult:
     layout, layout_source : the rotor layout used and where it came from
     rad_s_per_rpm : the motor speeds' conversion to rad/s, and ``speed_note`` why
     model : the chosen rotational model, or None (rates held: no candidate beat them in validation)
-    choice : :meth:`droneid.rotation_choice.RotationChoice.to_dict` (every candidate's validation)
+    choice : :meth:`droneid.rotation_choice.RotationChoice.to_dict` without its model (every
+        candidate's validation, the chosen rungs, each axis's ladder)
     axes : one :class:`AxisResult` per rotational target
     open_loop_test : the benchmark's metric on the test flights ({} without any):
         :func:`droneid.predict.open_loop_section`'s document
@@ -236,7 +237,8 @@ class RotationJob:
         axes = tuple(_axis(target, choice.axis_choice[k], choice.held["rates_axis_simerr"][k], axes_model[k],
                            math.nan, math.nan, _why_held(choice.ladder[k]) if k < len(choice.ladder) else "")
                      for k, target in enumerate(ROTATION_TARGETS))
-        return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, choice.to_dict(),
+        record = {k: v for k, v in choice.to_dict().items() if k != "model"}   # the model is kept once
+        return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, record,
                               axes, dt_s=float(np.median([log.dt_s for log in train])))
 
 

@@ -71,7 +71,7 @@ def _rotation_spec(rotation: RotationModel) -> dict:
         if len(cols[k]) != np.asarray(rotation.coef[k]).size:
             raise ConfigError(f"export_vehicle: axis {k} has {np.asarray(rotation.coef[k]).size} coefficients for "
                               f"{len(cols[k])} columns")
-    level = getattr(rotation, "level_rad", None)
+    level = rotation.level_rad
     return {"M": rotation.layout.motors, "P": rotation.layout.patterns(),
             "scale": rotation.rad_s_per_rpm / SPEED_UNIT, "d_r": int(rotation.delay_steps),
             "lp": rotation.lowpass_tau_s, "centre": rotation.centre_tau_s, "bw": rotation.balance_weight_s,
