@@ -1,6 +1,6 @@
 """identify's rotational stage (issue 28): the body-rate targets ω̇x, ω̇y, ω̇z of the whole vehicle.
 
-From the training flights only, :func:`identify_rotation`
+From the training flights only, :func:`choose_rotation` (as identify's :class:`RotationJob`)
 
 1. reads each flight's full state (position, velocity, attitude quaternion, body rates) and motor
    speeds onto one grid, in-flight stretches clear of gaps and screened samples only
@@ -39,13 +39,11 @@ from .rotation import RotationModel, identify_layout
 from .rotation_choice import HeldRates, select_rotation, validation_sums
 
 __all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "RotationJob", "rotation_job", "choose_rotation",
-           "score_rotation",
-           "identify_rotation", "speed_scale"]
+           "score_rotation", "speed_scale"]
 
 #: the rotational targets, body FLU axes x (roll), y (pitch), z (yaw)
 ROTATION_TARGETS = ("wx_dot", "wy_dot", "wz_dot")
 #: open-loop windows scored on the test flights: every start
-_TEST_STRIDE = 1
 
 
 @dataclass(frozen=True)
@@ -193,19 +191,7 @@ def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Map
         model = _axis_simerr(IdentifiedVehicle(tr, rot.model), test) if rot.model is not None else held
     except DroneIdError as exc:
         return replace(rot, notes=(*rot.notes, f"rotation not scored on the test flights: {exc}"))
-    ladder = list(rot.choice.get("ladder") or ())
-    axes = tuple(_axis(a.target, a.rung, a.validation_held, a.validation_model, h, m,
-                       _why_held(ladder[k]) if k < len(ladder) else "")
-                 for k, (a, h, m) in enumerate(zip(rot.axes, held, model)))
-    return replace(rot, axes=axes)
-
-
-def identify_rotation(train_flights: Sequence, test_flights: Sequence | None = None, frame: str = "auto",
-                      translation: Mapping | None = None) -> RotationResult:
-    """:func:`choose_rotation` on the training flights, then :func:`score_rotation` on the test
-    flights when there are both test flights and a translation."""
-    rot = choose_rotation(train_flights, frame)
-    return score_rotation(rot, test_flights, translation) if test_flights and translation is not None else rot
+    return replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model))
 
 
 @dataclass(frozen=True)
@@ -232,20 +218,26 @@ class RotationJob:
         train = list(self.train)
         layout, source = _layout(train, self.frame, self.rad_s_per_rpm)
         choice = select_rotation(train, layout, rad_s_per_rpm=self.rad_s_per_rpm)
-        axes_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
-            choice.held["rates_axis_simerr"]
-        axes = tuple(_axis(target, choice.axis_choice[k], choice.held["rates_axis_simerr"][k], axes_model[k],
-                           math.nan, math.nan, _why_held(choice.ladder[k]) if k < len(choice.ladder) else "")
-                     for k, target in enumerate(ROTATION_TARGETS))
         record = {k: v for k, v in choice.to_dict().items() if k != "model"}   # the model is kept once
+        val_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
+            choice.held["rates_axis_simerr"]
         return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, record,
-                              axes, dt_s=float(np.median([log.dt_s for log in train])))
+                              _axes(record, val_model, [math.nan] * 3, [math.nan] * 3),
+                              dt_s=float(np.median([log.dt_s for log in train])))
 
 
-def _axis(target: str, rung: str, val_held: float, val_model: float, test_held: float,
-          test_model: float, why_held: str = "") -> AxisResult:
-    v: Verdict = axis_verdict(target, rung, val_held, val_model, test_held, test_model, why_held=why_held)
-    return AxisResult(target, rung, val_held, val_model, test_held, test_model, v.text, v.kind)
+def _axes(record: Mapping, val_model: Sequence[float], test_held: Sequence[float],
+          test_model: Sequence[float]) -> tuple[AxisResult, ...]:
+    """Each rotational target's :class:`AxisResult` and verdict from the choice's record (its
+    rungs, the held rates' validation SimErr per axis, its ladders) and the chosen model's
+    validation and test SimErr per axis (rad/s; NaN: not scored)."""
+    out = []
+    for k, target in enumerate(ROTATION_TARGETS):
+        rung, val_held = record["axis_choice"][k], record["held"]["rates_axis_simerr"][k]
+        v: Verdict = axis_verdict(target, rung, val_held, val_model[k], test_held[k], test_model[k],
+                                  why_held=_why_held(record["ladder"][k]))
+        out.append(AxisResult(target, rung, val_held, val_model[k], test_held[k], test_model[k], v.text, v.kind))
+    return tuple(out)
 
 
 def _why_held(ladder: Mapping) -> str:
@@ -264,7 +256,7 @@ def _why_held(ladder: Mapping) -> str:
 def _axis_simerr(model, logs: Sequence[StateLog]) -> list[float]:
     """Per body axis Σ_{h=1..50} mean |Δω_k| (rad/s) of ``model`` open loop over every start of
     ``logs`` (their in-flight parts)."""
-    n, sums = validation_sums(model, logs, _TEST_STRIDE)
+    n, sums = validation_sums(model, logs, stride=1)
     if n == 0:
         raise DataError("no test flight has an in-flight stretch longer than 50 steps")
     return [float(v) for v in sums[2:] / n]

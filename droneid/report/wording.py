@@ -151,19 +151,30 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
         return Verdict("not to be trusted",
                        f"{target}: the {what} is NOT TO BE TRUSTED: " + "; ".join(problems)
                        + f" ({gain:+.0f} % vs the empirical model {where}: {errs}{extra}); keep the empirical model")
-    if gain >= MARGIN_PCT and (not has_test or vgain >= MARGIN_PCT):
+    outcome = _outcome(gain, vgain, has_test)
+    if outcome == "better":
         return Verdict("better", f"{target}: the {what} beats the empirical model by {gain:.0f} % {where} "
                                  f"({errs}{extra})")
-    if gain >= MARGIN_PCT:
+    if outcome == "test only":
         return Verdict("no better", f"{target}: the {what} is better {where} ({gain:+.0f} %: {errs}) but not "
                                     f"in validation on the training flights ({vgain:+.0f} %): keep the empirical model")
-    if gain > -MARGIN_PCT:
+    if outcome == "even":
         return Verdict("no better", f"{target}: the {what} is no better than the empirical model {where} "
                                     f"({gain:+.0f} %: {errs}): keep the empirical model")
     why = ("the training flights do not represent the test flights" if has_test else
            "its fitted terms do not hold across the validation blocks")
     return Verdict("worse", f"{target}: the {what} is WORSE than the empirical model {where} ({gain:+.0f} %: "
                             f"{errs}{extra}): {why}; keep the empirical model")
+
+
+def _outcome(gain: float, vgain: float, has_test: bool) -> str:
+    """How a model compares with its baseline, the one rule of every verdict: "better" (by at
+    least :data:`MARGIN_PCT` where it is judged and in validation), "test only" (better on the
+    test data but not in validation), "even" (within the margin) or "worse". ``gain``: the
+    improvement (%) on the test data, or in validation without any; ``vgain``: in validation."""
+    if gain >= MARGIN_PCT:
+        return "better" if not has_test or vgain >= MARGIN_PCT else "test only"
+    return "even" if gain > -MARGIN_PCT else "worse"
 
 
 _RUNG_WORDS = {"damping": "the rate decay", "attitude": "the attitude spring (the controller, opt-in)",
@@ -192,12 +203,13 @@ def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test
     errs = (f"SimErr {test_model:.3g} vs {test_held:.3g} rad/s held" if has_test
             else f"SimErr {val_model:.3g} vs {val_held:.3g} rad/s held")
     extra = f"; validation {vgain:+.0f} %" if has_test else ""
-    if gain >= MARGIN_PCT and vgain >= MARGIN_PCT:
+    outcome = _outcome(gain, vgain, has_test)
+    if outcome == "better":
         return Verdict("better", f"{target}: {what} beats holding the rate by {gain:.0f} % {where} ({errs}{extra})")
-    if gain >= MARGIN_PCT:
+    if outcome == "test only":
         return Verdict("no better", f"{target}: {what} is better {where} ({gain:+.0f} %: {errs}) but not in "
                                     f"validation on the training flights ({vgain:+.0f} %): do not count on it")
-    if gain > -MARGIN_PCT:
+    if outcome == "even":
         return Verdict("no better", f"{target}: {what} is no better than holding the rate {where} "
                                     f"({gain:+.0f} %: {errs}{extra}): holding the rate does as well")
     why = ("the training flights do not represent the test flights" if has_test else

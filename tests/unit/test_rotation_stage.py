@@ -7,7 +7,7 @@ import pytest
 
 from droneid.errors import DataError
 from droneid.report.wording import axis_verdict
-from droneid.rotation_stage import AxisResult, RotationResult, identify_rotation, speed_scale
+from droneid.rotation_stage import AxisResult, RotationResult, choose_rotation, speed_scale
 
 
 def test_axis_verdict_needs_validation_and_test_alike():
@@ -41,9 +41,10 @@ def test_speed_scale_follows_the_recorded_unit():
 
 
 def test_the_test_flights_never_reach_the_choice(monkeypatch):
-    """select_rotation sees the training flights' stretches only; the test flights are scored
-    after the choice."""
+    """Through identify (in process): select_rotation sees the training flights' stretches only;
+    the test flights are scored after the choice, with the final v̇ models."""
     import droneid.rotation_stage as stage
+    from droneid.identify import IdentifyConfig, identify
     from droneid.rotation_choice import RotationChoice
     from droneid.simulate import simulate
     seen = []
@@ -51,15 +52,19 @@ def test_the_test_flights_never_reach_the_choice(monkeypatch):
     def fake_select(logs, layout, **kw):
         seen.extend(log.name for log in logs)
         held = {"rates_simerr": 3.0, "attitude_simerr": 1.0, "rates_axis_simerr": [1.0, 1.0, 1.0]}
-        return RotationChoice(None, (), held, None)
+        ladder = tuple({"axis": ax, "choice": "held", "level": 0.25, "alpha": 0.05, "regimes": 4,
+                        "flights": ["train1", "train2"], "steps": []} for ax in ("roll", "pitch", "yaw"))
+        return RotationChoice(None, (), held, None, ("held",) * 3, ladder)
 
     monkeypatch.setattr(stage, "select_rotation", fake_select)
     train = [_named(simulate(path="circle", duration_s=6, seed=s).flight, f"train{s}") for s in (1, 2)]
     test = [_named(simulate(path="circle", duration_s=6, seed=3).flight, "test3")]
-    res = identify_rotation(train, test, frame="quad_x")
+    cfg = IdentifyConfig.make(runs=1, generations=50, population_size=60, jobs=1, frame="quad_x")
+    rot = identify(train, test, cfg).rotation
     assert seen and set(seen) == {"train1", "train2"}
-    assert res.model is None and [a.verdict_kind for a in res.axes] == ["no better"] * 3
-    assert res.layout == "quad_x" and res.layout_source == "--frame"
+    assert rot.model is None and [a.verdict_kind for a in rot.axes] == ["no better"] * 3
+    assert rot.layout == "quad_x" and rot.layout_source == "--frame"
+    assert all(math.isfinite(a.test_held) for a in rot.axes)     # scored, after the choice
 
 
 def _named(flight, name):
@@ -70,7 +75,7 @@ def _named(flight, name):
 def test_one_training_flight_cannot_choose():
     from droneid.simulate import simulate
     with pytest.raises(DataError, match="at least two training flights"):
-        identify_rotation([simulate(path="circle", duration_s=6, seed=1).flight], None, frame="quad_x")
+        choose_rotation([simulate(path="circle", duration_s=6, seed=1).flight], frame="quad_x")
 
 
 def test_the_record_reads_back():
