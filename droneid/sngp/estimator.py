@@ -195,6 +195,7 @@ class SNGPRegressor:
             ckind, cbound = np.zeros(0, dtype=np.int64), np.zeros(0)
         problem = Problem(y=y.copy(), yc=yc, syy=float(yc @ yc), ckind=ckind, cbound=cbound,
                           terminals=terminals)
+        K.use_cached_code()    # the first kernel call follows: read cached code lightly
         try:
             template = popmod.build_population(
                 tuple(self.functions), int(self.population_size), len(names), n_prior,

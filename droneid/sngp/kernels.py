@@ -19,6 +19,7 @@ while the search runs). nogil changes only the call wrapper, not the compiled co
 """
 from __future__ import annotations
 
+import logging
 import math
 import sys
 
@@ -26,6 +27,8 @@ import numpy as np
 from numba import njit
 
 from .operators import CONST, DIV_EPS, IDENT, MAX_ABS, by_name
+
+_log = logging.getLogger(__name__)
 
 # layout indices into ``lay``
 L_HEAD, L_VAR, L_TAIL, L_ID, L_P, L_NPRIOR, L_NT, L_DEPTH, L_MODE = range(9)
@@ -1062,7 +1065,8 @@ def set_up_target(skip_blas_probe: bool = False) -> None:
     fit``), the probe finds no BLAS, so in this process numba computes those two with its own
     loop; ``np.dot`` and ``np.linalg`` still import scipy when first compiled. The SNGP kernels
     are the same compiled code either way. A numba whose set-up needs scipy's BLAS outright is
-    set up the ordinary way."""
+    set up the ordinary way. The cached kernels are then read as :func:`use_cached_code` says."""
+    use_cached_code()
     if not skip_blas_probe or "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
         _target_probe()
         return
@@ -1092,3 +1096,74 @@ def kernels_ready() -> bool:
         except Exception:   # noqa: BLE001 - a numba internal: unknown means "not ready"
             return False
     return True
+
+
+# ------------------------------------------------------------------------------------------------
+# reading the cached code without numba's compiler set-up
+
+#: whether :func:`use_cached_code` installs the light loading (``load_from_cache_lightly(False)``
+#: turns it off for this process)
+_light_wanted = True
+
+
+def use_cached_code() -> None:
+    """Called before the first kernel call of a fit (and by :func:`set_up_target`): the entry
+    kernels read their cached machine code lightly (:func:`load_from_cache_lightly`) unless this
+    process turned that off. Idempotent and cheap; nothing happens when the module is imported."""
+    if _light_wanted:
+        load_from_cache_lightly()
+
+
+def load_from_cache_lightly(on: bool = True) -> bool:
+    """Have the entry kernels read their cached machine code without numba's target refresh;
+    numba's own loading and compiling remain the fallback. Returns whether it is in place (False:
+    this numba lacks the internals it relies on, or ``on`` is False). Idempotent.
+
+    Why: before it reads a cached kernel, numba "refreshes" its CPU target, importing and
+    registering its typing and lowering implementations of all of Python and numpy (numba.np.*,
+    numba.cpython.*, typed containers, ...: 0.15-0.35 s, a fifth of a ``droneid fit`` process).
+    A kernel read from the cache is machine code: it needs numba's runtime (NRT) set up and
+    nothing of the compiler. So the entry kernels' caches read their code after setting up the
+    runtime only; whenever that finds no usable entry (no cache yet, a changed source, another
+    signature) or fails in any way, numba's own path runs, with its full set-up, and compiles as
+    always. The code that runs is the cached code either way: results are bit for bit the same.
+
+    ``on=False`` gives numba its own loading back for the rest of the process (kernels already
+    loaded stay loaded) and keeps :func:`use_cached_code` from installing the light one again."""
+    global _light_wanted
+    _light_wanted = bool(on)
+    if not on:
+        for name in ENTRY_KERNELS:
+            vars(globals()[name]._cache).pop("load_overload", None)
+        return False
+    try:
+        from numba.core.runtime import rtsys
+        caches = [globals()[name]._cache for name in ENTRY_KERNELS]
+        for cache in caches:    # numba's cache internals this relies on
+            cache._load_overload, cache._guard_against_spurious_io_errors, cache.load_overload
+        rtsys.initialize    # noqa: B018
+    except Exception:   # noqa: BLE001 - another numba: its own loading, as always
+        return False
+    for cache in caches:
+        if "load_overload" not in vars(cache):
+            cache.load_overload = _light_loader(cache, rtsys)
+    return True
+
+
+def _light_loader(cache, rtsys):
+    """``cache.load_overload`` that reads the code after setting up numba's runtime only; on no
+    entry or any failure, the cache's own ``load_overload`` (full target set-up)."""
+    full = cache.load_overload
+
+    def load_overload(sig, target_context):
+        cres = None
+        try:
+            rtsys.initialize(target_context)    # the loaded code calls into the runtime
+            with cache._guard_against_spurious_io_errors():
+                cres = cache._load_overload(sig, target_context)
+        except Exception as exc:    # noqa: BLE001 - numba's own path below decides
+            _log.debug("light kernel loading failed (%s); numba's own loading follows", exc)
+            cres = None
+        return cres if cres is not None else full(sig, target_context)
+
+    return load_overload

@@ -1,5 +1,5 @@
 """Start-up of the engine in a fresh process (issue 26): what `droneid fit` imports, and that
-reading the cached kernels without numba's target set-up (precompile.load_from_cache_lightly)
+reading the cached kernels without numba's target set-up (kernels.load_from_cache_lightly)
 leaves the results bit for bit the same."""
 from __future__ import annotations
 
@@ -13,14 +13,15 @@ import pytest
 _FIT = """
 import json, sys
 import numpy as np
-from droneid.sngp import SNGPRegressor, kernels, precompile
+from droneid.sngp import SNGPRegressor, kernels
 if sys.argv[1] == "numba":
-    precompile.load_from_cache_lightly(on=False)    # numba's own loading, full target set-up
+    kernels.load_from_cache_lightly(on=False)    # numba's own loading, full target set-up
 rng = np.random.default_rng(3)
 X = rng.uniform(-1, 1, (120, 3))
 y = np.sin(X[:, 0]) * X[:, 1] + 0.3 * X[:, 2] ** 2 + 0.01 * rng.normal(size=120)
 m = SNGPRegressor(generations=3000, population_size=100, seed=5, simplify_s=0).fit(X, y)
 print(json.dumps({"model": m.model_.to_dict(), "rmse": m.rmse_train_.hex(),
+                  "light": "load_overload" in vars(kernels.run_chunk._cache),
                   "full_set_up": "numba.np.arraymath" in sys.modules,
                   "scipy_linalg": "scipy.linalg" in sys.modules}))
 """
@@ -39,6 +40,17 @@ def test_light_kernel_loading_skips_numbas_set_up_and_keeps_the_model_bit_for_bi
     assert light["model"] == numba_own["model"] and light["rmse"] == numba_own["rmse"]
     assert numba_own["full_set_up"] and numba_own["scipy_linalg"]
     assert not light["full_set_up"] and not light["scipy_linalg"]
+    assert light["light"] and not numba_own["light"]   # a fit did not undo the process's choice
+
+
+def test_importing_the_engine_changes_nothing_in_numba():
+    # the light loading is applied by a fit's first kernel call, not by an import (STYLE.md)
+    code = ("import json, droneid.sngp, droneid.sngp.precompile as p; from droneid.sngp import kernels as K; "
+            "print(json.dumps([name for name in K.ENTRY_KERNELS "
+            "if 'load_overload' in vars(getattr(K, name)._cache)]))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == []
 
 
 @pytest.mark.slow   # compiles every kernel once (~30 s)
