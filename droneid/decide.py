@@ -39,6 +39,7 @@ choice and the trimming of evolved terms share it. Test flights must never be pa
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -160,12 +161,20 @@ def paired_block_test(d) -> tuple[float, float]:
         signs = 1 - 2 * ((np.arange(2 ** b)[:, None] >> np.arange(b)) & 1)
         hits = int(np.sum(signs @ d >= obs))
         return float(t), hits / 2 ** b
-    rng = np.random.default_rng(20251125)
     hits = 0
-    for _ in range(N_FLIPS // 10_000):
-        signs = rng.choice((-1.0, 1.0), size=(10_000, b))
-        hits += int(np.sum(signs @ d >= obs))
+    for signs in _sign_patterns(b):
+        hits += int(np.sum(signs.astype(np.float64) @ d >= obs))
     return float(t), (1 + hits) / (1 + N_FLIPS)
+
+
+@functools.lru_cache(maxsize=8)
+def _sign_patterns(b: int) -> tuple[np.ndarray, ...]:
+    """The :data:`N_FLIPS` fixed-seed random sign patterns of :func:`paired_block_test` for ``b``
+    blocks, in chunks of 10 000 (int8, ±1): drawn once per process and block count (drawing them
+    was nearly all of a test's time; they do not depend on the data, so every p is the same)."""
+    rng = np.random.default_rng(20251125)
+    return tuple(rng.choice((-1.0, 1.0), size=(10_000, b)).astype(np.int8)
+                 for _ in range(N_FLIPS // 10_000))
 
 
 def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: int = 1,

@@ -142,3 +142,21 @@ def test_block_statistic_is_antisymmetric_in_the_two_models():
     e0, e1 = rng.normal(0, 1.0, b.size), rng.normal(0, 1.2, b.size)
     fwd, back = decide(e0, e1, b), decide(e1, e0, b)
     assert np.allclose(fwd.block_differences, -np.asarray(back.block_differences))
+
+
+def test_the_sign_flip_p_is_that_of_fresh_draws_every_time():
+    # the random sign patterns are drawn once per block count and reused (speed); every p must
+    # be the one the fixed-seed draws give, call after call and for any data
+    from droneid.decide import N_FLIPS, paired_block_test
+
+    def fresh_p(d):
+        rng = np.random.default_rng(20251125)
+        obs = float(np.sum(d)) * (1 - 1e-12)
+        hits = sum(int(np.sum(rng.choice((-1.0, 1.0), size=(10_000, d.size)) @ d >= obs))
+                   for _ in range(N_FLIPS // 10_000))
+        return (1 + hits) / (1 + N_FLIPS)
+
+    rng = np.random.default_rng(4)
+    for b, shift in ((20, 0.0), (20, 0.3), (31, 0.1), (20, -0.2)):
+        d = rng.normal(shift, 1.0, b)
+        assert paired_block_test(d)[1] == fresh_p(d)
