@@ -122,12 +122,14 @@ def reuse_datasets():
     """A block in which :meth:`DatasetBuilder.build` builds each dataset once: the same flights
     (the same objects), builder settings, target, inputs and extras give the same frozen
     :class:`~droneid.data.Dataset`. identify runs its stages in one, so the offset search, the
-    hover calibration, the diagnosis, the problem and the ladder share their datasets."""
-    token = _REUSE.set({})
+    hover calibration, the diagnosis, the problem and the ladder share their datasets. A block
+    inside another one shares the outer block's datasets."""
+    token = _REUSE.set({}) if _REUSE.get() is None else None
     try:
         yield
     finally:
-        _REUSE.reset(token)
+        if token is not None:
+            _REUSE.reset(token)
 
 
 
@@ -360,7 +362,8 @@ class DatasetBuilder:
         for n, sig in need.items():
             d = float(delays.get(n, 0.0))      # a delayed input is read at t - d: its gaps and holes move by d
             ivs = subtract_intervals(_intersect(ivs, [(sig.start_s, sig.end_s)]),
-                            [(a + d, b + d) for a, b in signal_gaps(sig, self.max_gap_s)])
+                            [(a + d, b + d) for a, b in _reused(("gaps", self.max_gap_s), sig,
+                                                                lambda: signal_gaps(sig, self.max_gap_s))])
             sc = _reused(("screen",), sig, lambda: screen_signal(sig))   # implausible samples: holes no row may use
             if sc.implausible:
                 if diff.name == "spline" and n in (source, _POSITION_OF.get(source)):
@@ -368,7 +371,7 @@ class DatasetBuilder:
                 holes += [(a + d, b + d) for a, b in sc.holes]
                 screened[n] = sc.implausible
                 notes.append(f"screened {sc.describe()}: rows that use them are left out")
-            if len(sig) > 1 and sig.rate_hz < 1.0 / ts * 0.999:
+            if len(sig) > 1 and _reused(("rate",), sig, lambda: sig.rate_hz) < 1.0 / ts * 0.999:
                 notes.append(f"signal '{n}' is sampled at {sig.rate_hz:.3g} Hz, below the grid rate "
                              f"{1 / ts:.3g} Hz: interpolated")
         # a row depends on the samples within its differentiator's stencil (±h): it is left out when

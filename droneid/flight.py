@@ -129,6 +129,10 @@ class Signal:
     def __len__(self) -> int:
         return int(self.t.size)
 
+    def __reduce__(self):
+        # pickled through the constructor (a worker process gets the same checked, read-only arrays)
+        return (type(self), (self.name, self.t, self.values, self.unit, self.source))
+
     @property
     def rate_hz(self) -> float:
         """Sample rate (Hz) over the time the signal has data: samples per second of its
@@ -274,6 +278,9 @@ class Diagnostics:
     def __post_init__(self):
         object.__setattr__(self, "skipped", MappingProxyType(dict(self.skipped)))
 
+    def __reduce__(self):   # a mapping proxy cannot be pickled: through the constructor
+        return (type(self), (dict(self.skipped), self.warnings))
+
     @property
     def total_skipped(self) -> int:
         return int(sum(self.skipped.values()))
@@ -328,6 +335,12 @@ class Flight:
         seg = {k: tuple((float(a), float(b)) for a, b in v) for k, v in dict(self.segments).items()}
         object.__setattr__(self, "segments", MappingProxyType(seg))
         object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.t_s)))
+
+    def __reduce__(self):
+        # mapping proxies cannot be pickled: through the constructor (a flight sent to a worker
+        # process, e.g. by :func:`droneid.runner.run_jobs`)
+        return (type(self), (dict(self.signals), self.provenance, self.diagnostics, dict(self.segments),
+                             self.events))
 
     # -- access ---------------------------------------------------------------------------
     def __getitem__(self, name: str) -> Signal:

@@ -10,14 +10,15 @@ The result is a frozen :class:`Plan`; :mod:`droneid.identify` builds the target 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from priors.registry import PriorFeature, prior_for, resolve_prior
 
 from .data import Dataset
-from .dataset_builder import DatasetBuilder
+from . import runner
+from .dataset_builder import DatasetBuilder, reuse_datasets
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
@@ -26,7 +27,7 @@ from .terms import prior_terms
 from .validation import split_time_block, time_blocks
 from .targets import targets_for
 
-__all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
+__all__ = ["Plan", "Effect", "OffsetDecision", "OffsetErrors", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
@@ -133,6 +134,43 @@ class OffsetDecision:
         return f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
 
 
+@dataclass(frozen=True)
+class OffsetErrors:
+    """A job of :func:`choose_offset` (picklable, for a worker process): at each of ``offsets``
+    (s) and for each target, the row keys, the held-out residuals of the prior's refit
+    (``terms``: target -> the unfitted :class:`~droneid.terms.TermModel`, over ``inputs``:
+    target -> signal names) and their blocks, on the training rows (``cuts``) of ``flights``;
+    the thrust ``signals`` read at the offset. ``family``: the number of candidates the blocks
+    are sized for (the grid's offsets other than 0)."""
+    flights: tuple
+    inputs: Mapping[str, tuple]
+    terms: Mapping[str, object]
+    signals: tuple
+    cfg: object
+    cuts: dict | None
+    offsets: tuple
+    family: int
+
+    def run(self) -> dict:
+        return self.errors(self.offsets)
+
+    def errors(self, offsets) -> dict:
+        """{offset s: {target: (row keys, held-out residuals, blocks)}}."""
+        res = {}
+        with reuse_datasets():      # each flight's intervals and screening once (or the caller's)
+            for d in offsets:
+                per = {}
+                for t, terms in self.terms.items():
+                    ds = train_rows(dataset_builder(self.cfg, {s: d for s in self.signals}).build(
+                        list(self.flights), target=t, inputs=self.inputs[t]), self.cuts)
+                    blocks = time_blocks(ds.t, ds.flight, family=self.family, alpha=OFFSET_ALPHA)
+                    err = ds.y - terms.cv_predictions(ds.columns(), ds.y, blocks)
+                    key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
+                    per[t] = (key, err, blocks)
+                res[float(d)] = per
+        return res
+
+
 def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
                   grid: Sequence[float] = OFFSET_GRID_S) -> OffsetDecision:
     """The offset of the thrust inputs by :mod:`droneid.decide`'s rule, on the training rows only.
@@ -141,18 +179,26 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     :func:`droneid.validation.n_blocks_for` time blocks per flight) on the rows all offsets share.
     The candidates d ≠ 0 are tested against d = 0 with Holm's control at :data:`OFFSET_ALPHA` over
     the whole grid; among the accepted the lowest held-out error wins. The interval is every
-    offset the winner does not beat at :data:`OFFSET_INTERVAL_ALPHA`."""
-    res = {}
-    for d in grid:
-        per = {}
-        for t in targets:
-            ds = train_rows(dataset_builder(cfg, {s: d for s in signals}).build(
-                list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-            blocks = time_blocks(ds.t, ds.flight, family=len(grid) - 1, alpha=OFFSET_ALPHA)
-            err = ds.y - prior_terms(prior, t).cv_predictions(ds.columns(), ds.y, blocks)
-            key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
-            per[t] = (key, err, blocks)
-        res[float(d)] = per
+    offset the winner does not beat at :data:`OFFSET_INTERVAL_ALPHA`.
+
+    The offsets are independent: with ``cfg.jobs`` > 1 they are split over that many workers
+    (:func:`droneid.runner.run_jobs`); the errors, and so the choice, are the same either way."""
+    grid = [float(d) for d in grid]
+    job = OffsetErrors(tuple(train_flights), {t: tuple(prior.inputs(t)) for t in targets},
+                       {t: prior_terms(prior, t) for t in targets}, tuple(signals), cfg, cuts, (), len(grid) - 1)
+    n = min(cfg.jobs if cfg.jobs is not None else runner.default_jobs(), len(grid))
+    if n == 1:
+        res = job.errors(grid)
+    else:
+        chunks = [replace(job, offsets=tuple(grid[i::n])) for i in range(n)]
+        outcome = runner.run_jobs(OffsetErrors.run, chunks, n_jobs=n, scheduler=cfg.scheduler,
+                                  label="offset job")
+        if outcome.interrupted:
+            raise KeyboardInterrupt
+        if outcome.errors:
+            raise DataError(f"the thrust input offset could not be chosen: {next(iter(outcome.errors.values()))}")
+        found = {d: per for part in outcome.results for d, per in part.items()}
+        res = {d: found[d] for d in grid}       # the grid's order: the tests below depend on it
     # the rows every offset has, per target; targets side by side (blocks numbered per target)
     errs, blocks = {d: [] for d in res}, []
     for i, t in enumerate(targets):

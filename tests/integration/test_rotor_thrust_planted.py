@@ -160,3 +160,22 @@ def test_the_rotor_sample_log_shows_its_planted_delay():
     assert len(plan.delays_s) == 4, plan.delay_scores
     for d in plan.delays_s.values():
         assert d == pytest.approx(planted, abs=0.01), plan.delay_scores
+
+
+def test_the_offset_search_chooses_the_same_on_one_worker_and_on_two():
+    # the offsets of the grid are split over the workers (speed): the held-out errors, and so
+    # the choice, its interval and its evidence, must be those of the search in this process
+    from dataclasses import replace
+
+    from droneid.identify import IdentifyConfig
+    from droneid.plan import choose_offset, resolve_plan_prior
+    train, _ = _delay_flights(0.04, 0.0)
+    cfg = IdentifyConfig.make(jobs=1, effects="none", delays="auto")
+    prior, _ = resolve_plan_prior(cfg, train)
+    targets = ("vx_dot", "vy_dot", "vz_dot")
+    signals = sorted({s for t in targets for s in prior.thrust_signals(t)})
+    one = choose_offset(train, prior, targets, signals, cfg)
+    two = choose_offset(train, prior, targets, signals, replace(cfg, jobs=2))
+    assert one.offset_s == two.offset_s == pytest.approx(0.04, abs=0.01)
+    assert one.interval_s == two.interval_s and one.scores == two.scores
+    assert one.decision.evidence == two.decision.evidence

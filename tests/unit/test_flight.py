@@ -82,3 +82,21 @@ def test_clean_drops_a_lone_damaged_stamp_not_everything_after_it():
     t2[5] = t2[4]                                    # a duplicate is still a duplicate
     _, d2 = Signal.clean("x", t2, np.zeros(10), "m")
     assert d2 == {"duplicate time stamps": 1}
+
+
+def test_a_flight_survives_pickling_for_a_worker_process():
+    # identify sends flights to worker processes (the offset search): the same signals, checked
+    # and read-only, and the same provenance, diagnostics, segments and events
+    import pickle
+
+    from droneid.flight import Event
+    t = np.linspace(0.0, 1.0, 11)
+    f = Flight({"vx": Signal("vx", t, np.sin(t), "m/s", "LOCAL_POSITION_NED.vx")},
+               diagnostics=Diagnostics({"bad crc": 2}, ("a gap",)),
+               segments={"in_flight": [(0.1, 0.9)]}, events=(Event(0.5, "mode", "GUIDED"),))
+    g = pickle.loads(pickle.dumps(f))
+    assert g.provenance == f.provenance and g.diagnostics.warnings == ("a gap",)
+    assert np.array_equal(g["vx"].values, f["vx"].values) and g["vx"].source == "LOCAL_POSITION_NED.vx"
+    assert not g["vx"].values.flags.writeable and not g["vx"].t.flags.writeable
+    assert dict(g.diagnostics.skipped) == {"bad crc": 2} and g.segments == f.segments
+    assert g.events == f.events
