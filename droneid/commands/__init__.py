@@ -17,8 +17,8 @@ from typing import NamedTuple
 class Command(NamedTuple):
     """A subcommand: the module that defines it (``register``/``run``), its one-line help (shown
     by ``droneid --help`` without importing the module) and whether the ``droneid`` process may
-    end without the interpreter's teardown once it is done (``no_teardown``: the command starts
-    no workers, leaves no temporary files and closes what it writes)."""
+    end without the interpreter's teardown once it is done (``no_teardown``: the command leaves
+    no worker running (its pools are joined), no temporary files, and closes what it writes)."""
     module: str
     help: str
     no_teardown: bool = False
@@ -38,7 +38,8 @@ COMMANDS: dict[str, Command] = {
                    "fit an analytic model to a CSV table with SNGP (priors, constraints)",
                    no_teardown=True),
     "identify": Command("droneid.commands.identify",
-                        "identify models from logs and compare them with the empirical model"),
+                        "identify models from logs and compare them with the empirical model",
+                        no_teardown=True),
     "inspect": Command("droneid.commands.inspect",
                        "show the format, signals, rates, segments and diagnostics of a flight log"),
     "predict": Command("droneid.commands.predict",
