@@ -15,12 +15,13 @@ from priors.torque import RotorLayout, get_layout
 
 from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
-from .regression import robust_fit
+from .regression import N_BOOT, robust_fit
 from .rotation import (RotationModel, segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
                        flying_mask, flying_segments, tilt, translation_rows)
+from .validation import time_blocks
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "DAMPING_GRID", "RUNGS", "VEHICLE_RUNGS",
-           "fit_damping", "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID",
+           "fit_damping", "damping_interval", "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID",
            "DEFAULT_CANDIDATES", "HeldRates", "validation_sums"]
 
 
@@ -211,8 +212,44 @@ def fit_damping(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRI
     ``c`` minimises the largest ratio over classes of its mean error to the held one (the smallest
     ``c`` wins a tie), the criterion :func:`select_rotation` judges the rungs by: a decay fitted to
     the pooled error follows the hard manoeuvres alone. Returns (3,)."""
+    err, _, _ = _decay_errors(logs, grid, horizon, stride)
+    return np.asarray(grid, float)[_best_decay(err, regimes)]
+
+
+def damping_interval(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRID, horizon: int = 50,
+                     stride: int = 5, regimes: int = 4, n_boot: int = N_BOOT, seed: int = 0,
+                     level: float = 0.95) -> np.ndarray:
+    """(3, 2): per body axis the ``level`` percentile interval (1/s) of :func:`fit_damping`'s decay
+    by a block bootstrap: the windows of each flight are cut into contiguous time blocks
+    (:func:`droneid.validation.time_blocks`, 8-20 a flight), whole blocks are resampled with
+    replacement ``n_boot`` times and the decay is chosen again on each replicate by the same
+    criterion. The decay lives on ``grid`` (steps of ×2), so the bounds are grid values: the
+    lower one rounded down, the upper one up (never narrower than the percentiles)."""
+    if not 0.0 < level < 1.0:
+        raise ConfigError(f"The 'level' parameter of damping_interval must be in (0, 1). Got {level!r} instead.")
+    err, t, flight = _decay_errors(logs, grid, horizon, stride)
+    blocks = time_blocks(t, flight)
+    rows = [np.flatnonzero(blocks == b) for b in np.unique(blocks)]
+    rng = np.random.default_rng(seed)
+    picks = np.empty((int(n_boot), 3), dtype=int)
+    for i in range(int(n_boot)):
+        pick = np.concatenate([rows[j] for j in rng.integers(0, len(rows), len(rows))])
+        picks[i] = _best_decay(err[:, pick], regimes)
+    a = 100 * (1 - level) / 2
+    g = np.asarray(grid, float)
+    lo = np.percentile(picks, a, axis=0, method="lower")
+    hi = np.percentile(picks, 100 - a, axis=0, method="higher")
+    return np.column_stack([g[lo.astype(int)], g[hi.astype(int)]])
+
+
+def _decay_errors(logs: Sequence[StateLog], grid, horizon: int, stride: int):
+    """(err (G + 1, W, 3), t (W,), flight (W,)): each window's open-loop body-rate error with the
+    rate held (first) and with each decay of ``grid``, its start time (s) and its flight's index
+    (logs of one name are one flight)."""
     H = int(horizon)
-    errs = []
+    names = list(dict.fromkeys(log.name for log in logs))
+    rates = np.concatenate([[0.0], np.asarray(grid, float)])
+    errs, ts, fl = [], [], []
     for log in logs:
         for a, b in segment_bounds(log, H + 1):
             w = log.state[a:b, 10:13]
@@ -220,19 +257,25 @@ def fit_damping(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRI
             if not starts.size:
                 continue
             w0, wt = w[starts], w[starts[:, None] + np.arange(1, H + 1)[None, :]]     # (W, 3), (W, H, 3)
-            rates = np.concatenate([[0.0], np.asarray(grid, float)])
             decay = np.exp(-np.outer(rates, log.dt_s * np.arange(1, H + 1)))  # (G + 1, H)
             errs.append(np.abs(wt[None] - decay[:, None, :, None] * w0[None, :, None, :]).sum(axis=2))
+            ts.append(log.t_s[a + starts])
+            fl.append(np.full(starts.size, names.index(log.name)))
     if not errs:
         raise DataError(f"fit_damping: no flight segment longer than {H} steps")
-    err = np.concatenate(errs, axis=1)      # (G + 1, W, 3): the held rate first
-    out = np.zeros(3)
+    return np.concatenate(errs, axis=1), np.concatenate(ts), np.concatenate(fl)
+
+
+def _best_decay(err: np.ndarray, regimes: int) -> np.ndarray:
+    """(3,) index into the grid of the decay with the lowest worst-regime error ratio to the held
+    rate (:func:`fit_damping`'s criterion) on the windows of ``err`` (G + 1, W, 3)."""
+    out = np.zeros(3, dtype=int)
     for k in range(3):
         ref = err[0, :, k]
         cls = _regime(ref, regimes)
         worst = [max(err[i + 1, cls == q, k].mean() / max(ref[cls == q].mean(), 1e-300) for q in np.unique(cls))
-                 for i in range(len(grid))]
-        out[k] = float(grid[int(np.argmin(worst))])
+                 for i in range(err.shape[0] - 1)]
+        out[k] = int(np.argmin(worst))
     return out
 
 
@@ -431,6 +474,9 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
                 # per axis the lowest and highest decay of the leave-one-flight-out refits (1/s)
                 "damping_per_s_range": [[float(v) for v in np.min([f["c"] for f in folds], axis=0)],
                                         [float(v) for v in np.max([f["c"] for f in folds], axis=0)]],
+                # per axis the 95 % block-bootstrap interval of the decay fitted on every training flight
+                "damping_per_s_interval": [[float(lo), float(hi)] for lo, hi in
+                                           damping_interval(logs, grid=damping_grid, regimes=regimes)],
                 **_pooled(f["errs"]["damping"] for f in folds)}
     att_rows = ({"method": "attitude",
                  "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],

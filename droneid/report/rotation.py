@@ -26,11 +26,19 @@ def _axes_table(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
 
 
 def _decay_range(rot: RotationResult, k: int) -> str:
-    """`` (held-out refits: lo-hi /s)`` of axis ``k``'s decay, from the choice's damping row."""
+    """Axis ``k``'s decay evidence from the choice's damping row: its 95 % interval (block
+    bootstrap of the training windows) and its range over the leave-one-flight-out refits."""
     for row in rot.choice.get("table", ()):
-        if row.get("method") == "damping" and "damping_per_s_range" in row:
+        if row.get("method") != "damping":
+            continue
+        parts = []
+        if "damping_per_s_interval" in row:
+            lo, hi = row["damping_per_s_interval"][k]
+            parts.append(f"95 % interval {lo:.3g}-{hi:.3g} /s (block bootstrap)")
+        if "damping_per_s_range" in row:
             lo, hi = row["damping_per_s_range"][0][k], row["damping_per_s_range"][1][k]
-            return f" [decay {lo:.3g}-{hi:.3g} /s over the leave-one-flight-out refits]"
+            parts.append(f"{lo:.3g}-{hi:.3g} /s over the leave-one-flight-out refits")
+        return f" [decay {'; '.join(parts)}]" if parts else ""
     return ""
 
 
