@@ -86,6 +86,8 @@ def main(argv=None) -> int:
     ap.add_argument("--previous", type=Path, default=None,
                     help="another checkout to time interleaved with this one (the 'before' figures)")
     args = ap.parse_args(argv)
+    if args.repeats < 1:
+        ap.error("--repeats must be at least 1")
     missing = [s for s in SQUARES if not (args.logs / s).is_file()]
     if missing:
         print(f"skipped: {args.logs / missing[0]} is absent (the shared real logs live beside the "

@@ -173,8 +173,10 @@ def _sign_patterns(b: int) -> tuple[np.ndarray, ...]:
     blocks, in chunks of 10 000 (int8, ±1): drawn once per process and block count (drawing them
     was nearly all of a test's time; they do not depend on the data, so every p is the same)."""
     rng = np.random.default_rng(20251125)
-    return tuple(rng.choice((-1.0, 1.0), size=(10_000, b)).astype(np.int8)
-                 for _ in range(N_FLIPS // 10_000))
+    chunks = tuple(rng.choice((-1.0, 1.0), size=(10_000, b)).astype(np.int8) for _ in range(N_FLIPS // 10_000))
+    for c in chunks:
+        c.setflags(write=False)     # shared by every later test of this process
+    return chunks
 
 
 def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: int = 1,

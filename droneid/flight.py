@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import PurePath
 from types import MappingProxyType
 
@@ -99,6 +99,14 @@ def canonical_unit(name: str) -> str:
                                  where="the canonical signal list") from None
 
 
+def _through_constructor(obj) -> tuple:
+    """``__reduce__`` of a frozen dataclass whose ``__post_init__`` checks its fields and wraps
+    mappings in read-only proxies (which cannot be pickled): the class and every field as a
+    constructor argument, proxies as plain dicts."""
+    return type(obj), tuple(dict(v) if isinstance(v, MappingProxyType) else v
+                            for v in (getattr(obj, f.name) for f in fields(obj)))
+
+
 @dataclass(frozen=True)
 class Signal:
     """One time series: ``values[i]`` was valid at ``t[i]`` seconds from the log start.
@@ -130,8 +138,8 @@ class Signal:
         return int(self.t.size)
 
     def __reduce__(self):
-        # pickled through the constructor (a worker process gets the same checked, read-only arrays)
-        return (type(self), (self.name, self.t, self.values, self.unit, self.source))
+        # pickled through the constructor: the copy is checked again and its arrays read-only
+        return _through_constructor(self)
 
     @property
     def rate_hz(self) -> float:
@@ -279,7 +287,7 @@ class Diagnostics:
         object.__setattr__(self, "skipped", MappingProxyType(dict(self.skipped)))
 
     def __reduce__(self):   # a mapping proxy cannot be pickled: through the constructor
-        return (type(self), (dict(self.skipped), self.warnings))
+        return _through_constructor(self)
 
     @property
     def total_skipped(self) -> int:
@@ -336,11 +344,8 @@ class Flight:
         object.__setattr__(self, "segments", MappingProxyType(seg))
         object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.t_s)))
 
-    def __reduce__(self):
-        # mapping proxies cannot be pickled: through the constructor (a flight sent to a worker
-        # process, e.g. by :func:`droneid.runner.run_jobs`)
-        return (type(self), (dict(self.signals), self.provenance, self.diagnostics, dict(self.segments),
-                             self.events))
+    def __reduce__(self):   # mapping proxies cannot be pickled: through the constructor
+        return _through_constructor(self)
 
     # -- access ---------------------------------------------------------------------------
     def __getitem__(self, name: str) -> Signal:

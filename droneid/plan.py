@@ -10,14 +10,15 @@ The result is a frozen :class:`Plan`; :mod:`droneid.identify` builds the target 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from priors.registry import PriorFeature, prior_for, resolve_prior
 
-from .data import Dataset
 from . import runner
+from .data import Dataset
 from .dataset_builder import DatasetBuilder, reuse_datasets
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
@@ -27,7 +28,12 @@ from .terms import prior_terms
 from .validation import split_time_block, time_blocks
 from .targets import targets_for
 
-__all__ = ["Plan", "Effect", "OffsetDecision", "OffsetErrors", "choose_offset", "OFFSET_GRID_S", "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
+if TYPE_CHECKING:
+    from .settings import IdentifyConfig
+    from .terms import TermModel
+
+__all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "OFFSET_GRID_S",
+           "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
@@ -134,41 +140,39 @@ class OffsetDecision:
         return f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
 
 
+def _offset_errors(job: "_OffsetSearch", offsets: Sequence[float]) -> dict:
+    """{offset s: {target: (row keys, held-out residuals, blocks)}} of :func:`choose_offset` at
+    ``offsets``: per target the prior's refit (``job.terms``: the unfitted
+    :class:`~droneid.terms.TermModel`, over ``job.inputs``) by blocked CV on the training rows
+    (``job.cuts``) of ``job.flights`` with the thrust ``job.signals`` read at the offset."""
+    res = {}
+    with reuse_datasets():      # each flight's intervals and screening once (or the caller's)
+        for d in offsets:
+            per = {}
+            for t, terms in job.terms.items():
+                ds = train_rows(dataset_builder(job.cfg, {s: d for s in job.signals}).build(
+                    list(job.flights), target=t, inputs=job.inputs[t]), job.cuts)
+                blocks = time_blocks(ds.t, ds.flight, family=job.family, alpha=OFFSET_ALPHA)
+                err = ds.y - terms.cv_predictions(ds.columns(), ds.y, blocks)
+                key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
+                per[t] = (key, err, blocks)
+            res[float(d)] = per
+    return res
+
+
 @dataclass(frozen=True)
-class OffsetErrors:
-    """A job of :func:`choose_offset` (picklable, for a worker process): at each of ``offsets``
-    (s) and for each target, the row keys, the held-out residuals of the prior's refit
-    (``terms``: target -> the unfitted :class:`~droneid.terms.TermModel`, over ``inputs``:
-    target -> signal names) and their blocks, on the training rows (``cuts``) of ``flights``;
-    the thrust ``signals`` read at the offset. ``family``: the number of candidates the blocks
-    are sized for (the grid's offsets other than 0)."""
+class _OffsetSearch:
+    """What every offset of :func:`choose_offset` is scored on (shared by its workers): the
+    training ``flights``, per target the prior's ``inputs`` and unfitted refit ``terms``, the
+    thrust ``signals``, the identify config, the hold-out ``cuts`` and ``family``, the number of
+    candidates the blocks are sized for (the grid's offsets other than 0)."""
     flights: tuple
-    inputs: Mapping[str, tuple]
-    terms: Mapping[str, object]
-    signals: tuple
-    cfg: object
+    inputs: Mapping[str, tuple[str, ...]]
+    terms: Mapping[str, "TermModel"]
+    signals: tuple[str, ...]
+    cfg: "IdentifyConfig"
     cuts: dict | None
-    offsets: tuple
     family: int
-
-    def run(self) -> dict:
-        return self.errors(self.offsets)
-
-    def errors(self, offsets) -> dict:
-        """{offset s: {target: (row keys, held-out residuals, blocks)}}."""
-        res = {}
-        with reuse_datasets():      # each flight's intervals and screening once (or the caller's)
-            for d in offsets:
-                per = {}
-                for t, terms in self.terms.items():
-                    ds = train_rows(dataset_builder(self.cfg, {s: d for s in self.signals}).build(
-                        list(self.flights), target=t, inputs=self.inputs[t]), self.cuts)
-                    blocks = time_blocks(ds.t, ds.flight, family=self.family, alpha=OFFSET_ALPHA)
-                    err = ds.y - terms.cv_predictions(ds.columns(), ds.y, blocks)
-                    key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
-                    per[t] = (key, err, blocks)
-                res[float(d)] = per
-        return res
 
 
 def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
@@ -181,24 +185,17 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     the whole grid; among the accepted the lowest held-out error wins. The interval is every
     offset the winner does not beat at :data:`OFFSET_INTERVAL_ALPHA`.
 
-    The offsets are independent: with ``cfg.jobs`` > 1 they are split over that many workers
-    (:func:`droneid.runner.run_jobs`); the errors, and so the choice, are the same either way."""
+    The offsets are independent: with ``cfg.jobs`` > 1 they are split over that many forked
+    workers (:func:`droneid.runner.fork_map`; never a Dask cluster: the choice must not depend on
+    another machine's arithmetic); the errors, and so the choice, are the same either way."""
     grid = [float(d) for d in grid]
-    job = OffsetErrors(tuple(train_flights), {t: tuple(prior.inputs(t)) for t in targets},
-                       {t: prior_terms(prior, t) for t in targets}, tuple(signals), cfg, cuts, (), len(grid) - 1)
+    job = _OffsetSearch(tuple(train_flights), {t: tuple(prior.inputs(t)) for t in targets},
+                        {t: prior_terms(prior, t) for t in targets}, tuple(signals), cfg, cuts, len(grid) - 1)
     n = min(cfg.jobs if cfg.jobs is not None else runner.default_jobs(), len(grid))
-    if n == 1:
-        res = job.errors(grid)
-    else:
-        chunks = [replace(job, offsets=tuple(grid[i::n])) for i in range(n)]
-        outcome = runner.run_jobs(OffsetErrors.run, chunks, n_jobs=n, scheduler=cfg.scheduler,
-                                  label="offset job")
-        if outcome.interrupted:
-            raise KeyboardInterrupt
-        if outcome.errors:
-            raise DataError(f"the thrust input offset could not be chosen: {next(iter(outcome.errors.values()))}")
-        found = {d: per for part in outcome.results for d, per in part.items()}
-        res = {d: found[d] for d in grid}       # the grid's order: the tests below depend on it
+    found = {}
+    for part in runner.fork_map(_offset_errors, job, [tuple(grid[i::n]) for i in range(n)], n):
+        found.update(part)
+    res = {d: found[d] for d in grid}   # the grid's order: the tests below and delay_scores follow it
     # the rows every offset has, per target; targets side by side (blocks numbered per target)
     errs, blocks = {d: [] for d in res}, []
     for i, t in enumerate(targets):

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from .errors import ConfigError
 from .lazy import lazy_module
 
-__all__ = ["RunOutcome", "run_jobs", "default_jobs", "startup_message"]
+__all__ = ["RunOutcome", "run_jobs", "fork_map", "default_jobs", "startup_message"]
 
 #: the SNGP engine, imported when a command first asks about its kernels (it imports numba, ~0.5 s)
 _engine = lazy_module("droneid.sngp")
@@ -168,14 +168,67 @@ def run_jobs(fn: Callable, jobs: Sequence, *, n_jobs: int | None = None, schedul
     return outcome
 
 
-def _run_pool(fn, jobs, n_jobs, record, outcome):
+def _can_fork() -> bool:
+    """Whether worker processes may be forked from this one: the platform has fork and no other
+    thread is alive that could hold a lock in the child (fast, and a caller's script needs no
+    ``if __name__ == "__main__":`` guard)."""
     import multiprocessing as mp
     import threading
+    return "fork" in mp.get_all_start_methods() and threading.active_count() == 1
+
+
+#: what :func:`fork_map`'s forked workers were given (set in each worker by the pool's initializer)
+_SHARED = None
+
+
+def _init_forked(log_level: int, shared) -> None:
+    global _SHARED
+    _init_worker(log_level)
+    _SHARED = shared
+
+
+def _call_shared(args):
+    fn, item = args
+    try:
+        return "ok", fn(_SHARED, item)
+    except Exception:   # noqa: BLE001 - the parent reruns the item to raise it as it is
+        return "error", None
+
+
+def fork_map(fn: Callable, shared, items: Sequence, n_jobs: int) -> list:
+    """``[fn(shared, item) for item in items]``, on up to ``n_jobs`` forked worker processes
+    when this process can fork safely (:func:`_can_fork`), else in this process; the results
+    are the same either way, in ``items``' order.
+
+    For a short stage of independent pieces (e.g. identify's offset search): ``shared`` (e.g.
+    the flights) reaches the forked workers with the fork itself and is never pickled; items
+    and results are. Never spawned: a spawned worker would re-import everything and receive
+    ``shared`` pickled, slower than this process alone. An exception in a worker is raised
+    here as it is (its type and traceback): the failed item is run again in this process.
+    Ctrl-C stops the workers and is raised here."""
+    items = list(items)
+    n = min(int(n_jobs), len(items))
+    if n <= 1 or not _can_fork():
+        return [fn(shared, item) for item in items]
+    import multiprocessing as mp
+    pool = mp.get_context("fork").Pool(n, initializer=_init_forked,
+                                       initargs=(logging.getLogger().getEffectiveLevel(), shared))
+    try:
+        done = pool.map(_call_shared, [(fn, item) for item in items], chunksize=1)
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
+    return [res if status == "ok" else fn(shared, item) for (status, res), item in zip(done, items)]
+
+
+def _run_pool(fn, jobs, n_jobs, record, outcome):
+    import multiprocessing as mp
     outcome.backend = f"pool({n_jobs})"
-    # fork when it is safe (no other thread alive that could hold a lock): fast, and a caller's
-    # script needs no `if __name__ == "__main__":` guard; otherwise spawn
-    safe_fork = "fork" in mp.get_all_start_methods() and threading.active_count() == 1
-    ctx = mp.get_context("fork" if safe_fork else "spawn")
+    # fork when it is safe (:func:`_can_fork`), otherwise spawn
+    ctx = mp.get_context("fork" if _can_fork() else "spawn")
     pool = ctx.Pool(n_jobs, initializer=_init_worker, initargs=(logging.getLogger().getEffectiveLevel(),))
     try:
         for index, status, payload in pool.imap_unordered(

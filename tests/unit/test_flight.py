@@ -100,3 +100,12 @@ def test_a_flight_survives_pickling_for_a_worker_process():
     assert not g["vx"].values.flags.writeable and not g["vx"].t.flags.writeable
     assert dict(g.diagnostics.skipped) == {"bad crc": 2} and g.segments == f.segments
     assert g.events == f.events
+    # every field goes through (a field added later must not be dropped silently)
+    from dataclasses import fields
+    for obj, copy in ((f, g), (f["vx"], g["vx"]), (f.diagnostics, g.diagnostics)):
+        for fl in fields(obj):
+            a, b = getattr(obj, fl.name), getattr(copy, fl.name)
+            if isinstance(a, np.ndarray):
+                assert np.array_equal(a, b), fl.name
+            elif fl.name != "signals":
+                assert a == b, fl.name

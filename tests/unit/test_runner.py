@@ -77,3 +77,57 @@ def test_dask_local_cluster_on_loopback():
 def test_unreachable_scheduler_is_a_config_error():
     with pytest.raises(ConfigError, match="Dask scheduler"):
         run_jobs(square, [1], scheduler="tcp://127.0.0.1:9", connect_timeout_s=1)
+
+
+# -- fork_map: a short stage split over forked workers ------------------------------------------
+
+def _scaled(shared, item):
+    if item == "boom":
+        raise ConfigError(f"bad item, shared {shared['k']}")
+    return shared["f"](item) * shared["k"]
+
+
+_FORK_MAP = """
+import json, os
+from droneid.runner import fork_map
+def scaled(shared, item):
+    return shared["f"](item) * shared["k"]
+# a lambda cannot be pickled: the forked workers get it with the fork itself
+got = fork_map(scaled, {"f": lambda x: (x, os.getpid()), "k": 1}, list(range(8)), 2)
+print(json.dumps({"got": got, "me": os.getpid()}))
+"""
+
+
+def test_fork_map_keeps_the_order_and_never_pickles_what_is_shared():
+    # in a fresh process: earlier tests of this one leave threads alive (Dask), and then
+    # fork_map rightly stays in-process
+    import json
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-c", _FORK_MAP], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    out = json.loads(r.stdout)
+    assert [x for x, _ in out["got"]] == list(range(8))
+    assert {pid for _, pid in out["got"]} - {out["me"]}       # the work left the calling process
+
+
+def test_fork_map_raises_a_workers_exception_as_it_is():
+    from droneid.runner import fork_map
+    with pytest.raises(ConfigError, match="bad item, shared 3"):
+        fork_map(_scaled, {"f": lambda x: x, "k": 3}, [1, "boom", 2], 2)
+
+
+def test_fork_map_stays_in_this_process_when_another_thread_is_alive():
+    import os
+    import threading
+
+    from droneid.runner import fork_map
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait)
+    t.start()
+    try:
+        got = fork_map(_scaled, {"f": lambda x: (x, os.getpid()), "k": 1}, [1, 2, 3], 2)
+    finally:
+        stop.set()
+        t.join()
+    assert got == [(1, os.getpid()), (2, os.getpid()), (3, os.getpid())]
