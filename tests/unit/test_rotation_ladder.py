@@ -12,7 +12,8 @@ from droneid.errors import DataError
 from droneid.openloop import StateLog
 from droneid.rotation import RotationModel, fit_rotation, tilt
 from droneid.errors import ConfigError
-from droneid.rotation_choice import _climb, damping_interval, fit_attitude, fit_damping, per_axis_model
+from droneid.rotation_choice import _climb, fit_attitude, per_axis_model
+from droneid.rotation_decay import damping_interval, fit_damping
 from priors.torque import get_layout
 
 DT = 0.01
