@@ -417,15 +417,43 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
                  "evidence": plan.offset.decision.evidence if plan.offset.decision else ""}
                 if plan.offset is not None else None),
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
-    horizons = _horizons(results, test_flights, notes) if test_flights else {}
-    rotation = _rotation(outcome, jobs, test_flights, results, notes)
-    res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted,
-                               time.perf_counter() - t0, outcome.backend, tuple(notes), horizons,
-                               rotation=rotation)
-    if rotation is not None and test_flights:
-        res = replace(res, rotation=replace(rotation, open_loop_test=_open_loop_test(res, test_flights, notes)),
-                      notes=tuple(notes), wall_s=time.perf_counter() - t0)
-    return res
+    rotation_notes: list = []
+    rotation = _rotation(outcome, jobs, rotation_notes)
+    res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted, 0.0, outcome.backend,
+                               (), {}, rotation=rotation)
+    horizons = {}
+    if test_flights:    # three independent scorings of the test flights, side by side on the cores
+        n = cfg.jobs if cfg.jobs is not None else runner.default_jobs()
+        (horizons, h_notes), (rotation, _), (open_loop, o_notes) = runner.fork_map(
+            _test_stage, (res, tuple(test_flights)), TEST_STAGES, n)
+        if rotation is not None and open_loop is not None:
+            rotation = replace(rotation, open_loop_test=open_loop)
+        rotation_notes = h_notes + rotation_notes + o_notes
+    return replace(res, notes=tuple(notes + rotation_notes), horizons=horizons, rotation=rotation,
+                   wall_s=time.perf_counter() - t0)
+
+
+#: what :func:`_test_stage` computes on the test flights, in the order of their notes
+TEST_STAGES = ("horizons", "rotation", "open loop")
+
+
+def _test_stage(shared: tuple, stage: str) -> tuple:
+    """One scoring of the test flights (``shared``: the result before scoring and the test
+    flights; :func:`droneid.runner.fork_map`): (its value, its notes). "horizons": the multi-step
+    prediction of the v̇ models; "rotation": the rotational result with its test figures;
+    "open loop": the benchmark's open-loop table (None without a rotational result)."""
+    res, flights = shared
+    notes: list = []
+    if stage == "horizons":
+        return _horizons(res.targets, flights, notes), notes
+    if res.rotation is None:
+        return None, notes
+    if stage == "rotation":
+        if not all(t in res.targets for t in ("vx_dot", "vy_dot", "vz_dot")):
+            return res.rotation, notes
+        models = {t: IdentifiedModel.from_dict(res.targets[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
+        return score_rotation(res.rotation, flights, models), notes
+    return _open_loop_test(res, flights, notes), notes
 
 
 def run_stage_job(job):
@@ -434,9 +462,9 @@ def run_stage_job(job):
     return job.run() if isinstance(job, RotationJob) else run_job(job)
 
 
-def _rotation(outcome, jobs, test_flights, results: Mapping[str, TargetResult], notes: list) -> RotationResult | None:
-    """The rotational job's result, scored on the test flights where there are any (a note says
-    why there is none otherwise)."""
+def _rotation(outcome, jobs, notes: list) -> RotationResult | None:
+    """The rotational job's result (not yet scored on the test flights), or None with a note
+    saying why there is none."""
     idx = next((i for i, j in enumerate(jobs) if isinstance(j, RotationJob)), None)
     if idx is None:
         return None
@@ -444,9 +472,6 @@ def _rotation(outcome, jobs, test_flights, results: Mapping[str, TargetResult], 
     if rot is None or isinstance(rot, str):
         notes.append(f"rotation not modelled: {rot or outcome.errors.get(idx, 'the job did not finish')}")
         return None
-    if test_flights and all(t in results for t in ("vx_dot", "vy_dot", "vz_dot")):
-        rot = score_rotation(rot, test_flights, {t: IdentifiedModel.from_dict(results[t].final.to_dict())
-                                                 for t in ("vx_dot", "vy_dot", "vz_dot")})
     return rot
 
 
