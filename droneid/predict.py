@@ -22,6 +22,7 @@ import numpy as np
 
 from priors.registry import get_prior
 
+from . import runner
 from .dataset_builder import DatasetBuilder
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression, parse_expression
@@ -312,14 +313,28 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
             r["notes"] = notes
         results[target] = r
     roll, table, info = None, None, None
-    if horizons:
-        roll = rollout_errors(sets, flights, horizons)
+    stages = (("horizons",) if horizons else ()) + (("open loop",) if open_loop else ())
+    # the multi-step prediction and the open-loop table are independent: side by side on the cores
+    done = dict(zip(stages, runner.fork_map(_scoring_stage, (models, sets, tuple(flights), horizons), stages,
+                                            runner.default_jobs())))
+    if "horizons" in done:
+        roll = done["horizons"]
         info = roll.to_dict(segments=False)
         table = info.pop("rmse")
-    ol = open_loop_section(models, flights, tuple(horizons or (1, 10, 50))) if open_loop else None
+    ol = done.get("open loop")
     return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
                             tuple(fit.warnings) if fit is not None else (), table, info, roll, ol,
                             open_loop_rotation=models.get("_rotation") is not None)
+
+
+def _scoring_stage(shared: tuple, stage: str):
+    """One of :func:`predict_flights`' scorings of ``shared`` (models, final model sets, flights,
+    horizons; :func:`droneid.runner.fork_map`): "horizons", the multi-step prediction
+    (:class:`~droneid.rollout.RolloutResult`), or "open loop", the open-loop table."""
+    models, sets, flights, horizons = shared
+    if stage == "horizons":
+        return rollout_errors(sets, flights, horizons)
+    return open_loop_section(models, flights, tuple(horizons or (1, 10, 50)))
 
 
 def _screened(flights, ds, signals) -> dict:
