@@ -417,7 +417,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
                  "evidence": plan.offset.decision.evidence if plan.offset.decision else ""}
                 if plan.offset is not None else None),
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
-    rotation_notes: list = []
+    rotation_notes: list = []       # why there is no rotational result, if there is none
     rotation = _rotation(outcome, jobs, rotation_notes)
     res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted, 0.0, outcome.backend,
                                (), {}, rotation=rotation)
@@ -428,9 +428,10 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
             _test_stage, (res, tuple(test_flights)), TEST_STAGES, n)
         if rotation is not None and open_loop is not None:
             rotation = replace(rotation, open_loop_test=open_loop)
-        rotation_notes = h_notes + rotation_notes + o_notes
-    return replace(res, notes=tuple(notes + rotation_notes), horizons=horizons, rotation=rotation,
-                   wall_s=time.perf_counter() - t0)
+        notes += h_notes + rotation_notes + o_notes     # the order of the serial stages they replace
+    else:
+        notes += rotation_notes
+    return replace(res, notes=tuple(notes), horizons=horizons, rotation=rotation, wall_s=time.perf_counter() - t0)
 
 
 #: what :func:`_test_stage` computes on the test flights, in the order of their notes
