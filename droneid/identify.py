@@ -422,11 +422,14 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted, 0.0, outcome.backend,
                                (), {}, rotation=rotation)
     horizons = {}
-    if test_flights:    # three independent scorings of the test flights, side by side on the cores
+    if test_flights:    # independent scorings of the test flights, side by side on the cores
+        stages = ("horizons",) + (("rotation", "open loop") if rotation is not None else ())
         n = cfg.jobs if cfg.jobs is not None else runner.default_jobs()
-        (horizons, h_notes), (rotation, _), (open_loop, o_notes) = runner.fork_map(
-            _test_stage, (res, tuple(test_flights)), TEST_STAGES, n)
-        if rotation is not None and open_loop is not None:
+        done = dict(zip(stages, runner.fork_map(_test_stage, (res, tuple(test_flights)), stages, n)))
+        horizons, h_notes = done["horizons"]
+        o_notes = []
+        if rotation is not None:
+            (rotation, _), (open_loop, o_notes) = done["rotation"], done["open loop"]
             rotation = replace(rotation, open_loop_test=open_loop)
         notes += h_notes + rotation_notes + o_notes     # the order of the serial stages they replace
     else:
@@ -434,27 +437,27 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     return replace(res, notes=tuple(notes), horizons=horizons, rotation=rotation, wall_s=time.perf_counter() - t0)
 
 
-#: what :func:`_test_stage` computes on the test flights, in the order of their notes
-TEST_STAGES = ("horizons", "rotation", "open loop")
-
-
 def _test_stage(shared: tuple, stage: str) -> tuple:
     """One scoring of the test flights (``shared``: the result before scoring and the test
     flights; :func:`droneid.runner.fork_map`): (its value, its notes). "horizons": the multi-step
-    prediction of the v̇ models; "rotation": the rotational result with its test figures;
-    "open loop": the benchmark's open-loop table (None without a rotational result)."""
+    prediction of the v̇ models (:func:`_horizons`); "rotation": the rotational result with its
+    test figures (:func:`_scored_rotation`); "open loop": the benchmark's open-loop table
+    (:func:`_open_loop_test`)."""
     res, flights = shared
     notes: list = []
     if stage == "horizons":
         return _horizons(res.targets, flights, notes), notes
-    if res.rotation is None:
-        return None, notes
-    if stage == "rotation":
-        if not all(t in res.targets for t in ("vx_dot", "vy_dot", "vz_dot")):
-            return res.rotation, notes
-        models = {t: IdentifiedModel.from_dict(res.targets[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
-        return score_rotation(res.rotation, flights, models), notes
-    return _open_loop_test(res, flights, notes), notes
+    scoring = {"rotation": _scored_rotation, "open loop": _open_loop_test}[stage]
+    return scoring(res, flights, notes), notes
+
+
+def _scored_rotation(res: "IdentificationResult", flights, notes: list) -> RotationResult:
+    """``res.rotation`` with its figures on the test flights (open loop with the final v̇ models;
+    as it is when a v̇ target is missing)."""
+    if not all(t in res.targets for t in ("vx_dot", "vy_dot", "vz_dot")):
+        return res.rotation
+    models = {t: IdentifiedModel.from_dict(res.targets[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
+    return score_rotation(res.rotation, flights, models)
 
 
 def run_stage_job(job):

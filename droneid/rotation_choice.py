@@ -390,6 +390,7 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
                 # per axis the 95 % block-bootstrap interval of the decay fitted on every training flight
                 "damping_per_s_interval": [[float(lo), float(hi)] for lo, hi in
                                            damping_interval(logs, grid=damping_grid, regimes=regimes)],
+                "damping_grid": [float(v) for v in damping_grid],
                 **_pooled(f["errs"]["damping"] for f in folds)}
     att_rows = ({"method": "attitude",
                  "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],

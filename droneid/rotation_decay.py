@@ -29,8 +29,8 @@ def fit_damping(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRI
     in flight) has the error ``Σ_{h=1..horizon} |ω_{t+h} − e^{−c h dt} ω_t|``; the windows are
     split into ``regimes`` classes by their error with the rate held (``c = 0``; quantiles), and
     ``c`` minimises the largest ratio over classes of its mean error to the held one (the smallest
-    ``c`` wins a tie), the criterion :func:`select_rotation` judges the rungs by: a decay fitted to
-    the pooled error follows the hard manoeuvres alone. Returns (3,)."""
+    ``c`` wins a tie), the criterion :func:`droneid.rotation_choice.select_rotation` judges the
+    rungs by: a decay fitted to the pooled error follows the hard manoeuvres alone. Returns (3,)."""
     err, _, _ = _decay_errors(logs, grid, horizon, stride)
     return np.asarray(grid, float)[_best_decay(err, regimes)]
 
@@ -38,17 +38,20 @@ def fit_damping(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRI
 def damping_interval(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRID, horizon: int = 50,
                      stride: int = 5, regimes: int = 4, n_boot: int = N_BOOT, seed: int = 0,
                      level: float = 0.95) -> np.ndarray:
-    """(3, 2): per body axis the ``level`` percentile interval (1/s) of :func:`fit_damping`'s decay
-    by a block bootstrap: the windows of each flight are cut into contiguous time blocks
-    (:func:`droneid.validation.time_blocks`, 8-20 a flight), whole blocks are resampled with
-    replacement ``n_boot`` times and the decay is chosen again on each replicate by the same
-    criterion. The decay lives on ``grid`` (steps of ×2), so the bounds are grid values: the
-    lower one rounded down, the upper one up (never narrower than the percentiles)."""
+    """(3, 2): per body axis the spread (1/s) of :func:`fit_damping`'s choice over a block
+    bootstrap, its ``level`` percentile interval: the windows of each flight are cut into
+    contiguous time blocks (:func:`droneid.validation.time_blocks`, 8-20 a flight), every block
+    of every flight is one unit, the units are resampled with replacement ``n_boot`` times and
+    the decay is chosen again on each replicate by the same criterion. The decay lives on
+    ``grid`` (steps of ×2), so the bounds are grid values, the lower one rounded down and the
+    upper one up (never narrower than the percentiles); an upper bound at the grid's top means
+    "that much or more". A choice on a grid has no exact coverage guarantee: see the docs."""
     if not 0.0 < level < 1.0:
         raise ConfigError(f"The 'level' parameter of damping_interval must be in (0, 1). Got {level!r} instead.")
     err, t, flight = _decay_errors(logs, grid, horizon, stride)
     blocks = time_blocks(t, flight)
-    rows = [np.flatnonzero(blocks == b) for b in np.unique(blocks)]
+    units = flight * (int(blocks.max()) + 1) + blocks       # block b of flight f: its own unit
+    rows = [np.flatnonzero(units == u) for u in np.unique(units)]
     rng = np.random.default_rng(seed)
     picks = np.empty((int(n_boot), 3), dtype=int)
     for i in range(int(n_boot)):

@@ -3,6 +3,8 @@ the per-axis verdicts, the candidates' validation, and the whole vehicle open lo
 flights (the nanodrone benchmark's metric) as a table and as drift against the horizon."""
 from __future__ import annotations
 
+import math
+
 from collections.abc import Mapping
 
 from ..rotation_stage import RotationResult
@@ -34,7 +36,9 @@ def _decay_range(rot: RotationResult, k: int) -> str:
         parts = []
         if "damping_per_s_interval" in row:
             lo, hi = row["damping_per_s_interval"][k]
-            parts.append(f"95 % interval {lo:.3g}-{hi:.3g} /s (block bootstrap)")
+            top = max(row.get("damping_grid") or [math.inf])
+            span = f"{lo:.3g} /s or more (the grid ends at {top:.3g} /s)" if hi >= top else f"{lo:.3g}-{hi:.3g} /s"
+            parts.append(f"95 % bootstrap interval {span}")
         if "damping_per_s_range" in row:
             lo, hi = row["damping_per_s_range"][0][k], row["damping_per_s_range"][1][k]
             parts.append(f"{lo:.3g}-{hi:.3g} /s over the leave-one-flight-out refits")
