@@ -4,19 +4,32 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: demo test test-fast install sample-logs bench clean browser
+.PHONY: demo test test-fast install lock sample-logs bench clean browser
 
-$(STAMP): pyproject.toml
+# constraints.txt pins every package (and pip) a fresh .venv gets: the same versions on every
+# machine and in CI, so byte-exact outputs (sample logs, shown figures) stay reproducible.
+$(STAMP): pyproject.toml constraints.txt
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -c constraints.txt pip
 	@# PYTHONWARNINGS: setuptools' build backend prints a boxed 'Editable installation' notice
 	@# on every editable install; the user can do nothing about it, so it is not shown
-	PYTHONWARNINGS=ignore $(BIN)/python -m pip install --quiet -e '.[test]'
+	PYTHONWARNINGS=ignore $(BIN)/python -m pip install --quiet -c constraints.txt -e '.[test]'
 	@echo "compiling the SNGP kernels once (numba cache; later runs load them in < 1 s) ..."
 	@$(BIN)/python -c "import droneid.sngp as s; print(f'compiled in {s.warmup():.1f} s')"
 	@touch $(STAMP)
 
 install: $(STAMP)
+
+# Refresh constraints.txt: the newest releases pyproject.toml admits, resolved in a throw-away
+# venv and frozen. Run make test after it (sample logs are byte-exact: regenerate them with
+# make sample-logs when a writer's library moved) and commit both.
+lock:
+	rm -rf .venv-lock && $(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade pip
+	PYTHONWARNINGS=ignore .venv-lock/bin/python -m pip install --quiet -e '.[test]'
+	{ sed -n '1,3p' constraints.txt; .venv-lock/bin/python -m pip --version | awk '{print "pip==" $$2}'; \
+	  .venv-lock/bin/python -m pip freeze --exclude-editable; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt && rm -rf .venv-lock
 
 demo: $(STAMP)
 	$(BIN)/python -m droneid demo

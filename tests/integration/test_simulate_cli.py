@@ -11,7 +11,26 @@ from droneid.commands.simulate import parse_effect_args
 from droneid.errors import ConfigError
 from droneid.sample_logs import FORMATS, SAMPLES, sample_command
 
-from conftest import SAMPLE_LOGS
+from conftest import ROOT, SAMPLE_LOGS
+
+#: what the sample logs' bytes depend on: the simulator's arithmetic (numpy) and each writer's
+#: library (the MCAP header names its writer library and version; zstd and lz4 compress chunks)
+BYTE_DEPENDENCIES = ("numpy", "pymavlink", "mcap", "mcap-ros2-support", "zstandard", "lz4")
+
+
+def _require_pinned_versions():
+    """The installed versions of :data:`BYTE_DEPENDENCIES` are the ones constraints.txt pins (what
+    `make` installs): the committed bytes were written with those. A mismatch names the package
+    instead of failing at some byte."""
+    from importlib.metadata import version
+    pins = dict(line.split("==", 1) for line in (ROOT / "constraints.txt").read_text().splitlines()
+                if "==" in line and not line.startswith("#"))
+    norm = {k.lower().replace("_", "-"): v.strip() for k, v in pins.items()}
+    off = [f"{name} {version(name)} (constraints.txt pins {norm.get(name)})"
+           for name in BYTE_DEPENDENCIES if version(name) != norm.get(name)]
+    assert not off, ("installed outside `make install`: " + "; ".join(off) +
+                     ". Reinstall with `make clean install`, or after `make lock` regenerate the "
+                     "samples with `make sample-logs` and commit both")
 
 
 def test_simulate_command_writes_logs_and_truth(tmp_path, capsys):
@@ -58,6 +77,7 @@ def test_sample_logs_are_small_and_complete():
 
 def test_regenerating_a_sample_reproduces_the_committed_bytes(tmp_path):
     """`droneid sample-logs --only NAME` rewrites the shipped files byte for byte."""
+    _require_pinned_versions()
     spec = next(s for s in SAMPLES if s.name == "paper_test_square")
     assert main(["-q", "sample-logs", "--out", str(tmp_path), "--only", spec.name]) == 0
     for f in list(spec.formats) + ["truth"]:
@@ -67,6 +87,7 @@ def test_regenerating_a_sample_reproduces_the_committed_bytes(tmp_path):
 
 def test_readme_command_reproduces_the_sample(tmp_path):
     """The `droneid simulate` line in sample_logs/README.md writes the same bytes."""
+    _require_pinned_versions()
     spec = next(s for s in SAMPLES if s.name == "paper_test_square")
     cmd = sample_command(spec)
     assert cmd in (SAMPLE_LOGS / "README.md").read_text()
