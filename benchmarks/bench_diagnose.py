@@ -1,6 +1,6 @@
 """Does ``droneid diagnose`` name the effects a flight has, and only those?
 
-    .venv/bin/python benchmarks/bench_diagnose.py [--flights 48] [--jobs 2] [--seed 0] [--quick] [--verbose]
+    .venv/bin/python benchmarks/bench_diagnose.py [--flights 48] [--per-case 1] [--jobs 2] [--seed 0] [--quick] [--verbose]
 
 Simulates ``--flights`` flights with :func:`droneid.simulate.simulate` (ours; the graders' sets
 come from another simulator) and runs :func:`droneid.diagnose.diagnose` on each with its DEFAULTS
@@ -23,6 +23,11 @@ Flights (all drawn from ``--seed``):
   what they log: rotor speeds (60 %), motor commands only (25 %, rotor-thrust from commands) or
   attitude and mocap only (15 %, tilt-drag prior);
 - noise: position 0.5-2 mm, attitude 0.1-0.4°, rotor speed 10-60 rpm; 40-60 s at 100 Hz.
+
+``--per-case N``: each case is N flights of the same vehicle with the same planted effects (the
+same path, other seeds: other noise, gusts and start), diagnosed together. With N > 1 every
+decision rests on N flights' (flight, time block) units: the power and the false positives
+of a multi-flight diagnosis (issue 37: more flights must not make a weaker or a looser rule).
 
 Scoring per effect id: a detection of a planted effect is a true positive; a detection of
 anything else a false positive, except ``vertical_drag`` on a climbing flight with planted
@@ -145,12 +150,15 @@ def run_flight(spec: dict) -> dict:
     from droneid.simulate import simulate
 
     t0 = time.perf_counter()
-    fl = simulate(**spec["sim"]).flight
-    if spec["logs"] == "commands":
-        fl = fl.without(*(f"rpm{i}" for i in range(1, 5)))
-    elif spec["logs"] == "attitude":
-        fl = fl.without(*_THRUST_SIGNALS)
-    r = diagnose([fl], prior="auto")
+    flights = []
+    for j in range(spec.get("copies", 1)):
+        fl = simulate(**{**spec["sim"], "seed": spec["sim"]["seed"] + 100_000 * j}).flight
+        if spec["logs"] == "commands":
+            fl = fl.without(*(f"rpm{i}" for i in range(1, 5)))
+        elif spec["logs"] == "attitude":
+            fl = fl.without(*_THRUST_SIGNALS)
+        flights.append(fl)
+    r = diagnose(flights, prior="auto")
     rejected = []
     for c in r.candidates:
         best = c["scores"][0] if c["scores"] else None
@@ -193,6 +201,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--flights", type=int, default=48, help="number of flights (default 48)")
     ap.add_argument("--duration", type=float, default=None, help="flight length s (default 40-60)")
+    ap.add_argument("--per-case", type=int, default=1,
+                    help="flights per case, diagnosed together (default 1)")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the flight set (default 0)")
     ap.add_argument("--quick", action="store_true", help="16 flights of 30 s")
@@ -201,7 +211,7 @@ def main(argv=None) -> int:
     n = 16 if args.quick else args.flights
     rng = np.random.default_rng(args.seed)
     durs = [30.0 if args.quick else (args.duration or float(rng.uniform(40, 60))) for _ in range(n)]
-    specs = [flight_spec(i, args.seed, d) for i, d in enumerate(durs)]
+    specs = [{**flight_spec(i, args.seed, d), "copies": max(1, args.per_case)} for i, d in enumerate(durs)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as ex:
         results = list(ex.map(run_flight, specs))
@@ -218,7 +228,7 @@ def main(argv=None) -> int:
                     print(f"       {line}")
                 for k, v in r["untestable"].items():
                     print(f"       untestable {k}: {v}")
-    print(f"bench_diagnose: {n} flights ({s['control_flights']} controls), seed {args.seed}, "
+    print(f"bench_diagnose: {n} cases of {max(1, args.per_case)} flight(s) ({s['control_flights']} controls), seed {args.seed}, "
           f"diagnose defaults (prior auto), {args.jobs} workers, wall {wall:.0f} s "
           f"(CPU load {os.getloadavg()[0]:.1f})")
     print(f"{'effect':18s} {'TP':>3s} {'FP':>3s} {'FN':>3s} {'precision':>9s} {'recall':>7s}")

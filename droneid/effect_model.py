@@ -29,7 +29,7 @@ from .decide import decide
 from .diagnosis_result import DiagnoseConfig, evidence_of, with_test_errors
 from .errors import ConfigError, MissingSignalError
 from .expressions import compile_expression, symbol
-from .validation import block_ids
+from .validation import block_ids, block_in_flight
 from .numerics import lstsq, rmse
 from .targets import velocity_of
 
@@ -191,22 +191,25 @@ def _lstsq(X, y):
 
 
 def _cv(stack: _Stack, X: np.ndarray, n_blocks: int):
-    """Held-out predictions by leave-one-block-out (weighted least squares); per-block weighted
-    MSE and sample counts; the coefficients of every fold (rows; for block-jackknife errors)."""
+    """Held-out predictions by leave-one-block-out (weighted least squares): fold k holds out
+    time block k of every flight (:func:`~droneid.validation.block_in_flight`), so a CV costs
+    ``n_blocks`` solves however many flights; the decisions then take every (flight, block) as
+    its own unit. Per-fold weighted MSE and sample counts; the coefficients of every fold (rows;
+    for block-jackknife errors)."""
     pred = np.zeros_like(stack.y)
     w = stack.w
+    fold = block_in_flight(stack.block, n_blocks)
     folds = []
     for k in range(n_blocks):
-        test = stack.block == k
+        test = fold == k
         if not test.any():
             continue
         beta = _lstsq(X[~test] * w[~test, None], stack.y[~test] * w[~test])
         folds.append(beta)
         pred[test] = X[test] @ beta
     r2 = (w * (stack.y - pred)) ** 2
-    mse = np.array([np.mean(r2[stack.block == k]) if np.any(stack.block == k) else 0.0
-                    for k in range(n_blocks)])
-    n = np.array([np.sum(stack.block == k) for k in range(n_blocks)])
+    mse = np.array([np.mean(r2[fold == k]) if np.any(fold == k) else 0.0 for k in range(n_blocks)])
+    n = np.array([np.sum(fold == k) for k in range(n_blocks)])
     return pred, mse, n, np.array(folds)
 
 
@@ -338,8 +341,9 @@ class EffectModel:
             Xl = te.design({k: cur_test_terms[k] for k in local})
             r = te.y - tp
             lp = np.zeros_like(r)
+            te_fold = block_in_flight(te.block, nb)
             for k in range(nb):
-                hold = te.block == k
+                hold = te_fold == k
                 if hold.any():
                     lp[hold] = Xl[hold] @ _lstsq(Xl[~hold], r[~hold])
             out["test_local_beta"] = dict(zip(local, _lstsq(Xl, r).tolist()))

@@ -196,7 +196,8 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     for part in runner.fork_map(_offset_errors, job, [tuple(grid[i::n]) for i in range(n)], n):
         found.update(part)
     res = {d: found[d] for d in grid}   # the grid's order: the tests below and delay_scores follow it
-    # the rows every offset has, per target; targets side by side (blocks numbered per target)
+    # the rows every offset has, per target; targets side by side (each target's (flight, block)
+    # units numbered apart)
     errs, blocks = {d: [] for d in res}, []
     for i, t in enumerate(targets):
         common = set.intersection(*(set(res[d][t][0].tolist()) for d in res))
@@ -206,7 +207,7 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
             pos = np.searchsorted(k, keys)      # rows are ordered by flight, then time
             errs[d].append(e[pos])
             if d == 0.0:
-                blocks.append(i * 1000 + b[pos])
+                blocks.append(i * 10**9 + b[pos])
     errs = {d: np.concatenate(v) for d, v in errs.items()}
     blocks = np.concatenate(blocks) if blocks else np.zeros(0, int)
     rms = {d: float(np.sqrt(np.mean(e * e))) for d, e in errs.items()}

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear
 
-__all__ = ["RobustFit", "robust_fit", "weighted_bounded_lstsq", "blocked_cv", "block_bootstrap",
+__all__ = ["RobustFit", "robust_fit", "weighted_bounded_lstsq", "gram", "gram_bounded_lstsq",
+           "unit_grams", "blocked_cv", "bootstrap_draws", "block_bootstrap",
            "HUBER_C", "LOSS", "N_BOOT"]
 
 #: Huber's tuning constant, in robust scales of the residuals (95 % Gaussian efficiency)
@@ -57,8 +58,23 @@ def weighted_bounded_lstsq(A: np.ndarray, y: np.ndarray, w: np.ndarray | None = 
     are normalised first; collinear columns get a minimum-norm share; zero columns get 0 (or their
     fixed value)."""
     A = np.asarray(A, float)
-    y = np.asarray(y, float)
-    k = A.shape[1]
+    return gram_bounded_lstsq(gram(A, y, w), lo, hi)
+
+
+def gram(A: np.ndarray, y: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """The weighted sufficient statistics of a least-squares problem: ``[A y]ᵀ diag(w) [A y]``,
+    (k + 1, k + 1). Sums over rows, so the statistics of a union of row sets are the sum of
+    theirs and those of all rows but a block are the total minus the block's (downdating)."""
+    B = np.column_stack([np.asarray(A, float), np.asarray(y, float)])
+    ww = np.ones(B.shape[0]) if w is None else np.asarray(w, float)
+    return B.T @ (B * ww[:, None])
+
+
+def gram_bounded_lstsq(S: np.ndarray, lo=None, hi=None) -> np.ndarray:
+    """:func:`weighted_bounded_lstsq` from the problem's sufficient statistics ``S`` (:func:`gram`):
+    the solution depends on the rows only through them."""
+    S = np.asarray(S, float)
+    k = S.shape[0] - 1
     lo, hi = _bounds(k, lo, hi)
     beta = np.zeros(k)
     if k == 0:
@@ -66,19 +82,18 @@ def weighted_bounded_lstsq(A: np.ndarray, y: np.ndarray, w: np.ndarray | None = 
     fixed = lo == hi
     beta[fixed] = lo[fixed]
     free = ~fixed
-    r = y - A[:, fixed] @ lo[fixed] if fixed.any() else y
     if not free.any():
         return beta
-    ww = np.ones(y.size) if w is None else np.asarray(w, float)
-    Af = A[:, free]
+    fi = np.flatnonzero(free)
+    # Aᵀ W r of the free columns, r = y − A_fixed·β_fixed
+    g_raw = S[fi, k] - (S[np.ix_(fi, np.flatnonzero(fixed))] @ lo[fixed] if fixed.any() else 0.0)
     # normal equations on normalised columns (k x k: fast for thousands of rows); an
     # eigendecomposition gives the minimum-norm share to collinear columns
-    norms = np.sqrt(np.einsum("ij,ij,i->j", Af, Af, ww))
+    norms = np.sqrt(np.maximum(np.diag(S)[fi], 0.0))
     zero = norms == 0
     norms[zero] = 1.0
-    An = Af / norms
-    G = An.T @ (An * ww[:, None])
-    g = An.T @ (ww * r)
+    G = S[np.ix_(fi, fi)] / np.outer(norms, norms)
+    g = g_raw / norms
     e, V = np.linalg.eigh(G)
     keep = e > 1e-12 * max(float(e[-1]), 1e-300)
     c = V.T @ g
@@ -89,9 +104,18 @@ def weighted_bounded_lstsq(A: np.ndarray, y: np.ndarray, w: np.ndarray | None = 
         # the same problem on M = diag(√e) Vᵀ (MᵀM = G): ||M b − diag(1/√e) Vᵀ g||² + const
         se = np.sqrt(e[keep])
         M = se[:, None] * V[:, keep].T
-        b = lsq_linear(M, c[keep] / se, bounds=(flo, fhi), method="bvls" if An.shape[1] <= 20 else "trf").x
+        b = lsq_linear(M, c[keep] / se, bounds=(flo, fhi), method="bvls" if fi.size <= 20 else "trf").x
     beta[free] = np.clip(b / norms, lo[free], hi[free])   # a zero column: 0, or its nearest bound
     return beta
+
+
+def unit_grams(A: np.ndarray, y: np.ndarray, w: np.ndarray, units: np.ndarray) -> tuple[np.ndarray, list]:
+    """(ids, per-unit :func:`gram` (U, k + 1, k + 1), rows of each unit): the sufficient statistics
+    of every resampling or hold-out unit, computed once (O(rows · k²) in all)."""
+    ids = np.unique(units)
+    rows = [np.flatnonzero(units == u) for u in ids]
+    S = np.stack([gram(A[r], y[r], w[r]) for r in rows]) if rows else np.zeros((0, A.shape[1] + 1, A.shape[1] + 1))
+    return ids, S, rows
 
 
 def _scale(r: np.ndarray) -> float:
@@ -139,28 +163,39 @@ def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=Non
     """Held-out predictions on ``A`` (an intercept column included by the caller, if any): every
     block is predicted by the bounded least squares on all other blocks, with the robust (Huber)
     weights of :func:`robust_fit` on all rows (one step per fold instead of a full IRLS: the
-    weights are a property of the training rows, and this keeps a CV at one solve per block)."""
+    weights are a property of the training rows). Each fold's statistics are the total's minus
+    its block's (:func:`unit_grams`), so the cost grows with the rows, not rows × blocks."""
     A = np.asarray(A, float)
-    pred = np.empty_like(np.asarray(y, float))
+    y = np.asarray(y, float)
+    pred = np.empty_like(y)
     w = robust_fit(A, y, lo, hi).weights
-    for b in np.unique(blocks):
-        hold = blocks == b
-        beta = weighted_bounded_lstsq(A[~hold], y[~hold], w[~hold], lo, hi)
-        pred[hold] = A[hold] @ beta
+    ids, S, rows = unit_grams(A, y, w, np.asarray(blocks))
+    total = S.sum(axis=0)
+    for Sb, r in zip(S, rows):
+        pred[r] = A[r] @ gram_bounded_lstsq(total - Sb, lo, hi)
     return pred
+
+
+def bootstrap_draws(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, fit: RobustFit, lo=None, hi=None,
+                    *, n_boot: int = N_BOOT, seed: int = 0) -> np.ndarray:
+    """(n_boot, k) coefficients refit on block-bootstrap replicates: whole blocks (units: one
+    per (flight, time block), :func:`droneid.validation.block_ids`) resampled with replacement,
+    each replicate refit with the full fit's robust weights (one bounded least squares each,
+    from the sum of the drawn units' statistics)."""
+    A = np.asarray(A, float)
+    ids, S, _ = unit_grams(A, np.asarray(y, float), fit.weights, np.asarray(blocks))
+    rng = np.random.default_rng(seed)
+    draws = np.empty((n_boot, A.shape[1]))
+    flat = S.reshape(ids.size, -1)
+    for i in range(n_boot):
+        counts = np.bincount(rng.integers(0, ids.size, ids.size), minlength=ids.size).astype(float)
+        draws[i] = gram_bounded_lstsq((counts @ flat).reshape(S.shape[1:]), lo, hi)
+    return draws
 
 
 def block_bootstrap(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, fit: RobustFit, lo=None, hi=None,
                     *, n_boot: int = N_BOOT, seed: int = 0, level: float = 0.95) -> np.ndarray:
-    """(k, 2) percentile interval of each coefficient: whole blocks resampled with replacement,
-    each replicate refit with the full fit's robust weights (one bounded least squares each)."""
-    A = np.asarray(A, float)
-    ids = np.unique(blocks)
-    rows = [np.flatnonzero(blocks == b) for b in ids]
-    rng = np.random.default_rng(seed)
-    draws = np.empty((n_boot, A.shape[1]))
-    for i in range(n_boot):
-        pick = np.concatenate([rows[j] for j in rng.integers(0, ids.size, ids.size)])
-        draws[i] = weighted_bounded_lstsq(A[pick], y[pick], fit.weights[pick], lo, hi)
+    """(k, 2) percentile interval of each coefficient over :func:`bootstrap_draws`."""
+    draws = bootstrap_draws(A, y, blocks, fit, lo, hi, n_boot=n_boot, seed=seed)
     a = 100 * (1 - level) / 2
     return np.percentile(draws, [a, 100 - a], axis=0).T

@@ -16,6 +16,7 @@ from .diagnosis_result import DiagnoseConfig, evidence_of, with_test_errors
 from .effect_model import Part
 from .numerics import rmse
 from .sngp import SNGPRegressor
+from .validation import block_in_flight
 
 __all__ = ["search_residuals", "clock_like", "equation_signals"]
 
@@ -81,8 +82,9 @@ def _search_one(part: Part, resid: np.ndarray, test, cfg: DiagnoseConfig, family
         m.fit(X[idx], resid[idx], feature_names=names)
         return m
 
-    # interleaved-block 2-fold CV: fit on even blocks, predict odd, and vice versa
-    even = part.block % 2 == 0
+    # interleaved-block 2-fold CV: fit on the even time blocks of every flight, predict the odd
+    # ones, and vice versa
+    even = block_in_flight(part.block, cfg.n_blocks) % 2 == 0
     pred = np.zeros_like(resid)
     for k, rows in enumerate((even, ~even)):
         m = run(rows, cfg.seed + k)

@@ -49,8 +49,7 @@ def damping_interval(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPIN
     if not 0.0 < level < 1.0:
         raise ConfigError(f"The 'level' parameter of damping_interval must be in (0, 1). Got {level!r} instead.")
     err, t, flight = _decay_errors(logs, grid, horizon, stride)
-    blocks = time_blocks(t, flight)
-    units = flight * (int(blocks.max()) + 1) + blocks       # block b of flight f: its own unit
+    units = time_blocks(t, flight)       # block b of flight f: its own unit
     rows = [np.flatnonzero(units == u) for u in np.unique(units)]
     rng = np.random.default_rng(seed)
     picks = np.empty((int(n_boot), 3), dtype=int)

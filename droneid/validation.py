@@ -15,21 +15,31 @@ import numpy as np
 from .data import Dataset
 from .errors import ConfigError, DataError, MissingSignalError, check_choice
 
-__all__ = ["block_ids", "validation_blocks", "time_blocks", "n_blocks_for", "split_time_block",
+__all__ = ["block_ids", "block_in_flight", "validation_blocks", "time_blocks", "n_blocks_for", "split_time_block",
            "split_by_flight"]
 
 
 def block_ids(t: np.ndarray, flight: np.ndarray, n_blocks: int) -> np.ndarray:
-    """Contiguous time blocks 0..n_blocks-1 inside each flight, with equal sample counts
-    (so trimmed ground time or gaps leave no block empty)."""
+    """One id per (flight, contiguous time block): ``n_blocks`` blocks inside each flight, with
+    equal sample counts (so trimmed ground time or gaps leave no block empty); block b of the
+    i-th flight (in sorted order) is ``i · n_blocks + b``. Every (flight, block) is its own unit
+    of a block test or a bootstrap, so more flights mean more units (block b of every flight
+    taken together would leave a test with n_blocks units however many flights there are).
+    :func:`block_in_flight` gives b back (a CV fold shared by the flights)."""
     t = np.asarray(t, float)
     flight = np.asarray(flight, int)
     out = np.zeros(t.size, dtype=int)
-    for f in np.unique(flight):
+    for i, f in enumerate(np.unique(flight)):
         idx = np.flatnonzero(flight == f)
         order = idx[np.argsort(t[idx], kind="stable")]
-        out[order] = np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1), n_blocks - 1)
+        out[order] = i * n_blocks + np.minimum((n_blocks * np.arange(order.size)) // max(order.size, 1),
+                                               n_blocks - 1)
     return out
+
+
+def block_in_flight(ids: np.ndarray, n_blocks: int) -> np.ndarray:
+    """The time block 0..n_blocks-1 inside its flight of each :func:`block_ids` id."""
+    return np.asarray(ids, int) % int(n_blocks)
 
 
 def validation_blocks(t: np.ndarray, flight: np.ndarray) -> tuple[np.ndarray, str]:
@@ -44,10 +54,10 @@ def validation_blocks(t: np.ndarray, flight: np.ndarray) -> tuple[np.ndarray, st
 
 
 def time_blocks(t: np.ndarray, flight: np.ndarray, *, family: int = 1, alpha: float = 1.0) -> np.ndarray:
-    """Contiguous time blocks of the training flights for intervals and block tests:
-    :func:`n_blocks_for` the rows of an average flight, per flight (~150 samples a block), and at
-    least enough blocks in all that a sign-flip test over them can reach ``alpha / family``
-    (its smallest p is 2^-B)."""
+    """Contiguous time blocks of the training flights for intervals and block tests, one unit per
+    (flight, block) (:func:`block_ids`): :func:`n_blocks_for` the rows of an average flight, per
+    flight (~150 samples a block), and at least enough units in all that a sign-flip test over
+    them can reach ``alpha / family`` (its smallest p is 2^-B)."""
     flights = np.unique(flight)
     nf = max(flights.size, 1)
     need = math.ceil(math.log2(max(family, 1) / alpha)) + 1 if alpha < 1.0 else 0

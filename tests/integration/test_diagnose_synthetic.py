@@ -8,6 +8,7 @@ import pytest
 
 import diag_synth as S
 from droneid.diagnose import NO_FURTHER, DiagnoseConfig, block_ids, diagnose_datasets
+from droneid.validation import block_in_flight
 from droneid.errors import ConfigError
 
 CFG = DiagnoseConfig(generations=0)
@@ -91,9 +92,12 @@ def test_block_ids_are_contiguous_per_flight():
     t = np.r_[np.arange(0, 10, 0.1), np.arange(0, 5, 0.1)]
     f = np.r_[np.zeros(100, int), np.ones(50, int)]
     b = block_ids(t, f, 5)
-    assert set(b) == set(range(5))
+    # one unit per (flight, block): the second flight's blocks are not the first one's
+    assert set(b[f == 0]) == set(range(5)) and set(b[f == 1]) == set(range(5, 10))
     for k in range(2):
         assert np.all(np.diff(b[f == k]) >= 0)
+        assert np.bincount(b[f == k] % 5).min() == np.bincount(b[f == k] % 5).max()   # equal counts
+    assert np.array_equal(block_in_flight(b, 5)[f == 1], block_ids(t[f == 1], f[f == 1] * 0, 5))
 
 
 def test_config_validation_and_unknown_effect():
