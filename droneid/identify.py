@@ -39,6 +39,7 @@ from .export import export_models, input_sources
 from .flight import Flight
 from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
+from .constancy import Constancy, constancy_sentence
 from .io_util import to_jsonable
 from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung
 from .predict import models_from_document, open_loop_section, predict_flights
@@ -158,6 +159,12 @@ class TargetResult:
         return self.final_rung.intercept
 
     @property
+    def constancy(self) -> Mapping[str, Constancy]:
+        """The final model's vehicle constants across the training flights (or stretches of one
+        flight): :class:`~droneid.constancy.Constancy` by coefficient (prior terms unbracketed)."""
+        return {k.strip("⟨⟩"): v for k, v in self.final_rung.constancy.items()}
+
+    @property
     def chosen_run(self) -> RunRecord | None:
         """The run whose evolved terms are in the final model, or None."""
         i = self.guards.chosen_run
@@ -180,6 +187,7 @@ class TargetResult:
             "empirical_refit": dict(self.empirical_refit), "runs": [r.summary() for r in self.runs],
             "failed_runs": dict(self.failed_runs), "test_series": dict(self.test_series),
             "notes": list(self.notes), "intervals": {k: v.to_list() for k, v in self.intervals.items()},
+            "constancy": {k: v.to_dict() for k, v in self.constancy.items()},
             "screened": {k: dict(v) for k, v in self.screened.items()},
             "input_ranges": {k: list(v) for k, v in self.input_ranges.items()}})
 
@@ -247,7 +255,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         constraints=(getattr(cset, "name", "") or "custom") if cset is not None and cfg.constrained else "none",
         prior_features=tuple(map(FeatureText.of_feature, feats)),
         empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
-        ladder=ladder, guards=guards, verdict=str(vd), verdict_kind=vd.kind,
+        ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy)))),
+        verdict_kind=vd.kind,
         equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
         readable_equation(p.target, {}, {}, final.intercept),
         identified=identified, empirical=dict(p.empirical), empirical_refit=dict(p.empirical_refit),

@@ -24,6 +24,7 @@ import sympy as sp
 
 from .constraint_samples import constraint_rmse
 from .data import Dataset
+from .constancy import Constancy
 from .decide import decide
 from .errors import ConfigError, DataError
 from .expressions import round_expr, symbol, to_text
@@ -82,6 +83,8 @@ class Rung:
         identify; at_bound : {label: value}, coefficients the data pull to a physical bound
     evidence : sentences saying why (holds, bounds)
     pred_test : the rung's prediction on the test rows (memory only, not in result.json)
+    constancy : {label: :class:`~droneid.constancy.Constancy`}, each vehicle constant's values
+        per training flight (or stretch of one flight) and its constancy test
     """
     name: str
     description: str
@@ -97,6 +100,7 @@ class Rung:
     at_bound: Mapping[str, float] = field(default_factory=dict)
     evidence: tuple[str, ...] = ()
     pred_test: np.ndarray | None = field(default=None, repr=False, compare=False)
+    constancy: Mapping[str, Constancy] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """The rung as ``result.json`` holds it (``targets.<t>.ladder[i]``; no ``pred_test``)."""
@@ -105,7 +109,8 @@ class Rung:
                 "constraint_rmse_test": self.constraint_rmse_test, "terms": dict(self.terms),
                 "intercept": self.intercept, "model": self.model.to_dict(),
                 "intervals": {k: v.to_list() for k, v in self.intervals.items()},
-                "held": dict(self.held), "at_bound": dict(self.at_bound), "evidence": list(self.evidence)}
+                "held": dict(self.held), "at_bound": dict(self.at_bound), "evidence": list(self.evidence),
+                "constancy": {k: v.to_dict() for k, v in self.constancy.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Rung":
@@ -119,7 +124,9 @@ class Rung:
                        {str(k): Interval.of(v) for k, v in d["intervals"].items()},
                        {str(k): float(v) for k, v in d["held"].items()},
                        {str(k): float(v) for k, v in d["at_bound"].items()},
-                       tuple(str(e) for e in d["evidence"]))
+                       tuple(str(e) for e in d["evidence"]), None,
+                       # results written before the constancy test have none
+                       {str(k): Constancy.from_dict(v) for k, v in (d["constancy"] if "constancy" in d else {}).items()})
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise DataError(f"not a ladder rung: {type(exc).__name__} {exc}") from None
 
@@ -189,7 +196,8 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
     tr_cols, te_cols = train.columns(), test.columns()
     evidence = None
     if isinstance(model, TermModel):
-        evidence = physical_fit(model, tr_cols, train.y, bootstrap_blocks(train))
+        evidence = physical_fit(model, tr_cols, train.y, bootstrap_blocks(train), flight=train.flight,
+                                t=train.t, sources=train.sources)
         model = evidence.model
         p_tr, p_te = model.predict(tr_cols, len(train)), model.predict(te_cols, len(test))
         val = model.cv_rmse(tr_cols, train.y, blocks) if fitted and blocks is not None else rmse(p_tr, train.y)
@@ -208,7 +216,7 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
                 _ec(p_cs, cs) if p_cs is not None else float("nan"), dict(terms or {}), intercept, final,
                 {k: Interval.of(v) for k, v in evidence.intervals.items()} if evidence else {},
                 dict(evidence.held) if evidence else {}, dict(evidence.at_bound) if evidence else {},
-                tuple(evidence.notes) if evidence else (), p_te)
+                tuple(evidence.notes) if evidence else (), p_te, dict(evidence.constancy) if evidence else {})
 
 
 def _physical_model(p: TargetProblem, features) -> TermModel:

@@ -18,16 +18,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import sympy as sp
 
 from .expressions import compile_expression
 from .numerics import rmse
-from .regression import block_bootstrap, blocked_cv, robust_fit
+from .constancy import MIN_TAU_REL, MIN_UNIT_ROWS, Constancy, heterogeneity, holm_flags, units_of
+from .regression import block_bootstrap, blocked_cv, bootstrap_draws, robust_fit
+from .validation import time_blocks
 
-__all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
+__all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "constancy_of", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
            "nested_functions", "evaluate_expr", "drop_negligible", "trim_terms", "plausible"]
 
 
@@ -182,14 +184,18 @@ def prior_terms(prior, target: str, features: Sequence | None = None) -> TermMod
 @dataclass(frozen=True)
 class PhysicalFit:
     """A fitted model with its evidence: ``model`` (fitted), ``intervals`` {label: (low, high)}
-    (95 %, block bootstrap), ``held`` {label: value} (not identifiable, held at the nominal
-    value), ``at_bound`` {label: bound} (the data pull the coefficient outside its physical
-    range: it sits on the bound), ``notes`` (one line per held or bounded coefficient)."""
+    (95 %: the block bootstrap, and for a vehicle constant fitted on several flights its hull
+    with the between-flight interval, :mod:`droneid.constancy`), ``held`` {label: value} (not
+    identifiable, held at the nominal value), ``at_bound`` {label: bound} (the data pull the
+    coefficient outside its physical range: it sits on the bound), ``notes`` (one line per held
+    or bounded coefficient), ``constancy`` {label: :class:`~droneid.constancy.Constancy`} of
+    every vehicle constant fitted (empty without the rows' flights)."""
     model: TermModel
     intervals: dict
     held: dict
     at_bound: dict
     notes: tuple = ()
+    constancy: dict = field(default_factory=dict)
 
 
 def _vif(A: np.ndarray, j: int, with_intercept: bool) -> float:
@@ -206,13 +212,18 @@ def _vif(A: np.ndarray, j: int, with_intercept: bool) -> float:
     return math.inf if r2 >= 1.0 else 1.0 / (1.0 - r2)
 
 
-def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physical: int | None = None
-                 ) -> PhysicalFit:
+def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physical: int | None = None,
+                 flight=None, t=None, sources: Sequence[str] = ()) -> PhysicalFit:
     """Fit ``model`` (robust, bounded), give every coefficient its 95 % block-bootstrap interval
     (``blocks``: time blocks of the training flights), and hold at its nominal value 1 each of the
     first ``n_physical`` terms (default: every term with a physical bound) that the data cannot pin
     down: interval wider than ±:data:`IDENTIFIABLE_REL` of max(|value|, 1), or collinear (VIF >
-    :data:`VIF_LIMIT`). Evolved and effect terms (free) are reported, never held."""
+    :data:`VIF_LIMIT`). Evolved and effect terms (free) are reported, never held.
+
+    With the rows' ``flight`` ids and times ``t`` (``sources``: the flights' names), every
+    vehicle constant left free (a term with a physical bound: thrust, tilt, drag) also gets its
+    constancy across flights or stretches of one flight (:func:`constancy_of`), and with several
+    flights its interval becomes the hull of the bootstrap's and the between-flight one."""
     lo, hi = model.bounds()
     k = len(model.terms)
     phys = [i for i in range(k if n_physical is None else n_physical)
@@ -249,7 +260,75 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
             at_bound[lab] = c
             notes.append(f"{lab} sits on its physical bound {c:g}: the data pull it outside "
                          f"[{lo[i]:g}, {hi[i]:g}] (e.g. negative drag); the bound holds")
-    return PhysicalFit(fitted, iv, held, at_bound, tuple(notes))
+    constancy = {}
+    if flight is not None and t is not None:
+        constancy = constancy_of(model, columns, y, [i for i in phys if model.labels[i] not in held],
+                                 np.asarray(flight), np.asarray(t), sources, seed=seed)
+        for i, lab in enumerate(model.labels):
+            c = constancy.get(lab)
+            if c is not None and c.between is not None:   # the hull, within the physical range
+                a, b = iv[lab]
+                iv[lab] = (max(min(a, c.between[0]), lo[i]), min(max(b, c.between[1]), hi[i]))
+    return PhysicalFit(fitted, iv, held, at_bound, tuple(notes), constancy)
+
+
+def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.ndarray, t: np.ndarray,
+                 sources: Sequence[str] = (), *, seed: int = 0) -> dict:
+    """{label: :class:`~droneid.constancy.Constancy`} of the coefficients ``which`` (indices of
+    ``model``'s vehicle constants): ``model`` (its bounds and held values) fitted on every
+    training flight alone, or on every stretch of the one flight (:func:`droneid.constancy.units_of`),
+    each with its block-bootstrap standard error over its own time blocks (inflated by
+    B/(B − 1) for B blocks), tested and combined by :func:`droneid.constancy.heterogeneity`, flagged
+    by Holm over ``which`` (:func:`droneid.constancy.holm_flags`)."""
+    if not which:
+        return {}
+    unit, names, kind = units_of(t, flight, sources)
+    lo, hi = model.bounds()
+    vals, ses, ivs = [], [], []
+    used = []
+    for u, name in enumerate(names):
+        rows = np.flatnonzero(unit == u)
+        if rows.size < MIN_UNIT_ROWS:
+            continue
+        sub = {n: np.asarray(v)[rows] for n, v in columns.items()}
+        A, yy, _, _ = model._problem(sub, np.asarray(y, float)[rows])
+        f = robust_fit(A, yy, lo, hi)
+        blocks = time_blocks(t[rows], np.zeros(rows.size, int))
+        b = np.unique(blocks).size
+        draws = bootstrap_draws(A, yy, blocks, f, lo, hi, seed=seed)
+        se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
+        pct = np.percentile(draws, [2.5, 97.5], axis=0)
+        vals.append(f.beta)
+        ses.append(se)
+        ivs.append(pct)
+        used.append(name)
+    if len(used) < 2:
+        return {}
+    vals, ses = np.array(vals), np.array(ses)
+    het = {model.labels[i]: heterogeneity(vals[:, i], ses[:, i]) for i in which}
+    flags = holm_flags({lab: h["p"] for lab, h in het.items()})
+    out = {}
+    for i in which:
+        lab = model.labels[i]
+        h = het[lab]
+        out[lab] = Constancy(
+            kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(used)},
+            h["p"], (not (flags[lab] and h["tau"] >= MIN_TAU_REL * abs(h["mean"]))) if math.isfinite(h["p"]) else None,
+            (h["low"], h["high"]) if kind == "flight" else None, h["tau"], _physical_scale(model.terms[i]))
+    return out
+
+
+def _physical_scale(term: sp.Expr) -> tuple[float, str] | None:
+    """(k, "1/s") for a linear drag term written ``−k·v`` on one velocity (its coefficient times k
+    is the drag in 1/s), else None."""
+    syms = term.free_symbols
+    if len(syms) != 1:
+        return None
+    v = next(iter(syms))
+    if v.name not in ("vx", "vy", "vz"):
+        return None
+    c = sp.simplify(term / v)
+    return (float(-c), "1/s") if c.is_number and float(c) < 0 else None
 
 
 #: an evolved term with more operations than this is not something a person can read aloud

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from ..constancy import constancy_line
 from ..errors import ConfigError
 from ..expressions import parse_expression
 from ..identify import IdentificationResult, TargetResult
@@ -60,7 +61,12 @@ def interval_lines(tr: TargetResult) -> list[str]:
         c = final.intercept if lab == "intercept" else final.terms[lab]
         held = " held" if lab in final.held else ""
         parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}]{held}")
-    return ["  95 % intervals (block bootstrap over the training flights' time blocks): " + "; ".join(parts)]
+    several = any(c.unit == "flight" for c in final.constancy.values())
+    how = ("block bootstrap over the training flights' (flight, time block) units; a vehicle "
+           "constant's widened to cover how the flights differ" if several else
+           "block bootstrap over the training flights' (flight, time block) units")
+    return [f"  95 % intervals ({how}): " + "; ".join(parts),
+            *filter(None, [constancy_line(final.constancy)])]
 
 
 def screened_lines(tr: TargetResult) -> list[str]:

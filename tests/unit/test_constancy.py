@@ -1,0 +1,136 @@
+"""Vehicle constants across flights (droneid.constancy, terms.physical_fit with flights): the
+constancy test flags a coefficient that moves between flights, keeps one that does not, has its
+size on exact-noise draws, and the interval of a pooled constant covers how flights differ."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+
+from droneid.constancy import (ALPHA, Constancy, constancy_line, constancy_sentence, heterogeneity,
+                               holm_flags, n_stretches, units_of)
+from droneid.terms import TermModel, physical_fit
+from droneid.validation import time_blocks
+
+
+def test_heterogeneity_of_agreeing_and_disagreeing_units():
+    same = heterogeneity([1.0, 1.01, 0.99, 1.0], [0.02] * 4)
+    assert same["p"] > 0.5 and same["tau"] == 0.0 and same["low"] < 1.0 < same["high"]
+    apart = heterogeneity([0.2, 0.3, 1.4, 1.5], [0.02] * 4)
+    assert apart["p"] < 1e-6 and apart["tau"] > 0.3
+    # the between-flight interval counts the spread: it reaches well past the within-unit noise
+    assert apart["high"] - apart["low"] > 1.0
+    assert math.isnan(heterogeneity([1.0], [0.1])["p"])
+
+
+def test_the_q_test_has_its_size_on_units_that_differ_by_their_noise_only():
+    rng = np.random.default_rng(0)
+    se = np.array([0.01, 0.02, 0.015, 0.03, 0.01])
+    ps = np.array([heterogeneity(1.0 + se * rng.standard_normal(5), se)["p"] for _ in range(4000)])
+    assert abs(np.mean(ps < 0.05) - 0.05) < 0.015
+    assert np.mean(ps < ALPHA) < 0.02
+
+
+def test_random_effects_interval_covers_the_mean_of_heterogeneous_flights():
+    """Flights whose constants scatter around μ with spread τ (noise se): the HKSJ interval from
+    the flights covers μ in about 95 % of draws (the point of counting flight-to-flight variation)."""
+    rng = np.random.default_rng(1)
+    hits = 0
+    for _ in range(2000):
+        se = rng.uniform(0.01, 0.03, 5)
+        v = 1.0 + 0.1 * rng.standard_normal(5) + se * rng.standard_normal(5)
+        h = heterogeneity(v, se)
+        hits += h["low"] <= 1.0 <= h["high"]
+    assert hits / 2000 >= 0.93
+
+
+def test_holm_flags():
+    assert holm_flags({"a": 0.001, "b": 0.2}) == {"a": True, "b": False}
+    assert holm_flags({"a": 0.006, "b": 0.004}) == {"a": True, "b": True}    # 0.004 < 0.01/2, then 0.006 < 0.01
+    assert holm_flags({"a": 0.012, "b": 0.004}) == {"a": False, "b": True}
+    assert holm_flags({"a": float("nan"), "b": 0.001}) == {"a": False, "b": True}
+
+
+def test_units_are_flights_or_stretches_of_one_flight():
+    t = np.tile(np.arange(200) * 0.05, 3)
+    f = np.repeat([0, 2, 5], 200)
+    u, names, kind = units_of(t, f, ["a", "b", "c", "d", "e", "f"])
+    assert kind == "flight" and names == ["a", "c", "f"] and list(np.unique(u)) == [0, 1, 2]
+    u, names, kind = units_of(t[:200], f[:200], ["a"])
+    assert kind == "stretch" and len(names) == 4 and np.all(np.diff(u) >= 0)
+    assert n_stretches(60) == 0 and n_stretches(100) == 2
+
+
+def _flights(slopes, n=600, seed=0, noise=0.1):
+    """Rows of flights y = slope_f · x + noise (AR(1), like a derivative target), x a manoeuvre."""
+    rng = np.random.default_rng(seed)
+    x, y, fl, t = [], [], [], []
+    for i, s in enumerate(slopes):
+        tt = np.arange(n) * 0.05
+        xi = np.sin(0.7 * tt + i) + 0.5 * np.sin(2.3 * tt)
+        e = np.zeros(n)
+        for k in range(1, n):
+            e[k] = 0.5 * e[k - 1] + noise * rng.standard_normal()
+        x.append(xi), y.append(s * xi + e), fl.append(np.full(n, i)), t.append(tt)
+    return np.concatenate(x), np.concatenate(y), np.concatenate(fl), np.concatenate(t)
+
+
+def _model():
+    v = sp.Symbol("vx")
+    return TermModel((-0.28 * v,), ("⟨minus_kD_vx⟩",), lo=(0.0,), hi=(math.inf,), intercept_bounds=(0.0, 0.0))
+
+
+def test_physical_fit_flags_a_drag_that_moves_between_flights_and_widens_its_interval():
+    x, y, fl, t = _flights([-0.28 * 0.3, -0.28 * 1.4, -0.28 * 0.5, -0.28 * 1.2])
+    cols = {"vx": x}
+    pooled = physical_fit(_model(), cols, y, time_blocks(t, fl))
+    fit = physical_fit(_model(), cols, y, time_blocks(t, fl), flight=fl, t=t, sources=["a", "b", "c", "d"])
+    c = fit.constancy["⟨minus_kD_vx⟩"]
+    assert c.unit == "flight" and c.constant is False and c.p < 1e-6
+    assert sorted(round(v[0], 1) for v in c.per_unit.values()) == [0.3, 0.5, 1.2, 1.4]
+    lo0, hi0 = pooled.intervals["⟨minus_kD_vx⟩"]
+    lo1, hi1 = fit.intervals["⟨minus_kD_vx⟩"]
+    assert hi1 - lo1 > 3 * (hi0 - lo0) and lo1 >= 0.0        # wider, never past the physical bound
+    assert "NOT vehicle constants" in constancy_sentence(fit.constancy)
+    assert "1/s" in constancy_line(fit.constancy)          # the drag in physical units too
+
+
+def test_physical_fit_keeps_a_constant_drag_and_its_interval_covers_it():
+    x, y, fl, t = _flights([-0.28] * 4, seed=3)
+    fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=["a", "b", "c", "d"])
+    c = fit.constancy["⟨minus_kD_vx⟩"]
+    assert c.constant is True and c.between is not None
+    lo, hi = fit.intervals["⟨minus_kD_vx⟩"]
+    assert lo <= 1.0 <= hi
+    assert constancy_sentence(fit.constancy) == ""
+
+
+def test_one_flight_is_tested_in_stretches_and_says_it_cannot_see_other_flights():
+    x, y, fl, t = _flights([-0.28], n=800)
+    y = y + np.where(t > 20, -0.28 * 2.0 * x, 0.0)        # the drag triples half-way: something unmodelled
+    fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=["a"])
+    c = fit.constancy["⟨minus_kD_vx⟩"]
+    assert c.unit == "stretch" and c.between is None and c.constant is False
+    assert "one flight cannot show how flights differ" in constancy_line(fit.constancy)
+
+
+def test_constancy_round_trips_through_json():
+    c = Constancy("flight", {"a": (1.0, 0.9, 1.1), "b": (1.2, 1.1, 1.3)}, 0.003, False, (0.8, 1.4), 0.1, (0.28, "1/s"))
+    assert Constancy.from_dict(c.to_dict()) == c
+    assert "per_flight" in c.to_dict()
+    s = Constancy("stretch", {"0-5 s": (1.0, 0.9, 1.1)}, float("nan"), None)
+    back = Constancy.from_dict(s.to_dict())
+    assert back.unit == "stretch" and back.constant is None and math.isnan(back.p)
+
+
+def test_a_tiny_spread_is_not_a_finding():
+    """Holm-significant but τ under 1 % of the value: still constant (the minimum effect)."""
+    x, y, fl, t = _flights([-0.28, -0.28 * 1.004, -0.28 * 0.996, -0.28], seed=5, noise=0.001)
+    fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=["a", "b", "c", "d"])
+    c = fit.constancy["⟨minus_kD_vx⟩"]
+    assert c.p < 1e-6 and 0 < c.tau < 0.01          # significant, but a spread of under 1 %
+    assert c.constant is True
+    x, y, fl, t = _flights([-0.28, -0.28 * 1.04, -0.28 * 0.96, -0.28], seed=5, noise=0.001)
+    fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=["a", "b", "c", "d"])
+    assert fit.constancy["⟨minus_kD_vx⟩"].constant is False     # 4 %: a finding
