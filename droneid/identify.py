@@ -255,7 +255,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         constraints=(getattr(cset, "name", "") or "custom") if cset is not None and cfg.constrained else "none",
         prior_features=tuple(map(FeatureText.of_feature, feats)),
         empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
-        ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy)))),
+        ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy),
+                                                                  _offset_caveat(p)))),
         verdict_kind=vd.kind,
         equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
         readable_equation(p.target, {}, {}, final.intercept),
@@ -266,6 +267,17 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
                       for i, n in enumerate(p.train.input_names)} if len(p.train) else {},
         screened={"training": dict(p.train.screened),
                   **({"test": dict(p.test.screened)} if len(p.test) and not p.holdout else {})})
+
+
+def _offset_caveat(p: TargetProblem) -> str:
+    """The verdict's words when the targets disagree on the thrust inputs' offset (one clock
+    offset of the log cannot be several): the target's thrust and drag scales absorb it."""
+    off = p.plan.offset if p.plan is not None else None
+    if off is None or off.targets_agree or not p.plan.delays_s:
+        return ""
+    return ("Its thrust and drag scales are NOT vehicle constants here: the targets disagree on the thrust "
+            "inputs' offset (" + ", ".join(f"{t} {1000 * b:+.0f} ms" for t, (b, _, _) in off.per_target.items())
+            + "), so the scales absorb what the model lacks.")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -423,7 +435,9 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
         validation=next(iter(problems.values())).validation, delays_s=dict(plan.delays_s),
         delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
         offset=({"offset_s": plan.offset.offset_s, "interval_s": list(plan.offset.interval_s),
-                 "evidence": plan.offset.decision.evidence if plan.offset.decision else ""}
+                 "evidence": plan.offset.decision.evidence if plan.offset.decision else "",
+                 "per_target": {t: list(v) for t, v in plan.offset.per_target.items()},
+                 "targets_agree": plan.offset.targets_agree}
                 if plan.offset is not None else None),
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     rotation_notes: list = []       # why there is no rotational result, if there is none

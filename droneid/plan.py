@@ -118,11 +118,34 @@ class OffsetDecision:
     interval_s : (low, high) the offsets the best one is not significantly better than (95 %)
     scores : {d: joint held-out RMSE relative to d = 0}; decision : the Holm-controlled block test
         (:class:`droneid.decide.Decision`) of the best candidate, or None when none was testable
+    per_target : {target: (best offset, low, high) s} each target's own best offset and the offsets
+        it does not beat (95 %, the same rule as ``interval_s``): a clock offset is one for the
+        log, so targets whose intervals do not overlap (:attr:`targets_agree` False) say the
+        model lacks something in how thrust follows its signals (a motor lag, say) and the
+        thrust and drag scales absorb it
     """
     offset_s: float
     interval_s: tuple
     scores: dict
     decision: object | None
+    per_target: Mapping[str, tuple] = field(default_factory=dict)
+
+    @property
+    def targets_agree(self) -> bool:
+        """Whether some offset lies in every target's own interval."""
+        if len(self.per_target) < 2:
+            return True
+        return max(v[1] for v in self.per_target.values()) <= min(v[2] for v in self.per_target.values())
+
+    def disagreement(self) -> str:
+        """One sentence when the targets disagree on the offset, else ""."""
+        if self.targets_agree:
+            return ""
+        each = ", ".join(f"{t} {1000 * b:+.0f} ms [{1000 * lo:+.0f}, {1000 * hi:+.0f}]"
+                         for t, (b, lo, hi) in self.per_target.items())
+        return (f"the targets disagree on the thrust inputs' offset ({each}): one clock offset cannot be "
+                f"all of them, so the model lacks something in how thrust follows these signals (a motor "
+                f"lag, say) and the thrust and drag scales absorb it")
 
     def text(self, signals) -> str:
         names = ", ".join(signals)
@@ -137,7 +160,8 @@ class OffsetDecision:
             what = (f"read {1000 * -self.offset_s:.0f} ms later: their stream's stamps are late by "
                     f"{1000 * -self.offset_s:.0f} ms (a clock correction of the merged log, not a model "
                     f"that needs the future)")
-        return f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
+        text = f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
+        return text + (f". NOT ONE OFFSET: {self.disagreement()}" if not self.targets_agree else "")
 
 
 def _offset_errors(job: "_OffsetSearch", offsets: Sequence[float]) -> dict:
@@ -198,23 +222,15 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     res = {d: found[d] for d in grid}   # the grid's order: the tests below and delay_scores follow it
     # the rows every offset has, per target; targets side by side (each target's (flight, block)
     # units numbered apart)
-    errs, blocks = {d: [] for d in res}, []
-    for i, t in enumerate(targets):
-        common = set.intersection(*(set(res[d][t][0].tolist()) for d in res))
-        keys = np.array(sorted(common), dtype=np.int64)
-        for d in res:
-            k, e, b = res[d][t]
-            pos = np.searchsorted(k, keys)      # rows are ordered by flight, then time
-            errs[d].append(e[pos])
-            if d == 0.0:
-                blocks.append(i * 10**9 + b[pos])
-    errs = {d: np.concatenate(v) for d, v in errs.items()}
-    blocks = np.concatenate(blocks) if blocks else np.zeros(0, int)
+    shared = {t: _common_rows(res, t) for t in targets}
+    errs = {d: np.concatenate([shared[t][0][d] for t in targets]) for d in res}
+    blocks = np.concatenate([i * 10**9 + shared[t][1] for i, t in enumerate(targets)]) if targets else np.zeros(0, int)
     rms = {d: float(np.sqrt(np.mean(e * e))) for d, e in errs.items()}
     scores = {d: rms[d] / rms[0.0] for d in rms}
     cands = {f"{1000 * d:+.0f} ms": errs[d] for d in errs if d != 0.0}
     if np.unique(blocks).size < 3 or not cands:
         return OffsetDecision(0.0, (0.0, 0.0), scores, None)
+    per_target = _per_target_offsets(shared)
     fam = decide_family(errs[0.0], cands, blocks, alpha=OFFSET_ALPHA)
     by_name = {f"{1000 * d:+.0f} ms": d for d in errs if d != 0.0}
     accepted = [n for n, dec in fam.items() if dec.accepted]
@@ -224,7 +240,39 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     best = by_name[best_name] if accepted else 0.0
     same = [d for d in errs if d == best or not decide(errs[d], errs[best], blocks, alpha=OFFSET_INTERVAL_ALPHA,
                                                          min_effect_pct=0.0).accepted]
-    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name])
+    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name], per_target)
+
+
+def _common_rows(res: dict, target: str) -> tuple[dict, np.ndarray]:
+    """({offset: held-out residuals}, units) of ``target`` on the rows every offset has (rows
+    are ordered by flight, then time)."""
+    keys = np.array(sorted(set.intersection(*(set(res[d][target][0].tolist()) for d in res))), dtype=np.int64)
+    errs = {}
+    for d in res:
+        k, e, b = res[d][target]
+        pos = np.searchsorted(k, keys)
+        errs[d] = e[pos]
+        if d == 0.0:
+            blocks = b[pos]
+    return errs, blocks
+
+
+def _per_target_offsets(shared: Mapping[str, tuple]) -> dict:
+    """{target: (best, low, high)} from each target's :func:`_common_rows`: its lowest held-out
+    error over the grid and the offsets that best does not beat at :data:`OFFSET_INTERVAL_ALPHA`
+    on the target's own units (only with two or more targets)."""
+    if len(shared) < 2:
+        return {}
+    out = {}
+    for t, (errs, blocks) in shared.items():
+        if np.unique(blocks).size < 3:
+            return {}
+        rms = {d: float(np.sqrt(np.mean(e * e))) for d, e in errs.items()}
+        best = min(rms, key=lambda d: (rms[d], abs(d)))
+        same = [d for d in errs if d == best or not decide(errs[d], errs[best], blocks, alpha=OFFSET_INTERVAL_ALPHA,
+                                                             min_effect_pct=0.0).accepted]
+        out[t] = (best, min(same), max(same))
+    return out
 
 
 def plan_identification(train_flights, cfg, progress: Callable | None = None,
