@@ -80,7 +80,7 @@ def test_vehicle_from_the_data_of_undeclared_logs(key):
 
 
 @pytest.mark.parametrize("rel", ["ardupilot/copter33_quad_log171.bin", "mavlink/copter357_quad_mission1.tlog",
-                                 "px4/x500_sitl_events.ulg"])
+                                 "px4/x500_sitl_events.ulg", "px4/octo_px4tools_01_07_59.px4log"])
 def test_declared_multirotors_fly_like_multirotors(rel):
     f = read_flight(real_log(rel))
     a = assess(f, needed_signals=TILT_DRAG_SIGNALS, ts=0.5)
