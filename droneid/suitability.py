@@ -186,11 +186,14 @@ class Fitness:
         return not self.problems
 
     def raise_if_refused(self, lead: str = "") -> None:
-        """Raise :class:`DataError` with the first problem (and how many more) if any;
-        ``lead`` goes before it (e.g. "the training data cannot identify the X model: ")."""
+        """Raise :class:`DataError` naming every problem, if any, in one line (most fundamental
+        first, numbered when there are several); ``lead`` goes before them (e.g. "the training
+        data cannot identify the X model: ")."""
+        if len(self.problems) == 1:
+            raise DataError(lead + self.problems[0])
         if self.problems:
-            more = f" (and {len(self.problems) - 1} more problem(s))" if len(self.problems) > 1 else ""
-            raise DataError(lead + self.problems[0] + more)
+            raise DataError(f"{lead}{len(self.problems)} problems: "
+                            + "; ".join(f"({i}) {p}" for i, p in enumerate(self.problems, 1)))
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (non-finite numbers as None)."""
@@ -213,12 +216,15 @@ class Fitness:
 
 
 def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str], ts: float,
-           prior_kind: str = "multirotor", vehicle: str | None = None, prior: str = "") -> Fitness:
+           prior_kind: str = "multirotor", vehicle: str | None = None, prior: str = "",
+           inputs_fixed: bool = False) -> Fitness:
     """Judge whether ``flights`` can identify a ``prior_kind`` model of ``needed_signals`` on a
     grid of ``ts`` seconds (see the module doc for the thresholds and the order of problems).
 
     ``vehicle`` (one of :data:`droneid.flight.VEHICLE_TYPES`) overrides each flight's declared
     vehicle type, as ``--vehicle`` does; ``prior`` names the prior in the result (display only).
+    ``inputs_fixed``: the signals are those of a model already identified (predict), so a missing
+    one can only come from the log, not from choosing another prior or target.
     """
     if isinstance(flights, Flight):
         flights = [flights]
@@ -264,11 +270,12 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
             for s in missing:
                 if invalid and s in _STATE:
                     continue
-                refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s)}")
+                refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s, inputs_fixed)}")
             if not raw:
                 refuse("airborne", f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
-                                   f"use a log of a flight, or choose the part to use (droneid dataset "
-                                   f"--in-flight all / --window)")
+                                   f"models are fitted and scored on the airborne part of a log only; use a "
+                                   f"log in which the vehicle flies (droneid inspect shows its armed and "
+                                   f"in-flight intervals)")
             elif not ivs and not missing:
                 refuse("airborne", f"{name}: no airborne data where every needed signal has samples "
                                    f"({', '.join(needed)}): airborne {_fmt_ivs(raw)}")
@@ -345,18 +352,23 @@ def _invalid_state(f: Flight, missing) -> str:
     return "; ".join(bad)
 
 
-def _map_hint(f: Flight, signal: str) -> str:
-    """How to name the field holding ``signal``, in the terms of the log's format: ``--topic``
-    (MCAP), ``--column`` (CSV); nothing for formats whose fields are fixed (ULog, DataFlash)."""
+def _map_hint(f: Flight, signal: str, inputs_fixed: bool = False) -> str:
+    """The fixes for a missing ``signal`` that exist: name the field holding it in the terms of
+    the log's format (``--topic`` for MCAP, ``--column`` for CSV; none for formats whose fields
+    are fixed, ULog, DataFlash), then a model that does not read it (``--prior`` / ``--target``
+    of identify, diagnose, inspect) or, when the model is given (``inputs_fixed``: predict), a log
+    that has it."""
     try:
         options = _parsers.READERS[f.provenance.format].options
     except (ImportError, KeyError):
         options = ()
+    other = ("use a log that has it (the model reads it)" if inputs_fixed else
+             "choose a prior or target that does not read it (identify / diagnose --prior, --target)")
     if "topics" in options:
-        return f": map a topic to it (--topic {signal}=TOPIC) or choose other inputs"
+        return f": map a topic to it (--topic {signal}=TOPIC) or {other}"
     if "column_map" in options:
-        return f": map a column to it (--column {signal}=COLUMN) or choose other inputs"
-    return f": the {f.provenance.format} log has no field for it; choose other inputs or another log"
+        return f": map a column to it (--column {signal}=COLUMN) or {other}"
+    return f": the {f.provenance.format} log has no field for it; {other}"
 
 
 def _rate_verdict(name, rates, ts, refuse, warnings) -> None:
