@@ -402,18 +402,29 @@ def _nice(x: float) -> str:
     return f"{x:.0f}"
 
 
+#: what droneid offers a vehicle its multirotor priors do not describe (the plain answer first)
+_OTHER_VEHICLE = {
+    "fixed-wing": "droneid has no built-in fixed-wing model (its built-in priors tilt-drag and "
+                  "rotor-thrust describe multirotors); a fixed-wing needs your own prior "
+                  "(--prior FILE.toml:NAME with vehicle = \"fixed-wing\", docs/priors.md)",
+    "rover": "droneid's ground-vehicle model is the unicycle prior (--prior unicycle)",
+}
+
+
 def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings) -> None:
     said = f" ({declared})" if declared else ""
     what = {"multirotor": "multirotor (quadrotor)"}.get(prior_kind, prior_kind)
     if vtype in _REFUSES.get(prior_kind, ()):
-        refuse("vehicle", f"{name}: {what} prior on a {vtype} log{said}: pass --vehicle "
+        other = f"{_OTHER_VEHICLE[vtype]}; " if prior_kind == "multirotor" and vtype in _OTHER_VEHICLE else ""
+        refuse("vehicle", f"{name}: {what} prior on a {vtype} log{said}: {other}pass --vehicle "
                           f"{prior_kind} to override")
     elif vtype == "unknown" and prior_kind == "multirotor" and evidence.looks == "not a multirotor":
         seen = [f"tilt up to {evidence.tilt_max_deg:.0f} deg"] if math.isfinite(evidence.tilt_max_deg) else []
         seen += [f"yaw turns {evidence.yaw_span_deg:.0f} deg"] if math.isfinite(evidence.yaw_span_deg) else []
         refuse("vehicle", f"{name}: the log does not declare its vehicle and the data do not look like a "
-                          f"multirotor: {'; '.join(evidence.reasons + tuple(seen))}: pass "
-                          f"--vehicle multirotor to use a multirotor prior anyway")
+                          f"multirotor: {'; '.join(evidence.reasons + tuple(seen))}: "
+                          f"{_OTHER_VEHICLE['fixed-wing']}; if it is a multirotor after all, pass "
+                          f"--vehicle multirotor")
     elif vtype == "unknown":
         judged = (f"the data look like a multirotor ({evidence.text()})" if evidence.looks == "multirotor"
                   else f"a {what} is assumed ({'; '.join(evidence.reasons) or 'undecided'})")

@@ -90,3 +90,12 @@ def test_identify_names_a_prior_or_target_for_a_missing_signal():
     named = _named_options(a.problems[0])
     assert {"--column", "--prior", "--target"} <= named and named <= _options("identify")
     assert "choose other inputs" not in a.problems[0]
+
+
+def test_a_fixed_wing_is_told_droneid_has_no_fixed_wing_model():
+    """Was only: "pass --vehicle multirotor to override"."""
+    a = assess(_flight(vehicle="fixed-wing"), needed_signals=TILT_DRAG_SIGNALS, ts=0.05)
+    assert "droneid has no built-in fixed-wing model" in a.problems[0]
+    assert "--prior FILE.toml:NAME" in a.problems[0] and "pass --vehicle multirotor" in a.problems[0]
+    rover = assess(_flight(vehicle="rover"), needed_signals=TILT_DRAG_SIGNALS, ts=0.05)
+    assert "--prior unicycle" in rover.problems[0]
