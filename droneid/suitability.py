@@ -73,7 +73,8 @@ from .vehicle_evidence import (EVIDENCE_STEP_S, HOVER_ACCEL_MS2, HOVER_SPEED_MS,
 _registry = lazy_module("priors.registry")
 _parsers = lazy_module("parsers")
 
-__all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
+__all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "too_slow_signals",
+           "prior_for_flights", "coverage", "Coverage",
            "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
            "ROTOR_THRUST_SIGNALS", "REASON_ORDER", "fitness_by_prior", "INSPECTED_PRIORS", "prior_signals"]
 
@@ -515,6 +516,29 @@ def usable_signals(flights, ts: float) -> set:
     return names or set()
 
 
+def too_slow_signals(flights, ts: float) -> dict:
+    """{signal: its slowest gap-aware rate (Hz) over the flights} of the signals every flight
+    has but not every flight logs fast enough for a grid of ``ts`` (the ones
+    :func:`usable_signals` leaves out), so a choice can say why it passed them over."""
+    flights = list(flights)
+    if not flights:
+        return {}
+    every = set.intersection(*(set(getattr(f, "signals", {})) for f in flights))
+    out = {}
+    for name in every - usable_signals(flights, ts):
+        rates = [f.signals[name].rate_hz for f in flights]
+        out[name] = min((r for r in rates if math.isfinite(r)), default=math.nan)
+    return out
+
+
+def prior_for_flights(spec, flights, ts: float):
+    """(PriorModel, why): ``--prior`` (a name, ``auto``, ``FILE.toml:NAME`` or a PriorModel)
+    resolved on these flights, choosing among the signals they log fast enough for a grid of
+    ``ts`` (:func:`usable_signals`); a thrust source logged too slowly is named in ``why``. The
+    one choice identify, diagnose and ``inspect`` make."""
+    return _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
+
+
 #: the built-in priors :func:`fitness_by_prior` judges by default (what ``droneid inspect`` shows)
 INSPECTED_PRIORS = ("tilt-drag", "rotor-thrust")
 
@@ -526,12 +550,12 @@ def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIOR
     ``"auto"``: the prior ``--prior auto`` would choose and why. A prior whose signals exist only
     too slowly is judged on them (the rate refusal says so) rather than called inapplicable."""
     flights = list(flights)
-    usable = usable_signals(flights, ts)
+    usable, slow = usable_signals(flights, ts), too_slow_signals(flights, ts)
     every = set.intersection(*(set(f.names) for f in flights)) if flights else set()
     out = {}
     for spec in priors:
         try:
-            prior, why = _registry.prior_for(spec, usable)
+            prior, why = _registry.prior_for(spec, usable, slow=slow)
         except ConfigError as exc:
             try:
                 prior, why = _registry.prior_for(spec, every)
@@ -543,6 +567,6 @@ def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIOR
         out[spec] = (dict(fit.to_dict(), applies=True, prior_reason=why) if fit is not None else
                      {"ok": True, "applies": True, "ts": ts, "problems": [], "warnings": [], "flights": [],
                       "prior_reason": why})
-    auto, why = _registry.prior_for("auto", usable)
+    auto, why = _registry.prior_for("auto", usable, slow=slow)
     out["auto"] = {"prior": auto.name, "reason": why}
     return out

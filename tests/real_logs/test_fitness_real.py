@@ -86,3 +86,13 @@ def test_declared_multirotors_fly_like_multirotors(rel):
     a = assess(f, needed_signals=TILT_DRAG_SIGNALS, ts=0.5)
     assert a.flights[0].vehicle.looks == "multirotor"
     assert not [p for p in a.problems if "vehicle" in p or "multirotor" in p]
+
+
+def test_mission_tlog_says_its_motor_commands_are_too_slow(capsys):
+    """inspect listed motor1..4 (1 Hz) and said "the log has no motor speeds, motor commands or
+    thrust" beside them (issue 40 point 3)."""
+    assert main(["inspect", str(real_log("mavlink/copter357_quad_mission1.tlog"))]) == 0
+    out = capsys.readouterr().out
+    assert "motor1 " in out
+    line = next(ln for ln in out.splitlines() if "--prior auto chooses" in ln)
+    assert "no motor" not in line and "motor commands (motor1..motor4) come at 1.0 Hz only" in line, line

@@ -92,6 +92,19 @@ def test_identify_names_a_prior_or_target_for_a_missing_signal():
     assert "choose other inputs" not in a.problems[0]
 
 
+def test_slow_motor_commands_are_named_not_denied():
+    """Was: "--prior auto chooses: tilt-drag (the log has no motor speeds, motor commands or
+    thrust)" beside a table listing motor1..4 (at 1 Hz)."""
+    auto = fitness_by_prior([_flight(slow_motors=1.0)], ts=0.05)["auto"]
+    assert auto["prior"] == "tilt-drag"
+    assert "no motor" not in auto["reason"], auto["reason"]
+    assert "motor commands (motor1..motor4)" in auto["reason"] and "1.0 Hz" in auto["reason"]
+    fast = fitness_by_prior([_flight(slow_motors=50.0)], ts=0.05)["auto"]
+    assert fast["prior"] == "rotor-thrust"
+    assert fitness_by_prior([_flight()], ts=0.05)["auto"]["reason"] == \
+        "the log has no motor speeds, motor commands or thrust"
+
+
 def test_a_fixed_wing_is_told_droneid_has_no_fixed_wing_model():
     """Was only: "pass --vehicle multirotor to override"."""
     a = assess(_flight(vehicle="fixed-wing"), needed_signals=TILT_DRAG_SIGNALS, ts=0.05)
