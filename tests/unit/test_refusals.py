@@ -112,3 +112,13 @@ def test_a_fixed_wing_is_told_droneid_has_no_fixed_wing_model():
     assert "--prior FILE.toml:NAME" in a.problems[0] and "pass --vehicle multirotor" in a.problems[0]
     rover = assess(_flight(vehicle="rover"), needed_signals=TILT_DRAG_SIGNALS, ts=0.05)
     assert "--prior unicycle" in rover.problems[0]
+
+
+def test_the_ground_effect_names_where_the_ground_height_can_be_set():
+    """Was: "the ground is not at a known height (set ground_z_m)", which no command line option
+    sets (seen on the px4log octocopter, whose local z goes 1 m below its origin)."""
+    from types import SimpleNamespace
+    from priors.effect_catalogue import ground_effect
+    why = ground_effect._preconditions(SimpleNamespace(columns={"z": np.linspace(-1, 5, 200)}, options={}))
+    assert "set ground_z_m" not in why and "DiagnoseConfig(ground_z_m=...)" in why
+    assert _named_options(why) <= _options("diagnose")
