@@ -52,7 +52,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from priors.effects import CATALOGUE, is_measured_derivative
-from priors.registry import prior_for, resolve_prior
+from priors.registry import resolve_prior
 
 from .data import Dataset
 from .dataset_builder import DatasetBuilder
@@ -63,7 +63,7 @@ from .effect_model import (EffectModel, diagnose_blocks, drop_stand_ins, fold_fe
                            linear_drag_of, make_part, physical_terms, prior_terms,
                            refine_contexts, score_candidates, strip_effect_id, uses_derivative)
 from .errors import ConfigError, DataError, did_you_mean
-from .suitability import check_prior_data, usable_signals
+from .suitability import check_prior_data, prior_for_flights
 from .validation import block_ids
 from .numerics import rmse
 from .residual_search import equation_signals, search_residuals
@@ -100,10 +100,10 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
 def choose_diagnose_prior(prior, flights, ts: float) -> tuple[object, str]:
     """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``,
     which chooses among the signals every flight has at a usable rate for a grid of ``ts`` s,
-    as identify does: :func:`droneid.suitability.usable_signals`)."""
+    as identify does: :func:`droneid.suitability.prior_for_flights`)."""
     if not isinstance(prior, str):
         return resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
-    pr, why = prior_for(prior, usable_signals(flights, ts))
+    pr, why = prior_for_flights(prior, flights, ts)
     if prior not in ("auto", "rotor-thrust"):
         return pr, prior
     args = ", ".join(f"{k}={pr.params[k]}" for k in ("source", "motors") if k in pr.params)

@@ -9,7 +9,7 @@
   With FLU axes, positive pitch is nose **down** and positive roll is right side **down**;
   yaw is measured counter-clockwise from east. This is ROS REP-103.
 * Conversions from NED/FRD (ArduPilot, PX4, MAVLink) happen only in the parsers, through
-  :func:`ned_to_enu` and :func:`euler_frd_ned_to_flu_enu`.
+  :func:`ned_to_enu`, :func:`frd_to_flu` and :func:`euler_frd_ned_to_flu_enu`.
 
 The paper's tilt-drag model ``v̇x = g cosψ tanθ/cosφ + g sinψ tanφ − k_D vx`` uses these angles:
 a positive pitch (nose down) accelerates the vehicle forward.
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "wrap_angle", "unwrap_angle", "ned_to_enu", "euler_frd_ned_to_flu_enu",
+    "wrap_angle", "unwrap_angle", "ned_to_enu", "frd_to_flu", "euler_frd_ned_to_flu_enu",
     "euler_to_quat", "quat_to_euler", "quat_to_matrix", "euler_to_matrix",
     "quat_flu_enu_from_frd_ned", "qmul",
 ]
@@ -39,6 +39,12 @@ def unwrap_angle(a):
 def ned_to_enu(n, e, d):
     """A NED vector (north, east, down) as ENU components ``(x=east, y=north, z=up)``."""
     return np.asarray(e, float), np.asarray(n, float), -np.asarray(d, float)
+
+
+def frd_to_flu(x, y, z):
+    """A body vector in FRD (forward, right, down: rates, accelerations) as FLU components:
+    ``(x, -y, -z)``, a 180 deg rotation about x."""
+    return np.asarray(x, float), -np.asarray(y, float), -np.asarray(z, float)
 
 
 def euler_frd_ned_to_flu_enu(roll, pitch, yaw):

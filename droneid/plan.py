@@ -1,7 +1,7 @@
 """The plan of an identification: every choice made from the TRAINING flights before any SNGP run.
 
 :func:`plan_identification` picks the prior (``auto``: the most physical one the logs' signals
-support, :func:`priors.registry.prior_for`), sets the rotor-thrust prior's nominal thrust scale by
+support, :func:`droneid.suitability.prior_for_flights`), sets the rotor-thrust prior's nominal thrust scale by
 hover balance, chooses the offset of the thrust signals against the state in both directions by
 the calibrated block test of :mod:`droneid.decide` (:func:`choose_offset`) and runs the diagnosis (:mod:`droneid.diagnose`) to find the
 effects to fold into the prior features. Rows held out as test data (``cuts``) are never seen.
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from priors.registry import PriorFeature, prior_for, resolve_prior
+from priors.registry import PriorFeature, resolve_prior
 
 from . import runner
 from .data import Dataset
@@ -23,7 +23,7 @@ from .dataset_builder import DatasetBuilder, reuse_datasets
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
-from .suitability import usable_signals
+from .suitability import prior_for_flights
 from .terms import prior_terms
 from .validation import split_time_block, time_blocks
 from .targets import targets_for
@@ -82,7 +82,7 @@ def _hover_calibrated(prior, flights, cfg, cuts=None):
 
 def resolve_plan_prior(cfg, flights) -> tuple:
     """(PriorModel, reason) for the config's prior on these flights (``auto`` picks)."""
-    return prior_for(cfg.prior, usable_signals(flights, cfg.ts))
+    return prior_for_flights(cfg.prior, flights, cfg.ts)
 
 
 def dataset_builder(cfg, delays=None):

@@ -389,9 +389,8 @@ def _fitness(models: dict, flights, ts: float):
         needed |= set(m.get("inputs") or ())
     if not needed:
         return None
-    fit = assess(list(flights), needed_signals=sorted(needed), ts=ts, prior_kind="multirotor")
-    if fit.problems:
-        raise DataError(f"these logs cannot score the model: {fit.problems[0]}")
+    fit = assess(list(flights), needed_signals=sorted(needed), ts=ts, prior_kind="multirotor", inputs_fixed=True)
+    fit.raise_if_refused("these logs cannot score the model: ")
     return fit
 
 

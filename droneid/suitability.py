@@ -73,7 +73,8 @@ from .vehicle_evidence import (EVIDENCE_STEP_S, HOVER_ACCEL_MS2, HOVER_SPEED_MS,
 _registry = lazy_module("priors.registry")
 _parsers = lazy_module("parsers")
 
-__all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "coverage", "Coverage",
+__all__ = ["assess", "check_prior_data", "prior_fitness", "usable_signals", "too_slow_signals",
+           "prior_for_flights", "coverage", "Coverage",
            "Fitness", "FlightFitness", "TILT_DRAG_SIGNALS",
            "ROTOR_THRUST_SIGNALS", "REASON_ORDER", "fitness_by_prior", "INSPECTED_PRIORS", "prior_signals"]
 
@@ -186,11 +187,14 @@ class Fitness:
         return not self.problems
 
     def raise_if_refused(self, lead: str = "") -> None:
-        """Raise :class:`DataError` with the first problem (and how many more) if any;
-        ``lead`` goes before it (e.g. "the training data cannot identify the X model: ")."""
+        """Raise :class:`DataError` naming every problem, if any, in one line (most fundamental
+        first, numbered when there are several); ``lead`` goes before them (e.g. "the training
+        data cannot identify the X model: ")."""
+        if len(self.problems) == 1:
+            raise DataError(lead + self.problems[0])
         if self.problems:
-            more = f" (and {len(self.problems) - 1} more problem(s))" if len(self.problems) > 1 else ""
-            raise DataError(lead + self.problems[0] + more)
+            raise DataError(f"{lead}{len(self.problems)} problems: "
+                            + "; ".join(f"({i}) {p}" for i, p in enumerate(self.problems, 1)))
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (non-finite numbers as None)."""
@@ -213,12 +217,15 @@ class Fitness:
 
 
 def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str], ts: float,
-           prior_kind: str = "multirotor", vehicle: str | None = None, prior: str = "") -> Fitness:
+           prior_kind: str = "multirotor", vehicle: str | None = None, prior: str = "",
+           inputs_fixed: bool = False) -> Fitness:
     """Judge whether ``flights`` can identify a ``prior_kind`` model of ``needed_signals`` on a
     grid of ``ts`` seconds (see the module doc for the thresholds and the order of problems).
 
     ``vehicle`` (one of :data:`droneid.flight.VEHICLE_TYPES`) overrides each flight's declared
     vehicle type, as ``--vehicle`` does; ``prior`` names the prior in the result (display only).
+    ``inputs_fixed``: the signals are those of a model already identified (predict), so a missing
+    one can only come from the log, not from choosing another prior or target.
     """
     if isinstance(flights, Flight):
         flights = [flights]
@@ -264,11 +271,12 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
             for s in missing:
                 if invalid and s in _STATE:
                     continue
-                refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s)}")
+                refuse("missing", f"{name}: signal '{s}' is missing{_map_hint(f, s, inputs_fixed)}")
             if not raw:
                 refuse("airborne", f"{name}: no airborne data ({'; '.join(notes) or 'no in-flight interval'}): "
-                                   f"use a log of a flight, or choose the part to use (droneid dataset "
-                                   f"--in-flight all / --window)")
+                                   f"models are fitted and scored on the airborne part of a log only; use a "
+                                   f"log in which the vehicle flies (droneid inspect shows its armed and "
+                                   f"in-flight intervals)")
             elif not ivs and not missing:
                 refuse("airborne", f"{name}: no airborne data where every needed signal has samples "
                                    f"({', '.join(needed)}): airborne {_fmt_ivs(raw)}")
@@ -345,18 +353,23 @@ def _invalid_state(f: Flight, missing) -> str:
     return "; ".join(bad)
 
 
-def _map_hint(f: Flight, signal: str) -> str:
-    """How to name the field holding ``signal``, in the terms of the log's format: ``--topic``
-    (MCAP), ``--column`` (CSV); nothing for formats whose fields are fixed (ULog, DataFlash)."""
+def _map_hint(f: Flight, signal: str, inputs_fixed: bool = False) -> str:
+    """The fixes for a missing ``signal`` that exist: name the field holding it in the terms of
+    the log's format (``--topic`` for MCAP, ``--column`` for CSV; none for formats whose fields
+    are fixed, ULog, DataFlash), then a model that does not read it (``--prior`` / ``--target``
+    of identify, diagnose, inspect) or, when the model is given (``inputs_fixed``: predict), a log
+    that has it."""
     try:
         options = _parsers.READERS[f.provenance.format].options
     except (ImportError, KeyError):
         options = ()
+    other = ("use a log that has it (the model reads it)" if inputs_fixed else
+             "choose a prior or target that does not read it (identify / diagnose --prior, --target)")
     if "topics" in options:
-        return f": map a topic to it (--topic {signal}=TOPIC) or choose other inputs"
+        return f": map a topic to it (--topic {signal}=TOPIC) or {other}"
     if "column_map" in options:
-        return f": map a column to it (--column {signal}=COLUMN) or choose other inputs"
-    return f": the {f.provenance.format} log has no field for it; choose other inputs or another log"
+        return f": map a column to it (--column {signal}=COLUMN) or {other}"
+    return f": the {f.provenance.format} log has no field for it; {other}"
 
 
 def _rate_verdict(name, rates, ts, refuse, warnings) -> None:
@@ -390,18 +403,29 @@ def _nice(x: float) -> str:
     return f"{x:.0f}"
 
 
+#: what droneid offers a vehicle its multirotor priors do not describe (the plain answer first)
+_OTHER_VEHICLE = {
+    "fixed-wing": "droneid has no built-in fixed-wing model (its built-in priors tilt-drag and "
+                  "rotor-thrust describe multirotors); a fixed-wing needs your own prior "
+                  "(--prior FILE.toml:NAME with vehicle = \"fixed-wing\", docs/priors.md)",
+    "rover": "droneid's ground-vehicle model is the unicycle prior (--prior unicycle)",
+}
+
+
 def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings) -> None:
     said = f" ({declared})" if declared else ""
     what = {"multirotor": "multirotor (quadrotor)"}.get(prior_kind, prior_kind)
     if vtype in _REFUSES.get(prior_kind, ()):
-        refuse("vehicle", f"{name}: {what} prior on a {vtype} log{said}: pass --vehicle "
+        other = f"{_OTHER_VEHICLE[vtype]}; " if prior_kind == "multirotor" and vtype in _OTHER_VEHICLE else ""
+        refuse("vehicle", f"{name}: {what} prior on a {vtype} log{said}: {other}pass --vehicle "
                           f"{prior_kind} to override")
     elif vtype == "unknown" and prior_kind == "multirotor" and evidence.looks == "not a multirotor":
         seen = [f"tilt up to {evidence.tilt_max_deg:.0f} deg"] if math.isfinite(evidence.tilt_max_deg) else []
         seen += [f"yaw turns {evidence.yaw_span_deg:.0f} deg"] if math.isfinite(evidence.yaw_span_deg) else []
         refuse("vehicle", f"{name}: the log does not declare its vehicle and the data do not look like a "
-                          f"multirotor: {'; '.join(evidence.reasons + tuple(seen))}: pass "
-                          f"--vehicle multirotor to use a multirotor prior anyway")
+                          f"multirotor: {'; '.join(evidence.reasons + tuple(seen))}: "
+                          f"{_OTHER_VEHICLE['fixed-wing']}; if it is a multirotor after all, pass "
+                          f"--vehicle multirotor")
     elif vtype == "unknown":
         judged = (f"the data look like a multirotor ({evidence.text()})" if evidence.looks == "multirotor"
                   else f"a {what} is assumed ({'; '.join(evidence.reasons) or 'undecided'})")
@@ -492,6 +516,29 @@ def usable_signals(flights, ts: float) -> set:
     return names or set()
 
 
+def too_slow_signals(flights, ts: float) -> dict:
+    """{signal: its slowest gap-aware rate (Hz) over the flights} of the signals every flight
+    has but not every flight logs fast enough for a grid of ``ts`` (the ones
+    :func:`usable_signals` leaves out), so a choice can say why it passed them over."""
+    flights = list(flights)
+    if not flights:
+        return {}
+    every = set.intersection(*(set(getattr(f, "signals", {})) for f in flights))
+    out = {}
+    for name in every - usable_signals(flights, ts):
+        rates = [f.signals[name].rate_hz for f in flights]
+        out[name] = min((r for r in rates if math.isfinite(r)), default=math.nan)
+    return out
+
+
+def prior_for_flights(spec, flights, ts: float):
+    """(PriorModel, why): ``--prior`` (a name, ``auto``, ``FILE.toml:NAME`` or a PriorModel)
+    resolved on these flights, choosing among the signals they log fast enough for a grid of
+    ``ts`` (:func:`usable_signals`); a thrust source logged too slowly is named in ``why``. The
+    one choice identify, diagnose and ``inspect`` make."""
+    return _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
+
+
 #: the built-in priors :func:`fitness_by_prior` judges by default (what ``droneid inspect`` shows)
 INSPECTED_PRIORS = ("tilt-drag", "rotor-thrust")
 
@@ -503,12 +550,12 @@ def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIOR
     ``"auto"``: the prior ``--prior auto`` would choose and why. A prior whose signals exist only
     too slowly is judged on them (the rate refusal says so) rather than called inapplicable."""
     flights = list(flights)
-    usable = usable_signals(flights, ts)
+    usable, slow = usable_signals(flights, ts), too_slow_signals(flights, ts)
     every = set.intersection(*(set(f.names) for f in flights)) if flights else set()
     out = {}
     for spec in priors:
         try:
-            prior, why = _registry.prior_for(spec, usable)
+            prior, why = _registry.prior_for(spec, usable, slow=slow)
         except ConfigError as exc:
             try:
                 prior, why = _registry.prior_for(spec, every)
@@ -520,6 +567,6 @@ def fitness_by_prior(flights, ts: float, priors: Sequence[str] = INSPECTED_PRIOR
         out[spec] = (dict(fit.to_dict(), applies=True, prior_reason=why) if fit is not None else
                      {"ok": True, "applies": True, "ts": ts, "problems": [], "warnings": [], "flights": [],
                       "prior_reason": why})
-    auto, why = _registry.prior_for("auto", usable)
+    auto, why = _registry.prior_for("auto", usable, slow=slow)
     out["auto"] = {"prior": auto.name, "reason": why}
     return out

@@ -14,6 +14,7 @@ import numpy as np
 
 from droneid.errors import LogFormatError
 from droneid.flight import Diagnostics, Event, Flight, Provenance, Signal
+from droneid.frames import frd_to_flu
 
 log = logging.getLogger(__name__)
 
@@ -22,7 +23,13 @@ MAX_TIME_S = 1e8
 
 __all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to_unit", "pwm_formula",
            "ardupilot_motor_channels", "ARDUPILOT_MOTOR_FUNCTIONS", "ARDUCOPTER_FRAME_MOTORS", "frame_motors",
-           "command_to_unit"]
+           "command_to_unit", "flu_columns"]
+
+
+def flu_columns(names: tuple[str, str, str], x, y, z) -> dict:
+    """``{names[i]: component}`` of an FRD body vector (rates, accelerations) in FLU
+    (:func:`droneid.frames.frd_to_flu`), ready for :meth:`FlightBuilder.add_many`."""
+    return dict(zip(names, frd_to_flu(x, y, z)))
 
 
 def pwm_to_unit(pwm, lo: float = 1000.0, hi: float = 2000.0) -> np.ndarray:

@@ -23,21 +23,19 @@ its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages wi
 """
 from __future__ import annotations
 
-import gc
 import logging
 import math
 import os
 import re
-import warnings
-from operator import attrgetter
 
 import numpy as np
 
-from droneid.errors import LogFormatError
 from droneid.flight import Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
-from ._build import FlightBuilder, ardupilot_motor_channels, frame_motors, intervals_from_bool, pwm_to_unit
+from ._build import (FlightBuilder, ardupilot_motor_channels, flu_columns, frame_motors, intervals_from_bool,
+                     pwm_to_unit)
+from ._dataflash import TypeRows, instance0, scan, timed_columns
 from ._registry import Reader
 
 log = logging.getLogger(__name__)
@@ -93,179 +91,33 @@ _REQUIRED = {
 }
 
 
-def _open(path):
-    from pymavlink import DFReader  # wrapped here: pymavlink reads globals at import
-    # a reader that fails half-built leaves its file open; it is closed here, when the reader is
-    # collected, instead of a ResourceWarning reaching the user later from the garbage collector
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ResourceWarning)
-        try:
-            return DFReader.DFReader_binary(path, zero_time_base=True)
-        except Exception as exc:  # pymavlink raises bare exceptions on broken headers
-            why = f"{type(exc).__name__}: {exc}"
-        gc.collect()
-    raise LogFormatError(path, f"not a readable DataFlash log ({why})")
-
-
-class _TypeRows:
-    """Rows of one message type: a time column and the wanted fields, as Python lists."""
-    __slots__ = ("time_field", "fields", "get", "rows", "times")
-
-    def __init__(self, mtype: str, columns: list[str]):
-        if mtype == "GPS" and "T" in columns:
-            self.time_field = "T"                      # 3.x: TimeMS is GPS time of week
-        elif mtype == "GPS" and "TimeUS" not in columns:
-            self.time_field = None                     # GPS time of week only: not the boot clock
-        elif "TimeUS" in columns:
-            self.time_field = "TimeUS"
-        elif "TimeMS" in columns:
-            self.time_field = "TimeMS"
-        else:
-            self.time_field = None
-        self.fields = tuple(f for f in _WANT[mtype] if f in columns)
-        if len(self.fields) > 1:
-            self.get = attrgetter(*self.fields)           # returns a tuple
-        else:
-            one = attrgetter(*self.fields) if self.fields else (lambda m: None)
-            self.get = lambda m: (one(m),)
-        self.rows: list = []
-        self.times: list = []
-
-
-def _scan(path, b: FlightBuilder):
-    """One pass over the log: per-type time and field lists (boot seconds).
-
-    pymavlink prints one line per damaged byte; read_flight captures that output. The damage is
-    counted here from pymavlink's own index instead: the bytes no indexed record covers."""
-    dflog = _open(path)
-    try:
-        types = _loop(dflog, b)
-        _check_end(dflog, b)
-        _count_damage(dflog, b)
-    finally:                    # pymavlink leaves its file and map open (a ResourceWarning)
-        try:
-            dflog.close()
-        except (OSError, ValueError, AttributeError, BufferError):
-            pass
-    return types
-
-
-def _count_damage(dflog, b: FlightBuilder) -> None:
-    """Bytes before the last record that no record pymavlink indexed covers (garbage, damaged
-    headers); what follows the last record is :func:`_check_end`'s."""
-    try:
-        size = int(dflog.data_len)
-        covered, last_end = 0, 0
-        for mtype, offs in enumerate(dflog.offsets):
-            if offs and mtype in dflog.formats:
-                o = np.asarray(offs, dtype=np.int64)
-                ln = dflog.formats[mtype].len
-                covered += int(np.minimum(ln, size - o).sum())
-                last_end = max(last_end, int(o[-1]) + ln)
-    except (AttributeError, TypeError, ValueError, IndexError):
-        return
-    gap = min(size, last_end) - covered
-    if gap > 0:
-        b.skip("corrupt bytes outside any record (pymavlink resynchronised)", gap)
-
-
-def _loop(dflog, b: FlightBuilder) -> dict:
-    """The streaming loop: only the wanted types, fields pulled into lists per type."""
-    types: dict[str, _TypeRows] = {}
-    last_boot = math.nan
-    recv = dflog.recv_match
-    wanted = list(MESSAGE_TYPES)
-    broken: dict[str, list[str]] = {}
-    n_bad = 0
-    while True:
-        try:
-            m = recv(type=wanted)
-        except Exception as exc:  # a cut or corrupt record: keep what came before
-            n_bad += 1
-            b.warn(f"reading stopped at a corrupt record ({type(exc).__name__}: {exc})")
-            break
-        if m is None:
-            break
-        mtype = m.get_type()
-        tr = types.get(mtype)
-        if tr is None:
-            cols = list(m.get_fieldnames())
-            lost = [f for f in _REQUIRED.get(mtype, ()) if f not in cols]
-            if lost:
-                tr = types[mtype] = None
-                broken[mtype] = lost
-            else:
-                tr = types[mtype] = _TypeRows(mtype, cols)
-        if tr is None:
-            b.skip(f"{mtype} records whose FMT lacks {', '.join(broken[mtype])} (damaged FMT)")
-            continue
-        if tr.time_field is not None:
-            raw = getattr(m, tr.time_field)
-            boot = last_boot = raw * (1e-6 if tr.time_field == "TimeUS" else 1e-3)
-        else:
-            boot = last_boot
-        tr.times.append(boot)
-        tr.rows.append(tr.get(m))
-    if n_bad:
-        b.skip("corrupt records", n_bad)
-    return {k: v for k, v in types.items() if v is not None}
-
-
-def _check_end(dflog, b: FlightBuilder) -> None:
-    """Count a record cut by the end of the file (DFReader drops it silently)."""
-    try:
-        last = max((offs[-1], mtype) for mtype, offs in enumerate(dflog.offsets) if offs)
-        ofs, mtype = last
-        end = ofs + dflog.formats[mtype].len
-        size = dflog.data_len
-    except (AttributeError, ValueError, KeyError, IndexError):
-        return
-    if end > size:
-        b.skip("record cut by the end of the file", 1)
-        b.warn(f"the log ends inside a record (at byte {ofs} of {size}): read up to the cut")
-    elif end < size:
-        b.skip("record cut by the end of the file", 1)
-        b.warn(f"{size - end} bytes after the last complete record (a cut record): ignored")
-
-
-def _cols(tr: _TypeRows, t0: float):
-    t = np.asarray(tr.times, float) - t0
-    cols = {}
-    if tr.rows:
-        arr = list(zip(*tr.rows))
-        for f, col in zip(tr.fields, arr):
-            try:
-                cols[f] = np.asarray(col, float)
-            except (TypeError, ValueError):
-                cols[f] = np.asarray(col, object)
-    return t, cols
-
-
-def _instance0(t, cols, key):
-    if key in cols:
-        m = cols[key] == 0
-        return t[m], {k: v[m] for k, v in cols.items()}
-    return t, cols
+def _clock(mtype: str, columns: list) -> tuple[str, float] | None:
+    """ArduPilot's boot clock of a message type: ``TimeUS`` (µs) or ``TimeMS`` (ms); 3.x GPS uses
+    ``T`` (its TimeMS is GPS time of week); GPS with neither (time of week only) is untimed."""
+    if mtype == "GPS" and "T" in columns:
+        return "T", 1e-3
+    if mtype == "GPS" and "TimeUS" not in columns:
+        return None
+    if "TimeUS" in columns:
+        return "TimeUS", 1e-6
+    if "TimeMS" in columns:
+        return "TimeMS", 1e-3
+    return None
 
 
 def read_dataflash(path) -> Flight:
     """Read an ArduPilot DataFlash ``.bin`` log into a :class:`Flight` (see the module doc)."""
     path = os.fspath(path)
     b = FlightBuilder(path, "dataflash")
-    types = _scan(path, b)
-    timed = [min((x for x in tr.times if x == x), default=math.inf)
-             for tr in types.values() if tr.time_field]
-    t0 = min(timed, default=math.inf)
-    if not math.isfinite(t0):
-        raise LogFormatError(path, "no time-stamped DataFlash messages found (empty or corrupt log)")
-    data = {k: _cols(tr, t0) for k, tr in types.items()}
+    types = scan(path, b, _WANT, _REQUIRED, _clock, "DataFlash log")
+    data = timed_columns(path, types, "no time-stamped DataFlash messages found (empty or corrupt log)")
     params = {}
     if "PARM" in data:
         for name, value in types["PARM"].rows:
             params[name] = value
 
     # firmware, vehicle
-    for row in types.get("MSG", _TypeRows("MSG", [])).rows:
+    for row in types.get("MSG", TypeRows((), None)).rows:
         text = str(row[0])
         if b.firmware is None and re.search(r"(Copter|Plane|Rover|Sub|Tracker|Blimp)\s*V?\d", text):
             b.firmware = text.strip()
@@ -285,7 +137,7 @@ def read_dataflash(path) -> Flight:
 
     ekf = _pick_ekf(data, params)
     if ekf:
-        t, c = _instance0(*data[ekf], "C")
+        t, c = instance0(*data[ekf], "C")
         x, y, z = ned_to_enu(c["PN"], c["PE"], c["PD"])
         vx, vy, vz = ned_to_enu(c["VN"], c["VE"], c["VD"])
         b.add_many(t, {"vx": vx, "vy": vy, "vz": vz}, dict.fromkeys(("vx", "vy", "vz"), "m/s"),
@@ -293,10 +145,10 @@ def read_dataflash(path) -> Flight:
         b.add_many(t, {"x": x, "y": y, "z": z}, dict.fromkeys("xyz", "m"), f"{ekf}.PN/PE/PD")
 
     if "IMU" in data:
-        t, c = _instance0(*data["IMU"], "I")
-        b.add_many(t, {"wx": c["GyrX"], "wy": -c["GyrY"], "wz": -c["GyrZ"]},
+        t, c = instance0(*data["IMU"], "I")
+        b.add_many(t, flu_columns(("wx", "wy", "wz"), c["GyrX"], c["GyrY"], c["GyrZ"]),
                    dict.fromkeys(("wx", "wy", "wz"), "rad/s"), "IMU.GyrX/Y/Z")
-        b.add_many(t, {"ax": c["AccX"], "ay": -c["AccY"], "az": -c["AccZ"]},
+        b.add_many(t, flu_columns(("ax", "ay", "az"), c["AccX"], c["AccY"], c["AccZ"]),
                    dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "IMU.AccX/Y/Z")
 
     if "RCOU" in data:
@@ -324,7 +176,7 @@ def read_dataflash(path) -> Flight:
 
     bat = "BAT" if "BAT" in data else "CURR" if "CURR" in data else None
     if bat:
-        t, c = _instance0(*data[bat], "Inst")
+        t, c = instance0(*data[bat], "Inst")
         volt, curr = c["Volt"], c.get("Curr")
         finite = volt[np.isfinite(volt)]
         scale = 100.0 if finite.size and np.median(finite) > 100.0 else 1.0
@@ -335,7 +187,7 @@ def read_dataflash(path) -> Flight:
             b.add("battery_current", t[ok], curr[ok] / scale, "A", f"{bat}.Curr" + (" / 100" if scale > 1 else ""))
 
     if "GPS" in data:
-        t, c = _instance0(*data["GPS"], "I")
+        t, c = instance0(*data["GPS"], "I")
         fix = c["Status"] >= 3
         b.skip("GPS samples without a 3D fix", int((~fix).sum()))
         if fix.any():
@@ -343,7 +195,7 @@ def read_dataflash(path) -> Flight:
                        {"lat": "deg", "lon": "deg", "alt": "m"}, "GPS.Lat/Lng/Alt")
 
     if "BARO" in data:
-        t, c = _instance0(*data["BARO"], "I")
+        t, c = instance0(*data["BARO"], "I")
         b.add("baro_alt", t, c["Alt"], "m", "BARO.Alt")
 
     _events(b, data, types)

@@ -27,9 +27,10 @@ import numpy as np
 
 from droneid.errors import LogFormatError
 from droneid.flight import Flight, vehicle_from_mav_type
-from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
-from ._build import FlightBuilder, intervals_from_bool, pwm_formula, pwm_to_unit
+from ._build import FlightBuilder, flu_columns
+from ._px4 import (add_arming, add_attitude_quat, add_battery, add_landed, add_local_ned, add_pwm_motors,
+                   vehicle_type_from_params)
 from ._registry import Reader
 from ._guard import BoundedReader, ReaderLoopError
 
@@ -56,7 +57,6 @@ _NEEDED = {
     "esc_status": ("esc[0].esc_rpm",),
 }
 
-_ARMING_STATE_ARMED = 2
 _NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUTO_LOITER",
                5: "AUTO_RTL", 10: "ACRO", 12: "DESCEND", 13: "TERMINATION", 14: "OFFBOARD",
                15: "STAB", 17: "AUTO_TAKEOFF", 18: "AUTO_LAND", 19: "AUTO_FOLLOW_TARGET",
@@ -110,44 +110,31 @@ def read_ulog(path) -> Flight:
     if "vehicle_attitude" in topics:
         d = topics["vehicle_attitude"]
         q = np.stack([d[f"q[{i}]"] for i in range(4)], axis=-1).astype(float)
-        q = quat_flu_enu_from_frd_ned(q)
-        t = tt(d)
-        b.add_many(t, {"qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]},
-                   dict.fromkeys(("qw", "qx", "qy", "qz"), "1"), "vehicle_attitude.q")
-        r, p, y = quat_to_euler(q)
-        b.add_many(t, {"roll": r, "pitch": p, "yaw": y}, dict.fromkeys(("roll", "pitch", "yaw"), "rad"),
-                   "vehicle_attitude.q (to Euler)")
+        add_attitude_quat(b, tt(d), q, "vehicle_attitude.q")
     if "vehicle_local_position" in topics:
         d = topics["vehicle_local_position"]
         t = tt(d)
         for names, flag, unit, what in ((("x", "y", "z"), ("xy_valid", "z_valid"), "m", "x/y/z"),
                                         (("vx", "vy", "vz"), ("v_xy_valid", "v_z_valid"), "m/s",
                                          "vx/vy/vz")):
-            e, n, u = ned_to_enu(d[names[0]], d[names[1]], d[names[2]])
-            ok_xy = d[flag[0]].astype(bool) if flag[0] in d else np.ones(t.size, bool)
-            ok_z = d[flag[1]].astype(bool) if flag[1] in d else np.ones(t.size, bool)
-            b.skip(f"vehicle_local_position samples with {flag[0]} false", int((~ok_xy).sum()))
-            b.skip(f"vehicle_local_position samples with {flag[1]} false", int((~ok_z).sum()))
-            src = f"vehicle_local_position.{what}"
-            b.add(names[0], t[ok_xy], e[ok_xy], unit, src)
-            b.add(names[1], t[ok_xy], n[ok_xy], unit, src)
-            b.add(names[2], t[ok_z], u[ok_z], unit, src)
+            valid = [d[k].astype(bool) if k in d else np.ones(t.size, bool) for k in flag]
+            add_local_ned(b, t, names, [d[k] for k in names], valid, unit, f"vehicle_local_position.{what}",
+                          tuple(f"vehicle_local_position samples with {k} false" for k in flag))
     if "vehicle_angular_velocity" in topics:
         d = topics["vehicle_angular_velocity"]
-        b.add_many(tt(d), {"wx": d["xyz[0]"], "wy": -d["xyz[1]"], "wz": -d["xyz[2]"]},
+        b.add_many(tt(d), flu_columns(("wx", "wy", "wz"), d["xyz[0]"], d["xyz[1]"], d["xyz[2]"]),
                    dict.fromkeys(("wx", "wy", "wz"), "rad/s"), "vehicle_angular_velocity.xyz")
     elif "sensor_combined" in topics:
         d = topics["sensor_combined"]
-        b.add_many(tt(d), {"wx": d["gyro_rad[0]"], "wy": -d["gyro_rad[1]"], "wz": -d["gyro_rad[2]"]},
+        b.add_many(tt(d), flu_columns(("wx", "wy", "wz"), *(d[f"gyro_rad[{i}]"] for i in range(3))),
                    dict.fromkeys(("wx", "wy", "wz"), "rad/s"), "sensor_combined.gyro_rad")
     if "sensor_combined" in topics:
         d = topics["sensor_combined"]
-        b.add_many(tt(d), {"ax": d["accelerometer_m_s2[0]"], "ay": -d["accelerometer_m_s2[1]"],
-                           "az": -d["accelerometer_m_s2[2]"]},
+        b.add_many(tt(d), flu_columns(("ax", "ay", "az"), *(d[f"accelerometer_m_s2[{i}]"] for i in range(3))),
                    dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "sensor_combined.accelerometer_m_s2")
     elif "vehicle_acceleration" in topics:
         d = topics["vehicle_acceleration"]
-        b.add_many(tt(d), {"ax": d["xyz[0]"], "ay": -d["xyz[1]"], "az": -d["xyz[2]"]},
+        b.add_many(tt(d), flu_columns(("ax", "ay", "az"), d["xyz[0]"], d["xyz[1]"], d["xyz[2]"]),
                    dict.fromkeys(("ax", "ay", "az"), "m/s^2"), "vehicle_acceleration.xyz")
     _motors(b, topics, tt, ulog.initial_parameters)
     if "vehicle_thrust_setpoint" in topics:
@@ -155,13 +142,7 @@ def read_ulog(path) -> Flight:
         b.add("throttle", tt(d), -np.asarray(d["xyz[2]"], float), "1", "-vehicle_thrust_setpoint.xyz[2]")
     if "battery_status" in topics:
         d = topics["battery_status"]
-        v = np.asarray(d["voltage_v"], float)
-        ok = v > 0
-        b.skip("battery_status samples with voltage_v <= 0", int((~ok).sum()))
-        b.add("battery_voltage", tt(d)[ok], v[ok], "V", "battery_status.voltage_v")
-        c = np.asarray(d["current_a"], float)
-        okc = c >= 0
-        b.add("battery_current", tt(d)[okc], c[okc], "A", "battery_status.current_a")
+        add_battery(b, tt(d), d["voltage_v"], d["current_a"], "battery_status", "voltage_v", "current_a")
     _status(b, topics, tt)
     return b.build()
 
@@ -206,10 +187,7 @@ def _vehicle_type(status, params) -> tuple[str, str | None]:
             v = int(status["vehicle_type"][0])
             kind = {1: "multirotor", 2: "fixed-wing", 3: "rover"}.get(v, "unknown")
             return kind, f"vehicle_status.vehicle_type {v} ({_VEHICLE_TYPES.get(v, '?')})"
-    if params.get("MAV_TYPE") is not None:
-        kind, name = vehicle_from_mav_type(int(params["MAV_TYPE"]))
-        return kind, f"parameter MAV_TYPE {name} ({int(params['MAV_TYPE'])})"
-    return "unknown", None
+    return vehicle_type_from_params(params)
 
 
 def _motors(b, topics, tt, params):
@@ -238,58 +216,18 @@ def _motors(b, topics, tt, params):
     if "actuator_outputs" in topics:
         d = topics["actuator_outputs"]
         n = int(np.max(d["noutputs"])) if "noutputs" in d else 16
-        for i in range(min(n, 16)):
-            k = f"output[{i}]"
-            if k in d and np.any(d[k] > 0):
-                lo, hi, how = _pwm_range(params, i + 1)
-                b.add(f"motor{i + 1}", tt(d), pwm_to_unit(d[k], lo, hi), "1",
-                      f"actuator_outputs.{k} (PWM {lo:.0f}-{hi:.0f} us ({how}): {pwm_formula(lo, hi)})")
-
-
-def _pwm_range(params, ch: int):
-    """PX4 PWM range of output ``ch``: PWM_MAIN_MINn/MAXn, else PWM_MAIN_MIN/MAX, else 1000-2000."""
-    def get(kind, default):
-        for key in (f"PWM_MAIN_{kind}{ch}", f"PWM_MAIN_{kind}"):
-            v = params.get(key, -1)
-            if v is not None and v > 0:
-                return float(v), key
-        return default, _STANDARD
-    lo, klo = get("MIN", 1000.0)
-    hi, khi = get("MAX", 2000.0)
-    if hi <= lo:
-        return 1000.0, 2000.0, _STANDARD
-    return lo, hi, klo if klo == khi == _STANDARD else f"{klo}/{khi}"
-
-
-#: what a PWM source says when the log states no PWM range (the standard one is used)
-_STANDARD = "the standard range: the log states no PWM_MAIN_MIN/MAX"
+        add_pwm_motors(b, tt(d), [(i, f"actuator_outputs.output[{i}]", d[f"output[{i}]"])
+                                  for i in range(min(n, 16)) if f"output[{i}]" in d], params)
 
 
 def _status(b, topics, tt):
-    end = max((s.end_s for s in b.signals.values()), default=0.0)
     if "vehicle_status" in topics:
         d = topics["vehicle_status"]
-        t = tt(d)
-        armed = np.asarray(d["arming_state"]) == _ARMING_STATE_ARMED
-        b.segment("armed", intervals_from_bool(t, armed, end_s=end))
-        prev_a, prev_n = False, None
-        for ti, a, n in zip(t, armed, d["nav_state"]):
-            if a != prev_a:
-                b.event(ti, "armed" if a else "disarmed")
-                prev_a = a
-            if n != prev_n:
-                b.event(ti, "mode", _NAV_STATES.get(int(n), f"nav_state {int(n)}"))
-                prev_n = n
+        add_arming(b, tt(d), d["arming_state"],
+                   [_NAV_STATES.get(int(n), f"nav_state {int(n)}") for n in d["nav_state"]])
     if "vehicle_land_detected" in topics:
         d = topics["vehicle_land_detected"]
-        t = tt(d)
-        air = ~np.asarray(d["landed"]).astype(bool)
-        b.segment("in_flight", intervals_from_bool(t, air, end_s=end))
-        prev = False
-        for ti, a in zip(t, air):
-            if a != prev:
-                b.event(ti, "takeoff" if a else "land")
-                prev = a
+        add_landed(b, tt(d), d["landed"])
     else:
         b.in_flight_from_height()
 

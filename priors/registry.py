@@ -32,12 +32,14 @@ __all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "get_prior", "load_p
            "rotor_thrust", "unicycle", "resolve_prior", "is_prior_spec", "choose_prior", "prior_for"]
 
 
-def choose_prior(signals, requested: str = "auto") -> tuple[str, dict, str]:
+def choose_prior(signals, requested: str = "auto", slow=None) -> tuple[str, dict, str]:
     """(prior name, its parameters, the reason) for ``requested`` on data with these signals.
 
     ``auto``: the most physical prior the signals support: rotor-thrust from motor speeds, else
     motor commands, else collective thrust, else the collective command; tilt-drag otherwise.
-    A motor source counts only with at least 3 motors (a multirotor's worth).
+    A motor source counts only with at least 3 motors (a multirotor's worth). ``slow``
+    ({signal: rate in Hz}) are signals the data have, but too slowly for the fit: when a thrust
+    source is among them, the reason says so instead of "no motor ...".
     """
     have = set(signals)
     counts = motor_count(have)
@@ -46,14 +48,35 @@ def choose_prior(signals, requested: str = "auto") -> tuple[str, dict, str]:
     for src in THRUST_SOURCES:
         if src in counts and counts[src] >= 3:
             return "rotor-thrust", {"source": src, "motors": counts[src]}, (
-                f"the log has {counts[src]} {'motor speeds' if src == 'rpm' else 'motor commands'} "
-                f"({src}1..{src}{counts[src]})")
+                f"the log has {counts[src]} {_WHAT[src]} ({src}1..{src}{counts[src]})")
         if src in ("thrust", "throttle") and src in have:
             return "rotor-thrust", {"source": src}, f"the log has the collective {src}"
+    too_slow = _slow_thrust(slow or {})
     if requested == "rotor-thrust":
         raise ConfigError("prior 'rotor-thrust' needs motor speeds (rpm1..), motor commands "
-                          "(motor1..), collective thrust or throttle; the data have none of them")
-    return "tilt-drag", {}, "the log has no motor speeds, motor commands or thrust"
+                          "(motor1..), collective thrust or throttle; "
+                          + (too_slow or "the data have none of them"))
+    return "tilt-drag", {}, too_slow or "the log has no motor speeds, motor commands or thrust"
+
+
+#: the thrust sources of :data:`THRUST_SOURCES` in words
+_WHAT = {"rpm": "motor speeds", "motor": "motor commands", "thrust": "collective thrust",
+         "throttle": "collective command (throttle)"}
+
+
+def _slow_thrust(slow) -> str:
+    """"the log's motor commands (motor1..motor4) come at 1.0 Hz only, ..." for the first thrust
+    source (in :data:`THRUST_SOURCES` order) among signals logged too slowly; "" for none."""
+    counts = motor_count(slow)
+    for src, (pattern, _, _) in THRUST_SOURCES.items():
+        per_motor = "{i}" in pattern
+        names = ([pattern.format(i=i) for i in range(1, counts.get(src, 0) + 1)] if per_motor
+                 else [pattern] if pattern in slow else [])
+        if len(names) >= (3 if per_motor else 1):
+            what = f"{_WHAT[src]} ({names[0]}..{names[-1]}) come" if per_motor else f"{_WHAT[src]} comes"
+            return (f"the log's {what} at {min(slow[n] for n in names):.1f} Hz only, too slow for a "
+                    f"fit at this sampling period (--ts)")
+    return ""
 
 
 def _discover() -> dict:
@@ -89,12 +112,13 @@ def get_prior(name: str, **params) -> PriorModel:
     return PRIORS[name](**params)
 
 
-def prior_for(spec: str | PriorModel, signals) -> tuple[PriorModel, str]:
+def prior_for(spec: str | PriorModel, signals, slow=None) -> tuple[PriorModel, str]:
     """(PriorModel, why) for ``spec`` on data with these ``signals``: ``auto`` (and a bare
-    ``rotor-thrust``) choose with :func:`choose_prior`; anything else is :func:`resolve_prior`.
-    The one place identify, diagnose and the CLI turn ``--prior`` into a model."""
+    ``rotor-thrust``) choose with :func:`choose_prior` (``slow``: signals present but too slow);
+    anything else is :func:`resolve_prior`. The one place identify, diagnose and the CLI turn
+    ``--prior`` into a model (through :func:`droneid.suitability.prior_for_flights`)."""
     if isinstance(spec, str) and spec in ("auto", "rotor-thrust"):
-        name, params, why = choose_prior(signals, spec)
+        name, params, why = choose_prior(signals, spec, slow)
         return get_prior(name, **params), why
     return resolve_prior(spec), "named by the user"
 

@@ -44,7 +44,8 @@ def _preconditions(ctx):
     below = float(np.mean(z < zg - 0.1))
     if below > 0.02:
         return (f"{100 * below:.0f} % of the heights lie below the ground height z = {zg:g} m: "
-                "the ground is not at a known height (set ground_z_m)")
+                "the ground is not at a known height (droneid takes z = 0 m as the ground; the Python "
+                "API's DiagnoseConfig(ground_z_m=...) states another; the command line has no option for it)")
     near = float(np.mean(z - zg < h0))
     if near < NEAR_SHARE:
         return (f"only {100 * near:.1f} % of the flight is within h0 = {h0:g} m of the ground "

@@ -26,6 +26,7 @@ LOGS = {
     "px4/vtol_short_hop.ulg": {},
     "px4/quad_fmuv5_ground.ulg": {},
     "px4/x500_sitl_events.ulg": {},
+    "px4/octo_px4tools_01_07_59.px4log": {},
     "mcap/sportcub_fixedwing_qualisys.mcap": {},
     "mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv": {"body": "device02"},
     "mocap/crazyflie_nanodrone/square_run1.csv": {},

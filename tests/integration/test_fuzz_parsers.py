@@ -1,7 +1,7 @@
 """Damaged logs never traceback, hang or flood (issue 14).
 
-Small logs of every format the project writes (tlog, MCAP, Motive CSV, flat CSV, DataFlash via
-the test writer, a minimal ULog) are mutated with a fixed seed: byte flips, truncation, inserted
+Small logs of every format the project writes (tlog, MCAP, Motive CSV, flat CSV, DataFlash and
+PX4 sdlog2 via the test writer, a minimal ULog) are mutated with a fixed seed: byte flips, truncation, inserted
 garbage, zeroed regions, header damage. ``droneid inspect`` runs in-process on each, in a daemon
 thread with a per-file time limit; it must exit 0, or exit 2 with exactly ONE stderr line, and
 never print a traceback or more than one warning line. Regression tests pin each case of the
@@ -21,7 +21,7 @@ from droneid.errors import LogFormatError
 from droneid.flight import Flight, Signal
 from parsers import read_flight
 
-from dataflash_fixture import DataFlashWriter
+from dataflash_fixture import DataFlashWriter, sdlog2_log
 from fuzz_check import check_inspect, inspect_in_process, mutate
 
 
@@ -86,6 +86,7 @@ def small_logs(tmp_path_factory) -> dict[str, bytes]:
     out[".csv"] = ("t,x,y,z,vx,vy,vz,roll,pitch,yaw,m1_erpm,thrust\n" + "".join(
         f"{ti:.3f},{ti},{2 * ti},1,1,2,0,0.1,0.2,0.3,{20000 + i},0.5\n" for i, ti in enumerate(t))).encode()
     out[".bin"] = _dataflash_bytes()
+    out[".px4log"] = sdlog2_log(n=60).bytes()
     out[".ulg"] = _ulog_bytes()
     return out
 
@@ -155,6 +156,25 @@ def test_dataflash_damage_is_counted_and_quiet(tmp_path, capfd):
     assert f.diagnostics.skipped["corrupt bytes outside any record (pymavlink resynchronised)"] == n_garbage
     assert any("reader library output suppressed" in w for w in f.diagnostics.warnings)
     assert len(f["roll"]) == 80            # no record lost
+
+
+def test_px4log_damage(tmp_path):
+    """A PX4 sdlog2 log cut mid-record or with garbage inside reads up to / around the damage,
+    counted; one cut before its first TIME record is refused in one line naming the file."""
+    data = sdlog2_log().bytes()
+    cut = _write(tmp_path / "cut.px4log", data[: len(data) // 2 + 5])
+    f = read_flight(cut)
+    assert f.provenance.format == "px4log" and f.diagnostics.skipped["record cut by the end of the file"] == 1
+    assert check_inspect(cut, "cut px4log") == 0
+    at = data.find(b"\xa3\x95", len(data) // 2)
+    garbage = _write(tmp_path / "garbage.px4log", data[:at] + b"\x11" * 300 + data[at:])
+    f = read_flight(garbage)
+    assert f.diagnostics.skipped["corrupt bytes outside any record (pymavlink resynchronised)"] == 300
+    assert len(f["roll"]) == 100
+    head = _write(tmp_path / "head.px4log", data[: data.find(b"MAV_TYPE") + 20])   # FMTs and PARM only
+    rc, lines, _ = inspect_in_process(head)
+    assert rc == 2 and len(lines) == 1, lines
+    assert "head.px4log" in lines[0] and "no TIME records" in lines[0] and "Traceback" not in lines[0]
 
 
 def test_reader_exception_becomes_one_line(tmp_path, monkeypatch):

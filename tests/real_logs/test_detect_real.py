@@ -15,7 +15,8 @@ pytestmark = pytest.mark.real_logs
 
 
 @pytest.mark.parametrize("rel", ["ardupilot/copter33_quad_log171.bin", "mavlink/copter357_quad_mission1.tlog",
-                                 "px4/x500_sitl_events.ulg", "mcap/sportcub_fixedwing_qualisys.mcap"])
+                                 "px4/x500_sitl_events.ulg", "mcap/sportcub_fixedwing_qualisys.mcap",
+                                 "px4/octo_px4tools_01_07_59.px4log"])
 def test_garbage_with_a_real_magic_is_a_log_format_error(tmp_path, rel):
     """The real file's first bytes followed by noise: an error naming the file, or a flight with
     its damage counted; never a crash with a foreign exception."""
@@ -34,7 +35,8 @@ def test_garbage_with_a_real_magic_is_a_log_format_error(tmp_path, rel):
 @pytest.mark.parametrize("rel, frac", [("ardupilot/copter33_quad_log171.bin", 0.5),
                                        ("mavlink/copter357_quad_mission1.tlog", 0.5),
                                        ("mcap/sportcub_fixedwing_qualisys.mcap", 0.5),
-                                       ("px4/x500_sitl_events.ulg", 0.5)])
+                                       ("px4/x500_sitl_events.ulg", 0.5),
+                                       ("px4/octo_px4tools_01_07_59.px4log", 0.5)])
 def test_truncated_real_log_reads_up_to_the_cut(tmp_path, rel, frac):
     src = real_log(rel)
     data = src.read_bytes()
@@ -47,7 +49,7 @@ def test_truncated_real_log_reads_up_to_the_cut(tmp_path, rel, frac):
     name = "roll" if f.has("roll") else "x"
     assert 0.2 * full.duration_s < f.duration_s < 0.9 * full.duration_s
     assert len(f[name]) < len(full[name])
-    if src.suffix in (".bin", ".tlog", ".mcap"):
+    if src.suffix in (".bin", ".px4log", ".tlog", ".mcap"):
         assert f.diagnostics.total_skipped >= 1 or f.diagnostics.warnings
 
 
@@ -59,7 +61,7 @@ def test_real_80k_dataflash_prefix_is_flagged_as_cut():
 
 def test_truncated_to_a_few_bytes(tmp_path):
     for rel in ("ardupilot/copter33_quad_log171.bin", "px4/x500_sitl_events.ulg",
-                "mcap/sportcub_fixedwing_qualisys.mcap"):
+                "mcap/sportcub_fixedwing_qualisys.mcap", "px4/octo_px4tools_01_07_59.px4log"):
         src = real_log(rel)
         p = tmp_path / ("tiny" + src.suffix)
         p.write_bytes(src.read_bytes()[:40])

@@ -80,9 +80,19 @@ def test_vehicle_from_the_data_of_undeclared_logs(key):
 
 
 @pytest.mark.parametrize("rel", ["ardupilot/copter33_quad_log171.bin", "mavlink/copter357_quad_mission1.tlog",
-                                 "px4/x500_sitl_events.ulg"])
+                                 "px4/x500_sitl_events.ulg", "px4/octo_px4tools_01_07_59.px4log"])
 def test_declared_multirotors_fly_like_multirotors(rel):
     f = read_flight(real_log(rel))
     a = assess(f, needed_signals=TILT_DRAG_SIGNALS, ts=0.5)
     assert a.flights[0].vehicle.looks == "multirotor"
     assert not [p for p in a.problems if "vehicle" in p or "multirotor" in p]
+
+
+def test_mission_tlog_says_its_motor_commands_are_too_slow(capsys):
+    """inspect listed motor1..4 (1 Hz) and said "the log has no motor speeds, motor commands or
+    thrust" beside them (issue 40 point 3)."""
+    assert main(["inspect", str(real_log("mavlink/copter357_quad_mission1.tlog"))]) == 0
+    out = capsys.readouterr().out
+    assert "motor1 " in out
+    line = next(ln for ln in out.splitlines() if "--prior auto chooses" in ln)
+    assert "no motor" not in line and "motor commands (motor1..motor4) come at 1.0 Hz only" in line, line

@@ -15,7 +15,8 @@ pytestmark = pytest.mark.real_logs
 @pytest.mark.slow
 def test_fuzz_real_logs(tmp_path, real_logs):
     rng = random.Random(14)
-    logs = sorted(p for p in real_logs.rglob("*") if p.suffix in (".bin", ".tlog", ".ulg", ".mcap", ".csv")
+    logs = sorted(p for p in real_logs.rglob("*")
+                  if p.suffix in (".bin", ".px4log", ".tlog", ".ulg", ".mcap", ".csv")
                   and p.stat().st_size < 3_000_000)
     for src in logs:
         data = src.read_bytes()

@@ -22,6 +22,7 @@ LOGS = {
     "px4/vtol_short_hop.ulg": [],
     "px4/quad_fmuv5_ground.ulg": [],
     "px4/x500_sitl_events.ulg": [],
+    "px4/octo_px4tools_01_07_59.px4log": [],
     "mcap/sportcub_fixedwing_qualisys.mcap": [],
     "mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv": ["--body", "device02"],
     **{f"mocap/crazyflie_nanodrone/square_run{i}.csv": [] for i in range(1, 6)},
@@ -48,5 +49,5 @@ def test_inspect_with_warnings_as_errors(rel):
 def test_every_shared_log_is_listed(real_logs):
     """A log added to the shared folder is added here too (the test covers EVERY shared log)."""
     found = {p.relative_to(real_logs).as_posix() for p in real_logs.rglob("*")
-             if p.is_file() and p.suffix.lower() in (".bin", ".tlog", ".ulg", ".mcap", ".csv")}
+             if p.is_file() and p.suffix.lower() in (".bin", ".tlog", ".ulg", ".px4log", ".mcap", ".csv")}
     assert found == set(LOGS)

@@ -30,6 +30,9 @@ EXPECTED = {
     "px4/quad_fmuv5_ground.ulg": ("ulog", ("qw", "roll", "z", "ax", "motor1", "battery_voltage")),
     "px4/x500_sitl_events.ulg": ("ulog", ("qw", "roll", "x", "vx", "ax", "motor1", "throttle",
                                           "battery_voltage")),
+    "px4/octo_px4tools_01_07_59.px4log": ("px4log", ("roll", "pitch", "yaw", "wx", "x", "vx", "vz", "ax",
+                                                     *(f"motor{i}" for i in range(1, 9)), "throttle",
+                                                     "battery_voltage", "lat")),
     "mcap/sportcub_fixedwing_qualisys.mcap": ("mcap", ("x", "y", "z", "qw", "roll", "vx", "rc1")),
     "mocap/optitrack_motive/motive_1.23_three_rigid_bodies.csv": ("motive_csv", ("x", "y", "z", "qw", "vx")),
     **{p: ("csv", ("x", "y", "z", "qw", "roll", "vx", "vy", "vz", "wx", "ax", "motor1", "throttle",
@@ -124,6 +127,29 @@ def test_vtol_rates():
     assert "x" not in f and f.diagnostics.skipped["vehicle_local_position samples with xy_valid false"] > 600
 
 
+def test_px4log_octocopter_as_its_readme_says():
+    """The sdlog2 octocopter: 8 motors at 47 Hz, 70 s, up to 7 m and 5.4 m/s; time is the TIME
+    records' StartTime, which is what pymavlink's own PX4 clock stamps every message with."""
+    from pymavlink import DFReader
+    path = real_log("px4/octo_px4tools_01_07_59.px4log")
+    f = read_flight(path)
+    assert f.provenance.vehicle_type == "multirotor" and "octorotor" in f.provenance.vehicle
+    assert f.has(*(f"motor{i}" for i in range(1, 9))) and not f.has("motor9")
+    assert 45 < f["motor1"].rate_hz < 50 and 78 < f["roll"].rate_hz < 84
+    assert 69 < f.duration_s < 72
+    assert 5 < f["z"].values.max() - f["z"].values.min() < 9           # climbs to about 7 m
+    assert 4.5 < np.hypot(f["vx"].values, f["vy"].values).max() < 6.5
+    assert 21 < np.median(f["battery_voltage"].values) < 25.2            # 6S
+    assert 9.3 < np.median(f["az"].values) < 10.3                         # FLU: +g up
+    log = DFReader.DFReader_binary(str(path), zero_time_base=True)
+    stamps = []
+    while (m := log.recv_match(type=["TIME", "ATT"])) is not None:    # its clock needs the TIMEs
+        if m.get_type() == "ATT":
+            stamps.append(m._timestamp)
+    log.close()
+    np.testing.assert_allclose(f["roll"].t, np.asarray(stamps) - stamps[0], atol=1e-6)
+
+
 def test_mcap_pose_topic_frame_and_rate():
     f = read_flight(real_log("mcap/sportcub_fixedwing_qualisys.mcap"))
     assert f["x"].source.startswith("/cub1/pose")
@@ -163,6 +189,7 @@ PHYSICS = {
     "ardupilot/copter33_quad_log171.bin": ({}, 0.8),
     "mavlink/copter357_quad_mission1.tlog": ({"rate_hz": 1.0, "smooth_s": 0.0}, 0.3),  # 1 Hz telemetry
     "px4/x500_sitl_events.ulg": ({}, 0.4),                                            # SITL, not real
+    "px4/octo_px4tools_01_07_59.px4log": ({}, 0.5),                                   # outdoors, GPS/EKF velocity
     **{p: ({}, 0.7) for p in CRAZYFLIE},
 }
 MEASURED: dict = {}

@@ -23,6 +23,7 @@ REAL_ROTOR = {
     "px4/x500_sitl_events.ulg": ["rpm1", "rpm2", "rpm3", "rpm4", "motor1", "motor4", "throttle"],
     "px4/quad_fmuv5_ground.ulg": ["motor1", "motor4"],
     "px4/vtol_short_hop.ulg": ["motor1", "motor8"],
+    "px4/octo_px4tools_01_07_59.px4log": [f"motor{i}" for i in range(1, 9)] + ["throttle", "battery_voltage"],
     "mocap/crazyflie_nanodrone/square_run1.csv": ["rpm1", "rpm2", "rpm3", "rpm4", "motor1", "motor4",
                                                   "throttle", "battery_voltage"],
 }
