@@ -55,7 +55,7 @@ from types import MappingProxyType
 import numpy as np
 
 from .differentiation import CentralDifference
-from .errors import DataError
+from .errors import DataError, printable
 from .flight import Flight
 from .frames import body_rates_from_euler, euler_to_matrix
 from .in_flight import _intersect, resample_signal
@@ -97,9 +97,16 @@ class ConventionError(DataError):
     """Flights whose redundant signals disagree the way a convention mistake makes them
     disagree: one line per finding, naming the file and the fix."""
 
-    def __init__(self, lines: Sequence[str]):
+    def __init__(self, lines: Sequence[str], role: str = ""):
         self.lines = tuple(lines)
-        super().__init__("\n".join(self.lines))
+        what = f"the {role} data" if role else "the data"
+        self.head = (f"{what} look read in the wrong convention ({len(self.lines)} finding(s)); refused "
+                     f"before any fit, rerun with the fix:")
+        super().__init__(self.head, *self.lines)
+
+    def __str__(self) -> str:
+        # one printable line each: the head, then one line per finding naming its file
+        return "\n".join(printable(x) for x in (self.head, *self.lines))
 
 
 @dataclass(frozen=True)
@@ -597,12 +604,13 @@ def check_flights(flights: Sequence[Flight]) -> tuple[Consistency, ...]:
     return tuple(check_flight(f) for f in flights)
 
 
-def raise_if_inconsistent(flights: Sequence[Flight]) -> tuple[Consistency, ...]:
+def raise_if_inconsistent(flights: Sequence[Flight], role: str = "") -> tuple[Consistency, ...]:
     """Raise :class:`ConventionError` (one line per finding, naming the file and the fix) when
-    any flight's redundant signals disagree; else return the checks."""
+    any flight's redundant signals disagree; else return the checks. ``role`` ("training",
+    "test") names the flights in the message."""
     out = check_flights(flights)
     lines = [ln for c in out for ln in c.lines()]
     if lines:
-        raise ConventionError(lines)
+        raise ConventionError(lines, role)
     return out
 
