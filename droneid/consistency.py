@@ -224,16 +224,19 @@ def _in(x, band) -> bool:
     return math.isfinite(x) and band[0] <= x <= band[1]
 
 
-def _rate(flight, n) -> float:
-    return flight[n].rate_hz
-
-
-def _source(flight, n) -> str:
-    return flight[n].source
-
-
 def _derived(flight, n) -> bool:
-    return _source(flight, n).startswith("d/dt")
+    return flight[n].source.startswith("d/dt")
+
+
+def _too_slow(flight: Flight, names) -> str:
+    """The signals of ``names`` logged slower than MIN_RATE_HZ, as text ('' when none)."""
+    slow = [f"{n} {flight[n].rate_hz:.1f} Hz" for n in names if flight.has(n) and not flight[n].rate_hz >= MIN_RATE_HZ]
+    return f"logged too slowly ({', '.join(slow)} < {MIN_RATE_HZ:g} Hz)" if slow else ""
+
+
+def _rate_of(flight, name, t, k):
+    """d(name)/dt on the grid ``t`` (central differences), smoothed over ``k`` samples."""
+    return _smooth(CentralDifference()(np.nan_to_num(_on_grid(flight, name, t)), t), k)
 
 
 # -- the checks -------------------------------------------------------------------------------------
@@ -252,7 +255,7 @@ def _velocity_position(flight: Flight):
     for t in _grids(flight, names, h, k):
         for p, v in axes:
             cols[v].append(_smooth(_on_grid(flight, v, t), k))
-            dcols[p].append(_smooth(CentralDifference()(np.nan_to_num(_on_grid(flight, p, t)), t), k))
+            dcols[p].append(_rate_of(flight, p, t, k))
     if not dcols[axes[0][0]]:
         return Check(name, "skipped", "no stretch where position and velocity both have data"), {}
     V = {v: np.concatenate(cols[v]) for _, v in axes}
@@ -261,11 +264,7 @@ def _velocity_position(flight: Flight):
     for p, v in axes:
         res[v] = {q: _relate(V[v], D[q]) for q, _ in axes}
     numbers = {f"{v}/d{p}": res[v][p][0] for p, v in axes} | {f"corr {v},d{p}": res[v][p][1] for p, v in axes}
-    return None, {"axes": axes, "res": res, "numbers": numbers, "h": h}
-
-
-def _slow(flight: Flight, names) -> bool:
-    return any(not _rate(flight, n) >= MIN_RATE_HZ for n in names if flight.has(n))
+    return None, {"axes": axes, "res": res, "numbers": numbers}
 
 
 def _rates_attitude(flight: Flight, time_suspect: bool):
@@ -273,10 +272,9 @@ def _rates_attitude(flight: Flight, time_suspect: bool):
     need = ("roll", "pitch", "yaw", "wx", "wy", "wz")
     if not flight.has(*need):
         return Check(name, "skipped", "no body rates and attitude"), {}
-    slow = [f"{n} {_rate(flight, n):.1f} Hz" for n in need if not _rate(flight, n) >= MIN_RATE_HZ]
+    slow = _too_slow(flight, need)
     if slow and not time_suspect:
-        return Check(name, "skipped", f"logged too slowly to differentiate the attitude ({', '.join(slow)} "
-                                      f"< {MIN_RATE_HZ:g} Hz)"), {}
+        return Check(name, "skipped", slow), {}
     h = _step(flight, need)
     k = _window(h, SMOOTH_S)
     meas, ref = [], []
@@ -294,28 +292,21 @@ def _rates_attitude(flight: Flight, time_suspect: bool):
     return None, {"res": res, "numbers": numbers}
 
 
-def _thrust_axis(roll, pitch, yaw):
-    """The body z axis in the ENU world (Z-Y-X angles in rad): the third column of
-    :func:`droneid.frames.euler_to_matrix`."""
-    return euler_to_matrix(roll, pitch, yaw)[..., :, 2]
-
-
 def _horizontal(flight: Flight):
     name = "horizontal acceleration vs thrust axis"
     need = ("vx", "vy", "roll", "pitch", "yaw")
     if not flight.has(*need):
         return Check(name, "skipped", "no horizontal velocity and attitude"), {}
-    slow = [f"{n} {_rate(flight, n):.1f} Hz" for n in need if not _rate(flight, n) >= MIN_RATE_HZ]
-    if slow:
-        return Check(name, "skipped", f"logged too slowly ({', '.join(slow)} < {MIN_RATE_HZ:g} Hz)"), {}
+    if _too_slow(flight, need):
+        return Check(name, "skipped", _too_slow(flight, need)), {}
     h = _step(flight, need)
     k = _window(h, ACCEL_SMOOTH_S)
     A, P, Pn = [], [], []
     for t in _grids(flight, need, h, k):
-        ax, ay = (_smooth(CentralDifference()(np.nan_to_num(_on_grid(flight, n, t)), t), k) for n in ("vx", "vy"))
+        ax, ay = (_rate_of(flight, n, t, k) for n in ("vx", "vy"))
         r, p, y = (_on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw"))
         for out, yy in ((P, y), (Pn, -y)):
-            z = _thrust_axis(r, p, yy)
+            z = euler_to_matrix(r, p, yy)[..., :, 2]      # the body z axis in the world
             out.append(_smooth(G * (z[:, 0] + 1j * z[:, 1]) / z[:, 2], k))
         A.append(ax + 1j * ay)
     if not A:
@@ -326,21 +317,16 @@ def _horizontal(flight: Flight):
         return Check(name, "skipped", f"only {int(ok.sum())} samples"), {}
     A, P, Pn = A[ok], P[ok], Pn[ok]
 
-    def centred(z):
-        return z - (np.median(z.real) + 1j * np.median(z.imag))
-
-    def score(a, p):
-        a, p = centred(a), centred(p)
+    def score(a, p):      # a vector correlation about the medians (a steady wind is no mismatch)
+        a, p = (z - (np.median(z.real) + 1j * np.median(z.imag)) for z in (a, p))
         den = math.sqrt(float(np.sum(np.abs(a) ** 2) * np.sum(np.abs(p) ** 2)))
         return float(np.sum(a * np.conj(p)).real / den) if den > 0 else math.nan
     swapped = A.imag + 1j * A.real
     s = {"as read": score(A, P), "x/y swapped": score(swapped, P), "yaw negated": score(A, Pn)}
-    tilt_spread = float(np.degrees(np.percentile(np.abs(P), 95) / G))
-    return None, {"scores": s, "tilt_deg": tilt_spread,
-                  "numbers": {f"score {k_}": v for k_, v in s.items()}}
+    return None, {"scores": s, "numbers": {f"score {k_}": v for k_, v in s.items()}}
 
 
-def _vertical(flight: Flight):
+def _vertical(flight: Flight, acc_frd: bool = False):
     name = "vertical acceleration vs thrust"
     if not flight.has("vz"):
         return Check(name, "skipped", "no vz"), {}
@@ -358,16 +344,17 @@ def _vertical(flight: Flight):
     else:
         return Check(name, "skipped", "no accelerometer or rotor signal"), {}
     need = ["vz", *names]
-    slow = [f"{n} {_rate(flight, n):.1f} Hz" for n in need if not _rate(flight, n) >= MIN_RATE_HZ]
-    if slow:
-        return Check(name, "skipped", f"logged too slowly ({', '.join(slow)} < {MIN_RATE_HZ:g} Hz)"), {}
+    if _too_slow(flight, need):
+        return Check(name, "skipped", _too_slow(flight, need)), {}
     h = _step(flight, need)
     k = _window(h, ACCEL_SMOOTH_S)
     U, D = [], []
     for t in _grids(flight, need, h, k):
-        D.append(_smooth(CentralDifference()(np.nan_to_num(_on_grid(flight, "vz", t)), t), k))
+        D.append(_rate_of(flight, "vz", t, k))
         if src.startswith("the acc"):
             a = np.column_stack([_on_grid(flight, n, t) for n in ("ax", "ay", "az")])
+            if acc_frd:         # the gravity check found an FRD accelerometer: judge it as FLU
+                a[:, 1:] *= -1.0
             # the world z component of R·a (R body to world): R's third row
             R = euler_to_matrix(*(_on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw")))
             u = np.einsum("nj,nj->n", R[:, 2, :], a)
@@ -403,7 +390,7 @@ def _column_swap_fix(flight: Flight) -> str:
     words = []
     for a, b in (("x", "y"), ("vx", "vy")):
         if flight.has(a, b) and not _derived(flight, a):
-            words += [f"--column {a}={_source(flight, b)}", f"--column {b}={_source(flight, a)}"]
+            words += [f"--column {a}={flight[b].source}", f"--column {b}={flight[a].source}"]
     return " ".join(words)
 
 
@@ -442,7 +429,7 @@ def _judge(flight, checks, findings) -> None:
         findings.append(Finding("time", f"time stamps look like {word} ({'; '.join(time_evidence)}; a "
                                 f"{span / 1000 ** time_k:.1f} s flight read as {span:,.0f} s)",
                                 f"--time-unit {unit}"))
-    if not time_k and not skip_ra and _slow(flight, ("roll", "pitch", "yaw", "wx", "wy", "wz")):
+    if not time_k and not skip_ra and _too_slow(flight, ("roll", "pitch", "yaw", "wx", "wy", "wz")):
         skip_ra, ra = _rates_attitude(flight, False)
     # 2. velocity vs position
     if skip_vp:
@@ -450,13 +437,12 @@ def _judge(flight, checks, findings) -> None:
     else:
         res, axes = vp["res"], vp["axes"]
         strong = {v: res[v][p] for p, v in axes if res[v][p][1] >= STRONG_CORR}
-        mism = []
+        before = len(findings)
         kmh = [v for v, (s, _, _) in strong.items() if _in(s, _KMH)]
         if not time_k and kmh:
             v0 = kmh[0]
             findings.append(Finding("kmh", f"{v0} is {strong[v0][0]:.2f} x d({v0[1:]})/dt: velocity in km/h?",
                                     " ".join(f"--scale {v}=1/3.6" for _, v in axes)))
-            mism.append(v0)
         for p, v in axes:
             s, c, n = res[v][p]
             if time_k or v in kmh:
@@ -464,11 +450,9 @@ def _judge(flight, checks, findings) -> None:
             if c >= STRONG_CORR and not _in(s, OK_SLOPE):
                 findings.append(Finding("scale", f"{v} is {_fmt_slope(s)} x d({p})/dt: {v} and {p} in different units?",
                                         f"--scale {v}={1 / s:.4g}"))
-                mism.append(v)
             elif c <= -STRONG_CORR and _in(-s, _SIGN_SLOPE):
                 findings.append(Finding("sign", f"{v} is {s:.2f} x d({p})/dt: {v} and {p} have opposite signs",
                                         f"--scale {v}=-1, or --scale {p}=-1 if {p} is the one reversed"))
-                mism.append(v)
             elif abs(c) < STRONG_CORR / 2:
                 other = [(res[v][q][1], q) for q, _ in axes if q != p and res[v][q][1] >= STRONG_CORR]
                 if other:
@@ -476,7 +460,6 @@ def _judge(flight, checks, findings) -> None:
                     findings.append(Finding("swap", f"{v} follows d({q})/dt (correlation {c2:.2f}), not d({p})/dt "
                                             f"({c:.2f}): velocity and position axes differ",
                                             f"map the velocity columns to the position's axes (--column v{q}=COLUMN)"))
-                    mism.append(v)
         moving = [v for p, v in axes if abs(res[v][p][1]) >= STRONG_CORR]
         detail = ", ".join(f"{v} = {_fmt_slope(res[v][p][0])} x d({p})/dt (r {res[v][p][1]:.2f})" for p, v in axes
                            if math.isfinite(res[v][p][0]))
@@ -484,7 +467,7 @@ def _judge(flight, checks, findings) -> None:
             checks.append(Check("velocity vs position", "skipped",
                                 f"too little motion to judge ({detail or 'no samples'})", vp["numbers"]))
         else:
-            checks.append(Check("velocity vs position", "mismatch" if (mism or time_k) else "ok", detail, vp["numbers"]))
+            checks.append(Check("velocity vs position", "mismatch" if time_k or len(findings) > before else "ok", detail, vp["numbers"]))
     # 3. body rates vs attitude
     frd = yaw_neg = False
     if skip_ra:
@@ -495,14 +478,12 @@ def _judge(flight, checks, findings) -> None:
         detail = ", ".join(f"{n} = {_fmt_slope(r[0])} x the attitude's rate (r {r[1]:.2f})" for n, r in res.items()
                            if math.isfinite(r[0]))
         mism = False
-        if time_k:
-            pass
-        elif strong and all(_in(r[0], _DEG) for r in strong.values()):
+        if not time_k and strong and all(_in(r[0], _DEG) for r in strong.values()):
             n0 = next(iter(strong))
             findings.append(Finding("deg", f"{n0} is {strong[n0][0]:.1f} x the attitude's rate: body rates in deg/s?",
                                     " ".join(f"--scale {n}=pi/180" for n in ("wx", "wy", "wz"))))
             mism = True
-        else:
+        elif not time_k:
             sign = {n: (1 if _in(r[0], OK_SLOPE) else -1 if r[1] < 0 and _in(-r[0], _SIGN_SLOPE) else 0)
                     for n, r in strong.items()}
             neg = sorted(n for n, s_ in sign.items() if s_ < 0)
@@ -567,7 +548,7 @@ def _judge(flight, checks, findings) -> None:
                                 detail if s["as read"] >= ALT_SCORE else
                                 f"the acceleration does not follow the tilt any way ({detail})", hz["numbers"]))
     # 6. vertical
-    skip, vt = _vertical(flight)
+    skip, vt = _vertical(flight, acc_frd)
     z_down = False
     if skip:
         checks.append(skip)
