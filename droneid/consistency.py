@@ -19,33 +19,26 @@ the correlation is weighted by the fit's weights. A relation is judged only when
 correlate strongly (:data:`STRONG_CORR` in absolute value) over at least :data:`MIN_POINTS`
 samples; otherwise it is skipped with the reason (no motion, a ground test, slow telemetry).
 
-Checks and thresholds (calibrated on every log of ``../shared/real_logs`` and the simulated
-sample logs; the measured values per log are in docs/logs.md, "Convention checks"):
+Thresholds were calibrated on every log of ``../shared/real_logs`` and the simulated sample logs
+(per-log values: docs/logs.md, "Convention checks"). What consistent logs measure, and what is named:
 
-* **velocity vs position**: ``v ≈ s·dp/dt`` per axis. The real logs measure s = 0.88-1.04 on the
-  axes that move (r >= 0.85; the x500 SITL's x, y at r 0.5 are not judged). ``s ≈ 3.6`` is km/h;
-  ``s ≈ 1000^k`` on every moving axis is a time base in ms/µs/ns; ``s ≈ -1`` a sign; a velocity
-  that follows another axis's position is a swap.
-* **body rates vs attitude**: ``w ≈ s·ω(attitude)`` per FLU axis, ω from the Euler angles' rates
-  (:func:`droneid.frames.body_rates_from_euler`). Real logs: s = 0.88-1.09, and 0.32-0.64 on wz
-  of the PX4 VTOL and ground test (positive: no finding; only signs, 57.3 and 1000^k are named).
-  ``s ≈ 57.3`` is deg/s; a reversed wy and wz is an FRD body; wz alone a yaw that turns
-  clockwise. Needs attitude and rates at >= :data:`MIN_RATE_HZ`.
-* **horizontal acceleration vs thrust axis**: the acceleration ``d(vx, vy)/dt`` against
-  ``g·(zx, zy)/zz`` (the body z axis in the world, a multirotor's a_h = g·tan(tilt)), scored as
-  a vector correlation as read, with x/y swapped and with yaw negated. As read, the moving
-  multirotors score 0.62-0.98 (the fixed-wing's mocap pose 0.91); an alternative must reach
-  :data:`ALT_SCORE` and beat the reading as read by :data:`ALT_MARGIN` (a yaw that stays near 0
-  scores "yaw negated" almost as high as "as read"). Birds and log171 with its crash score low
-  every way (skipped).
-* **vertical**: the world specific force (accelerometer rotated by the attitude), else the
-  rotor signals (Σ rpm², Σ motor, throttle), against ``d(vz)/dt``: r = 0.71-0.99 on the real
-  logs; r <= -:data:`VERTICAL_CORR` says z points down (with the x/y swap above: NED).
-* **gravity**: the median of ``az`` is +g in FLU (9.58-9.84 on the real logs); about -g is an
-  FRD accelerometer, about 1 an accelerometer in g.
-* **time**: the time unit comes from the two derivative relations (a slope of 1000^k on every
-  moving axis) and is stated with the span the log would have: "a 69.7 s flight read as
-  69 720 s".
+* **velocity vs position**, ``v ≈ s·dp/dt`` per axis: s = 0.88-1.04 where r >= 0.85. Named:
+  s ≈ 3.6 (km/h), s ≈ -1 (a sign), a velocity following another axis's position (a swap).
+* **body rates vs attitude**, ``w ≈ s·ω`` per FLU axis, ω from the Euler angles' rates
+  (:func:`droneid.frames.body_rates_from_euler`): s = 0.88-1.09 (0.32-0.64 on wz of the PX4 VTOL
+  and ground test: positive, not named). Named: s ≈ 57.3 (deg/s); wy and wz reversed (FRD);
+  wz alone reversed (yaw negated). Needs >= :data:`MIN_RATE_HZ`.
+* **horizontal acceleration vs thrust axis**: ``d(vx, vy)/dt`` against ``g·(zx, zy)/zz`` (a
+  multirotor's a_h = g·tan(tilt)), a vector correlation as read (0.62-0.98 on the moving
+  multirotors, 0.91 on the fixed-wing's pose), with x/y swapped, with yaw negated; an alternative
+  must reach :data:`ALT_SCORE` and beat "as read" by :data:`ALT_MARGIN` (a yaw near 0 scores
+  "yaw negated" almost as high as "as read"). Birds, and log171 with its crash, score low every way.
+* **vertical**: the accelerometer rotated to the world (else Σ rpm², Σ motor, throttle) against
+  ``d(vz)/dt``: r = 0.71-0.99; r <= -:data:`VERTICAL_CORR` is z down (with the x/y swap: NED).
+* **gravity**: median ``az`` 9.58-9.84 m/s²; about -g is an FRD accelerometer, about 1 one in g.
+* **time**: a slope of 1000^k (velocity or rates) on every moving axis, or a horizontal
+  acceleration 1000^-2k x g·tan(tilt) (the gain is 0.49-0.94 on the real logs), is a time base in
+  ms/µs/ns: "a 69.7 s flight read as 69,720 s".
 """
 from __future__ import annotations
 
@@ -187,7 +180,7 @@ def _smooth(x: np.ndarray, k: int) -> np.ndarray:
 
 
 def _window(h: float, seconds: float) -> int:
-    return max(3, int(round(seconds / h)))
+    return max(3, int(round(seconds / h)))     # samples of a moving average of ``seconds``
 
 
 def _on_grid(flight, name, t, angle=False):
@@ -269,14 +262,16 @@ def _velocity_position(flight: Flight):
     return None, {"axes": axes, "res": res, "numbers": numbers}
 
 
-def _rates_attitude(flight: Flight, time_suspect: bool):
-    name = "body rates vs attitude"
-    need = ("roll", "pitch", "yaw", "wx", "wy", "wz")
+_RATES = ("roll", "pitch", "yaw", "wx", "wy", "wz")
+_HORIZONTAL = ("vx", "vy", "roll", "pitch", "yaw")
+
+
+def _rates_attitude(flight: Flight):
+    """body rates against the attitude's rates (at any rate: the judge skips slow signals
+    unless the time base is in question)."""
+    need = _RATES
     if not flight.has(*need):
-        return Check(name, "skipped", "no body rates and attitude"), {}
-    slow = _too_slow(flight, need)
-    if slow and not time_suspect:
-        return Check(name, "skipped", slow), {}
+        return Check("body rates vs attitude", "skipped", "no body rates and attitude"), {}
     h = _step(flight, need)
     k = _window(h, SMOOTH_S)
     meas, ref = [], []
@@ -287,7 +282,7 @@ def _rates_attitude(flight: Flight, time_suspect: bool):
         ref.append(np.column_stack([_smooth(w_att[:, i], k) for i in range(3)]))
         meas.append(np.column_stack([_smooth(_on_grid(flight, n, t), k) for n in ("wx", "wy", "wz")]))
     if not meas:
-        return Check(name, "skipped", "no stretch where attitude and rates both have data"), {}
+        return Check("body rates vs attitude", "skipped", "no stretch where attitude and rates both have data"), {}
     M, R = np.vstack(meas), np.vstack(ref)
     res = {n: _relate(M[:, i], R[:, i]) for i, n in enumerate(("wx", "wy", "wz"))}
     numbers = {f"{n}/att": r[0] for n, r in res.items()} | {f"corr {n},att": r[1] for n, r in res.items()}
@@ -296,13 +291,13 @@ def _rates_attitude(flight: Flight, time_suspect: bool):
 
 def _horizontal(flight: Flight):
     name = "horizontal acceleration vs thrust axis"
-    need = ("vx", "vy", "roll", "pitch", "yaw")
+    need = _HORIZONTAL
     if not flight.has(*need):
         return Check(name, "skipped", "no horizontal velocity and attitude"), {}
-    if _too_slow(flight, need):
-        return Check(name, "skipped", _too_slow(flight, need)), {}
     h = _step(flight, need)
-    k = _window(h, ACCEL_SMOOTH_S)
+    # a step of 0.2 s or more is smoothed as if it were ms (µs, ns): only the time check, which
+    # compares the gain with 1000^-2k, uses the result of such slow data
+    k = _window(h / 1000 ** max(0, math.ceil(math.log10(h / 0.2) / 3)), ACCEL_SMOOTH_S)
     A, P, Pn = [], [], []
     for t in _grids(flight, need, h, k):
         ax, ay = (_rate_of(flight, n, t, k) for n in ("vx", "vy"))
@@ -325,7 +320,8 @@ def _horizontal(flight: Flight):
         return float(np.sum(a * np.conj(p)).real / den) if den > 0 else math.nan
     swapped = A.imag + 1j * A.real
     s = {"as read": score(A, P), "x/y swapped": score(swapped, P), "yaw negated": score(A, Pn)}
-    return None, {"scores": s, "numbers": {f"score {k_}": v for k_, v in s.items()}}
+    gain = float(np.sum(A * np.conj(P)).real / np.sum(np.abs(P) ** 2))      # 0.49-0.94 on the real logs
+    return None, {"scores": s, "gain": gain, "numbers": {f"score {k_}": v for k_, v in s.items()} | {"gain": gain}}
 
 
 def _vertical(flight: Flight, acc_frd: bool = False):
@@ -333,16 +329,12 @@ def _vertical(flight: Flight, acc_frd: bool = False):
     if not flight.has("vz"):
         return Check(name, "skipped", "no vz"), {}
     body = ("ax", "ay", "az", "roll", "pitch", "yaw")
-    rpm = [f"rpm{i}" for i in range(1, 17) if flight.has(f"rpm{i}")]
-    mot = [f"motor{i}" for i in range(1, 17) if flight.has(f"motor{i}")]
-    if flight.has(*body):
-        src, names = "the accelerometer rotated to the world", list(body)
-    elif rpm:
-        src, names = "Σ rpm²", rpm
-    elif mot:
-        src, names = "Σ motor commands", mot
-    elif flight.has("throttle"):
-        src, names = "throttle", ["throttle"]
+    rpm, mot = ([f"{p}{i}" for i in range(1, 17) if flight.has(f"{p}{i}")] for p in ("rpm", "motor"))
+    for src, names in (("the accelerometer rotated to the world", list(body) if flight.has(*body) else []),
+                       ("Σ rpm²", rpm), ("Σ motor commands", mot),
+                       ("throttle", ["throttle"] if flight.has("throttle") else [])):
+        if names:         # the first thrust signal the log has, in this order
+            break
     else:
         return Check(name, "skipped", "no accelerometer or rotor signal"), {}
     need = ["vz", *names]
@@ -411,7 +403,8 @@ def _judge(flight, checks, findings) -> None:
     # 1. the time base: a slope of 1000^k in both derivative relations (velocity vs position,
     # rates vs attitude) on every axis that moves
     skip_vp, vp = _velocity_position(flight)
-    skip_ra, ra = _rates_attitude(flight, True)
+    skip_ra, ra = _rates_attitude(flight)
+    skip_hz, hz = _horizontal(flight)
     time_k, time_evidence = 0, []
     for rel, what in ((vp, "d({p})/dt"), (ra, "the attitude's rate")):
         if not rel:
@@ -425,14 +418,22 @@ def _judge(flight, checks, findings) -> None:
                 time_k = k_
                 n0, r0, p0 = strong[0]
                 time_evidence.append(f"{n0} is {_fmt_slope(r0[0])} x {what.format(p=p0)}")
+    # without velocity and rates: the acceleration is 1000^-2k x the tilt's g·tan(tilt)
+    if not time_k and hz and hz["scores"]["as read"] >= ALT_SCORE and hz["gain"] > 0:
+        k_ = round(-math.log10(hz["gain"]) / 6)
+        if k_ >= 1 and abs(math.log10(hz["gain"]) + 6 * k_) < math.log10(5):
+            time_k = k_
+            time_evidence.append(f"d(vx, vy)/dt is {hz['gain']:.2g} x g·tan(tilt)")
     if time_k:
         unit, word = _TIME_UNITS[time_k]
         span = flight.duration_s
         findings.append(Finding("time", f"time stamps look like {word} ({'; '.join(time_evidence)}; a "
                                 f"{span / 1000 ** time_k:.1f} s flight read as {span:,.0f} s)",
                                 f"--time-unit {unit}"))
-    if not time_k and not skip_ra and _too_slow(flight, ("roll", "pitch", "yaw", "wx", "wy", "wz")):
-        skip_ra, ra = _rates_attitude(flight, False)
+    for name, need in (("body rates vs attitude", _RATES), ("horizontal acceleration vs thrust axis", _HORIZONTAL)):
+        if not time_k and flight.has(*need) and _too_slow(flight, need):      # too slow to differentiate
+            skip = Check(name, "skipped", _too_slow(flight, need))
+            skip_ra, skip_hz = (skip, skip_hz) if need is _RATES else (skip_ra, skip)
     # 2. velocity vs position
     if skip_vp:
         checks.append(skip_vp)
@@ -469,7 +470,8 @@ def _judge(flight, checks, findings) -> None:
             checks.append(Check("velocity vs position", "skipped",
                                 f"too little motion to judge ({detail or 'no samples'})", vp["numbers"]))
         else:
-            checks.append(Check("velocity vs position", "mismatch" if time_k or len(findings) > before else "ok", detail, vp["numbers"]))
+            checks.append(Check("velocity vs position", "mismatch" if time_k or len(findings) > before else "ok",
+                                detail, vp["numbers"]))
     # 3. body rates vs attitude
     frd = yaw_neg = False
     if skip_ra:
@@ -532,11 +534,9 @@ def _judge(flight, checks, findings) -> None:
         findings.append(Finding("frd", f"az reads {gr['az']:.2f} m/s² (-g) at rest: accelerations in FRD (z down)",
                                 "--scale ay=-1 --scale az=-1"))
     # 5. horizontal: swaps, yaw
-    skip, hz = _horizontal(flight)
-    swap = False
-    yaw_alt = False
-    if skip:
-        checks.append(skip)
+    swap = yaw_alt = False
+    if skip_hz:
+        checks.append(skip_hz)
     else:
         s = hz["scores"]
         best = max((k_ for k_ in s if k_ != "as read"), key=lambda k_: s[k_] if math.isfinite(s[k_]) else -2)
@@ -559,7 +559,8 @@ def _judge(flight, checks, findings) -> None:
         z_down = math.isfinite(c) and c <= -VERTICAL_CORR and not time_k
         checks.append(Check("vertical acceleration vs thrust", "mismatch" if z_down else
                             "ok" if c >= VERTICAL_CORR else "skipped",
-                            f"{vt['src']} against d(vz)/dt: r {c:.2f}", vt["numbers"]))
+                            f"{vt['src']} against d(vz)/dt: r {c:.2f}"
+                            + ("" if abs(c) >= VERTICAL_CORR else " (too weak to judge)"), vt["numbers"]))
     if z_down and (swap or not _horizontal_ok(checks)):
         findings.append(Finding("ned", "vz falls when the thrust rises" + (" and x/y are swapped" if swap else "")
                                 + ": the data read as NED (z down)", "--world-frame ned"))

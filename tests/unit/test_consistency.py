@@ -72,6 +72,19 @@ def test_identify_and_diagnose_refuse_before_any_fit(rewritten):
     assert str(e.value).count("\n") == 1      # a head line, then one line per finding
 
 
+def test_a_pose_only_log_in_milliseconds_is_named_by_its_accelerations(tmp_path):
+    """No velocity or rates to compare: the horizontal acceleration, 1e-6 x g·tan(tilt) when the
+    stamps are ms read as s, names the time unit."""
+    import pandas as pd
+    df = pd.read_csv(SIM)[["t", "x", "y", "z", "qw", "qx", "qy", "qz"]]
+    df["t"] *= 1000
+    p = tmp_path / "pose_ms.csv"
+    df.to_csv(p, index=False)
+    c = check_flight(read_flight(p))
+    assert [(f.kind, f.fix) for f in c.findings] == [("time", "--time-unit ms")], c.lines()
+    assert check_flight(read_flight(p, time_unit="ms")).ok
+
+
 def test_an_frd_imu_is_named_as_one_frame_and_converted_back(tmp_path):
     """Rates AND accelerations in FRD (a whole FRD IMU): the gravity check sees az = -g, so the
     finding is --body-frame frd, which negates y and z of both."""
@@ -93,7 +106,8 @@ def _flight(t, **cols):
 
 def test_convert_ned_frd_time_and_scale_exactly():
     t = np.arange(0.0, 1.0, 0.1)
-    f = _flight(t, x=t, y=2 * t, z=3 * t, vx=np.ones_like(t), vy=2 * np.ones_like(t), vz=3 * np.ones_like(t), wx=t, wy=t, wz=t, ax=t, ay=t, az=t)
+    one = np.ones_like(t)
+    f = _flight(t, x=t, y=2 * t, z=3 * t, vx=one, vy=2 * one, vz=3 * one, wx=t, wy=t, wz=t, ax=t, ay=t, az=t)
     g = convert(f, world_frame="ned")
     assert np.allclose(g["x"].values, 2 * t) and np.allclose(g["y"].values, t) and np.allclose(g["z"].values, -3 * t)
     assert np.allclose(g["vx"].values, 2.0)           # derived velocity derived again from the new x
