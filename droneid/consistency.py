@@ -50,7 +50,7 @@ from types import MappingProxyType
 import numpy as np
 
 from .differentiation import CentralDifference
-from .errors import DataError, printable
+from .errors import ConventionError
 from .flight import Flight
 from .frames import body_rates_from_euler, euler_to_matrix
 from .in_flight import _intersect, resample_signal
@@ -86,22 +86,6 @@ VERTICAL_CORR = 0.5
 SMOOTH_S = 0.1
 ACCEL_SMOOTH_S = 0.3
 _TIME_UNITS = {1: ("ms", "milliseconds"), 2: ("us", "microseconds"), 3: ("ns", "nanoseconds")}
-
-
-class ConventionError(DataError):
-    """Flights whose redundant signals disagree the way a convention mistake makes them
-    disagree: one line per finding, naming the file and the fix."""
-
-    def __init__(self, lines: Sequence[str], role: str = ""):
-        self.lines = tuple(lines)
-        what = f"the {role} data" if role else "the data"
-        self.head = (f"{what} look read in the wrong convention ({len(self.lines)} finding(s)); refused "
-                     f"before any fit, rerun with the fix:")
-        super().__init__(self.head, *self.lines)
-
-    def __str__(self) -> str:
-        # one printable line each: the head, then one line per finding naming its file
-        return "\n".join(printable(x) for x in (self.head, *self.lines))
 
 
 @dataclass(frozen=True)
@@ -207,6 +191,15 @@ def _relate(meas: np.ndarray, ref: np.ndarray) -> tuple[float, float, int]:
     return float(fit.beta[0]), corr, n
 
 
+def _lag(meas: np.ndarray, ref: np.ndarray, h: float, max_s: float = 0.5) -> float:
+    """The delay (s) of ``meas`` behind ``ref`` that correlates best, within ±``max_s`` (in grid
+    steps ``h``): reported, never named (no reader option shifts one signal)."""
+    m, r = (np.nan_to_num(x - np.nanmedian(x)) for x in (meas, ref))
+    n = min(max(1, int(round(max_s / h))), len(m) // 4)
+    c = [np.corrcoef(m[n + j:len(m) - n + j], r[n:len(r) - n])[0, 1] for j in range(-n, n + 1)]
+    return (int(np.nanargmax(c)) - n) * h if np.isfinite(c).any() else math.nan
+
+
 def _power_of_1000(slope: float) -> int:
     """k when ``slope`` is 1000^k within ±25 % (k >= 1), else 0."""
     if not (math.isfinite(slope) and slope > 0):
@@ -258,8 +251,10 @@ def _velocity_position(flight: Flight):
     res = {}
     for p, v in axes:
         res[v] = {q: _relate(V[v], D[q]) for q, _ in axes}
-    numbers = {f"{v}/d{p}": res[v][p][0] for p, v in axes} | {f"corr {v},d{p}": res[v][p][1] for p, v in axes}
-    return None, {"axes": axes, "res": res, "numbers": numbers}
+    lags = {v: _lag(V[v], D[p], h) for p, v in axes}
+    numbers = ({f"{v}/d{p}": res[v][p][0] for p, v in axes} | {f"corr {v},d{p}": res[v][p][1] for p, v in axes}
+               | {f"lag {v} s": lag for v, lag in lags.items()})
+    return None, {"axes": axes, "res": res, "numbers": numbers, "lags": lags}
 
 
 _RATES = ("roll", "pitch", "yaw", "wx", "wy", "wz")
@@ -464,8 +459,9 @@ def _judge(flight, checks, findings) -> None:
                                             f"({c:.2f}): velocity and position axes differ",
                                             f"map the velocity columns to the position's axes (--column v{q}=COLUMN)"))
         moving = [v for p, v in axes if abs(res[v][p][1]) >= STRONG_CORR]
-        detail = ", ".join(f"{v} = {_fmt_slope(res[v][p][0])} x d({p})/dt (r {res[v][p][1]:.2f})" for p, v in axes
-                           if math.isfinite(res[v][p][0]))
+        detail = ", ".join(f"{v} = {_fmt_slope(res[v][p][0])} x d({p})/dt (r {res[v][p][1]:.2f}"
+                           + (f", {vp['lags'][v]:.3g} s behind)" if abs(res[v][p][1]) >= STRONG_CORR else ")")
+                           for p, v in axes if math.isfinite(res[v][p][0]))
         if not moving:
             checks.append(Check("velocity vs position", "skipped",
                                 f"too little motion to judge ({detail or 'no samples'})", vp["numbers"]))

@@ -85,6 +85,20 @@ def test_a_pose_only_log_in_milliseconds_is_named_by_its_accelerations(tmp_path)
     assert check_flight(read_flight(p, time_unit="ms")).ok
 
 
+def test_a_delayed_velocity_is_measured_not_named(tmp_path):
+    """vx logged 0.2 s late: the velocity check reports the lag (no reader option shifts one
+    signal, so it is no finding)."""
+    import pandas as pd
+    df = pd.read_csv(SIM)
+    df["vx"] = df["vx"].shift(4)           # 20 Hz: 0.2 s behind
+    p = tmp_path / "late_vx.csv"
+    df.dropna().to_csv(p, index=False)
+    c = check_flight(read_flight(p))
+    vel = next(ch for ch in c.checks if ch.name == "velocity vs position")
+    assert vel.numbers["lag vx s"] == pytest.approx(0.2, abs=0.02)
+    assert vel.numbers["lag vy s"] == pytest.approx(0.0, abs=0.02) and "0.2 s behind" in vel.detail
+
+
 def test_an_frd_imu_is_named_as_one_frame_and_converted_back(tmp_path):
     """Rates AND accelerations in FRD (a whole FRD IMU): the gravity check sees az = -g, so the
     finding is --body-frame frd, which negates y and z of both."""
