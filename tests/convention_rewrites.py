@@ -33,9 +33,9 @@ def _col(df, name):
 
 
 def rewrite(src, dst, mistake: str) -> None:
-    """Write ``src`` (a flat CSV with t, x y z, vx vy vz, wx wy wz, an attitude) to ``dst`` with
-    ``mistake`` (a key of :data:`MISTAKES`) made."""
-    df = pd.read_csv(src, low_memory=False)
+    """Write ``src`` (a flat CSV with t, x y z, vx vy vz, wx wy wz, an attitude; or its
+    DataFrame, left unchanged) to ``dst`` with ``mistake`` (a key of :data:`MISTAKES`) made."""
+    df = src.copy() if isinstance(src, pd.DataFrame) else pd.read_csv(src, low_memory=False)
     c = {n: _col(df, n) for n in ("t", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz")}
     if mistake in ("ned", "swap"):
         for a, b in (("x", "y"), ("vx", "vy")):
@@ -68,8 +68,17 @@ def rewrite(src, dst, mistake: str) -> None:
 
 def rewrite_all(src, folder, stem: str) -> dict:
     """Every mistake of :data:`MISTAKES` made to ``src``: {mistake: path of FOLDER/STEM_MISTAKE.csv}."""
-    out = {}
+    out, df = {}, pd.read_csv(src, low_memory=False)
     for m in MISTAKES:
         out[m] = folder / f"{stem}_{m}.csv"
-        rewrite(src, out[m], m)
+        rewrite(df, out[m], m)
     return out
+
+
+def reader_kwargs(words) -> dict:
+    """read_flight keywords of reader-option words (``["--scale", "vx=1/3.6"]``), parsed by the
+    CLI's own parser and :func:`droneid.commands._common.log_options`."""
+    from droneid.cli import build_parser
+    from droneid.commands._common import log_options
+    args = build_parser(["inspect"]).parse_args(["inspect", "x.csv", *words])
+    return {k: v for k, v in log_options(args).items() if v is not None}

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from convention_rewrites import MISTAKES, rewrite_all
+from convention_rewrites import MISTAKES, reader_kwargs, rewrite_all
 from droneid.consistency import ConventionError, check_flight
 from droneid.errors import ConfigError
 from droneid.flight import Flight, Provenance, Signal
@@ -23,14 +23,6 @@ KIND = {"ned": "ned", "frd": "frd", "ms": "time", "us": "time", "deg": "deg", "k
         "yaw": "yaw"}
 
 
-def _options(words):
-    """read_flight keywords of the reader-option words of MISTAKES (the CLI's own parsing)."""
-    from droneid.cli import build_parser
-    from droneid.commands._common import log_options
-    args = build_parser(["inspect"]).parse_args(["inspect", "x.csv", *words])
-    return {k: v for k, v in log_options(args).items() if v is not None}
-
-
 @pytest.fixture(scope="module")
 def rewritten(tmp_path_factory):
     return rewrite_all(SIM, tmp_path_factory.mktemp("rewrites"), "sim")
@@ -44,7 +36,7 @@ def test_each_mistake_is_named_once_with_a_fix_that_works(rewritten, mistake):
     assert line.startswith(str(rewritten[mistake]) + ": ") and "\n" not in line
     words = MISTAKES[mistake][1]
     assert " ".join(words).split(" --")[0] in c.findings[0].fix          # the fix the finding gives
-    fixed = read_flight(rewritten[mistake], **_options(words))
+    fixed = read_flight(rewritten[mistake], **reader_kwargs(words))
     assert check_flight(fixed).ok, check_flight(fixed).lines()
     orig = read_flight(SIM)
     for name in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "yaw"):
@@ -173,3 +165,22 @@ def test_checks_skip_with_a_reason_on_slow_or_missing_signals():
     by = {ch.name: ch for ch in c.checks}
     assert by["body rates vs attitude"].status == "skipped" and "Hz" in by["body rates vs attitude"].detail
     assert by["gravity in the accelerometer"].detail == "no accelerometer"
+
+
+@pytest.mark.parametrize("mistake", ["ned", "frd", "kmh", "deg", "swap", "yaw"])
+def test_the_mcap_and_tlog_writers_carry_a_mistake_the_fix_undoes(rewritten, tmp_path, mistake):
+    """A mistaken flight written by droneid's MCAP and tlog writers: the same finding, and the
+    same fix (the conversions are the reader boundary's, for every format); x/y swapped names no
+    --column (these formats have no columns) but says where to fix it."""
+    from parsers.mcap_writer import write_mcap
+    from parsers.tlog_writer import write_tlog
+    wrong = read_flight(rewritten[mistake])
+    for write, ext in ((write_mcap, "mcap"), (write_tlog, "tlog")):
+        p = tmp_path / f"{mistake}.{ext}"
+        write(wrong, p)
+        c = check_flight(read_flight(p))
+        assert [f.kind for f in c.findings] == [KIND[mistake]], (ext, c.lines())
+        if mistake == "swap":
+            assert "no reader option" in c.findings[0].fix
+        else:
+            assert check_flight(read_flight(p, **reader_kwargs(MISTAKES[mistake][1]))).ok, ext
