@@ -21,8 +21,13 @@ import numpy as np
 __all__ = [
     "wrap_angle", "unwrap_angle", "ned_to_enu", "euler_frd_ned_to_flu_enu",
     "euler_to_quat", "quat_to_euler", "quat_to_matrix", "euler_to_matrix",
-    "quat_flu_enu_from_frd_ned", "qmul", "body_rates_from_euler",
+    "quat_flu_enu_from_frd_ned", "qmul", "body_rates_from_euler", "WORLD_FRAMES", "BODY_FRAMES",
 ]
+
+#: the world and body frames a log may be in (``--world-frame``, ``--body-frame``): droneid's own
+#: first; the others are converted once at the reader boundary (parsers/_convention.py)
+WORLD_FRAMES = ("enu", "ned")
+BODY_FRAMES = ("flu", "frd")
 
 
 def wrap_angle(a):

@@ -32,18 +32,14 @@ from dataclasses import replace
 import numpy as np
 
 from droneid.errors import ConfigError, check_choice, did_you_mean
-from droneid.flight import Flight, Signal
-from droneid.frames import (euler_frd_ned_to_flu_enu, euler_to_quat, ned_to_enu, quat_flu_enu_from_frd_ned,
-                            quat_to_euler, wrap_angle)
+from droneid.flight import TIME_UNITS, Flight, Signal
+from droneid.frames import (BODY_FRAMES, WORLD_FRAMES, euler_frd_ned_to_flu_enu, euler_to_quat, ned_to_enu,
+                            quat_flu_enu_from_frd_ned, quat_to_euler, wrap_angle)
 
 from ._build import central_difference
 
-__all__ = ["convert", "parse_factor", "TIME_UNITS", "WORLD_FRAMES", "BODY_FRAMES"]
+__all__ = ["convert", "parse_factor"]
 
-#: time unit -> seconds per unit
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-WORLD_FRAMES = ("enu", "ned")
-BODY_FRAMES = ("flu", "frd")
 _NUM = r"(pi|[0-9]*\.?[0-9]+(?:e[-+]?[0-9]+)?)"
 _FACTOR = re.compile(rf"^([-+]?)\s*{_NUM}\s*(?:/\s*{_NUM})?$", re.I)
 _EULER = ("roll", "pitch", "yaw")

@@ -11,6 +11,7 @@ from ..lazy import lazy_module
 
 _parsers = lazy_module("parsers")            # the readers (pymavlink, pyulog, mcap): once a log is read
 _flight = lazy_module("droneid.flight")
+_frames = lazy_module("droneid.frames")
 _predict = lazy_module("droneid.predict")
 
 
@@ -94,13 +95,13 @@ def add_log_options(p, *, with_format: bool = True) -> None:
                    help="flat CSV: read canonical signal CANON (x, vx, throttle, rpm1, motor1, ...) "
                         "from COLUMN; repeatable")
     p.add_argument("--sysid", type=int, default=None, help="tlog: the vehicle's MAVLink system id")
-    p.add_argument("--world-frame", default=None, choices=("enu", "ned"),
+    p.add_argument("--world-frame", default=None, choices=_frames.WORLD_FRAMES,
                    help="the log's world frame when it is not droneid's ENU: ned = north, east, down "
                         "(position and velocity converted; docs/logs.md, convention checks)")
-    p.add_argument("--body-frame", default=None, choices=("flu", "frd"),
+    p.add_argument("--body-frame", default=None, choices=_frames.BODY_FRAMES,
                    help="the log's body frame when it is not droneid's FLU: frd = forward, right, down "
                         "(body rates and accelerations; with --world-frame ned the attitude too)")
-    p.add_argument("--time-unit", default=None, choices=("s", "ms", "us", "ns"),
+    p.add_argument("--time-unit", default=None, choices=tuple(_flight.TIME_UNITS),
                    help="the unit of the time stamps a reader takes as seconds (e.g. ms: a 70 s flight "
                         "read as 70 000 s)")
     p.add_argument("--scale", action="append", default=[], metavar="NAME=FACTOR",
