@@ -65,6 +65,23 @@ class DataError(DroneIdError, ValueError):
     """The data are unusable for the requested stage (too few samples, non-finite values, ...)."""
 
 
+class ConventionError(DataError):
+    """Flights whose redundant signals disagree the way a convention mistake makes them disagree
+    (:mod:`droneid.consistency`): a head line, then one line per finding naming the file and the
+    reader option that fixes it (the one error whose text has several lines)."""
+
+    def __init__(self, lines: Iterable[str], role: str = ""):
+        self.lines = tuple(lines)
+        what = f"the {role} data" if role else "the data"
+        self.head = (f"{what} look read in the wrong convention ({len(self.lines)} finding(s)); refused "
+                     f"before any fit, rerun with the fix:")
+        super().__init__(self.head, *self.lines)
+
+    def __str__(self) -> str:
+        # one printable line each: the head, then one line per finding naming its file
+        return "\n".join(printable(x) for x in (self.head, *self.lines))
+
+
 def did_you_mean(name: str, choices: Iterable[str]) -> str:
     """Return ``" (did you mean 'x'?)"`` for the closest valid name, or ``""``."""
     close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)

@@ -19,7 +19,7 @@ import numpy as np
 from .errors import DataError, MissingSignalError
 
 __all__ = [
-    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAX_GAP_S", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAX_GAP_S", "TIME_UNITS", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
     "canonical_unit", "is_canonical",
 ]
 
@@ -68,6 +68,9 @@ ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
                             "the fitted scale unless the log states it)"),
 })
 
+
+#: time units a log's stamps may be in (``--time-unit``) -> seconds per unit; droneid's is "s"
+TIME_UNITS: Mapping[str, float] = MappingProxyType({"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9})
 
 #: a pause between samples longer than this (or five median steps, whichever is longer) is a
 #: gap: :meth:`Signal.gaps`, and the dataset builder's default ``max_gap_s``

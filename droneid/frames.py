@@ -21,8 +21,13 @@ import numpy as np
 __all__ = [
     "wrap_angle", "unwrap_angle", "ned_to_enu", "frd_to_flu", "euler_frd_ned_to_flu_enu",
     "euler_to_quat", "quat_to_euler", "quat_to_matrix", "euler_to_matrix",
-    "quat_flu_enu_from_frd_ned", "qmul",
+    "quat_flu_enu_from_frd_ned", "qmul", "body_rates_from_euler", "WORLD_FRAMES", "BODY_FRAMES",
 ]
+
+#: the world and body frames a log may be in (``--world-frame``, ``--body-frame``): droneid's own
+#: first; the others are converted once at the reader boundary (parsers/_convention.py)
+WORLD_FRAMES = ("enu", "ned")
+BODY_FRAMES = ("flu", "frd")
 
 
 def wrap_angle(a):
@@ -74,6 +79,17 @@ def euler_to_matrix(roll, pitch, yaw):
     R[..., 2, 1] = cp * sr
     R[..., 2, 2] = cp * cr
     return R
+
+
+def body_rates_from_euler(euler, euler_rates):
+    """Body rates (n, 3) in rad/s (FLU: about forward, left, up) from Z-Y-X Euler angles (n, 3)
+    ``(roll, pitch, yaw)`` in rad and their time derivatives (n, 3) in rad/s."""
+    euler, euler_rates = np.asarray(euler, float), np.asarray(euler_rates, float)
+    r, p = euler[:, 0], euler[:, 1]
+    dr, dp, dy = euler_rates[:, 0], euler_rates[:, 1], euler_rates[:, 2]
+    return np.column_stack([dr - np.sin(p) * dy,
+                            np.cos(r) * dp + np.sin(r) * np.cos(p) * dy,
+                            -np.sin(r) * dp + np.cos(r) * np.cos(p) * dy])
 
 
 def euler_to_quat(roll, pitch, yaw):

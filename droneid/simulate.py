@@ -53,7 +53,7 @@ from priors.thrust import RPM_SCALE
 
 from .errors import ConfigError, check_choice, did_you_mean
 from .flight import Flight, Provenance, Signal, canonical_unit
-from .frames import euler_to_matrix, euler_to_quat, wrap_angle
+from .frames import body_rates_from_euler as _body_rates, euler_to_matrix, euler_to_quat, wrap_angle
 
 __all__ = ["simulate", "SimResult", "EFFECTS", "PATHS", "DEFAULT_PARAMS", "tilt_drag_model",
            "parse_effects"]
@@ -339,15 +339,6 @@ class _Rotors:
     def speeds(self, u, gain):
         """Rotor speeds (rpm) the commands ``u`` (n, 4) settle to at battery gain ``gain`` (n,)."""
         return self.w_max * u * np.sqrt(np.asarray(gain, float))[:, None]
-
-
-def _body_rates(euler, euler_rates):
-    """Body rates (n, 3) rad/s (FLU) from Z-Y-X Euler angles and their rates (each (n, 3))."""
-    r, p = euler[:, 0], euler[:, 1]
-    dr, dp, dy = euler_rates[:, 0], euler_rates[:, 1], euler_rates[:, 2]
-    return np.column_stack([dr - np.sin(p) * dy,
-                            np.cos(r) * dp + np.sin(r) * np.cos(p) * dy,
-                            -np.sin(r) * dp + np.cos(r) * np.cos(p) * dy])
 
 
 # ---------------------------------------------------------------------------------------

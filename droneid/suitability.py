@@ -58,6 +58,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from .consistency import raise_if_inconsistent
 from .errors import ConfigError, DataError, check_choice
 from .flight import MAX_GAP_S, VEHICLE_TYPES, Flight, Signal
 from .in_flight import in_flight_intervals, resample_signal
@@ -494,7 +495,12 @@ def prior_fitness(flights, prior, targets, ts: float, vehicle: str | None = None
 
 def check_prior_data(flights, prior, targets, ts: float, role: str = "training") -> "Fitness | None":
     """:func:`prior_fitness`, raising :class:`DataError` naming the first problem and how to
-    override it; else returns the Fitness (warnings inside). Used by identify and diagnose."""
+    override it; else returns the Fitness (warnings inside). Used by identify and diagnose.
+
+    First of all, the flights' redundant signals must agree (:mod:`droneid.consistency`): a log
+    read in the wrong convention raises :class:`~droneid.consistency.ConventionError`, one line
+    per mistake with its fix, before any other verdict."""
+    raise_if_inconsistent(flights, role)
     fit = prior_fitness(flights, prior, targets, ts)
     if fit is not None:
         fit.raise_if_refused(f"the {role} data cannot identify the {prior.name} model: ")

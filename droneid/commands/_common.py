@@ -11,6 +11,7 @@ from ..lazy import lazy_module
 
 _parsers = lazy_module("parsers")            # the readers (pymavlink, pyulog, mcap): once a log is read
 _flight = lazy_module("droneid.flight")
+_frames = lazy_module("droneid.frames")
 _predict = lazy_module("droneid.predict")
 
 
@@ -80,7 +81,8 @@ def _json_default(o):
 # -- reading logs: the options every command that reads flight logs shares -------------------
 def add_log_options(p, *, with_format: bool = True) -> None:
     """Add the reader options (``--format`` unless the command has its own, ``--topic``,
-    ``--body``, ``--column``, ``--sysid``, ``--vehicle``) to a subcommand parser."""
+    ``--body``, ``--column``, ``--sysid``, ``--world-frame``, ``--body-frame``, ``--time-unit``,
+    ``--scale``, ``--vehicle``) to a subcommand parser."""
     if with_format:
         p.add_argument("--format", dest="log_format", default=None,
                        help="skip format detection: a reader's format name (docs/logs.md; an unknown "
@@ -93,6 +95,18 @@ def add_log_options(p, *, with_format: bool = True) -> None:
                    help="flat CSV: read canonical signal CANON (x, vx, throttle, rpm1, motor1, ...) "
                         "from COLUMN; repeatable")
     p.add_argument("--sysid", type=int, default=None, help="tlog: the vehicle's MAVLink system id")
+    p.add_argument("--world-frame", default=None, choices=_frames.WORLD_FRAMES,
+                   help="the log's world frame when it is not droneid's ENU: ned = north, east, down "
+                        "(position and velocity converted; docs/logs.md, convention checks)")
+    p.add_argument("--body-frame", default=None, choices=_frames.BODY_FRAMES,
+                   help="the log's body frame when it is not droneid's FLU: frd = forward, right, down "
+                        "(body rates and accelerations; with --world-frame ned the attitude too)")
+    p.add_argument("--time-unit", default=None, choices=tuple(_flight.TIME_UNITS),
+                   help="the unit of the time stamps a reader takes as seconds (e.g. ms: a 70 s flight "
+                        "read as 70 000 s)")
+    p.add_argument("--scale", action="append", default=[], metavar="NAME=FACTOR",
+                   help="multiply signal NAME as read by FACTOR (a number, pi, a/b): vx=1/3.6 for km/h, "
+                        "wx=pi/180 for deg/s, yaw=-1 for a clockwise heading; repeatable")
     p.add_argument("--vehicle", default=None,
                    choices=_flight.VEHICLE_TYPES,
                    help="the vehicle type, when the log does not declare it (mocap CSV, MCAP) or "
@@ -116,7 +130,11 @@ def log_options(args) -> dict:
             "body": getattr(args, "body", None),
             "column_map": _pairs(getattr(args, "column", None), "column"),
             "sysid": getattr(args, "sysid", None),
-            "vehicle": getattr(args, "vehicle", None)}
+            "vehicle": getattr(args, "vehicle", None),
+            "world_frame": getattr(args, "world_frame", None),
+            "body_frame": getattr(args, "body_frame", None),
+            "time_unit": getattr(args, "time_unit", None),
+            "scale": _pairs(getattr(args, "scale", None), "scale")}
 
 
 def read_logs(paths, args=None, recorded: dict | None = None) -> list:
@@ -143,10 +161,11 @@ def read_logs(paths, args=None, recorded: dict | None = None) -> list:
     return flights
 
 
-#: reader options that are maps (``--column``/``--topic``): given entries override recorded ones
-_MAP_OPTIONS = ("topics", "column_map")
+#: reader options that are maps (``--column``/``--topic``/``--scale``): given entries override recorded ones
+_MAP_OPTIONS = ("topics", "column_map", "scale")
 #: reader options every format takes (read_flight's own); the others are a reader's own options
-_ANY_FORMAT = ("format", "vehicle")
+_ANY_FORMAT = ("format", "vehicle", "world_frame", "body_frame", "time_unit", "scale")
+_MAP_FLAGS = {"column_map": "--column", "topics": "--topic", "scale": "--scale"}
 
 
 def merged_log_options(recorded: dict, given: dict, path) -> dict:
@@ -219,13 +238,14 @@ def _reader_accepts(fmt, path) -> tuple | None:
 
 def options_text(opts: dict) -> str:
     """Reader options as the command-line words that give them (``--column vx=vel_e ...``)."""
-    flags = {"format": "--format", "body": "--body", "sysid": "--sysid", "vehicle": "--vehicle"}
+    flags = {"format": "--format", "body": "--body", "sysid": "--sysid", "vehicle": "--vehicle",
+             "world_frame": "--world-frame", "body_frame": "--body-frame", "time_unit": "--time-unit"}
     words = []
     for k, v in opts.items():
         if v is None or v == {}:
             continue
         if k in _MAP_OPTIONS:
-            flag = "--column" if k == "column_map" else "--topic"
+            flag = _MAP_FLAGS[k]
             words += [f"{flag} {name}={value}" for name, value in v.items()]
         else:
             words.append(f"{flags.get(k, '--' + k)} {v}")

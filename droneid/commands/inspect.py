@@ -10,6 +10,7 @@ from ._common import add_log_options, print_json, read_logs
 _fitness = lazy_module("droneid.suitability")
 _flight = lazy_module("droneid.flight")
 _screening = lazy_module("droneid.screening")
+_consistency = lazy_module("droneid.consistency")
 
 
 def register(sub):
@@ -34,6 +35,7 @@ def run(args) -> int:
     summary["signals"] = with_coverage(flight, summary["signals"])
     summary["fitness"] = _fitness.fitness_by_prior([flight], args.ts)
     summary["implausible"] = implausible_summary(flight)
+    summary["consistency"] = _consistency.check_flight(flight).to_dict()
     if args.json:
         print_json(summary)
     else:
@@ -129,10 +131,23 @@ def render_text(s: dict) -> str:
     lines.append(f"implausible: {sum(v['count'] for v in bad.values())} sample(s) or jump(s) screened out "
                  f"before any fit (docs/estimates.md)" if bad else "implausible: none")
     lines.extend(f"  {v['detail']}" for v in bad.values())
+    if s.get("consistency"):
+        lines.append("")
+        lines.extend(render_consistency(s["consistency"]))
     if s.get("fitness"):
         lines.append("")
         lines.extend(render_fitness(s["fitness"]))
     return "\n".join(lines)
+
+
+def render_consistency(c: dict) -> list[str]:
+    """The "conventions" block (pure): each finding in one line with its fix (identify and
+    diagnose refuse such a log), then what each check measured or why it was skipped."""
+    out = [f"conventions: {len(c['findings'])} MISTAKE(S): identify and diagnose refuse this log until fixed"
+           if c["findings"] else "conventions: the redundant signals agree (droneid.consistency)"]
+    out.extend(f"  MISTAKE: {f['line']}" for f in c["findings"])
+    out.extend(f"  {ch['status']:<8} {ch['name']}: {ch['detail']}" for ch in c["checks"])
+    return out
 
 
 def render_fitness(fit: dict) -> list[str]:

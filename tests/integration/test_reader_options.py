@@ -178,7 +178,8 @@ def test_a_damaged_record_is_one_line(result, logs, capsys, tmp_path, bad, match
 #: every command that reads flight logs
 LOG_COMMANDS = ("inspect", "identify", "diagnose", "predict", "dataset", "study")
 OPTIONS = ["--format", "csv", "--topic", "pose=/a", "--body", "b1", "--column", "vx=c",
-           "--sysid", "3", "--vehicle", "multirotor"]
+           "--sysid", "3", "--vehicle", "multirotor", "--world-frame", "ned", "--body-frame", "frd",
+           "--time-unit", "ms", "--scale", "vx=1/3.6", "--scale", "wz=-1"]
 
 
 @pytest.mark.parametrize("command", LOG_COMMANDS)
@@ -187,7 +188,9 @@ def test_every_command_that_reads_logs_takes_the_reader_options(command):
     args = build_parser([command]).parse_args([command, *positional.get(command, ["a.csv"]), *OPTIONS])
     from droneid.commands._common import log_options
     assert log_options(args) == {"format": "csv", "topics": {"pose": "/a"}, "body": "b1",
-                                 "column_map": {"vx": "c"}, "sysid": 3, "vehicle": "multirotor"}
+                                 "column_map": {"vx": "c"}, "sysid": 3, "vehicle": "multirotor",
+                                 "world_frame": "ned", "body_frame": "frd", "time_unit": "ms",
+                                 "scale": {"vx": "1/3.6", "wz": "-1"}}
 
 
 def test_export_header_states_the_mapping(result, capsys):
