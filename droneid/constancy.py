@@ -192,8 +192,11 @@ def constancy_line(constancy: Mapping[str, Constancy]) -> str:
     parts = []
     for lab, c in constancy.items():
         verdict = {True: "constant", False: "NOT constant", None: "untestable"}[c.constant]
-        parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}: {verdict}")
-    return (f"  constancy over {where} (each fitted alone; Cochran's Q, Holm at α = {ALPHA:g}): "
+        vals = [v[0] for v in c.per_unit.values()]
+        rel = 100 * c.tau / abs(float(np.mean(vals))) if vals and np.mean(vals) != 0 else math.nan
+        parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}, spread τ {rel:.2g} %: {verdict}")
+    return (f"  constancy over {where} (each fitted alone; Cochran's Q, Holm at α = {ALPHA:g}, "
+            f"and a spread τ of {100 * MIN_TAU_REL:g} % or more): "
             + "; ".join(parts))
 
 
