@@ -285,6 +285,19 @@ class RotationModel:
         return tuple(n for n, _ in _rotation_named(k, self.layout.patterns(), z, np.zeros((1, 3)), z,
                                                    self.terms, np.zeros((1, 3)), np.zeros((1, 2))))
 
+    #: the terms through which an axis answers the motor speeds
+    MOTOR_TERMS = ("pattern", "centre", "spinup", "rotor_drag", "rotor_drag_thrust")
+
+    def unsteerable_axes(self) -> tuple[str, ...]:
+        """The body axes ("roll", "pitch", "yaw") whose ω̇ has no nonzero motor term: decay-only
+        or held, they do not answer differential thrust, so a controller cannot steer them."""
+        out = []
+        for k, axis in enumerate(("roll", "pitch", "yaw")):
+            coef = np.asarray(self.coef[k], float)
+            if not any(n in self.MOTOR_TERMS and c != 0.0 for n, c in zip(self.columns(k), coef)):
+                out.append(axis)
+        return tuple(out)
+
     @property
     def input_width(self) -> int:
         """Columns of :meth:`inputs`: ``s`` and the rotor speed rates, one per rotor each."""

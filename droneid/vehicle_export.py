@@ -403,10 +403,21 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         "start of the flight",
         f"to the input conditioner, which returns u[{width}], held over that step:",
         *tpart.header, *rpart.header,
+        *_steerable_note(rotation),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.openloop.simulate)."]
     build = _vehicle_python if to == "python" else _vehicle_c
     return build([tpart, rpart], header, motors, width, float(dt_s))
+
+
+def _steerable_note(rotation: RotationModel | None) -> list[str]:
+    """The header's warning when a body axis does not answer the motors (decay-only or held)."""
+    stuck = rotation.unsteerable_axes() if rotation is not None else ("roll", "pitch", "yaw")
+    if not stuck:
+        return []
+    return [f"NOT STEERABLE on {', '.join(stuck)}: the rotational model there has no motor term (decay-only or",
+            "held), so differential thrust does not turn it: replay logged motor speeds with it, do not design a",
+            "controller on it."]
 
 
 _PY_EULER = '''def _euler(q):

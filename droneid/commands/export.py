@@ -33,7 +33,14 @@ def register(sub) -> None:
     p.add_argument("--vehicle", action="store_true",
                    help="the whole vehicle (python or c): the final vx_dot, vy_dot, vz_dot models and the "
                         "result's rotational model (rotation.model; null: the body rates held), stepped by RK4 "
-                        "from the state and the logged motor speeds, as predict --open-loop simulates it")
+                        "from the state and the logged motor speeds, as predict --open-loop simulates it. "
+                        "The motor speeds drive the thrust; a body axis answers them only where its "
+                        "rotational model has a torque term (the header says which axes do not)")
+    p.add_argument("--allow-unsteerable", action="store_true",
+                   help="with --vehicle: export even when a body axis does not answer the motors (its "
+                        "rotational model is decay-only or held: differential thrust does not roll, pitch or "
+                        "yaw it); without it such a vehicle is refused, as a plant for controller design "
+                        "that cannot be steered is a trap")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
                    help="with --vehicle: the step the motor speeds are fed at; the delays are whole steps "
                         "of it (default: the training logs' step the rotational model was fitted at, rotation.dt_s)")
@@ -95,6 +102,13 @@ def _vehicle(args) -> str:
     if missing:
         raise DataError(f"{args.result}: --vehicle needs the final models of vx_dot, vy_dot and vz_dot; "
                         f"the result has none of {', '.join(missing)}")
+    rotation = models.get("_rotation")
+    stuck = rotation.unsteerable_axes() if rotation is not None else ("roll", "pitch", "yaw")
+    if stuck and not args.allow_unsteerable:
+        raise DataError(f"{args.result}: the identified rotational model does not answer the motors on "
+                        f"{', '.join(stuck)} (decay-only or held: differential thrust does not turn it), so "
+                        f"the exported vehicle cannot be steered; --allow-unsteerable exports it anyway "
+                        f"(for open-loop replay of logged motor speeds, not for controller design)")
     dt, note = _step(args, doc)
     try:
         return _vehicle_export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),

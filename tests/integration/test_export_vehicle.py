@@ -177,8 +177,13 @@ def test_cli_writes_the_vehicle_of_a_result(tmp_path, capsys):
     assert "dt = 0.01 s (the training logs' step the rotational model was fitted at (rotation.dt_s)" in text and "result.json" in text
     np.testing.assert_allclose(_python_rollout(text, log, u), ref, rtol=1e-9, atol=1e-9)
     held = _result(tmp_path, _translation(), "held", horizons=False)
-    assert main(["export", held, "--vehicle", "--to", "c", "--dt", "0.01"]) == 0
+    capsys.readouterr()
+    assert main(["export", held, "--vehicle", "--to", "c", "--dt", "0.01"]) == 2   # nothing answers the motors
+    err = capsys.readouterr().err
+    assert "does not answer the motors on roll, pitch, yaw" in err and "--allow-unsteerable" in err
+    assert main(["export", held, "--vehicle", "--allow-unsteerable", "--to", "c", "--dt", "0.01"]) == 0
     text = capsys.readouterr().out
+    assert "NOT STEERABLE on roll, pitch, yaw" in text
     assert "every body rate is held" in text and "dx[10] = dx[11] = dx[12] = 0.0;" in text
     assert "Step: dt = 0.01 s (given by --dt)" in text
     assert main(["export", held, "--to", "c", "--dt", "0.01"]) == 2           # the equations hold no step
@@ -206,6 +211,7 @@ def test_cli_refuses_with_one_line(tmp_path, capsys, case, expect):
         to = "latex"
     else:
         models["vx_dot"] = IdentifiedModel("vx_dot", models["vx_dot"].expr, {"rpm1": -0.01})
-    assert main(["export", _result(tmp_path, models, rotation, horizons), "--vehicle", "--to", to]) == 2
+    assert main(["export", _result(tmp_path, models, rotation, horizons), "--vehicle", "--allow-unsteerable",
+                 "--to", to]) == 2
     err = capsys.readouterr().err.strip()
     assert expect in err and len(err.splitlines()) == 1 and "Traceback" not in err, err
