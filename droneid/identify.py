@@ -437,7 +437,9 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
         offset=({"offset_s": plan.offset.offset_s, "interval_s": list(plan.offset.interval_s),
                  "evidence": plan.offset.decision.evidence if plan.offset.decision else "",
                  "per_target": {t: list(v) for t, v in plan.offset.per_target.items()},
-                 "targets_agree": plan.offset.targets_agree}
+                 "targets_agree": plan.offset.targets_agree,
+                 "per_flight": {f: list(v) for f, v in plan.offset.per_flight.items()},
+                 "flights_share": plan.offset.flights_share}
                 if plan.offset is not None else None),
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     rotation_notes: list = []       # why there is no rotational result, if there is none

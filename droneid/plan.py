@@ -19,12 +19,13 @@ from priors.registry import PriorFeature, resolve_prior
 
 from . import runner
 from .data import Dataset
-from .dataset_builder import DatasetBuilder, reuse_datasets
+from .dataset_builder import DatasetBuilder, _unique_names, reuse_datasets
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
 from .errors import ConfigError, DataError
 from .suitability import prior_for_flights
 from .terms import prior_terms
+from .regression import blocked_cv
 from .validation import split_time_block, time_blocks
 from .targets import targets_for
 
@@ -123,12 +124,22 @@ class OffsetDecision:
         log, so targets whose intervals do not overlap (:attr:`targets_agree` False) say the
         model lacks something in how thrust follows its signals (a motor lag, say) and the
         thrust and drag scales absorb it
+    per_flight : {flight: (best, low, high) s}, the same for each training flight's own rows: when
+        the chosen offset is outside a flight's interval (:attr:`flights_share` False), the
+        flights' clocks differ and the one offset is a compromise the scales absorb
     """
     offset_s: float
     interval_s: tuple
     scores: dict
     decision: object | None
     per_target: Mapping[str, tuple] = field(default_factory=dict)
+    per_flight: Mapping[str, tuple] = field(default_factory=dict)
+
+    @property
+    def flights_share(self) -> bool:
+        """Whether the chosen offset lies in every training flight's own interval (a clock offset
+        between two log streams is a condition of one flight: the flights may differ)."""
+        return all(lo <= self.offset_s <= hi for _, lo, hi in self.per_flight.values())
 
     @property
     def targets_agree(self) -> bool:
@@ -161,14 +172,21 @@ class OffsetDecision:
                     f"{1000 * -self.offset_s:.0f} ms (a clock correction of the merged log, not a model "
                     f"that needs the future)")
         text = f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
+        if self.per_flight:
+            own = ", ".join(f"{n} {1000 * b:+.0f} [{1000 * a:+.0f}, {1000 * c:+.0f}]" for n, (b, a, c) in self.per_flight.items())
+            text += (f". Each flight's own offset (ms): {own}: "
+                     + ("the flights share it" if self.flights_share else
+                        "NOT SHARED: the chosen offset is outside some flights' own interval, so their clocks "
+                        "differ and the thrust and drag scales absorb the difference"))
         return text + (f". NOT ONE OFFSET: {self.disagreement()}" if not self.targets_agree else "")
 
 
 def _offset_errors(job: "_OffsetSearch", offsets: Sequence[float]) -> dict:
-    """{offset s: {target: (row keys, held-out residuals, blocks)}} of :func:`choose_offset` at
-    ``offsets``: per target the prior's refit (``job.terms``: the unfitted
-    :class:`~droneid.terms.TermModel`, over ``job.inputs``) by blocked CV on the training rows
-    (``job.cuts``) of ``job.flights`` with the thrust ``job.signals`` read at the offset."""
+    """{offset s: {target: (row keys, held-out residuals, blocks, (design, target less its fixed
+    offset, lo, hi))}} of :func:`choose_offset` at ``offsets``: per target the prior's refit
+    (``job.terms``: the unfitted :class:`~droneid.terms.TermModel`, over ``job.inputs``) by
+    blocked CV on the training rows (``job.cuts``) of ``job.flights`` with the thrust
+    ``job.signals`` read at the offset, and the least-squares problem behind it."""
     res = {}
     with reuse_datasets():      # each flight's intervals and screening once (or the caller's)
         for d in offsets:
@@ -177,9 +195,10 @@ def _offset_errors(job: "_OffsetSearch", offsets: Sequence[float]) -> dict:
                 ds = train_rows(dataset_builder(job.cfg, {s: d for s in job.signals}).build(
                     list(job.flights), target=t, inputs=job.inputs[t]), job.cuts)
                 blocks = time_blocks(ds.t, ds.flight, family=job.family, alpha=OFFSET_ALPHA)
-                err = ds.y - terms.cv_predictions(ds.columns(), ds.y, blocks)
+                A, yy, lo, hi = terms._problem(ds.columns(), ds.y)
+                err = yy - blocked_cv(A, yy, blocks, lo, hi)
                 key = ds.flight.astype(np.int64) * 10**9 + np.round(ds.t * 1e4).astype(np.int64)
-                per[t] = (key, err, blocks)
+                per[t] = (key, err, blocks, (A, yy, lo, hi))
             res[float(d)] = per
     return res
 
@@ -223,6 +242,7 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     # the rows every offset has, per target; targets side by side (each target's (flight, block)
     # units numbered apart)
     shared = {t: _common_rows(res, t) for t in targets}
+    names = _unique_names([f.name for f in train_flights])
     errs = {d: np.concatenate([shared[t][0][d] for t in targets]) for d in res}
     blocks = np.concatenate([i * 10**9 + shared[t][1] for i, t in enumerate(targets)]) if targets else np.zeros(0, int)
     rms = {d: float(np.sqrt(np.mean(e * e))) for d, e in errs.items()}
@@ -230,7 +250,7 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     cands = {f"{1000 * d:+.0f} ms": errs[d] for d in errs if d != 0.0}
     if np.unique(blocks).size < 3 or not cands:
         return OffsetDecision(0.0, (0.0, 0.0), scores, None)
-    per_target = _per_target_offsets(shared)
+    per_target = _own_offsets({t: v[:2] for t, v in shared.items()})
     fam = decide_family(errs[0.0], cands, blocks, alpha=OFFSET_ALPHA)
     by_name = {f"{1000 * d:+.0f} ms": d for d in errs if d != 0.0}
     accepted = [n for n, dec in fam.items() if dec.accepted]
@@ -240,38 +260,61 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     best = by_name[best_name] if accepted else 0.0
     same = [d for d in errs if d == best or not decide(errs[d], errs[best], blocks, alpha=OFFSET_INTERVAL_ALPHA,
                                                          min_effect_pct=0.0).accepted]
-    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name], per_target)
+    per_flight = _own_offsets(_per_flight_groups(shared, names, best))
+    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name], per_target, per_flight)
 
 
-def _common_rows(res: dict, target: str) -> tuple[dict, np.ndarray]:
-    """({offset: held-out residuals}, units) of ``target`` on the rows every offset has (rows
-    are ordered by flight, then time)."""
+def _common_rows(res: dict, target: str) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """({offset: held-out residuals}, units, flight index, {offset: (design, target, lo, hi)})
+    of ``target`` on the rows every offset has (rows are ordered by flight, then time)."""
     keys = np.array(sorted(set.intersection(*(set(res[d][target][0].tolist()) for d in res))), dtype=np.int64)
-    errs = {}
+    errs, problems = {}, {}
     for d in res:
-        k, e, b = res[d][target]
+        k, e, b, (A, y, lo, hi) = res[d][target]
         pos = np.searchsorted(k, keys)
-        errs[d] = e[pos]
+        errs[d], problems[d] = e[pos], (A[pos], y[pos], lo, hi)
         if d == 0.0:
             blocks = b[pos]
-    return errs, blocks
+    return errs, blocks, keys // 10**9, problems
 
 
-def _per_target_offsets(shared: Mapping[str, tuple]) -> dict:
-    """{target: (best, low, high)} from each target's :func:`_common_rows`: its lowest held-out
-    error over the grid and the offsets that best does not beat at :data:`OFFSET_INTERVAL_ALPHA`
-    on the target's own units (only with two or more targets)."""
-    if len(shared) < 2:
+def _own_offsets(groups: Mapping[str, tuple]) -> dict:
+    """{group: (best, low, high)} for groups of rows ({name: ({offset: residuals}, units)}, e.g.
+    a target's or a flight's): the group's lowest held-out error over the grid and the offsets
+    that best does not beat at :data:`OFFSET_INTERVAL_ALPHA` on the group's own units (only with
+    two or more groups, each with 3 units or more)."""
+    if len(groups) < 2:
         return {}
     out = {}
-    for t, (errs, blocks) in shared.items():
+    for name, (errs, blocks) in groups.items():
         if np.unique(blocks).size < 3:
             return {}
         rms = {d: float(np.sqrt(np.mean(e * e))) for d, e in errs.items()}
         best = min(rms, key=lambda d: (rms[d], abs(d)))
         same = [d for d in errs if d == best or not decide(errs[d], errs[best], blocks, alpha=OFFSET_INTERVAL_ALPHA,
                                                              min_effect_pct=0.0).accepted]
-        out[t] = (best, min(same), max(same))
+        out[name] = (best, min(same), max(same))
+    return out
+
+
+def _per_flight_groups(shared: Mapping[str, tuple], names: Sequence[str], chosen: float) -> dict:
+    """{flight name: ({offset: held-out residuals of every target on that flight's rows}, units)}:
+    the vehicle's terms are fitted on every flight together (they are constants of the vehicle)
+    with the other flights at the ``chosen`` offset and this one at each offset of the grid (its
+    clock offset is a condition of its own): a profile of one flight's offset. A flight fitted
+    alone would let its drag absorb its offset (the two trade off on one flight)."""
+    out = {}
+    for f in sorted({int(x) for _, _, fl, _ in shared.values() for x in np.unique(fl)}):
+        errs, units = {}, []
+        for i, (_, b, fl, problems) in enumerate(shared.values()):
+            mine = fl == f
+            units.append(i * 10**9 + b[mine])
+            A0, y0, lo, hi = problems[chosen]
+            for d, (A, y, _, _) in problems.items():
+                Ad, yd = np.where(mine[:, None], A, A0), np.where(mine, y, y0)
+                errs.setdefault(d, []).append((yd - blocked_cv(Ad, yd, b, lo, hi))[mine])
+        out[names[f] if f < len(names) else f"flight {f}"] = (
+            {d: np.concatenate(v) for d, v in errs.items()}, np.concatenate(units))
     return out
 
 

@@ -181,3 +181,32 @@ def test_the_offset_search_chooses_the_same_on_one_worker_and_on_two():
     assert list(one.scores.items()) == list(two.scores.items())
     assert list(one.scores) == sorted(one.scores)       # the grid's order
     assert one.interval_s == two.interval_s and one.decision.evidence == two.decision.evidence
+
+
+def test_each_flight_gets_its_own_offset_and_flights_with_other_clocks_are_not_shared():
+    """The clock offset is a condition of one flight: flights with one delay share it, flights
+    whose delays differ by 80 ms are called NOT SHARED, each flight's own offset (its rows at each
+    offset, the others at the chosen one, the vehicle's terms fitted on all) on the side of its
+    planted delay. One step of the profile: a flight's own offset is pulled toward the others'
+    (the vehicle's terms are fitted with them), so it is not asked to hit its delay exactly."""
+    from droneid.identify import IdentifyConfig
+    from droneid.plan import choose_offset, resolve_plan_prior
+    cfg = IdentifyConfig.make(jobs=1, effects="none", delays="auto")
+    same, _ = _delay_flights(0.04, 0.0)
+    prior, _ = resolve_plan_prior(cfg, same)
+    targets = ("vx_dot", "vz_dot")
+    signals = sorted({s for t in targets for s in prior.thrust_signals(t)})
+    shared = choose_offset(same, prior, targets, signals, cfg)
+    assert len(shared.per_flight) == len(same) and shared.flights_share, shared.per_flight
+    mixed = [simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=d,
+                      effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight
+             for (s, a, p), d in zip(RHYTHMS, (0.0, 0.08, 0.0, 0.08))]
+    apart = choose_offset(mixed, prior, targets, signals, cfg)
+    assert not apart.flights_share, apart.per_flight
+    (b0, _, _), (b1, _, _) = apart.per_flight.values()
+    assert b0 <= 0.01 and b1 >= b0 + 0.03, apart.per_flight
+    assert "NOT SHARED" in apart.text(signals)
+    both_late = [simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=0.08,
+                          effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight for s, a, p in RHYTHMS]
+    late = choose_offset(both_late, prior, targets, signals, cfg)
+    assert late.flights_share and all(b == pytest.approx(0.08, abs=0.01) for b, _, _ in late.per_flight.values())
