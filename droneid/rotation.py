@@ -537,3 +537,18 @@ def identify_layout(logs: Sequence[StateLog], *, window_s: float = 0.05,
         beta = robust_fit(np.vstack(A), np.concatenate(y)).beta
         coefs[k] = beta[:M] - beta[:M].mean()
     return np.sign(coefs), coefs
+
+
+def unsteerable(rotation: "RotationModel | None") -> tuple[str, ...]:
+    """The body axes that do not answer the motors: :meth:`RotationModel.unsteerable_axes`, all
+    three without a rotational model (every rate held)."""
+    return rotation.unsteerable_axes() if rotation is not None else ("roll", "pitch", "yaw")
+
+
+def unsteerable_sentence(axes: Sequence[str]) -> str:
+    """What a user of the model must know when ``axes`` do not answer the motors ("" for none)."""
+    if not axes:
+        return ""
+    return (f"NOT STEERABLE on {', '.join(axes)}: no torque term (decay-only or held), so differential "
+            f"thrust does not turn the model there: replay logged motor speeds with it, do not design a "
+            f"controller on it")

@@ -21,7 +21,7 @@ from . import __version__
 from .errors import ConfigError, check_choice
 from .export import CONVENTIONS, c_functions, checked_models, input_unit, model_header, python_functions
 from .openloop import IdentifiedTranslation
-from .rotation import SPEED_UNIT, RotationModel, TranslationModel
+from .rotation import SPEED_UNIT, RotationModel, TranslationModel, unsteerable, unsteerable_sentence
 
 __all__ = ["VEHICLE_FORMATS", "export_vehicle"]
 
@@ -403,21 +403,11 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         "start of the flight",
         f"to the input conditioner, which returns u[{width}], held over that step:",
         *tpart.header, *rpart.header,
-        *_steerable_note(rotation),
+        *filter(None, [unsteerable_sentence(unsteerable(rotation))]),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.openloop.simulate)."]
     build = _vehicle_python if to == "python" else _vehicle_c
     return build([tpart, rpart], header, motors, width, float(dt_s))
-
-
-def _steerable_note(rotation: RotationModel | None) -> list[str]:
-    """The header's warning when a body axis does not answer the motors (decay-only or held)."""
-    stuck = rotation.unsteerable_axes() if rotation is not None else ("roll", "pitch", "yaw")
-    if not stuck:
-        return []
-    return [f"NOT STEERABLE on {', '.join(stuck)}: the rotational model there has no motor term (decay-only or",
-            "held), so differential thrust does not turn it: replay logged motor speeds with it, do not design a",
-            "controller on it."]
 
 
 _PY_EULER = '''def _euler(q):

@@ -15,6 +15,7 @@ from ._common import options_text
 _export = lazy_module("droneid.export")
 _predict = lazy_module("droneid.predict")
 _vehicle_export = lazy_module("droneid.vehicle_export")
+_rotation = lazy_module("droneid.rotation")
 
 
 def register(sub) -> None:
@@ -102,8 +103,7 @@ def _vehicle(args) -> str:
     if missing:
         raise DataError(f"{args.result}: --vehicle needs the final models of vx_dot, vy_dot and vz_dot; "
                         f"the result has none of {', '.join(missing)}")
-    rotation = models.get("_rotation")
-    stuck = rotation.unsteerable_axes() if rotation is not None else ("roll", "pitch", "yaw")
+    stuck = _rotation.unsteerable(models.get("_rotation"))
     if stuck and not args.allow_unsteerable:
         raise DataError(f"{args.result}: the identified rotational model does not answer the motors on "
                         f"{', '.join(stuck)} (decay-only or held: differential thrust does not turn it), so "

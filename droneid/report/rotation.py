@@ -7,6 +7,7 @@ import math
 
 from collections.abc import Mapping
 
+from ..rotation import unsteerable, unsteerable_sentence
 from ..rotation_stage import RotationResult
 from .document import Document, fmt, new_figure, text_table
 from .wording import VERDICT_KINDS
@@ -78,11 +79,9 @@ def _model_line(rot: RotationResult) -> str:
         if m.trim[k] != 0:
             terms.append(f"{m.trim[k]:+.4g}")
         parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})" + (_decay_range(rot, k) if a.rung == "damping" else ""))
-    stuck = m.unsteerable_axes() if m is not None else ("roll", "pitch", "yaw")
-    tail = (f". {', '.join(stuck).capitalize()}: {'this axis does' if len(stuck) == 1 else 'these axes do'} not "
-            f"respond to the motors (no torque term: decay-only or held), so differential thrust does not turn "
-            f"the model there (export --vehicle refuses it without --allow-unsteerable)" if stuck else "")
-    return "rotational model (rad/s²): " + "; ".join(parts) + tail
+    tail = unsteerable_sentence(unsteerable(m))
+    return "rotational model (rad/s²): " + "; ".join(parts) + (f". {tail} (export --vehicle refuses it without "
+                                                                 f"--allow-unsteerable)" if tail else "")
 
 
 def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:

@@ -181,6 +181,7 @@ def test_cli_writes_the_vehicle_of_a_result(tmp_path, capsys):
     assert main(["export", held, "--vehicle", "--to", "c", "--dt", "0.01"]) == 2   # nothing answers the motors
     err = capsys.readouterr().err
     assert "does not answer the motors on roll, pitch, yaw" in err and "--allow-unsteerable" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert main(["export", held, "--vehicle", "--allow-unsteerable", "--to", "c", "--dt", "0.01"]) == 0
     text = capsys.readouterr().out
     assert "NOT STEERABLE on roll, pitch, yaw" in text
