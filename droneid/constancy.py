@@ -44,7 +44,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["Constancy", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
-           "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence"]
+           "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -198,6 +198,36 @@ def constancy_line(constancy: Mapping[str, Constancy]) -> str:
     return (f"  constancy over {where} (each fitted alone; Cochran's Q, Holm at α = {ALPHA:g}, "
             f"and a spread τ of {100 * MIN_TAU_REL:g} % or more): "
             + "; ".join(parts))
+
+
+#: catalogue effects (priors/effect_catalogue) that make a coefficient of this role move between
+#: flights when the model lacks them: where to look when it is NOT constant
+LEADS = {"drag": ("wind", "quadratic_drag", "anisotropic_drag", "vertical_drag"),
+         "thrust": ("battery_sag", "thrust_curve", "motor_thrust", "ground_effect"),
+         "tilt": ("attitude_bias", "attitude_delay", "thrust_direction")}
+
+
+def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -> str:
+    """Where to look when vehicle constants are NOT constant, one sentence ("" when all hold):
+    the flight conditions droneid saw differ between the flights (the clock offset, ``offset``:
+    the plan's :class:`~droneid.plan.OffsetDecision`) and the catalogue effects that move such a
+    coefficient, with what the diagnosis (``diagnosis``: the plan's summary) said of each."""
+    bad = [lab for lab, c in constancy.items() if c.constant is False]
+    if not bad:
+        return ""
+    roles = sorted({"drag" if "kD" in lab or "drag" in lab else "thrust" if "sum_" in lab or "thrust" in lab
+                    else "tilt" for lab in bad})
+    said = {**{e: "not detected" for e in diagnosis.get("not_detected", ())},
+            **{e: "untestable" for e in diagnosis.get("untestable", {})},
+            **{e: "added" for e in diagnosis.get("effects_added", ())}}
+    out = []
+    if offset is not None and getattr(offset, "per_flight", None) and not offset.flights_share:
+        out.append("the flights' thrust clock offsets differ (" + ", ".join(
+            f"{1000 * b:+.0f} ms" for b, _, _ in offset.per_flight.values()) + "), one offset serves them all")
+    for role in roles:
+        cands = [f"{e} ({said.get(e, 'not tried')})" for e in LEADS[role]]
+        out.append(f"effects that move a {role} scale between flights: " + ", ".join(cands))
+    return "leads for the constants that move: " + "; ".join(out)
 
 
 def constancy_sentence(constancy: Mapping[str, Constancy]) -> str:

@@ -39,7 +39,7 @@ from .export import export_models, input_sources
 from .flight import Flight
 from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
-from .constancy import Constancy, constancy_sentence
+from .constancy import Constancy, constancy_sentence, leads
 from .io_util import to_jsonable
 from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung
 from .predict import models_from_document, open_loop_section, predict_flights
@@ -242,6 +242,10 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
     series["identified"] = np.asarray(final.pred_test, float).tolist()
     series["sources"] = list(p.test.sources)
     notes.extend(final.evidence)
+    lead = leads(final.constancy, p.plan.diagnosis if p.plan is not None else {},
+                 p.plan.offset if p.plan is not None else None)
+    if lead:
+        notes.append(lead)
     ladder = (*p.ladder, final)
     vd = verdict(p.target, final, p.ladder[0], guards.chosen_run is not None, p.holdout, float(np.std(p.train.y)),
                  reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma)

@@ -134,3 +134,13 @@ def test_a_tiny_spread_is_not_a_finding():
     x, y, fl, t = _flights([-0.28, -0.28 * 1.04, -0.28 * 0.96, -0.28], seed=5, noise=0.001)
     fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=["a", "b", "c", "d"])
     assert fit.constancy["⟨minus_kD_vx⟩"].constant is False     # 4 %: a finding
+
+
+def test_leads_point_to_what_moves_a_constant_and_what_the_diagnosis_said():
+    from droneid.constancy import leads
+    bad = {"minus_kD_vx": Constancy("flight", {"a": (0.2, 0.1, 0.3), "b": (1.4, 1.3, 1.5)}, 1e-9, False)}
+    good = {"minus_kD_vx": Constancy("flight", {"a": (1.0, 0.9, 1.1), "b": (1.0, 0.9, 1.1)}, 0.9, True)}
+    diag = {"not_detected": ["wind"], "untestable": {"anisotropic_drag": "why"}, "effects_added": []}
+    text = leads(bad, diag)
+    assert "wind (not detected)" in text and "anisotropic_drag (untestable)" in text and "thrust" not in text
+    assert leads(good, diag) == ""
