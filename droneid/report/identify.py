@@ -59,8 +59,12 @@ def interval_lines(tr: TargetResult) -> list[str]:
     parts = []
     for lab, iv in final.intervals.items():
         c = final.intercept if lab == "intercept" else final.terms[lab]
-        held = " held" if lab in final.held else ""
-        parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}]{held}")
+        if lab in final.held:
+            parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}] held")
+        elif iv.low == iv.high == c and lab != "intercept":   # fixed by the prior or the effect's own test
+            parts.append(f"{lab} {efmt(c)} fixed")
+        else:
+            parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}]")
     several = any(c.unit == "flight" for c in final.constancy.values())
     how = ("block bootstrap over the training flights' (flight, time block) units; a vehicle "
            "constant's widened to cover how the flights differ" if several else
