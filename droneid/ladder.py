@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from .search import RunRecord
 
 __all__ = ["Interval", "Rung", "GuardReport", "rung", "physical_rungs", "final_rung", "bootstrap_blocks",
-           "fitted_thrust", "evolved_labels", "physics_context", "TERM_ALPHA"]
+           "fitted_thrust", "evolved_labels", "physics_context", "trivial_errors", "TERM_ALPHA"]
 
 #: family-wise level of keeping evolved terms (Bonferroni over the runs; :mod:`droneid.decide`)
 TERM_ALPHA = 0.01
@@ -281,6 +281,24 @@ def evolved_labels(raw: Sequence[sp.Expr], prior_labels: Mapping[str, str]) -> t
         terms.append(-t if neg else t)
         labels.append(txt)
     return terms, labels
+
+
+def trivial_errors(y_train: np.ndarray, blocks: np.ndarray | None, y_test: np.ndarray) -> dict:
+    """{"zero": RMSE, "the training mean": RMSE} of predicting no model at all (m/s² for v̇),
+    measured as the verdict measures the models: on the test rows when there are any (the mean
+    of the training rows), else on the training rows' validation blocks (each block predicted by
+    the mean of the others; zero needs no fit)."""
+    y_train, y_test = np.asarray(y_train, float), np.asarray(y_test, float)
+    if y_test.size:
+        return {"zero": rmse(np.zeros_like(y_test), y_test),
+                "the training mean": rmse(np.full_like(y_test, float(np.mean(y_train))), y_test)}
+    pred = np.full_like(y_train, float(np.mean(y_train))) if y_train.size else y_train
+    if blocks is not None and y_train.size:
+        for b in np.unique(blocks):
+            out = blocks != b
+            if out.any():
+                pred[blocks == b] = float(np.mean(y_train[out]))
+    return {"zero": rmse(np.zeros_like(y_train), y_train), "the training mean": rmse(pred, y_train)}
 
 
 def physics_context(p: TargetProblem) -> dict:

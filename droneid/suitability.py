@@ -181,6 +181,9 @@ class Fitness:
         "max_hover_tilt_deg": MAX_HOVER_TILT_DEG, "max_tilt_mismatch_deg": MAX_TILT_MISMATCH_DEG,
         "never_slow_ms": NEVER_SLOW_MS}))
     prior: str = ""
+    #: (flight, what the data look like, the same in short) of every flight whose log does not
+    #: declare its vehicle type; ``warnings`` says it in one line (:func:`undeclared_line`)
+    undeclared: tuple = ()
 
     @property
     def ok(self) -> bool:
@@ -241,6 +244,7 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     needed = tuple(needed_signals)
     problems: list[tuple[int, str]] = []
     warnings: list[str] = []
+    undeclared: list[tuple[str, str]] = []
     out = []
     total_samples = 0
 
@@ -262,7 +266,7 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
             samples = _grid_samples(ivs, ts)
             total_samples += samples
             evidence = vehicle_evidence(f, ivs or raw)
-            _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings)
+            _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings, undeclared)
             missing = [s for s in needed if not f.has(s)]
             invalid = _invalid_state(f, missing)
             if invalid:
@@ -308,7 +312,9 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
         refuse("samples", f"only {total_samples} samples in flight at Ts = {ts:g} s "
                           f"(< {MIN_SAMPLES}): use more or longer flights")
     ordered = tuple(text for _, text in sorted(problems, key=lambda p: p[0]))
-    return Fitness(tuple(out), needed, float(ts), prior_kind, ordered, tuple(warnings), prior=prior)
+    warnings = [undeclared_line(undeclared) if w == _UNDECLARED else w for w in warnings]
+    return Fitness(tuple(out), needed, float(ts), prior_kind, ordered, tuple(warnings), prior=prior,
+                   undeclared=tuple(undeclared))
 
 
 def _gap_in(bursts, ivs) -> bool:
@@ -413,7 +419,26 @@ _OTHER_VEHICLE = {
 }
 
 
-def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings) -> None:
+#: where the one line about undeclared vehicle types goes among the warnings
+_UNDECLARED = "\0undeclared"
+
+
+def undeclared_line(undeclared: list[tuple[str, str, str]]) -> str:
+    """One line for every flight whose log does not declare its vehicle type (``undeclared``:
+    (flight name, what the data look like with the evidence, the same in short) in flight order): seven identical lines per run are
+    one line naming the flights."""
+    if len(undeclared) == 1:
+        name, judged, _ = undeclared[0]
+        return f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it"
+    names = ", ".join(n for n, _, _ in undeclared)
+    looks = {short for _, _, short in undeclared}
+    judged = (f"{next(iter(looks))} in each (droneid inspect LOG shows the evidence)" if len(looks) == 1
+              else "; ".join(f"{n}: {j}" for n, j, _ in undeclared))
+    return (f"{len(undeclared)} flights ({names}): vehicle type not declared by their logs: {judged}; "
+            f"pass --vehicle to state it")
+
+
+def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings, undeclared) -> None:
     said = f" ({declared})" if declared else ""
     what = {"multirotor": "multirotor (quadrotor)"}.get(prior_kind, prior_kind)
     if vtype in _REFUSES.get(prior_kind, ()):
@@ -430,7 +455,10 @@ def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnin
     elif vtype == "unknown":
         judged = (f"the data look like a multirotor ({evidence.text()})" if evidence.looks == "multirotor"
                   else f"a {what} is assumed ({'; '.join(evidence.reasons) or 'undecided'})")
-        warnings.append(f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it")
+        undeclared.append((name, judged, "the data look like a multirotor" if evidence.looks == "multirotor"
+                           else f"a {what} is assumed"))
+        if len(undeclared) == 1:
+            warnings.append(_UNDECLARED)    # the merged line goes here (undeclared_line)
     elif vtype not in _ACCEPTS.get(prior_kind, ()):
         warnings.append(f"{name}: {what} prior on a {vtype} log{said}: only its "
                         f"{'hover' if vtype == 'vtol' else 'matching'} phases follow the prior")

@@ -121,14 +121,17 @@ def _physics_problems(final, reference, gamma: float) -> list[str]:
 
 
 def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
-            y_spread: float = math.inf, *, reference=None, gamma: float = math.inf) -> Verdict:
+            y_spread: float = math.inf, *, reference=None, gamma: float = math.inf,
+            trivial: dict | None = None) -> Verdict:
     """How the final model compares with the empirical model as given, on the test data (or,
     without any, on the training flights' validation blocks), with the absolute errors and the
     target's standard deviation. "better" needs all of: better in validation, every physical
     coefficient inside its bounds, e_c within γ (or no worse than the prior's own refit,
     ``reference``); otherwise the verdict says what is wrong and that the model is not to be
     trusted. A target that barely varies, or an error that cannot be measured, gives no verdict
-    (never a "+100 %")."""
+    (never a "+100 %"). ``trivial``: {"zero": RMSE, "the training mean": RMSE} of predicting no
+    model at all, measured where the models are (test rows, or validation blocks); when one of
+    them beats both models by :data:`MARGIN_PCT`, the verdict says so and advises neither."""
     te, ee = final.rmse_test, empirical.rmse_test
     va, ev = final.rmse_validation, empirical.rmse_validation
     has_test = math.isfinite(te) and math.isfinite(ee)
@@ -147,6 +150,15 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
     errs = f"RMSE {a:.3g} vs {b:.3g} m/s²" + (f", {sd}" if sd else "")
     extra = f"; validation {vgain:+.0f} %" if has_test else ""
     problems = _physics_problems(final, reference, gamma)
+    known = {k: v for k, v in (trivial or {}).items() if math.isfinite(to_float(v))}
+    if known:
+        name, e0 = min(known.items(), key=lambda kv: kv[1])
+        if improvement_pct(min(a, b), e0) >= MARGIN_PCT:
+            return Verdict("no better", f"{target}: NEITHER MODEL beats predicting {name} {where}: RMSE "
+                           f"{e0:.3g} m/s² for {name} vs {a:.3g} for the {what} and {b:.3g} for the empirical "
+                           f"model" + (f" ({sd})" if sd else "") + f": these flights do not show {target} "
+                           f"above its noise, so keep neither as a model of it (fly with more excitation)"
+                           + ("; besides, " + "; ".join(problems) if problems else ""))
     if problems:
         return Verdict("not to be trusted",
                        f"{target}: the {what} is NOT TO BE TRUSTED: " + "; ".join(problems)
