@@ -4,6 +4,7 @@ the empirical model's, then the multi-step prediction table, from a
 from __future__ import annotations
 
 from .document import fmt, text_table
+from .rotation import open_loop_legend
 
 __all__ = ["text"]
 
@@ -61,8 +62,4 @@ def open_loop_lines(ol: dict, rotation: bool = False) -> list[str]:
     return ["== open loop (the nanodrone benchmark's metric): full state simulated from the motor speeds, "
             "MAE over every start; SimErr = sum of MAE over 1..50 steps",
             text_table(header, rows),
-            "identified: the final v̇ models, attitude from the simulated quaternion, "
-            + ("body rates from the identified rotational model" if rotation else
-               "body rates held (no rotational model beat holding them, or none was identified)")
-            + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, "
-            "no drag, rates held; constant: the state held\n"]
+            open_loop_legend(rotation) + "\n"]

@@ -11,7 +11,8 @@ from ..rotation_stage import RotationResult
 from .document import Document, fmt, new_figure, text_table
 from .wording import VERDICT_KINDS
 
-__all__ = ["rotation_lines", "rotation_section", "open_loop_table", "fig_open_loop_drift", "ladder_rows"]
+__all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "fig_open_loop_drift",
+           "ladder_rows"]
 
 _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("rates", "rad/s"))
 _SHOWN = ("1", "10", "50")
@@ -93,6 +94,24 @@ def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def _has_rotation(rot: RotationResult) -> bool:
+    """Whether the identified open-loop row has a rotational model (some axis not held)."""
+    return rot.model is not None and any(a.rung != "held" for a in rot.axes)
+
+
+def open_loop_legend(rotation: bool = True) -> str:
+    """What the rows of the open-loop table are (one home: identify's text and report, predict),
+    and why their 1-step position errors agree. ``rotation``: whether the identified row has a
+    rotational model (else its body rates are held)."""
+    return ("identified: the final v̇ models, attitude from the simulated quaternion, "
+            + ("body rates from the identified rotational model" if rotation else
+               "body rates held (no rotational model beat holding them, or none was identified)")
+            + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, no drag, "
+            "rates held; constant: the state held. After 1 step the models that move agree on position: "
+            "one step moves it by the logged start velocity (a model's acceleration adds only ½·a·Δt²), so "
+            "that column measures the log (a motion-capture position held between its updates), not the models")
+
+
 def rotation_lines(rot: RotationResult | None) -> list[str]:
     """The terminal section: verdicts, layout, model, per-axis table, open loop on the test flights."""
     if rot is None:
@@ -113,7 +132,8 @@ def rotation_lines(rot: RotationResult | None) -> list[str]:
     if rot.open_loop_test:
         header, rows = open_loop_table(rot.open_loop_test)
         out += ["", "== the whole vehicle open loop on the test flights (the nanodrone benchmark's metric: MAE over "
-                    "every start, SimErr = Σ over 1..50 steps)", text_table(header, rows)]
+                    "every start, SimErr = Σ over 1..50 steps)", text_table(header, rows),
+                open_loop_legend(_has_rotation(rot))]
     return out
 
 
@@ -162,6 +182,7 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
         doc.heading("The whole vehicle open loop on the test flights", level=3)
         header, rows = open_loop_table(rot.open_loop_test)
         doc.table(header, rows)
+        doc.paragraph(open_loop_legend(_has_rotation(rot)))
         fig = fig_open_loop_drift(rot.open_loop_test)
         if fig is not None:
             doc.figure(fig, "open_loop_drift", "position and attitude error against the horizon, open loop "
