@@ -570,7 +570,21 @@ def prior_for_flights(spec, flights, ts: float):
     resolved on these flights, choosing among the signals they log fast enough for a grid of
     ``ts`` (:func:`usable_signals`); a thrust source logged too slowly is named in ``why``. The
     one choice identify, diagnose and ``inspect`` make."""
-    return _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
+    prior, why = _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
+    return _in_rpm_unit(prior, flights), why
+
+
+def _in_rpm_unit(prior, flights):
+    """``prior`` built for the unit the flights' motor speeds are in: a rotor-thrust prior on
+    electrical rpm (a reader gives ``erpm`` when its source says so) says per (10⁴ erpm)²."""
+    units = {f["rpm1"].unit for f in flights if f.has("rpm1")}
+    params = dict(getattr(prior, "params", {}) or {})
+    if units == {"erpm"} and params.get("source") == "rpm" and getattr(prior, "factory", None) is not None:
+        try:
+            return prior.with_params(rpm_unit="erpm")
+        except (ConfigError, TypeError):   # a prior without that parameter keeps its words
+            return prior
+    return prior
 
 
 #: the built-in priors :func:`fitness_by_prior` judges by default (what ``droneid inspect`` shows)

@@ -46,17 +46,19 @@ def body_z_world(roll, pitch, yaw) -> tuple:
             sp.cos(roll) * sp.cos(pitch))
 
 
-def thrust_columns(source: str, motors: int = 4) -> tuple[tuple[str, sp.Expr, str], ...]:
+def thrust_columns(source: str, motors: int = 4, rpm_unit: str = "rpm") -> tuple[tuple[str, sp.Expr, str], ...]:
     """The thrust magnitude terms of a source: ((name, expr, unit of its coefficient), ...).
 
-    ``rpm``: Σ (ω_i/10⁴)²; ``motor``: Σ u_i² and Σ u_i; ``throttle``: u² and u; ``thrust``: T.
+    ``rpm``: Σ (ω_i/10⁴)² (``rpm_unit``: the unit the log's motor speeds are in, ``rpm`` or
+    ``erpm`` for electrical rpm, named in the coefficient's unit); ``motor``: Σ u_i² and Σ u_i;
+    ``throttle``: u² and u; ``thrust``: T.
     """
     import sympy as sp
 
     symbol = _expressions.symbol
     if source == "rpm":
         w = [symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)]
-        return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), "m/s² per (10⁴ rpm)²"),)
+        return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), f"m/s² per (10⁴ {rpm_unit})²"),)
     if source == "motor":
         u = [symbol(f"motor{i}") for i in range(1, motors + 1)]
         return (("sum_cmd_sq", sp.Add(*[x ** 2 for x in u]), "m/s²"),
