@@ -18,7 +18,7 @@ from ..constancy import constancy_line
 from ..errors import ConfigError
 from ..expressions import parse_expression
 from ..identify import IdentificationResult, TargetResult
-from .rollout import horizon_figures
+from .rollout import ONE_STEP_POSITION, horizon_figures
 from .rotation import rotation_lines, rotation_section
 from ..numerics import to_float
 from ..regression import LOSS
@@ -171,7 +171,7 @@ def horizon_lines(h: dict) -> list[str]:
     return ["", "== multi-step prediction on the test flights (velocity integrated from each sample, "
                 "inputs from the log; RMSE against the logged velocity)", text_table(header, rows),
             f"steps of {h['dt_s']:.3g} s; starts per horizon: "
-            + ", ".join(f"{k}: {v}" for k, v in h["n_starts"].items())]
+            + ", ".join(f"{k}: {v}" for k, v in h["n_starts"].items()), ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:]]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -426,7 +426,8 @@ def document(result) -> Document:
         doc.heading("Multi-step prediction on the test flights")
         doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
                       f"{h['dt_s']:.3g} s) with every other input read from the log; RMSE against the "
-                      f"logged velocity per horizon (see docs/use-the-model.md for the exact metric).")
+                      f"logged velocity per horizon (see docs/use-the-model.md for the exact metric); "
+                      f"{ONE_STEP_POSITION}.")
         doc.table(header, rows)
         for name, png in horizon_figures(h).items():
             doc.png(png, name, "multi-step prediction: error against horizon" if "error" in name

@@ -4,6 +4,7 @@ the empirical model's, then the multi-step prediction table, from a
 from __future__ import annotations
 
 from .document import fmt, text_table
+from .rollout import ONE_STEP_POSITION
 from .rotation import open_loop_legend
 
 __all__ = ["text"]
@@ -45,7 +46,8 @@ def text(res) -> str:
                 for m, per in res.horizons.items() for h, e in ((int(h), e) for h, e in per.items())]
         out.append(text_table(header, rows))
         out.append("errors: RMSE at the horizon over every start (skipped starts: "
-                   + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
+                   + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")")
+        out.append(ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:] + "\n")
     if res.open_loop is not None:
         out += open_loop_lines(res.open_loop, res.open_loop_rotation)
     return "\n".join(out)

@@ -9,6 +9,7 @@ from collections.abc import Mapping
 
 from ..rotation_stage import RotationResult
 from .document import Document, fmt, new_figure, text_table
+from .rollout import ONE_STEP_POSITION
 from .wording import VERDICT_KINDS
 
 __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "fig_open_loop_drift",
@@ -107,9 +108,7 @@ def open_loop_legend(rotation: bool = True) -> str:
             + ("body rates from the identified rotational model" if rotation else
                "body rates held (no rotational model beat holding them, or none was identified)")
             + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, no drag, "
-            "rates held; constant: the state held. After 1 step the models that move agree on position: "
-            "one step moves it by the logged start velocity (a model's acceleration adds only ½·a·Δt²), so "
-            "that column measures the log (a motion-capture position held between its updates), not the models")
+            f"rates held; constant: the state held; {ONE_STEP_POSITION}")
 
 
 def rotation_lines(rot: RotationResult | None) -> list[str]:

@@ -35,7 +35,17 @@ def test_the_open_loop_table_says_what_nominal_physics_is_and_why_1_step_positio
     from droneid.report.rotation import open_loop_legend
     legend = open_loop_legend(True)
     assert "nominal physics: thrust from the motor speeds" in legend
-    assert "After 1 step the models that move agree on position" in legend and "held between its updates" in legend
+    assert "after 1 step a model that integrates moves the position by the logged start velocity" in legend
+    assert "held between its updates" in legend
     per = {"1": {"position": 0.004, "velocity": 0.01, "attitude": 0.003, "rates": 0.1}}
     lines = open_loop_lines({"identified": per, "nominal physics": per, "constant": per}, rotation=False)
     assert open_loop_legend(False) in "\n".join(lines)
+
+
+def test_identify_multistep_table_says_why_1_step_positions_agree():
+    from droneid.report.identify import horizon_lines
+    e = {"vx": 0.01, "position": 0.006888}
+    h = {"rmse": {"identified": {"1": e}, "empirical": {"1": e}}, "steps": [1], "seconds": [0.01],
+         "dt_s": 0.01, "n_starts": {"1": 100}}
+    text = "\n".join(horizon_lines(h))
+    assert "the 1-step position column measures the log" in text and "held between its updates" in text
