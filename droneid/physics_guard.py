@@ -90,7 +90,7 @@ def dimension(expr: sp.Expr, units: Mapping[str, str] | None = None,
                 out = [x + y for x, y in zip(out, d)]
             return tuple(out)
         if isinstance(e, sp.Add):
-            dims = [dim(a) for a in e.args if not a.is_Number]
+            dims = [dim(a) for a in e.args if not a.is_number]   # a constant alone (2.25, pi) is an offset
             known = [d for d in dims if d is not None]
             if any(d != known[0] for d in known):
                 raise _Inconsistent(f"it adds quantities of different units ({sp.sstr(e)})")

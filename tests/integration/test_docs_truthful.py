@@ -13,7 +13,7 @@ def _readme_multistep_rows() -> tuple[list[str], list[str]]:
     block = text[text.index("== multi-step prediction on the test flights"):]
     block = block[:block.index("\n\n")]
     lines = block.splitlines()
-    rows = [ln for ln in lines[3:] if not ln.startswith("steps of")]
+    rows = [ln for ln in lines[3:] if not ln.startswith(("steps of", "After 1 step"))]
     horizons = re.search(r"starts per horizon: (.*)$", block, re.M).group(1)
     return rows, [h.split(":")[0].strip() for h in horizons.split(",")]
 

@@ -28,7 +28,7 @@ def test_refused_terms_say_why(term, words):
 
 
 @pytest.mark.parametrize("term", ["(rpm1**2 + rpm2**2 + rpm3**2 + rpm4**2)*cos(pitch)", "vx*Abs(vx)",
-                                  "sin(pitch)*vx", "vx - 0.5", "P*vz", "tanh(pitch)*roll"])
+                                  "sin(pitch)*vx", "vx - 0.5", "P*vz", "(P - 2.25 + pi)**4", "tanh(pitch)*roll"])
 def test_physical_terms_pass(term):
     assert term_problem(E(term), MOTORS, symbols={"P": ACCELERATION}) is None
 
