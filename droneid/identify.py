@@ -37,7 +37,7 @@ from .dataset_builder import reuse_datasets
 from .errors import ConfigError, DataError
 from .export import export_models, input_sources
 from .flight import Flight
-from .suitability import check_prior_data, undeclared_line
+from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
 from .constancy import Constancy, constancy_sentence
 from .io_util import to_jsonable
@@ -45,7 +45,7 @@ from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung, trivial
 from .predict import models_from_document, open_loop_section, predict_flights
 from .plan import holdout_cuts, plan_identification, resolve_plan_prior
 from .problem import TargetProblem, empirical_model, prepare_target
-from .report.wording import readable_equation, split_leading_number, verdict
+from .report.wording import readable_equation, split_leading_number, undeclared_line, verdict
 from .rollout import horizon_section
 from .rotation_stage import RotationJob, RotationResult, rotation_job, score_rotation
 from .search import RunRecord, compile_once, make_jobs, run_job, select_best

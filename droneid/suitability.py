@@ -58,7 +58,10 @@ from types import MappingProxyType
 
 import numpy as np
 
+from priors.thrust import in_rpm_unit
+
 from .consistency import raise_if_inconsistent
+from .report.wording import undeclared_line
 from .errors import ConfigError, DataError, check_choice
 from .flight import MAX_GAP_S, VEHICLE_TYPES, Flight, Signal
 from .in_flight import in_flight_intervals, resample_signal
@@ -423,21 +426,6 @@ _OTHER_VEHICLE = {
 _UNDECLARED = "\0undeclared"
 
 
-def undeclared_line(undeclared: list[tuple[str, str, str]]) -> str:
-    """One line for every flight whose log does not declare its vehicle type (``undeclared``:
-    (flight name, what the data look like with the evidence, the same in short) in flight order): seven identical lines per run are
-    one line naming the flights."""
-    if len(undeclared) == 1:
-        name, judged, _ = undeclared[0]
-        return f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it"
-    names = ", ".join(n for n, _, _ in undeclared)
-    looks = {short for _, _, short in undeclared}
-    judged = (f"{next(iter(looks))} in each (droneid inspect LOG shows the evidence)" if len(looks) == 1
-              else "; ".join(f"{n}: {j}" for n, j, _ in undeclared))
-    return (f"{len(undeclared)} flights ({names}): vehicle type not declared by their logs: {judged}; "
-            f"pass --vehicle to state it")
-
-
 def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings, undeclared) -> None:
     said = f" ({declared})" if declared else ""
     what = {"multirotor": "multirotor (quadrotor)"}.get(prior_kind, prior_kind)
@@ -571,20 +559,7 @@ def prior_for_flights(spec, flights, ts: float):
     ``ts`` (:func:`usable_signals`); a thrust source logged too slowly is named in ``why``. The
     one choice identify, diagnose and ``inspect`` make."""
     prior, why = _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
-    return _in_rpm_unit(prior, flights), why
-
-
-def _in_rpm_unit(prior, flights):
-    """``prior`` built for the unit the flights' motor speeds are in: a rotor-thrust prior on
-    electrical rpm (a reader gives ``erpm`` when its source says so) says per (10⁴ erpm)²."""
-    units = {f["rpm1"].unit for f in flights if f.has("rpm1")}
-    params = dict(getattr(prior, "params", {}) or {})
-    if units == {"erpm"} and params.get("source") == "rpm" and getattr(prior, "factory", None) is not None:
-        try:
-            return prior.with_params(rpm_unit="erpm")
-        except (ConfigError, TypeError):   # a prior without that parameter keeps its words
-            return prior
-    return prior
+    return in_rpm_unit(prior, {f["rpm1"].unit for f in flights if f.has("rpm1")}), why
 
 
 #: the built-in priors :func:`fitness_by_prior` judges by default (what ``droneid inspect`` shows)

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 # sympy (and droneid.expressions, which imports it) inside the functions that build expressions:
 # the simulator imports this module for RPM_SCALE, and `droneid simulate` needs no sympy
 
-__all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count"]
+__all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count", "in_rpm_unit"]
 
 
 #: Where the rotor-thrust prior takes the thrust from, most physically direct first:
@@ -83,3 +83,16 @@ def motor_count(signals) -> dict[str, int]:
         if n:
             out[src] = n
     return out
+
+
+def in_rpm_unit(prior, units):
+    """``prior`` built for the unit the flights' motor speeds are in (``units``: the set of
+    ``rpm1`` units over the flights): a rotor-thrust prior on electrical rpm (a reader gives
+    ``erpm`` when its source says so) says per (10⁴ erpm)²; any other prior as it is."""
+    params = dict(getattr(prior, "params", {}) or {})
+    if set(units) != {"erpm"} or params.get("source") != "rpm" or getattr(prior, "factory", None) is None:
+        return prior
+    try:
+        return prior.with_params(rpm_unit="erpm")
+    except (ConfigError, TypeError):   # a prior without that parameter keeps its words
+        return prior

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from ..numerics import to_float
 
 __all__ = ["round_floats", "display_term", "readable_equation", "split_leading_number", "Verdict",
-           "VERDICT_KINDS", "verdict", "improvement_pct", "axis_verdict", "MARGIN_PCT"]
+           "VERDICT_KINDS", "verdict", "improvement_pct", "axis_verdict", "MARGIN_PCT", "undeclared_line"]
 
 
 def improvement_pct(reference: float, value: float) -> float:
@@ -229,3 +229,19 @@ def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test
     return Verdict("worse", f"{target}: {what} is WORSE than holding the rate {where} ({gain:+.0f} %: "
                             f"{errs}{extra}): {why}; hold the rate instead (--rotation none, or a simulator "
                             f"with ω̇ = 0 on this axis)")
+
+
+def undeclared_line(undeclared: list[tuple[str, str, str]]) -> str:
+    """One line for every flight whose log does not declare its vehicle type (``undeclared``:
+    (flight name, what the data look like with the evidence, the same in short) in flight order):
+    seven identical lines per run are one line naming the flights (the data-fitness check's
+    :func:`droneid.suitability.assess`, identify's notes)."""
+    if len(undeclared) == 1:
+        name, judged, _ = undeclared[0]
+        return f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it"
+    names = ", ".join(n for n, _, _ in undeclared)
+    looks = {short for _, _, short in undeclared}
+    judged = (f"{next(iter(looks))} in each (droneid inspect LOG shows the evidence)" if len(looks) == 1
+              else "; ".join(f"{n}: {j}" for n, j, _ in undeclared))
+    return (f"{len(undeclared)} flights ({names}): vehicle type not declared by their logs: {judged}; "
+            f"pass --vehicle to state it")

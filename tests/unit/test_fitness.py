@@ -265,7 +265,7 @@ def test_undeclared_vehicle_types_are_one_line_naming_the_flights():
 
 def test_identify_says_undeclared_vehicles_once_over_training_and_test_flights():
     from droneid.identify import _data_notes
-    from droneid.suitability import undeclared_line
+    from droneid.report.wording import undeclared_line
     def fitness(names):
         und = tuple((n, "the data look like a multirotor (x)", "the data look like a multirotor") for n in names)
         return SimpleNamespace(undeclared=und, warnings=(undeclared_line(list(und)),
