@@ -213,7 +213,12 @@ def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: i
                        f"({'<' if pct >= 0 else 'not'} {min_effect_pct:g} %)")
     accepted = not reasons
     holm = (f"Bonferroni over {family_size}" if rank == 1 else f"Holm rank {rank} of {family_size}")
-    line = (f"{what + ': ' if what else ''}CV RMSE {r0:.4g} -> {r1:.4g} ({-pct:+.1f} %), "
+    # the pooled RMSE and the typical block can move apart (a few blocks carry the pooled gain):
+    # a fall of the pooled error beside p = 1 must not read as a gain the test ignored
+    apart = (pct > 0 and t < 0) or (pct < 0 and t > 0)
+    change = f"{-pct:+.1f} %" + (f", pooled over the rows; the typical block {'gets worse' if t < 0 else 'improves'}"
+                                 if apart else "")
+    line = (f"{what + ': ' if what else ''}CV RMSE {r0:.4g} -> {r1:.4g} ({change}), "
             f"t = {t:.2f} over {ids.size} blocks, sign-flip p = {p:.2g} "
             f"{'<' if p < thr else '≥'} {thr:.2g} (α = {alpha:g}, {holm}), "
             f"{better}/{ids.size} blocks better: " + ("accepted" if accepted else

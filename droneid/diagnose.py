@@ -216,7 +216,8 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     search.drop_stand_ins()
     if progress:
         progress(cfg.max_steps, cfg.max_steps + 1, "open-ended search")
-    open_ended = search_residuals(model, search.fit, cfg)
+    open_ended = search_residuals(model, search.fit, cfg, per_motor="motor_thrust" in search.added,
+                                  height="ground_effect" not in untestable)
     final_effects = search.final_effects()
     added, cur = search.added, search.fit
     derivs = sorted({n for fe in final_effects for fs in fe["features"].values() for f in fs

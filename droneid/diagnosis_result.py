@@ -20,7 +20,7 @@ from .differentiation import DIFFERENTIATORS
 from .errors import ConfigError, DataError, check_choice
 from .io_util import to_jsonable
 
-__all__ = ["DiagnoseConfig", "DiagnosisResult", "NO_FURTHER", "evidence_of", "with_test_errors",
+__all__ = ["DiagnoseConfig", "DiagnosisResult", "NO_FURTHER", "evidence_of", "with_test_errors", "folded_feature",
            "fold_into_prior"]
 
 NO_FURTHER = "no further effect is detectable from these signals"
@@ -187,9 +187,32 @@ def with_test_errors(ev: dict, test_before: float | None, test_after: float | No
             "test_rel_improvement": rel}
 
 
+def folded_feature(effect: str, feature: Mapping, physical: str = "") -> PriorFeature:
+    """One feature of a diagnosed effect as it joins the model, with only the sign and size the
+    effect's own test supports (one home for identify's plan and :func:`fold_into_prior`):
+
+    - an effect judged on its own rows (``assess_fn``: per-motor thrust, from the motors' thrust
+      shares) is folded as its test measured it, its coefficient FIXED at 1 (the k_i of its
+      test); the v̇ data cannot see it (a free refit would let it absorb noise with any sign);
+    - an effect judged on the v̇ residual is folded as its diagnosed term, ``coefficient ·
+      expr``, with a scale bounded to [0, ∞) (1 = as diagnosed): a refit may shrink it or, where
+      the data cannot pin it, hold it at 1, but never turn its sign.
+
+    ``feature``: ``{name, expr, coefficient}`` of ``final_effects[i]["features"][target]``."""
+    from priors.effects import CATALOGUE
+    eff = CATALOGUE.get(effect)
+    desc = f"diagnosed effect {effect}: {physical}"
+    c = float(feature["coefficient"]) if feature.get("coefficient") is not None else float("nan")
+    if eff is not None and eff.assess_fn is not None:
+        return PriorFeature(feature["name"], feature["expr"], desc, "other", limits=(1.0, 1.0))
+    if not (c == c) or c == 0.0:   # no usable diagnosed value: a free coefficient
+        return PriorFeature(feature["name"], feature["expr"], desc, "other")
+    return PriorFeature(feature["name"], sp.Float(c) * feature["expr"], desc, "other", limits=(0.0, float("inf")))
+
+
 def fold_into_prior(result: DiagnosisResult, prior):
     """A new :class:`priors.registry.PriorModel`: ``prior`` plus every foldable final effect's
-    features (each ``coefficient · expr``, role ``"other"``, description naming the effect), with
+    features (:func:`folded_feature`: role ``"other"``, description naming the effect), with
     the signals they use added to the prior's inputs. Effects that are not foldable (per-flight
     conditions, attitude delay, measured derivatives) are left out. Raises ConfigError when the
     prior is not a PriorModel."""
@@ -204,10 +227,9 @@ def fold_into_prior(result: DiagnosisResult, prior):
             if t not in terms:
                 continue
             for f in feats:
-                expr = sp.Float(f["coefficient"]) * f["expr"]
-                terms[t].append(PriorFeature(f["name"], expr, f"diagnosed effect {fe['effect']}: "
-                                             f"{fe['physical']}", "other"))
-                inputs[t].extend(sorted(s.name for s in expr.free_symbols if s.name not in inputs[t]))
+                feat = folded_feature(fe["effect"], f, fe["physical"])
+                terms[t].append(feat)
+                inputs[t].extend(sorted(s.name for s in feat.expr.free_symbols if s.name not in inputs[t]))
     added = [fe["effect"] for fe in result.final_effects if fe.get("foldable")]
     if not added:
         return prior

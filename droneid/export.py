@@ -34,7 +34,7 @@ import sympy as sp
 
 from . import __version__
 from .errors import ConfigError, MissingSignalError, check_choice
-from .expressions import round_expr
+from .expressions import c_code, octave_code, round_expr
 from .flight import canonical_unit
 from .closed_form import IdentifiedModel
 from .targets import state_of
@@ -67,9 +67,9 @@ def _equation(m: IdentifiedModel, to: str) -> str:
         return m.text()
     e = round_expr(m.expr, 4)
     if to == "c":
-        return sp.ccode(e, standard="C99")
+        return c_code(e)
     if to == "matlab":
-        return sp.octave_code(e)
+        return octave_code(e)
     return sp.latex(e)
 
 
@@ -198,7 +198,7 @@ def c_functions(models) -> list[str]:
     for m in models:
         args = ", ".join(f"double {s}" for s in m.signals) or "void"
         out += [f"/* {m.target} in {m.unit} */", f"double {m.target}({args})", "{",
-                f"    return {sp.ccode(m.expr, standard='C99')};", "}", ""]
+                f"    return {c_code(m.expr)};", "}", ""]
     return out
 
 
@@ -210,7 +210,7 @@ def _matlab(models, header, name) -> str:
     for mm in models:
         args = ", ".join(mm.signals)
         out += [f"function out = {mm.target}({args})", f"  % {mm.target} in {mm.unit}",
-                f"  out = {sp.octave_code(mm.expr)};", "end", ""]
+                f"  out = {octave_code(mm.expr)};", "end", ""]
     return "\n".join(out)
 
 

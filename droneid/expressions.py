@@ -19,7 +19,7 @@ from sympy.printing.str import StrPrinter
 
 from .errors import ConfigError, DataError, MissingSignalError, did_you_mean
 
-__all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "symbol", "safe_format", "to_text",
+__all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "symbol", "safe_format", "to_text", "c_code", "octave_code",
            "round_expr"]
 
 #: Functions a user expression may call, by name.
@@ -354,6 +354,27 @@ class _Printer(StrPrinter):
 
     def _print_Float(self, expr):
         return repr(float(expr))
+
+
+def _shortest_float_printer(base):
+    """A sympy code printer class that writes every float as its shortest round-trip repr
+    (``9.81``, never ``9.8100000000000005``): the same double, digits a person can read."""
+    class _Shortest(base):
+        def _print_Float(self, expr):
+            return repr(float(expr))
+    return _Shortest
+
+
+def c_code(expr: sp.Expr) -> str:
+    """``expr`` as a C99 expression, floats shortest round-trip (:func:`repr`)."""
+    from sympy.printing.c import C99CodePrinter
+    return _shortest_float_printer(C99CodePrinter)().doprint(expr)
+
+
+def octave_code(expr: sp.Expr) -> str:
+    """``expr`` as a MATLAB/Octave expression, floats shortest round-trip (:func:`repr`)."""
+    from sympy.printing.octave import OctaveCodePrinter
+    return _shortest_float_printer(OctaveCodePrinter)().doprint(expr)
 
 
 def to_text(expr: sp.Expr) -> str:

@@ -41,11 +41,11 @@ from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
 from .constancy import Constancy, constancy_sentence, leads
 from .io_util import to_jsonable
-from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung
+from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung, trivial_errors
 from .predict import models_from_document, open_loop_section, predict_flights
 from .plan import holdout_cuts, plan_identification, resolve_plan_prior
 from .problem import TargetProblem, empirical_model, prepare_target
-from .report.wording import readable_equation, split_leading_number, verdict
+from .report.wording import readable_equation, split_leading_number, undeclared_line, verdict
 from .rollout import horizon_section
 from .rotation_stage import RotationJob, RotationResult, rotation_job, score_rotation
 from .search import RunRecord, compile_once, make_jobs, run_job, select_best
@@ -248,7 +248,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         notes.append(lead)
     ladder = (*p.ladder, final)
     vd = verdict(p.target, final, p.ladder[0], guards.chosen_run is not None, p.holdout, float(np.std(p.train.y)),
-                 reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma)
+                 reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma,
+                 trivial=trivial_errors(p.train.y, p.blocks, p.test.y))
     parts = [f"{c:+.4g}·{lab}" for c, lab in (split_leading_number(lab, c) for lab, c in final.terms.items())]
     if final.intercept is not None and final.intercept != 0:
         parts.append(f"{final.intercept:+.4g}")
@@ -428,9 +429,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
             first = next(iter(errors.values()), "unknown error")
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         results[t] = summarise_target(problems[t], cfg, runs, errors)
-    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes,
-             *(f"data ({role}): {w}" for role, f in fitness.items() if f is not None
-               for w in _grouped(f.warnings)), *notes_early]
+    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes, *_data_notes(fitness), *notes_early]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
@@ -517,6 +516,18 @@ def _open_loop_test(res: "IdentificationResult", test_flights, notes: list) -> d
     except (ConfigError, DataError) as exc:
         notes.append(f"no open-loop figures on the test flights: {exc}")
         return {}
+
+
+def _data_notes(fitness: Mapping) -> list[str]:
+    """The data-fitness warnings of every role ("train", "test"), the flights whose logs do not
+    declare their vehicle type said once for all of them (:func:`droneid.suitability.undeclared_line`)."""
+    undeclared = [u for f in fitness.values() if f is not None for u in f.undeclared]
+    out = [f"data: {undeclared_line(undeclared)}"] if undeclared else []
+    for role, f in fitness.items():
+        if f is not None:
+            own = undeclared_line(list(f.undeclared)) if f.undeclared else None
+            out += [f"data ({role}): {w}" for w in _grouped([w for w in f.warnings if w != own])]
+    return out
 
 
 def _grouped(warnings) -> list[str]:

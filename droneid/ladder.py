@@ -30,6 +30,7 @@ from .errors import ConfigError, DataError
 from .expressions import round_expr, symbol, to_text
 from .closed_form import IdentifiedModel
 from .numerics import rmse, to_float
+from .physics_guard import ACCELERATION, guard_terms
 from .report.wording import display_term
 from .search import run_seeds
 from .sngp.model import SymbolicModel
@@ -43,7 +44,7 @@ if TYPE_CHECKING:
     from .search import RunRecord
 
 __all__ = ["Interval", "Rung", "GuardReport", "rung", "physical_rungs", "final_rung", "bootstrap_blocks",
-           "fitted_thrust", "TERM_ALPHA"]
+           "fitted_thrust", "evolved_labels", "physics_context", "trivial_errors", "TERM_ALPHA"]
 
 #: family-wise level of keeping evolved terms (Bonferroni over the runs; :mod:`droneid.decide`)
 TERM_ALPHA = 0.01
@@ -270,14 +271,56 @@ def fitted_thrust(p: TargetProblem, terms: Mapping[str, float]) -> float | None:
     return float(np.median(lift)) if lift is not None and len(lift) else None
 
 
+def evolved_labels(raw: Sequence[sp.Expr], prior_labels: Mapping[str, str]) -> tuple[list, list[str]]:
+    """(terms, labels) of evolved terms as the equation shows them: a term that reads with a
+    leading minus (``-rpm2``) is negated, so its label has no sign of its own and the fitted
+    coefficient carries it (never ``-1.9e-05·-rpm2``); prior symbols read as ⟨name⟩."""
+    terms, labels = [], []
+    for t in raw:
+        txt, neg = display_term(to_text(round_expr(t, 4)), dict(prior_labels))
+        terms.append(-t if neg else t)
+        labels.append(txt)
+    return terms, labels
+
+
+def trivial_errors(y_train: np.ndarray, blocks: np.ndarray | None, y_test: np.ndarray) -> dict:
+    """{"zero": RMSE, "the training mean": RMSE} of predicting no model at all (m/s² for v̇),
+    measured as the verdict measures the models: on the test rows when there are any (the mean
+    of the training rows), else on the training rows' validation blocks (each block predicted by
+    the mean of the others; zero needs no fit)."""
+    y_train, y_test = np.asarray(y_train, float), np.asarray(y_test, float)
+    if y_test.size:
+        return {"zero": rmse(np.zeros_like(y_test), y_test),
+                "the training mean": rmse(np.full_like(y_test, float(np.mean(y_train))), y_test)}
+    pred = np.full_like(y_train, float(np.mean(y_train))) if y_train.size else y_train
+    if blocks is not None and y_train.size:
+        for b in np.unique(blocks):
+            out = blocks != b
+            if out.any():
+                pred[blocks == b] = float(np.mean(y_train[out]))
+    return {"zero": rmse(np.zeros_like(y_train), y_train), "the training mean": rmse(pred, y_train)}
+
+
+def physics_context(p: TargetProblem) -> dict:
+    """The keywords of :func:`droneid.physics_guard.term_problem` for ``p``'s evolved terms:
+    prior feature symbols are accelerations; a single-motor term is allowed only when the
+    diagnosis folded the per-motor thrust effect; height only when ground effect was testable
+    (the flights spend time near the ground)."""
+    effects = {e.effect for e in (p.plan.effects if p.plan else ())}
+    untestable = (p.plan.diagnosis.get("untestable") or {}) if p.plan else {}
+    height = p.plan is not None and bool(p.plan.diagnosis) and "ground_effect" not in untestable
+    return {"per_motor": "motor_thrust" in effects, "height": height}
+
+
 def final_rung(p: TargetProblem, cfg, done: Sequence[RunRecord]) -> tuple[Rung, GuardReport]:
     """(final rung, guard report): the best evolved model that survives the trust guards, or the
     physical rung (prior + delay + effects) when none beats it on TRAINING validation blocks by
     the calibrated block test of :mod:`droneid.decide` (held-out errors of both, time blocks,
     α = :data:`TERM_ALPHA` Bonferroni over the runs, at least ``cfg.margin`` lower error).
 
-    Guards, in order, per run: the run's evolved terms are added to ALL prior and effect
-    features; near-duplicate columns (cancelling pairs) are merged and evolved terms that do not
+    Guards, in order, per run: evolved terms that no vehicle model may hold (one motor's speed
+    alone, absolute position, mixed units: :func:`droneid.physics_guard.term_problem`) are
+    dropped; the rest are added to ALL prior and effect features; near-duplicate columns (cancelling pairs) are merged and evolved terms that do not
     lower the blocked-CV error by 1 % are dropped (:func:`droneid.terms.trim_terms`); the
     model must stay within ±(2·max|y_train| + g) on a grid spanning the training inputs ± 20 %
     (:func:`droneid.terms.plausible`); its constraint error on a training draw of the constraint
@@ -315,6 +358,7 @@ def final_rung(p: TargetProblem, cfg, done: Sequence[RunRecord]) -> tuple[Rung, 
         phys_slope = drag_slope(phys_tm.expr(), vel, rows, v_max)
         slope_limit = max(phys_slope, 0.0) + 0.05
         g["drag_slope_limit"] = slope_limit
+    physics = physics_context(p)
     best = None
     for i, r in enumerate(done):
         try:
@@ -325,13 +369,16 @@ def final_rung(p: TargetProblem, cfg, done: Sequence[RunRecord]) -> tuple[Rung, 
         subs = {symbol(k): v for k, v in m.priors.items()}
         env = {**cols, **{k: evaluate_expr(v, cols, len(y)) for k, v in m.priors.items()}}
         raw = [drop_negligible(t, env, len(y)) for t in m.terms if t not in prior_syms]
+        raw, labels = evolved_labels(raw, {k: m.prior_labels.get(k, k) for k in m.priors})
+        keep, refused = guard_terms(raw, labels, p.train.input_names, **physics,
+                                    symbols=dict.fromkeys(m.priors, ACCELERATION))
+        dropped.extend(f"run {i + 1}: {n}" for n in refused)
+        raw, labels = [raw[k] for k in keep], [labels[k] for k in keep]
         evolved = [t.xreplace(subs) for t in raw]
         if not evolved:
             g["no_evolved_term_left"] += 1
             continue
-        shown = [display_term(to_text(round_expr(t, 4)), {k: m.prior_labels.get(k, k) for k in m.priors})
-                 for t in raw]
-        tm = phys_model.extended(evolved, tuple(("-" if neg else "") + txt for txt, neg in shown))
+        tm = phys_model.extended(evolved, tuple(labels))
         sizes = [0] * len(base) + [int(sp.count_ops(t)) for t in raw]
         trimmed, notes = trim_terms(tm, cols, y, p.blocks, keep_first=len(base), sizes=sizes)
         dropped.extend(f"run {i + 1}: {n}" for n in notes)

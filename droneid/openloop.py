@@ -47,7 +47,7 @@ __all__ = [
     "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log", "flight_state_logs",
     "quat_derivative", "quat_angle", "simulate", "rollout", "window_errors", "OpenLoopScore",
     "OpenLoopResult", "score_model", "open_loop", "NominalPhysics", "Constant",
-    "CRAZYFLIE_RAD_S_PER_ERPM", "IdentifiedTranslation", "IdentifiedVehicle",
+    "CRAZYFLIE_RAD_S_PER_ERPM", "rad_s_per_rpm_text", "IdentifiedTranslation", "IdentifiedVehicle",
 ]
 
 STATE_SIZE = 13
@@ -62,6 +62,17 @@ G = 9.81
 #: Crazyflie 2.1 Brushless: motor speed in rad/s per logged electrical rpm (6 electrical per
 #: mechanical revolution, as the benchmark converts ``m*_erpm``)
 CRAZYFLIE_RAD_S_PER_ERPM = 2.0 * math.pi / (6.0 * 60.0)
+
+
+def rad_s_per_rpm_text(factor: float) -> str:
+    """The conversion of logged motor speeds to rad/s as a person checks it: ``2π/60 rad/s per
+    rpm``, or ``2π/(60·6) rad/s per erpm (6 electrical rpm per mechanical revolution)``; never
+    the bare number (2π/(60·6) is π/180, which reads as a degree mistake)."""
+    for k in range(1, 21):
+        if math.isclose(factor, 2.0 * math.pi / (60.0 * k), rel_tol=1e-12):
+            return ("2π/60 rad/s per rpm" if k == 1 else
+                    f"2π/(60·{k}) rad/s per erpm ({k} electrical rpm per mechanical revolution)")
+    return f"{factor!r} rad/s per logged unit"
 
 _P, _V, _Q, _W = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13)
 _CHUNK = 8192  # windows simulated at once (memory: chunk x H x 13 float64)

@@ -22,6 +22,7 @@ from .data import Dataset
 from .dataset_builder import DatasetBuilder, _unique_names, reuse_datasets
 from .decide import decide, decide_family
 from .diagnose import DiagnoseConfig, diagnose_datasets
+from .diagnosis_result import folded_feature
 from .errors import ConfigError, DataError
 from .suitability import prior_for_flights
 from .terms import prior_terms
@@ -376,7 +377,7 @@ def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
         feats = fe.get("features")
         if fe.get("foldable") and feats:
             folded.append(Effect(fe["effect"], fe.get("physical", ""),
-                                 {t: tuple(PriorFeature(d["name"], d["expr"], fe.get("physical", ""), "other")
+                                 {t: tuple(folded_feature(fe["effect"], d, fe.get("physical", ""))
                                            for d in feats.get(t, ())) for t in targets}))
         else:
             skipped.append({"effect": fe["effect"], "physical": fe.get("physical", ""),

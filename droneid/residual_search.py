@@ -3,24 +3,28 @@
 :func:`search_residuals` runs, per target, an SNGP search on the remaining training residual over
 the causal signals (no absolute position, no clock-like signal: :func:`clock_like`), judged by the
 one decision rule (:func:`droneid.decide.decide`) on interleaved-block 2-fold CV, Bonferroni over
-the targets. Its term is a finding only when it passes; test errors are reported, never used.
+the targets. Its term is a finding only when it passes and no addend of its equation is refused by
+the physics guard (:mod:`droneid.physics_guard`: one motor alone, absolute position, mixed units);
+test errors are reported, never used.
 """
 from __future__ import annotations
 
 import re
 
 import numpy as np
+import sympy as sp
 
 from .decide import decide
 from .diagnosis_result import DiagnoseConfig, evidence_of, with_test_errors
 from .effect_model import Part
 from .numerics import rmse
+from .physics_guard import POSITION_SIGNALS, term_problem
 from .sngp import SNGPRegressor
 from .validation import block_in_flight
 
-__all__ = ["search_residuals", "clock_like", "equation_signals"]
+__all__ = ["search_residuals", "clock_like", "equation_signals", "physics_refusal"]
 
-_OPEN_EXCLUDE = {"lat", "lon", "alt", "x", "y", "qw", "qx", "qy", "qz", "v_axis", "t"}
+_OPEN_EXCLUDE = POSITION_SIGNALS | {"qw", "qx", "qy", "qz", "v_axis", "t"}
 
 
 def equation_signals(o: dict) -> list[str]:
@@ -29,7 +33,11 @@ def equation_signals(o: dict) -> list[str]:
     return [n for n in o.get("signals", ()) if n in words]
 
 
-def search_residuals(model, cur, cfg) -> dict:
+def search_residuals(model, cur, cfg, *, per_motor: bool = False, height: bool = False) -> dict:
+    """{target: what the open-ended search found on its remaining training residual}. A term is
+    a finding only when it passes the one rule AND the physics guard
+    (:func:`droneid.physics_guard.term_problem`; ``per_motor``: the per-motor thrust effect was
+    found, ``height``: ground effect was testable on these flights)."""
     parts = model.tr_parts
     if cfg.generations <= 0:
         return {p.target: {"ran": False, "reason": "disabled (generations = 0)"} for p in parts}
@@ -39,7 +47,8 @@ def search_residuals(model, cur, cfg) -> dict:
         if model.te_parts and "test_pred" in cur:
             q = model.te_parts[i]
             test = (q, q.y - cur["test_pred"][model.te.tidx == i])
-        out[p.target] = _search_one(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg, len(parts))
+        out[p.target] = _search_one(p, p.y - cur["pred"][model.tr.tidx == i], test, cfg, len(parts),
+                                    {"per_motor": per_motor, "height": height})
     return out
 
 
@@ -57,11 +66,24 @@ def clock_like(v: np.ndarray, t: np.ndarray, flight: np.ndarray, limit: float = 
     return False
 
 
+def physics_refusal(expr, signals, **kw) -> str | None:
+    """Why the open-ended equation ``expr`` cannot be a finding about the vehicle (its first
+    addend that :func:`droneid.physics_guard.term_problem` refuses, named), or None."""
+    for term in sp.Add.make_args(sp.expand(expr)):
+        if term.is_Number:
+            continue
+        why = term_problem(term, signals, **kw)
+        if why:
+            return f"physics guard: its term {sp.sstr(term)} is refused: {why}"
+    return None
+
+
 def _signal_matrix(part, names):
     return np.column_stack([part.ctx.columns[n] for n in names])
 
 
-def _search_one(part: Part, resid: np.ndarray, test, cfg: DiagnoseConfig, family: int = 1) -> dict:
+def _search_one(part: Part, resid: np.ndarray, test, cfg: DiagnoseConfig, family: int = 1,
+                physics: dict | None = None) -> dict:
     """SNGP on one target's remaining residual; its term is judged by the one rule
     (:func:`droneid.decide.decide`, interleaved-block 2-fold CV, Bonferroni over ``family``
     targets)."""
@@ -102,6 +124,9 @@ def _search_one(part: Part, resid: np.ndarray, test, cfg: DiagnoseConfig, family
     ev = with_test_errors(evidence_of(decide(resid, resid - pred, part.block, alpha=cfg.alpha,
                                        family_size=family, min_effect_pct=100 * cfg.min_rel_improvement,
                                        what=f"open-ended term for {part.target}")), tb, ta)
+    refused = physics_refusal(final.expr_, names, **(physics or {}))
+    if refused:
+        ev = {**ev, "passed": False, "reasons": [*ev["reasons"], refused], "text": f"{ev['text']}; {refused}"}
     return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),
             "rmse_train_residual": float(getattr(final, "rmse_train_", float("nan"))),
             "generations": cfg.generations, "passed": ev["passed"], "evidence": ev}

@@ -58,7 +58,10 @@ from types import MappingProxyType
 
 import numpy as np
 
+from priors.thrust import in_rpm_unit
+
 from .consistency import raise_if_inconsistent
+from .report.wording import undeclared_line
 from .errors import ConfigError, DataError, check_choice
 from .flight import MAX_GAP_S, VEHICLE_TYPES, Flight, Signal
 from .in_flight import in_flight_intervals, resample_signal
@@ -181,6 +184,9 @@ class Fitness:
         "max_hover_tilt_deg": MAX_HOVER_TILT_DEG, "max_tilt_mismatch_deg": MAX_TILT_MISMATCH_DEG,
         "never_slow_ms": NEVER_SLOW_MS}))
     prior: str = ""
+    #: (flight, what the data look like, the same in short) of every flight whose log does not
+    #: declare its vehicle type; ``warnings`` says it in one line (:func:`undeclared_line`)
+    undeclared: tuple = ()
 
     @property
     def ok(self) -> bool:
@@ -241,6 +247,7 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     needed = tuple(needed_signals)
     problems: list[tuple[int, str]] = []
     warnings: list[str] = []
+    undeclared: list[tuple[str, str]] = []
     out = []
     total_samples = 0
 
@@ -262,7 +269,7 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
             samples = _grid_samples(ivs, ts)
             total_samples += samples
             evidence = vehicle_evidence(f, ivs or raw)
-            _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings)
+            _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings, undeclared)
             missing = [s for s in needed if not f.has(s)]
             invalid = _invalid_state(f, missing)
             if invalid:
@@ -308,7 +315,9 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
         refuse("samples", f"only {total_samples} samples in flight at Ts = {ts:g} s "
                           f"(< {MIN_SAMPLES}): use more or longer flights")
     ordered = tuple(text for _, text in sorted(problems, key=lambda p: p[0]))
-    return Fitness(tuple(out), needed, float(ts), prior_kind, ordered, tuple(warnings), prior=prior)
+    warnings = [undeclared_line(undeclared) if w == _UNDECLARED else w for w in warnings]
+    return Fitness(tuple(out), needed, float(ts), prior_kind, ordered, tuple(warnings), prior=prior,
+                   undeclared=tuple(undeclared))
 
 
 def _gap_in(bursts, ivs) -> bool:
@@ -413,7 +422,11 @@ _OTHER_VEHICLE = {
 }
 
 
-def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings) -> None:
+#: where the one line about undeclared vehicle types goes among the warnings
+_UNDECLARED = "\0undeclared"
+
+
+def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnings, undeclared) -> None:
     said = f" ({declared})" if declared else ""
     what = {"multirotor": "multirotor (quadrotor)"}.get(prior_kind, prior_kind)
     if vtype in _REFUSES.get(prior_kind, ()):
@@ -430,7 +443,10 @@ def _vehicle_verdict(name, vtype, declared, prior_kind, evidence, refuse, warnin
     elif vtype == "unknown":
         judged = (f"the data look like a multirotor ({evidence.text()})" if evidence.looks == "multirotor"
                   else f"a {what} is assumed ({'; '.join(evidence.reasons) or 'undecided'})")
-        warnings.append(f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it")
+        undeclared.append((name, judged, "the data look like a multirotor" if evidence.looks == "multirotor"
+                           else f"a {what} is assumed"))
+        if len(undeclared) == 1:
+            warnings.append(_UNDECLARED)    # the merged line goes here (undeclared_line)
     elif vtype not in _ACCEPTS.get(prior_kind, ()):
         warnings.append(f"{name}: {what} prior on a {vtype} log{said}: only its "
                         f"{'hover' if vtype == 'vtol' else 'matching'} phases follow the prior")
@@ -542,7 +558,8 @@ def prior_for_flights(spec, flights, ts: float):
     resolved on these flights, choosing among the signals they log fast enough for a grid of
     ``ts`` (:func:`usable_signals`); a thrust source logged too slowly is named in ``why``. The
     one choice identify, diagnose and ``inspect`` make."""
-    return _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
+    prior, why = _registry.prior_for(spec, usable_signals(flights, ts), slow=too_slow_signals(flights, ts))
+    return in_rpm_unit(prior, {f["rpm1"].unit for f in flights if f.has("rpm1")}), why
 
 
 #: the built-in priors :func:`fitness_by_prior` judges by default (what ``droneid inspect`` shows)

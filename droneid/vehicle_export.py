@@ -20,7 +20,7 @@ import numpy as np
 from . import __version__
 from .errors import ConfigError, check_choice
 from .export import CONVENTIONS, c_functions, checked_models, input_unit, model_header, python_functions
-from .openloop import IdentifiedTranslation
+from .openloop import IdentifiedTranslation, rad_s_per_rpm_text
 from .rotation import SPEED_UNIT, RotationModel, TranslationModel, unsteerable, unsteerable_sentence
 
 __all__ = ["VEHICLE_FORMATS", "export_vehicle"]
@@ -119,8 +119,8 @@ def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> _Part:
     M, P, o = spec["M"], spec["P"], offset
     lp, ce = _alpha(spec["lp"], dt_s), _alpha(spec["centre"], dt_s)
     bw = "None" if spec["bw"] is None else _f(spec["bw"])
-    steps = [f"the motor speeds of {spec['d_r']} step(s) earlier as rotor speeds (rpm * "
-             f"{_f(rotation.rad_s_per_rpm)} rad/s)"]
+    steps = [f"the motor speeds of {spec['d_r']} step(s) earlier as rotor speeds (logged speed times "
+             f"{rad_s_per_rpm_text(rotation.rad_s_per_rpm)})"]
     if spec["lp"] is not None:
         steps.append(f"low-passed (first order, time constant {spec['lp']:g} s)")
     steps.append("squared as (rotor speed / 1000 rad/s)^2")

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 # sympy (and droneid.expressions, which imports it) inside the functions that build expressions:
 # the simulator imports this module for RPM_SCALE, and `droneid simulate` needs no sympy
 
-__all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count"]
+__all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count", "in_rpm_unit"]
 
 
 #: Where the rotor-thrust prior takes the thrust from, most physically direct first:
@@ -46,17 +46,19 @@ def body_z_world(roll, pitch, yaw) -> tuple:
             sp.cos(roll) * sp.cos(pitch))
 
 
-def thrust_columns(source: str, motors: int = 4) -> tuple[tuple[str, sp.Expr, str], ...]:
+def thrust_columns(source: str, motors: int = 4, rpm_unit: str = "rpm") -> tuple[tuple[str, sp.Expr, str], ...]:
     """The thrust magnitude terms of a source: ((name, expr, unit of its coefficient), ...).
 
-    ``rpm``: Σ (ω_i/10⁴)²; ``motor``: Σ u_i² and Σ u_i; ``throttle``: u² and u; ``thrust``: T.
+    ``rpm``: Σ (ω_i/10⁴)² (``rpm_unit``: the unit the log's motor speeds are in, ``rpm`` or
+    ``erpm`` for electrical rpm, named in the coefficient's unit); ``motor``: Σ u_i² and Σ u_i;
+    ``throttle``: u² and u; ``thrust``: T.
     """
     import sympy as sp
 
     symbol = _expressions.symbol
     if source == "rpm":
         w = [symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)]
-        return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), "m/s² per (10⁴ rpm)²"),)
+        return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), f"m/s² per (10⁴ {rpm_unit})²"),)
     if source == "motor":
         u = [symbol(f"motor{i}") for i in range(1, motors + 1)]
         return (("sum_cmd_sq", sp.Add(*[x ** 2 for x in u]), "m/s²"),
@@ -81,3 +83,16 @@ def motor_count(signals) -> dict[str, int]:
         if n:
             out[src] = n
     return out
+
+
+def in_rpm_unit(prior, units):
+    """``prior`` built for the unit the flights' motor speeds are in (``units``: the set of
+    ``rpm1`` units over the flights): a rotor-thrust prior on electrical rpm (a reader gives
+    ``erpm`` when its source says so) says per (10⁴ erpm)²; any other prior as it is."""
+    params = dict(getattr(prior, "params", {}) or {})
+    if set(units) != {"erpm"} or params.get("source") != "rpm" or getattr(prior, "factory", None) is None:
+        return prior
+    try:
+        return prior.with_params(rpm_unit="erpm")
+    except (ConfigError, TypeError):   # a prior without that parameter keeps its words
+        return prior

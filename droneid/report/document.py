@@ -159,6 +159,15 @@ class Document:
                                     for f, n, c in items]))
         return self
 
+    def notes(self, items: Sequence[str], summary: str = "") -> "Document":
+        """Notes that qualify the results, folded under one line (``summary``; default "N
+        notes") so that they never push a verdict below the first screen: a ``<details>`` in
+        HTML, a list under a bold line in Markdown. No block without ``items``."""
+        items = [str(i) for i in items]
+        if items:
+            self.blocks.append(("notes", summary or f"{len(items)} note{'s' * (len(items) > 1)}", items))
+        return self
+
     def code(self, text: str) -> "Document":
         self.blocks.append(("code", text))
         return self
@@ -203,6 +212,8 @@ class Document:
                     out += [f"![{esc(f.caption or f.name)}]({quote(f.name)}.png)", ""]
                     if f.caption:
                         out += [f"*{esc(f.caption)}*", ""]
+            elif b[0] == "notes":
+                out += [f"**{esc(b[1])}**", ""] + [f"- {esc(n, line_start=False)}" for n in b[2]] + [""]
             elif b[0] == "code":
                 fence = "`" * max(3, 1 + max((len(r) for r in re.findall(r"`+", b[1])), default=0))
                 out += [fence, b[1], fence, ""]
@@ -225,7 +236,9 @@ class Document:
                "overflow-wrap:anywhere}"
                ".tbl{overflow-x:auto;max-width:100%}"
                "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:.25em .6em;"
-               "text-align:right}th{background:#eee}td:first-child,th:first-child{text-align:left}"
+               "text-align:right;white-space:nowrap;overflow-wrap:normal}th{background:#eee}"
+               "td:first-child,th:first-child{text-align:left;white-space:normal;overflow-wrap:anywhere}"
+               "details.notes{margin:.6em 0;color:#444}details.notes summary{cursor:pointer}"
                "pre{background:#f6f6f6;padding:.6em;white-space:pre-wrap;overflow-wrap:anywhere;"
                "max-width:100%;box-sizing:border-box}"
                "img{max-width:100%;height:auto}figure{margin:1em 0;min-width:0}"
@@ -245,6 +258,9 @@ class Document:
                 out.append(f"<p class='verdict {b[2]}'>{e(b[1])}</p>")
             elif b[0] == "row":
                 out.append("<div class='row'>" + "".join(img(f) for f in b[1]) + "</div>")
+            elif b[0] == "notes":
+                out.append(f"<details class='notes'><summary>{e(b[1])}</summary>"
+                           + "".join(f"<p>{e(n)}</p>" for n in b[2]) + "</details>")
             elif b[0] == "code":
                 out.append(f"<pre>{e(b[1])}</pre>")
             elif b[0] == "table":

@@ -18,7 +18,7 @@ from ..constancy import constancy_line
 from ..errors import ConfigError
 from ..expressions import parse_expression
 from ..identify import IdentificationResult, TargetResult
-from .rollout import horizon_figures
+from .rollout import ONE_STEP_POSITION, horizon_figures
 from .rotation import rotation_lines, rotation_section
 from ..numerics import to_float
 from ..regression import LOSS
@@ -59,8 +59,12 @@ def interval_lines(tr: TargetResult) -> list[str]:
     parts = []
     for lab, iv in final.intervals.items():
         c = final.intercept if lab == "intercept" else final.terms[lab]
-        held = " held" if lab in final.held else ""
-        parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}]{held}")
+        if lab in final.held:
+            parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}] held")
+        elif iv.low == iv.high == c and lab != "intercept":   # fixed by the prior or the effect's own test
+            parts.append(f"{lab} {efmt(c)} fixed")
+        else:
+            parts.append(f"{lab} {efmt(c)} [{efmt(iv.low)}, {efmt(iv.high)}]")
     several = any(c.unit == "flight" for c in final.constancy.values())
     how = ("block bootstrap over the training flights' (flight, time block) units; a vehicle "
            "constant's widened to cover how the flights differ" if several else
@@ -167,7 +171,7 @@ def horizon_lines(h: dict) -> list[str]:
     return ["", "== multi-step prediction on the test flights (velocity integrated from each sample, "
                 "inputs from the log; RMSE against the logged velocity)", text_table(header, rows),
             f"steps of {h['dt_s']:.3g} s; starts per horizon: "
-            + ", ".join(f"{k}: {v}" for k, v in h["n_starts"].items())]
+            + ", ".join(f"{k}: {v}" for k, v in h["n_starts"].items()), ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:]]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -364,8 +368,11 @@ def document(result) -> Document:
                   f"{cfg.generations} generations, population {cfg.population_size}, "
                   f"seed {cfg.seed}; Ts {cfg.ts} s, {cfg.method} differences. "
                   f"Errors in m/s²: e_d is the RMSE on data, e_c the RMSE of constraint violations.")
-    for note in result.notes:
-        doc.paragraph(f"NOTE: {note}")
+    doc.heading("Verdicts")
+    for name, tr in result.targets.items():
+        doc.verdict(tr.verdict, VERDICT_KINDS[tr.verdict_kind] if tr.verdict_kind in VERDICT_KINDS else "grey")
+    doc.notes([f"NOTE: {note}" for note in result.notes],
+              f"{len(result.notes)} note(s) on the plan and the data (prior, offset, diagnosis, data fitness)")
     files = lambda part: ", ".join(str(f) for p in (result.provenance[part] if part in result.provenance else ()) for f in p["files"])  # noqa: E731
     doc.paragraph(f"Training logs: {files('train') or '—'}. Test logs: {files('test') or '—'}.")
     for name, tr in result.targets.items():
@@ -388,14 +395,18 @@ def document(result) -> Document:
         doc.paragraph(method_line(result))
         doc.paragraph(f"{tr.n_train} training and {tr.n_test} test samples; {tr.test_data}. "
                       f"Inputs: {', '.join(tr.inputs)}. Constraints: {tr.constraints}.")
-        for note in tr.notes:
-            if note != tr.test_data:
-                doc.paragraph(f"NOTE: {note}")
+        own = [f"NOTE: {note}" for note in tr.notes if note != tr.test_data]
+        doc.notes(own, f"{len(own)} note(s) on {name} (held coefficients, data range, rejected runs)")
         if tr.runs:
             chosen = tr.guards.chosen_run
             mark = " (its evolved terms are in the final model)"
-            doc.paragraph(_guard_line(tr) + " (errors of each run's own model on the rows it searched)")
-            doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "e_c train < γ", "wall (s)"],
+            limit = tr.guards.constraint_limit
+            doc.paragraph(_guard_line(tr) + " (errors of each run's own model on the rows it searched; "
+                          f"'own e_c train < γ' says whether that model kept the constraints within γ = {cfg.gamma:g}. "
+                          "The guards judge a run again once its evolved terms join the physical model"
+                          + (f", against e_c ≤ {limit:.3g}" if limit is not None else "")
+                          + ": a 'no' here is not a run rejected for breaking the constraints)")
+            doc.table(["run", "seed", "e_d train", "e_d test", "e_c train", "e_c test", "own e_c train < γ", "wall (s)"],
                       [[str(i + 1) + (mark if i == chosen else ""), r.seed,
                         fmt(r.rmse_train), fmt(r.rmse_test), fmt(r.constraint_rmse_train),
                         fmt(r.constraint_rmse_test), "yes" if r.qualified else "no",
@@ -415,7 +426,8 @@ def document(result) -> Document:
         doc.heading("Multi-step prediction on the test flights")
         doc.paragraph(f"From every test sample the model's velocity is integrated (RK4, steps of "
                       f"{h['dt_s']:.3g} s) with every other input read from the log; RMSE against the "
-                      f"logged velocity per horizon (see docs/use-the-model.md for the exact metric).")
+                      f"logged velocity per horizon (see docs/use-the-model.md for the exact metric); "
+                      f"{ONE_STEP_POSITION}.")
         doc.table(header, rows)
         for name, png in horizon_figures(h).items():
             doc.png(png, name, "multi-step prediction: error against horizon" if "error" in name

@@ -4,6 +4,8 @@ the empirical model's, then the multi-step prediction table, from a
 from __future__ import annotations
 
 from .document import fmt, text_table
+from .rollout import ONE_STEP_POSITION
+from .rotation import open_loop_legend
 
 __all__ = ["text"]
 
@@ -44,7 +46,8 @@ def text(res) -> str:
                 for m, per in res.horizons.items() for h, e in ((int(h), e) for h, e in per.items())]
         out.append(text_table(header, rows))
         out.append("errors: RMSE at the horizon over every start (skipped starts: "
-                   + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")\n")
+                   + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")")
+        out.append(ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:] + "\n")
     if res.open_loop is not None:
         out += open_loop_lines(res.open_loop, res.open_loop_rotation)
     return "\n".join(out)
@@ -61,8 +64,4 @@ def open_loop_lines(ol: dict, rotation: bool = False) -> list[str]:
     return ["== open loop (the nanodrone benchmark's metric): full state simulated from the motor speeds, "
             "MAE over every start; SimErr = sum of MAE over 1..50 steps",
             text_table(header, rows),
-            "identified: the final v̇ models, attitude from the simulated quaternion, "
-            + ("body rates from the identified rotational model" if rotation else
-               "body rates held (no rotational model beat holding them, or none was identified)")
-            + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, "
-            "no drag, rates held; constant: the state held\n"]
+            open_loop_legend(rotation) + "\n"]

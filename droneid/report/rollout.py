@@ -9,7 +9,13 @@ from collections.abc import Mapping
 from ..rollout import AXES
 from .document import new_figure, png_bytes
 
-__all__ = ["horizon_figures"]
+__all__ = ["horizon_figures", "ONE_STEP_POSITION"]
+
+#: why every model's 1-step position error is (nearly) the same, said where that column is shown
+#: (identify's multi-step and open-loop tables, predict's)
+ONE_STEP_POSITION = ("after 1 step a model that integrates moves the position by the logged start velocity (its "
+                     "acceleration adds only ½·a·Δt²), so the 1-step position column measures the log "
+                     "(a motion-capture position held between its updates), not the models")
 
 
 def horizon_figures(section: Mapping) -> dict[str, bytes]:

@@ -10,9 +10,11 @@ from collections.abc import Mapping
 from ..rotation import unsteerable, unsteerable_sentence
 from ..rotation_stage import RotationResult
 from .document import Document, fmt, new_figure, text_table
+from .rollout import ONE_STEP_POSITION
 from .wording import VERDICT_KINDS
 
-__all__ = ["rotation_lines", "rotation_section", "open_loop_table", "fig_open_loop_drift", "ladder_rows"]
+__all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "fig_open_loop_drift",
+           "ladder_rows"]
 
 _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("rates", "rad/s"))
 _SHOWN = ("1", "10", "50")
@@ -92,6 +94,22 @@ def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def _has_rotation(rot: RotationResult) -> bool:
+    """Whether the identified open-loop row has a rotational model (some axis not held)."""
+    return rot.model is not None and any(a.rung != "held" for a in rot.axes)
+
+
+def open_loop_legend(rotation: bool = True) -> str:
+    """What the rows of the open-loop table are (one home: identify's text and report, predict),
+    and why their 1-step position errors agree. ``rotation``: whether the identified row has a
+    rotational model (else its body rates are held)."""
+    return ("identified: the final v̇ models, attitude from the simulated quaternion, "
+            + ("body rates from the identified rotational model" if rotation else
+               "body rates held (no rotational model beat holding them, or none was identified)")
+            + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, no drag, "
+            f"rates held; constant: the state held; {ONE_STEP_POSITION}")
+
+
 def rotation_lines(rot: RotationResult | None) -> list[str]:
     """The terminal section: verdicts, layout, model, per-axis table, open loop on the test flights."""
     if rot is None:
@@ -112,7 +130,8 @@ def rotation_lines(rot: RotationResult | None) -> list[str]:
     if rot.open_loop_test:
         header, rows = open_loop_table(rot.open_loop_test)
         out += ["", "== the whole vehicle open loop on the test flights (the nanodrone benchmark's metric: MAE over "
-                    "every start, SimErr = Σ over 1..50 steps)", text_table(header, rows)]
+                    "every start, SimErr = Σ over 1..50 steps)", text_table(header, rows),
+                open_loop_legend(_has_rotation(rot))]
     return out
 
 
@@ -161,6 +180,7 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
         doc.heading("The whole vehicle open loop on the test flights", level=3)
         header, rows = open_loop_table(rot.open_loop_test)
         doc.table(header, rows)
+        doc.paragraph(open_loop_legend(_has_rotation(rot)))
         fig = fig_open_loop_drift(rot.open_loop_test)
         if fig is not None:
             doc.figure(fig, "open_loop_drift", "position and attitude error against the horizon, open loop "

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from ..numerics import to_float
 
 __all__ = ["round_floats", "display_term", "readable_equation", "split_leading_number", "Verdict",
-           "VERDICT_KINDS", "verdict", "improvement_pct", "axis_verdict", "MARGIN_PCT"]
+           "VERDICT_KINDS", "verdict", "improvement_pct", "axis_verdict", "MARGIN_PCT", "undeclared_line"]
 
 
 def improvement_pct(reference: float, value: float) -> float:
@@ -121,14 +121,17 @@ def _physics_problems(final, reference, gamma: float) -> list[str]:
 
 
 def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
-            y_spread: float = math.inf, *, reference=None, gamma: float = math.inf) -> Verdict:
+            y_spread: float = math.inf, *, reference=None, gamma: float = math.inf,
+            trivial: dict | None = None) -> Verdict:
     """How the final model compares with the empirical model as given, on the test data (or,
     without any, on the training flights' validation blocks), with the absolute errors and the
     target's standard deviation. "better" needs all of: better in validation, every physical
     coefficient inside its bounds, e_c within γ (or no worse than the prior's own refit,
     ``reference``); otherwise the verdict says what is wrong and that the model is not to be
     trusted. A target that barely varies, or an error that cannot be measured, gives no verdict
-    (never a "+100 %")."""
+    (never a "+100 %"). ``trivial``: {"zero": RMSE, "the training mean": RMSE} of predicting no
+    model at all, measured where the models are (test rows, or validation blocks); when one of
+    them beats both models by :data:`MARGIN_PCT`, the verdict says so and advises neither."""
     te, ee = final.rmse_test, empirical.rmse_test
     va, ev = final.rmse_validation, empirical.rmse_validation
     has_test = math.isfinite(te) and math.isfinite(ee)
@@ -147,6 +150,15 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
     errs = f"RMSE {a:.3g} vs {b:.3g} m/s²" + (f", {sd}" if sd else "")
     extra = f"; validation {vgain:+.0f} %" if has_test else ""
     problems = _physics_problems(final, reference, gamma)
+    known = {k: v for k, v in (trivial or {}).items() if math.isfinite(to_float(v))}
+    if known:
+        name, e0 = min(known.items(), key=lambda kv: kv[1])
+        if improvement_pct(min(a, b), e0) >= MARGIN_PCT:
+            return Verdict("no better", f"{target}: NEITHER MODEL beats predicting {name} {where}: RMSE "
+                           f"{e0:.3g} m/s² for {name} vs {a:.3g} for the {what} and {b:.3g} for the empirical "
+                           f"model" + (f" ({sd})" if sd else "") + f": these flights do not show {target} "
+                           f"above its noise, so keep neither as a model of it (fly with more excitation)"
+                           + ("; besides, " + "; ".join(problems) if problems else ""))
     if problems:
         return Verdict("not to be trusted",
                        f"{target}: the {what} is NOT TO BE TRUSTED: " + "; ".join(problems)
@@ -217,3 +229,19 @@ def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test
     return Verdict("worse", f"{target}: {what} is WORSE than holding the rate {where} ({gain:+.0f} %: "
                             f"{errs}{extra}): {why}; hold the rate instead (--rotation none, or a simulator "
                             f"with ω̇ = 0 on this axis)")
+
+
+def undeclared_line(undeclared: list[tuple[str, str, str]]) -> str:
+    """One line for every flight whose log does not declare its vehicle type (``undeclared``:
+    (flight name, what the data look like with the evidence, the same in short) in flight order):
+    seven identical lines per run are one line naming the flights (the data-fitness check's
+    :func:`droneid.suitability.assess`, identify's notes)."""
+    if len(undeclared) == 1:
+        name, judged, _ = undeclared[0]
+        return f"{name}: vehicle type not declared by the log: {judged}; pass --vehicle to state it"
+    names = ", ".join(n for n, _, _ in undeclared)
+    looks = {short for _, _, short in undeclared}
+    judged = (f"{next(iter(looks))} in each (droneid inspect LOG shows the evidence)" if len(looks) == 1
+              else "; ".join(f"{n}: {j}" for n, j, _ in undeclared))
+    return (f"{len(undeclared)} flights ({names}): vehicle type not declared by their logs: {judged}; "
+            f"pass --vehicle to state it")

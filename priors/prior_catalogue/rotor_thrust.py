@@ -19,7 +19,7 @@ NAME, ORDER = "rotor-thrust", 20
 
 
 def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D: float = 0.28,
-                 g: float = 9.81, rotor_drag: bool = False) -> PriorModel:
+                 g: float = 9.81, rotor_drag: bool = False, rpm_unit: str = "rpm") -> PriorModel:
     """Rotor-thrust quadrotor model: logged thrust along the body z axis, gravity, linear drag::
 
         v̇ = (k_T · thrust(source)) R(roll, pitch, yaw) e3 − g e3 − k_D v   (world ENU)
@@ -29,13 +29,18 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
     the thrust term: for ``rpm`` per (10⁴ rpm)²) is the nominal scale of the 1-feature form;
     split into terms (the default), least squares tunes every scale. ``rotor_drag`` adds the
     rotor-drag law −k_r (Σ ω_i/10⁴) v (blade flapping and induced drag grow with rotor speed).
+    ``rpm_unit``: ``erpm`` when the log's motor speeds are electrical rpm (the descriptions say
+    per (10⁴ erpm)²; the pole-pair factor is left to the fitted scale).
     """
+    if rpm_unit not in ("rpm", "erpm"):
+        raise ConfigError(f"The 'rpm_unit' parameter of prior 'rotor-thrust' must be 'rpm' or 'erpm'. "
+                          f"Got {rpm_unit!r} instead.")
     for name, v in (("k_T", k_T), ("k_D", k_D), ("g", g)):
         check_param("rotor-thrust", name, v)
     if not isinstance(motors, int) or isinstance(motors, bool) or not 1 <= motors <= 16:
         raise ConfigError(f"The 'motors' parameter of prior 'rotor-thrust' must be an integer in 1..16. "
                           f"Got {motors!r} instead.")
-    cols = thrust_columns(source, motors)
+    cols = thrust_columns(source, motors, rpm_unit)
     roll, pitch, yaw = (symbol(n) for n in ("roll", "pitch", "yaw"))
     b = dict(zip("xyz", body_z_world(roll, pitch, yaw)))
     signals = sorted({s.name for _, e, _ in cols for s in e.free_symbols},
@@ -63,7 +68,7 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         f"Rotor-thrust model: {THRUST_SOURCES[source][2]}, along the body z axis rotated by the "
         f"full attitude, minus gravity, minus linear drag k_D v.",
         terms, inputs, {"source": source, "motors": motors, "k_T": k_T, "k_D": k_D, "g": g,
-                        "rotor_drag": rotor_drag},
+                        "rotor_drag": rotor_drag, **({"rpm_unit": rpm_unit} if rpm_unit != "rpm" else {})},
         vehicle="multirotor", constraints=span_constraints,
         # free fall at zero thrust: gravity is the only constant (known, fixed), no free one
         intercept={t: (0.0, 0.0) for t in terms}, hover_param="k_T", factory=rotor_thrust)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -246,3 +247,31 @@ def test_damaged_huge_values_raise_no_numpy_warning():
         warnings.simplefilter("error")
         a = _assess(f)
     json.dumps(a.to_dict())
+
+
+def test_undeclared_vehicle_types_are_one_line_naming_the_flights():
+    """The crazyflie squares printed seven lines "vehicle type not declared" (one per flight)
+    before the first verdict; predict printed them on stdout."""
+    flights = []
+    for k in range(1, 4):
+        f = _flight(vehicle="unknown", declared=None)
+        flights.append(replace(f, provenance=replace(f.provenance, files=(f"square_run{k}.csv",))))
+    a = _assess(flights)
+    lines = [w for w in a.warnings if "vehicle type not declared" in w]
+    assert len(lines) == 1, a.warnings
+    assert "3 flights (square_run1, square_run2, square_run3)" in lines[0] and "--vehicle" in lines[0]
+    assert len(a.undeclared) == 3
+
+
+def test_identify_says_undeclared_vehicles_once_over_training_and_test_flights():
+    from droneid.identify import _data_notes
+    from droneid.report.wording import undeclared_line
+    def fitness(names):
+        und = tuple((n, "the data look like a multirotor (x)", "the data look like a multirotor") for n in names)
+        return SimpleNamespace(undeclared=und, warnings=(undeclared_line(list(und)),
+                                                         "melon_run1: tilt varies by 1 deg only"))
+    mk = fitness
+    notes = _data_notes({"train": mk(["square_run1", "square_run2"]), "test": mk(["melon_run1"])})
+    assert sum("vehicle type not declared" in n for n in notes) == 1, notes
+    assert "square_run1, square_run2, melon_run1" in notes[0]
+    assert "data (test): melon_run1: tilt varies by 1 deg only" in notes

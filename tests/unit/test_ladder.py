@@ -201,3 +201,26 @@ def test_constraint_samples_where_a_feature_is_undefined_are_left_out():
     assert n == 2 and len(kept) == 2 and kept.X.tolist() == [[1.0, 2.0], [3.0, 1.0]]
     assert kept.names == cs.names and kept.bound.tolist() == [0.0, 0.0]
     assert defined_samples(kept, (share,)) == (kept, 0)
+
+
+def test_a_verdict_says_when_predicting_zero_beats_both_models():
+    """x500_sitl_events: both models err by about twice the target's spread (0.0298 vs 0.0306,
+    σ 0.0164) and the verdict said "keep the empirical model"."""
+    from droneid.ladder import trivial_errors
+    from droneid.report.wording import verdict
+    nan = float("nan")
+    rng = np.random.default_rng(0)
+    y = rng.normal(0.0, 0.0164, 400)
+    blocks = np.repeat(np.arange(8), 50)
+    trivial = trivial_errors(y, blocks, np.array([]))
+    assert trivial["zero"] == pytest.approx(0.0164, rel=0.1)
+    assert trivial["the training mean"] == pytest.approx(0.0164, rel=0.1)
+    v = verdict("vx_dot", _rung(nan, 0.0298), _rung(nan, 0.0306), False, False, 0.0164, trivial=trivial)
+    assert v.kind == "no better" and "NEITHER MODEL beats predicting" in v.text
+    assert "keep the empirical model" not in v.text and "0.0298" in v.text and "0.0306" in v.text
+    # a model that beats zero keeps its verdict
+    v = verdict("vx_dot", _rung(nan, 0.01), _rung(nan, 0.0306), False, False, 0.0164, trivial=trivial)
+    assert v.kind == "better"
+    # on test rows the baselines are measured there (the training mean carried over)
+    t = trivial_errors(np.full(10, 2.0), None, np.full(5, 1.0))
+    assert t == {"zero": 1.0, "the training mean": 1.0}

@@ -207,7 +207,7 @@ def _lines(fig):
 def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_the_ladder(tmp_path):
     write(ladder_result(), tmp_path)
     html = (tmp_path / "report.html").read_text()
-    i_verdict = html.index("class='verdict green'>vx_dot: the physical model is 33 %")
+    i_verdict = html.index("class='verdict green'>vx_dot: the physical model is 33 %", html.index("<h2>vx_dot</h2>"))
     i_eq = html.index("alt='vx_dot_equation'")
     i_plot = html.index("alt='vx_dot_test_prediction'")
     i_ladder = html.index("the empirical tilt-drag model as given")
@@ -218,6 +218,27 @@ def test_html_starts_each_target_with_the_verdict_then_equation_and_plot_then_th
     assert (tmp_path / "vx_dot_equation.png").read_bytes()[:4] == b"\x89PNG"
     md = (tmp_path / "report.md").read_text()
     assert md.index("**vx_dot: the physical model") < md.index("the empirical tilt-drag model as given")
+
+
+def test_html_puts_every_verdict_before_the_notes_which_are_folded(tmp_path):
+    """On the squares ten NOTE paragraphs pushed the first verdict below the first screen."""
+    r = ladder_result()
+    r["notes"] = [f"planted note {i}" for i in range(10)]
+    r["targets"]["vx_dot"]["notes"] = list(r["targets"]["vx_dot"]["notes"]) + ["a target note"]
+    write(r, tmp_path)
+    html = (tmp_path / "report.html").read_text()
+    first_verdict = html.index("class='verdict")
+    assert first_verdict < html.index("planted note 0") and first_verdict < html.index("<h2>vx_dot</h2>")
+    assert html.count("class='verdict") >= 2 * len(r["targets"])       # summary, then each section
+    notes = html[html.rindex("<details", 0, html.index("planted note 0")):]
+    assert notes.startswith("<details class='notes'><summary>10 note(s)") and \
+        notes.index("planted note 9") < notes.index("</details>")
+    assert "<p>NOTE: a target note</p>" in html[html.rindex("<details", 0, html.index("a target note")):]
+    # numbers in table cells never wrap inside themselves (0.004137 was split over two lines)
+    css = html[html.index("<style>"):html.index("</style>")]
+    assert "td,th{" in css and "white-space:nowrap" in css.split("td,th{")[1].split("}")[0]
+    md = (tmp_path / "report.md").read_text()
+    assert md.index("planted note 9") > md.index("**vx_dot: the physical model")
 
 
 def test_text_output_keeps_verdict_equation_ladder_order():
@@ -304,4 +325,4 @@ def test_the_verdict_box_colour_follows_the_verdict(tmp_path):
         write(res, tmp_path)
         html = (tmp_path / "report.html").read_text()
         assert f"class='verdict {colour}'>" in html
-        assert html.count("class='verdict ") == 1
+        assert html.count("class='verdict ") == 2 and html.count(f"class='verdict {colour}'>") == 2  # summary + section

@@ -26,3 +26,26 @@ def test_the_text_report_has_a_table_per_target_and_the_warnings_first():
     lines = out.splitlines()
     assert lines[0] == "warning: slow signal" and lines[1] == "== vx_dot: vx_dot = -0.3·vx"
     assert "e_d final model" in lines[2] and "0.25" in out and "multi-step" not in out
+
+
+def test_the_open_loop_table_says_what_nominal_physics_is_and_why_1_step_positions_agree():
+    """The whole-vehicle table showed 'nominal physics' undefined in the report and the same
+    1-step position error for every moving model without saying why."""
+    from droneid.report.predict import open_loop_lines
+    from droneid.report.rotation import open_loop_legend
+    legend = open_loop_legend(True)
+    assert "nominal physics: thrust from the motor speeds" in legend
+    assert "after 1 step a model that integrates moves the position by the logged start velocity" in legend
+    assert "held between its updates" in legend
+    per = {"1": {"position": 0.004, "velocity": 0.01, "attitude": 0.003, "rates": 0.1}}
+    lines = open_loop_lines({"identified": per, "nominal physics": per, "constant": per}, rotation=False)
+    assert open_loop_legend(False) in "\n".join(lines)
+
+
+def test_identify_multistep_table_says_why_1_step_positions_agree():
+    from droneid.report.identify import horizon_lines
+    e = {"vx": 0.01, "position": 0.006888}
+    h = {"rmse": {"identified": {"1": e}, "empirical": {"1": e}}, "steps": [1], "seconds": [0.01],
+         "dt_s": 0.01, "n_starts": {"1": 100}}
+    text = "\n".join(horizon_lines(h))
+    assert "the 1-step position column measures the log" in text and "held between its updates" in text
