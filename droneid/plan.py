@@ -26,7 +26,7 @@ from .diagnosis_result import folded_feature
 from .errors import ConfigError, DataError
 from .suitability import prior_for_flights
 from .terms import prior_terms
-from .regression import blocked_cv
+from .regression import blocked_cv, robust_fit
 from .validation import split_time_block, time_blocks
 from .targets import targets_for
 
@@ -299,11 +299,11 @@ def _own_offsets(groups: Mapping[str, tuple]) -> dict:
 
 
 def _per_flight_groups(shared: Mapping[str, tuple], names: Sequence[str], chosen: float) -> dict:
-    """{flight name: ({offset: held-out residuals of every target on that flight's rows}, units)}:
-    the vehicle's terms are fitted on every flight together (they are constants of the vehicle)
-    with the other flights at the ``chosen`` offset and this one at each offset of the grid (its
-    clock offset is a condition of its own): a profile of one flight's offset. A flight fitted
-    alone would let its drag absorb its offset (the two trade off on one flight)."""
+    """{flight name: ({offset: residuals of every target on that flight's rows}, units)}: a
+    profile of each flight's own offset. The vehicle's terms (its constants) are fitted on the
+    OTHER flights at the ``chosen`` offset, once, and predict this flight's rows read at each
+    offset of the grid (its clock offset is a condition of its own): held out by flight, and its
+    drag cannot absorb its offset (a flight fitted alone lets the two trade off)."""
     out = {}
     for f in sorted({int(x) for _, _, fl, _ in shared.values() for x in np.unique(fl)}):
         errs, units = {}, []
@@ -311,9 +311,9 @@ def _per_flight_groups(shared: Mapping[str, tuple], names: Sequence[str], chosen
             mine = fl == f
             units.append(i * 10**9 + b[mine])
             A0, y0, lo, hi = problems[chosen]
+            beta = robust_fit(A0[~mine], y0[~mine], lo, hi).beta
             for d, (A, y, _, _) in problems.items():
-                Ad, yd = np.where(mine[:, None], A, A0), np.where(mine, y, y0)
-                errs.setdefault(d, []).append((yd - blocked_cv(Ad, yd, b, lo, hi))[mine])
+                errs.setdefault(d, []).append(y[mine] - A[mine] @ beta)
         out[names[f] if f < len(names) else f"flight {f}"] = (
             {d: np.concatenate(v) for d, v in errs.items()}, np.concatenate(units))
     return out
