@@ -299,9 +299,10 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
         scores = dict(decision.scores)
         if decision.offset_s:
             delays = {s: decision.offset_s for s in thrust}
-            if curve is not None:   # the curve again, from the commands read at the offset
+            if curve is not None and not curve.lag_s:   # the curve again, from the commands read at the offset
                 prior, curve = _with_thrust_curve(prior, train_flights, cfg, cuts, delays)
-        if curve is not None:       # its interval over every offset the data admit
+        if curve is not None and not curve.lag_s:       # its interval over every offset the data admit
+            # (a kept motor lag is the curve stage's own model of how the commands lead their thrust)
             from .thrust_curve import over_offsets
             lo, hi = decision.interval_s
             admitted = [d for d in OFFSET_GRID_S if lo <= d <= hi and d != decision.offset_s]

@@ -38,17 +38,19 @@ from priors.thrust import COMMAND_SOURCES
 
 from .decide import decide
 from .errors import ConfigError
-from .regression import gram_bounded_lstsq, robust_fit, unit_grams
+from .regression import blocked_cv, gram_bounded_lstsq, robust_fit, unit_grams
 from .terms import prior_terms, split_terms
 from .validation import time_blocks
 
-__all__ = ["ThrustCurve", "choose_thrust_curve", "normalised", "over_offsets", "profile_expo", "EXPO_GRID", "VOLTAGE_ALPHA",
+__all__ = ["ThrustCurve", "choose_thrust_curve", "normalised", "over_offsets", "lagged", "LAG_GRID_S", "profile_expo", "EXPO_GRID", "VOLTAGE_ALPHA",
            "declared_parameters", "N_BOOT_EXPO"]
 
 #: the shapes e profiled (ArduPilot allows MOT_THST_EXPO in [-1, 1]; a propeller's is 0.3-0.8)
 EXPO_GRID = tuple(round(0.02 * k, 2) for k in range(51))
 #: family-wise level of the battery-compensation decision
 VOLTAGE_ALPHA = 0.01
+#: family-wise level of the motor-lag decision
+LAG_ALPHA = 0.01
 #: block-bootstrap replicates of the expo's interval
 N_BOOT_EXPO = 200
 #: ArduPilot parameters that declare the thrust curve or the command normalisation
@@ -76,6 +78,9 @@ class ThrustCurve:
         when the data pull the shape out of its physical range (:attr:`at_bound`)
     offsets_s : (low, high) the input offsets the interval covers (:func:`over_offsets`: the
         offsets the chosen one does not beat); () for the commands read without offset only
+    lag_s, lag_interval : the first-order motor lag (s) the shape was profiled with and its 95 %
+        interval (0: none kept); lag_decision : the block test of the best lag ``lag_tried_s``
+        against none (None: the best lag was none, or not testable)
     """
     source: str
     expo: float
@@ -92,6 +97,10 @@ class ThrustCurve:
     n_units: int = 0
     free_expo: float = math.nan
     offsets_s: tuple = ()
+    lag_s: float = 0.0
+    lag_interval: tuple = (0.0, 0.0)
+    lag_decision: object | None = None
+    lag_tried_s: float = 0.0
 
     @property
     def at_bound(self) -> bool:
@@ -124,6 +133,11 @@ class ThrustCurve:
                       f"command map lacks something, e.g. a command normalisation the log does not declare)")
         elif not self.identified:
             shape += "; the flights hardly constrain the shape (a flat profile): e is a best guess"
+        if self.lag_decision is not None:
+            lo_l, hi_l = self.lag_interval
+            shape += (f"; motor lag (first order on the thrust) {1000 * self.lag_tried_s:.0f} ms "
+                      + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it)" if self.lag_s else
+                         "not kept") + f": {self.lag_decision.evidence}")
         hv = (f"; hover thrust fraction {self.hover:.3f} [{self.hover_interval[0]:.3f}, "
               f"{self.hover_interval[1]:.3f}]")
         dec = ""
@@ -162,7 +176,9 @@ class ThrustCurve:
                 "voltage": self.voltage, "v_ref": self.v_ref, "v_ref_from": self.v_ref_from,
                 "voltage_decision": self.decision.to_dict() if self.decision is not None else None,
                 "voltage_not_tried": self.why_not, "declared": dict(self.declared),
-                "n_units": self.n_units, "offsets_s": list(self.offsets_s), "free_expo": self.free_expo, "at_bound": self.at_bound,
+                "n_units": self.n_units, "offsets_s": list(self.offsets_s), "lag_s": self.lag_s,
+                "lag_interval": list(self.lag_interval), "lag_tried_s": self.lag_tried_s,
+                "lag_decision": self.lag_decision.to_dict() if self.lag_decision is not None else None, "free_expo": self.free_expo, "at_bound": self.at_bound,
                 "profile": {f"{e:.2f}": v for e, v in self.profile.items()}}
 
 
@@ -223,44 +239,99 @@ def _rss_profile(S: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return rss, beta
 
 
+#: first-order motor lags τ (s) profiled beside the shape (0: none)
+LAG_GRID_S = tuple(round(0.005 * k, 3) for k in range(21))
+
+
+def lagged(x: np.ndarray, t: np.ndarray, flight: np.ndarray, tau_s: float) -> np.ndarray:
+    """``x`` (rows ordered by flight, then time ``t`` s) through a first-order lag of time constant
+    ``tau_s``: dy/dt = (x − y)/τ, discretised exactly for x linear between rows (first-order
+    hold: the rows are coarser than the lag). It restarts at y = x after a gap (a step over 1.5
+    median steps) and at each flight's start. τ = 0: ``x`` itself."""
+    x = np.asarray(x, float)
+    if tau_s <= 0 or x.size < 2:
+        return x.copy()
+    t = np.asarray(t, float)
+    dt = np.diff(t)
+    step = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    restart = np.concatenate([[True], (np.asarray(flight)[1:] != np.asarray(flight)[:-1]) | (dt > 1.5 * step) | (dt <= 0)])
+    h = np.concatenate([[step], np.where(dt > 0, dt, step)])
+    a = np.exp(-h / tau_s)
+    c = tau_s / h * (1.0 - a)
+    y = np.empty_like(x)
+    for i in range(x.size):
+        y[i] = x[i] if restart[i] else a[i] * y[i - 1] + x[i] - a[i] * x[i - 1] - c[i] * (x[i] - x[i - 1])
+    return y
+
+
+def _min_rss(S: np.ndarray, grid: np.ndarray) -> tuple[float, float]:
+    """(smallest residual sum of squares over e in [0, 1], its e) of the gram ``S``."""
+    e = _best_expo(S, grid)
+    R = _reduced(S, e)
+    b = gram_bounded_lstsq(R, _LO, _HI)
+    return float(R[2, 2] - 2.0 * b @ R[:2, 2] + b @ R[:2, :2] @ b), e
+
+
 def profile_expo(linear: np.ndarray, quadratic: np.ndarray, drag: np.ndarray, y: np.ndarray,
                  units: np.ndarray, *, grid: Sequence[float] = EXPO_GRID, n_boot: int = N_BOOT_EXPO,
-                 seed: int = 0) -> dict:
+                 seed: int = 0, lag: tuple | None = None) -> dict:
     """The profile of the shape e of ``y ≈ a·((1 − e)·linear + e·quadratic) + d·drag`` (a, d >= 0
     refit at every e; ``y`` the target less its known physics, m/s²; the columns the thrust
     term at e = 0 and e = 1 and the drag term, on the same rows), with the robust (Huber) weights
-    of the free fit of both columns. ``units``: (flight, block) ids of the rows.
+    of the free fit of both columns. ``units``: (flight, block) ids of the rows. ``lag``: (t,
+    flight) of the rows: the thrust terms also pass a first-order motor lag τ profiled over
+    :data:`LAG_GRID_S` (:func:`lagged`; the lag is linear, so the shape stays linear in e).
 
     Returns {"expo", "free_expo" (the shape of the free fit, outside [0, 1] when the data pull e
     out of its range), "interval" (95 %), "scale" (a at e), "scale_interval", "profile" {e: RSS /
-    min RSS}, "n_units"}: e from the profile's minimum (:func:`_best_expo`), the interval
-    from the minima of ``n_boot`` block-bootstrap replicates (each re-profiled)."""
+    min RSS}, "n_units", "lag_s", "lag_interval", "thrust" (the (linear, quadratic) columns at the
+    chosen lag)}: e (and τ) from the least residual sum of squares (:func:`_best_expo`), the
+    intervals from the minima of ``n_boot`` block-bootstrap replicates (each re-profiled)."""
     grid = np.asarray(grid, float)
-    A = np.column_stack([linear, quadratic, drag])
-    # the robust weights of the free fit (the same model, e = b2 / (b1 + b2)): weights from a
-    # wrong shape would depend on the noise where the shape misfits and pull e towards that shape
-    free = robust_fit(A, y, np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf))
-    ids, S_units, _ = unit_grams(A, y, free.weights, np.asarray(units))
-    S = S_units.sum(axis=0)
-    rss, beta = _rss_profile(S, grid)
-    e = _best_expo(S, grid)
-    R = _reduced(S, e)
-    a = float(gram_bounded_lstsq(R, _LO, _HI)[0])
+    taus = LAG_GRID_S if lag is not None else (0.0,)
+    cols = {tau: (lagged(linear, *lag, tau), lagged(quadratic, *lag, tau)) if tau else (linear, quadratic)
+            for tau in taus}
+    free_lo, free_hi = np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf)
+    # the robust weights of the free fit (the same model, e = b2 / (b1 + b2)) at the lag least
+    # squares prefers: weights from a wrong shape or lag would depend on the noise where it
+    # misfits and pull the estimate towards it
+    plain = {tau: _min_rss(np.column_stack([*c, drag, y]).T @ np.column_stack([*c, drag, y]), grid)[0]
+             for tau, c in cols.items()}
+    tau0 = min(plain, key=plain.get)
+    free = robust_fit(np.column_stack([*cols[tau0], drag]), y, free_lo, free_hi)
+    grams = {}
+    for tau, c in cols.items():
+        ids, S_units, _ = unit_grams(np.column_stack([*c, drag]), y, free.weights, np.asarray(units))
+        grams[tau] = S_units
+    fits = {tau: _min_rss(Su.sum(axis=0), grid) for tau, Su in grams.items()}
+    tau_hat = min(fits, key=lambda k: fits[k][0])
+    S = grams[tau_hat].sum(axis=0)
+    e = fits[tau_hat][1]
+    rss, _ = _rss_profile(S, grid)
+    a = float(gram_bounded_lstsq(_reduced(S, e), _LO, _HI)[0])
     rng = np.random.default_rng(seed)
-    flat = S_units.reshape(ids.size, -1)
-    es, scales = np.empty(n_boot), np.empty(n_boot)
+    flat = {tau: Su.reshape(ids.size, -1) for tau, Su in grams.items()}
+    es, scales, lags = np.empty(n_boot), np.empty(n_boot), np.empty(n_boot)
     for i in range(n_boot):
         counts = np.bincount(rng.integers(0, ids.size, ids.size), minlength=ids.size).astype(float)
-        Sb = (counts @ flat).reshape(S.shape)
-        es[i] = _best_expo(Sb, grid)
+        best = None
+        for tau in taus:
+            Sb = (counts @ flat[tau]).reshape(S.shape)
+            r, eb = _min_rss(Sb, grid)
+            if best is None or r < best[0]:
+                best = (r, eb, tau, Sb)
+        _, es[i], lags[i], Sb = best
         scales[i] = gram_bounded_lstsq(_reduced(Sb, es[i]), _LO, _HI)[0]
     lo, hi = np.percentile(es, [2.5, 97.5])
     slo, shi = np.percentile(scales, [2.5, 97.5])
-    best = float(np.min(rss)) if np.min(rss) > 0 else 1.0
-    b = gram_bounded_lstsq(S, np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf))
+    best_rss = float(np.min(rss)) if np.min(rss) > 0 else 1.0
+    b = gram_bounded_lstsq(S, free_lo, free_hi)
     free_e = float(b[1] / (b[0] + b[1])) if b[0] + b[1] > 0 else math.nan
-    return {"expo": e, "free_expo": free_e, "interval": (float(lo), float(hi)), "scale": a, "scale_interval": (float(slo), float(shi)),
-            "profile": {float(g): float(r / best) for g, r in zip(grid, rss)}, "n_units": int(ids.size)}
+    return {"expo": e, "free_expo": free_e, "interval": (float(lo), float(hi)), "scale": a,
+            "scale_interval": (float(slo), float(shi)),
+            "profile": {float(g): float(r / best_rss) for g, r in zip(grid, rss)}, "n_units": int(ids.size),
+            "lag_s": float(tau_hat), "lag_interval": tuple(float(v) for v in np.percentile(lags, [2.5, 97.5])),
+            "thrust": cols[tau_hat]}
 
 
 def _columns(prior, ds):
@@ -346,6 +417,22 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
         keep = bool(decision is not None and decision.accepted)
         if keep:
             prof = prof_v
+    # a first-order motor lag beside the shape: kept only when the block test says it helps
+    L, Q, D, yy = _columns(prior.with_params(v_ref=v_ref if keep else None), ds)
+    prof_lag = profile_expo(L, Q, D, yy, blocks, seed=seed, lag=(ds.t, ds.flight))
+    lag_decision = None
+    if prof_lag["lag_s"] > 0:
+        def held_out(p):
+            e = p["expo"]
+            lin, quad = p["thrust"]
+            return yy - blocked_cv(np.column_stack([(1 - e) * lin + e * quad, D]), yy, blocks, _LO, _HI)
+        try:
+            lag_decision = decide(held_out(prof), held_out(prof_lag), blocks, alpha=LAG_ALPHA,
+                                  what=f"motor lag {1000 * prof_lag['lag_s']:.0f} ms")
+        except ConfigError:
+            lag_decision = None
+        if lag_decision is not None and lag_decision.accepted:
+            prof = prof_lag
     motors = int(prior.params.get("motors", 1)) if source == "motor" else 1
     g = float(prior.params.get("g", 9.81))
     k_nom = float(prior.params.get("k_T", 1.0))
@@ -356,4 +443,6 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     slo, shi = prof["scale_interval"]
     h_iv = (g / full(shi) if shi > 0 else math.nan, g / full(slo) if slo > 0 else math.inf)
     return ThrustCurve(source, prof["expo"], prof["interval"], prof["profile"], hover, h_iv,
-                       keep, v_ref, v_from, decision, why_not, declared, prof["n_units"], prof["free_expo"])
+                       keep, v_ref, v_from, decision, why_not, declared, prof["n_units"], prof["free_expo"],
+                       lag_s=prof.get("lag_s", 0.0), lag_interval=prof.get("lag_interval", (0.0, 0.0)),
+                       lag_decision=lag_decision, lag_tried_s=prof_lag["lag_s"])

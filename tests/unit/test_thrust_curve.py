@@ -113,3 +113,31 @@ def test_declared_parameters_agreeing_flights_only():
     got = declared_parameters([F({"MOT_THST_EXPO": 0.65, "MOT_THST_HOVER": 0.3, "OTHER": 1}),
                                F({"MOT_THST_EXPO": 0.65, "MOT_THST_HOVER": 0.35})])
     assert got == {"MOT_THST_EXPO": 0.65}
+
+
+def test_lag_is_exact_on_a_ramp_and_restarts_after_gaps():
+    from droneid.thrust_curve import lagged
+    t = np.arange(0, 2, 0.05)
+    tau = 0.07
+    y = lagged(t, t, np.zeros(t.size, int), tau)
+    np.testing.assert_allclose(y, t - tau * (1 - np.exp(-t / tau)), atol=1e-12)
+    t2 = np.concatenate([t, t[-1] + 1.0 + t])          # a gap of 1 s: starts afresh
+    y2 = lagged(t2, t2, np.zeros(t2.size, int), tau)
+    assert y2[t.size] == t2[t.size]
+    assert np.array_equal(lagged(t, t, np.zeros(t.size, int), 0.0), t)
+
+
+@pytest.mark.slow
+def test_a_motor_lag_is_found_and_the_shape_profiled_with_it():
+    """A 60 ms first-order motor lag (the bench_commands setup): the block test keeps a lag near
+    the planted one and the shape comes out within 0.01 of the planted 0.45 (a pure offset
+    leaves it ~0.02 low)."""
+    eff = lambda j: {"thrust_variation": {"amp_m": 0.5, "period_s": 3.0 + j}}   # noqa: E731
+    flights = [simulate(path=p, duration_s=30.0, seed=s, thrust_expo=0.45, motor_tau_s=0.06,
+                        effects=eff(s)).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
+               for s, p in enumerate(("random", "eight", "lissajous"))]
+    tc = choose_thrust_curve(flights, get_prior("rotor-thrust", source="motor"), IdentifyConfig())
+    assert tc.lag_decision is not None and tc.lag_decision.accepted, tc.text()
+    assert tc.lag_interval[0] - 0.011 <= 0.06 <= tc.lag_interval[1] + 0.011
+    assert abs(tc.expo - 0.45) < 0.01, tc.text()
+    assert "motor lag" in tc.text() and tc.to_dict()["lag_s"] == tc.lag_s
