@@ -121,7 +121,7 @@ class ThrustCurve:
             norm = (f" with u = (command − {self.declared['MOT_SPIN_MIN']:g})/"
                     f"({self.declared['MOT_SPIN_MAX']:g} − {self.declared['MOT_SPIN_MIN']:g}) "
                     f"(the log's MOT_SPIN_MIN/MAX)")
-        over = (f", and over the offsets {1000 * self.offsets_s[0]:.0f}-{1000 * self.offsets_s[1]:.0f} ms "
+        over = (f", and over the offsets {1000 * self.offsets_s[0]:+.0f} to {1000 * self.offsets_s[1]:+.0f} ms "
                 f"the offset's interval admits" if self.offsets_s else "")
         shape = (f"thrust curve of {what}: (1 − e)·u + e·u²{norm}, e = {self.expo:.2f} [{lo:.2f}, {hi:.2f}] "
                  f"(95 %, block bootstrap over {self.n_units} (flight, block) units{over}; v̇z profiled with "
