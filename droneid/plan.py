@@ -17,6 +17,7 @@ import numpy as np
 
 from priors.effects import CATALOGUE
 from priors.registry import PriorFeature, resolve_prior
+from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO
 
 from . import runner
 from .data import Dataset
@@ -311,6 +312,10 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
         notes.append(decision.text(thrust))
     if curve is not None:
         notes.insert(0, curve.text())
+    elif prior.params.get("source") in COMMAND_SOURCES:
+        notes.insert(0, f"thrust curve of the commands NOT chosen from the data (too few v̇z rows on the "
+                        f"training flights): written with e = {prior.params.get('expo', NOMINAL_EXPO):g} "
+                        f"(ArduPilot's default MOT_THST_EXPO), a shape nobody measured here")
     effects, diag = (), {}
     if cfg.effects == "auto":
         effects, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts,

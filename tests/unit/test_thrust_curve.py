@@ -141,3 +141,11 @@ def test_a_motor_lag_is_found_and_the_shape_profiled_with_it():
     assert tc.lag_interval[0] - 0.011 <= 0.06 <= tc.lag_interval[1] + 0.011
     assert abs(tc.expo - 0.45) < 0.01, tc.text()
     assert "motor lag" in tc.text() and tc.to_dict()["lag_s"] == tc.lag_s
+
+
+def test_a_curve_the_data_cannot_choose_is_said_to_be_unmeasured():
+    from droneid.plan import plan_identification
+    f = simulate(path="hover", duration_s=1.2, seed=0).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
+    plan = plan_identification([f], IdentifyConfig(effects="none", delays="none"))
+    assert plan.thrust_curve is None
+    assert plan.notes[0].startswith("thrust curve of the commands NOT chosen from the data")
