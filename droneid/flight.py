@@ -19,7 +19,7 @@ import numpy as np
 from .errors import DataError, MissingSignalError
 
 __all__ = [
-    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAX_GAP_S", "TIME_UNITS", "MAV_TYPES", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
+    "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAX_GAP_S", "TIME_UNITS", "MAV_TYPES", "VEHICLE_PARAMETERS", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
     "canonical_unit", "is_canonical",
 ]
 
@@ -69,6 +69,11 @@ ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
 })
 
 
+#: vehicle parameters a reader keeps in :attr:`Provenance.parameters` (ArduPilot's names): the
+#: thrust curve (MOT_THST_EXPO, MOT_THST_HOVER), the command normalisation (MOT_PWM_MIN/MAX,
+#: MOT_SPIN_ARM/MIN/MAX) and the voltage scaling (MOT_BAT_VOLT_MAX/MIN)
+VEHICLE_PARAMETERS = ("MOT_THST_EXPO", "MOT_THST_HOVER", "MOT_SPIN_ARM", "MOT_SPIN_MIN", "MOT_SPIN_MAX",
+                      "MOT_PWM_MIN", "MOT_PWM_MAX", "MOT_BAT_VOLT_MAX", "MOT_BAT_VOLT_MIN")
 #: time units a log's stamps may be in (``--time-unit``) -> seconds per unit; droneid's is "s"
 TIME_UNITS: Mapping[str, float] = MappingProxyType({"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9})
 
@@ -265,7 +270,10 @@ class Provenance:
     from the log's own declaration (MAVLink HEARTBEAT type, ArduPilot firmware name, PX4
     vehicle_status) or the user's ``--vehicle``; ``vehicle_declared`` says which (raw text).
     ``signal_sources``: ``(name, unit, source)`` of each signal as the reader made it (the raw
-    field, its unit and the normalisation applied), so a result records what its inputs were."""
+    field, its unit and the normalisation applied), so a result records what its inputs were.
+    ``parameters``: ``(name, value)`` of the vehicle parameters the log declares that droneid
+    reads (:data:`VEHICLE_PARAMETERS`: ArduPilot's thrust curve and command normalisation from
+    DataFlash PARM), sorted by name."""
     files: tuple[str, ...] = ()
     format: str = "unknown"
     vehicle: str | None = None
@@ -274,6 +282,7 @@ class Provenance:
     vehicle_type: str = "unknown"
     vehicle_declared: str | None = None
     signal_sources: tuple[tuple[str, str, str], ...] = ()
+    parameters: tuple[tuple[str, float], ...] = ()
 
     def with_note(self, note: str) -> "Provenance":
         return replace(self, notes=self.notes + (note,))

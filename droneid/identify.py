@@ -261,7 +261,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         prior_features=tuple(map(FeatureText.of_feature, feats)),
         empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
         ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy),
-                                                                  _offset_caveat(p)))),
+                                                                  _offset_caveat(p), _curve_caveat(p)))),
         verdict_kind=vd.kind,
         equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
         readable_equation(p.target, {}, {}, final.intercept),
@@ -272,6 +272,13 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
                       for i, n in enumerate(p.train.input_names)} if len(p.train) else {},
         screened={"training": dict(p.train.screened),
                   **({"test": dict(p.test.screened)} if len(p.test) and not p.holdout else {})})
+
+
+def _curve_caveat(p: TargetProblem) -> str:
+    """The verdict's words on the thrust curve of a command-driven vehicle (its shape, whether
+    the data pin it down, the value the log declares), "" for another vehicle."""
+    curve = p.plan.thrust_curve if p.plan is not None else None
+    return curve.verdict() if curve is not None else ""
 
 
 def _offset_caveat(p: TargetProblem) -> str:
@@ -293,7 +300,9 @@ def _offset_caveat(p: TargetProblem) -> str:
 class PlanRecord:
     """What the plan and the problem stage decided, as result.json's ``config`` records it next to
     the settings: the prior used (its parameters and why), the validation blocks, the input
-    offset with its evidence, the diagnosis, the data fitness per role."""
+    offset with its evidence, the thrust curve of a command-driven vehicle
+    (:meth:`droneid.thrust_curve.ThrustCurve.to_dict`: its shape with interval, the battery
+    compensation's test, the values the log declares), the diagnosis, the data fitness per role."""
     prior_used: str = ""
     prior_params: Mapping[str, object] = field(default_factory=dict)
     prior_reason: str = ""
@@ -301,6 +310,7 @@ class PlanRecord:
     delays_s: Mapping[str, float] = field(default_factory=dict)
     delay_scores: Mapping[str, float] = field(default_factory=dict)
     offset: Mapping[str, object] | None = None
+    thrust_curve: Mapping[str, object] | None = None
     diagnosis: Mapping[str, object] = field(default_factory=dict)
     fitness: Mapping[str, object] = field(default_factory=dict)
 
@@ -444,6 +454,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
                  "per_flight": {f: list(v) for f, v in plan.offset.per_flight.items()},
                  "flights_share": plan.offset.flights_share}
                 if plan.offset is not None else None),
+        thrust_curve=plan.thrust_curve.to_dict() if plan.thrust_curve is not None else None,
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     rotation_notes: list = []       # why there is no rotational result, if there is none
     rotation = _rotation(outcome, jobs, rotation_notes)

@@ -15,7 +15,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from priors.effects import CATALOGUE
 from priors.registry import PriorFeature, resolve_prior
+from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO
 
 from . import runner
 from .data import Dataset
@@ -32,6 +34,7 @@ from .targets import targets_for
 
 if TYPE_CHECKING:
     from .settings import IdentifyConfig
+    from .thrust_curve import ThrustCurve
     from .terms import TermModel
 
 __all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "OFFSET_GRID_S",
@@ -59,6 +62,8 @@ class Plan:
     targets : the targets identified; delays_s : {signal: delay s} of the thrust inputs
     delay_scores : {offset s: joint blocked-CV error of the refit prior, relative to no offset}
     offset : the :class:`OffsetDecision` behind ``delays_s`` (its test and interval), or None
+    thrust_curve : the :class:`~droneid.thrust_curve.ThrustCurve` of a command-driven vehicle (its
+        shape e, battery compensation, the log's declared values), or None
     effects : the diagnosis' folded effects (:class:`Effect`); diagnosis : its summary dict
     """
     prior: object
@@ -70,6 +75,7 @@ class Plan:
     diagnosis: dict = field(default_factory=dict)
     notes: tuple = ()
     offset: "OffsetDecision | None" = None
+    thrust_curve: "ThrustCurve | None" = None
 
 
 def _hover_calibrated(prior, flights, cfg, cuts=None):
@@ -326,8 +332,9 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
     are never seen here)."""
     prior, reason = resolve_plan_prior(cfg, train_flights)
     prior = _hover_calibrated(prior, train_flights, cfg, cuts)
-    targets = targets_for(prior, cfg.targets)
     notes = []
+    prior, curve = _with_thrust_curve(prior, train_flights, cfg, cuts)
+    targets = targets_for(prior, cfg.targets)
     thrust = sorted({s for t in targets for s in prior.thrust_signals(t)})
     delays, scores, decision = {}, {}, None
     if cfg.delays == "auto" and thrust:
@@ -337,12 +344,42 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
         scores = dict(decision.scores)
         if decision.offset_s:
             delays = {s: decision.offset_s for s in thrust}
+            if curve is not None and not curve.lag_s:   # the curve again, from the commands read at the offset
+                prior, curve = _with_thrust_curve(prior, train_flights, cfg, cuts, delays)
+        if curve is not None and not curve.lag_s:       # its interval over every offset the data admit
+            # (a kept motor lag is the curve stage's own model of how the commands lead their thrust)
+            from .thrust_curve import over_offsets
+            lo, hi = decision.interval_s
+            admitted = [d for d in OFFSET_GRID_S if lo <= d <= hi and d != decision.offset_s]
+            curve = over_offsets(curve, train_flights, prior, cfg, cuts, thrust,
+                                 [decision.offset_s, *admitted])
         notes.append(decision.text(thrust))
+    if curve is not None:
+        notes.insert(0, curve.text())
+    elif prior.params.get("source") in COMMAND_SOURCES:
+        notes.insert(0, f"thrust curve of the commands NOT chosen from the data (too few v̇z rows on the "
+                        f"training flights): written with e = {prior.params.get('expo', NOMINAL_EXPO):g} "
+                        f"(ArduPilot's default MOT_THST_EXPO), a shape nobody measured here")
     effects, diag = (), {}
     if cfg.effects == "auto":
-        effects, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts)
+        effects, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts,
+                                                   without=("battery_sag",) if curve is not None else ())
         notes.extend(enotes)
-    return Plan(prior, reason, targets, delays, scores, effects, diag, tuple(notes), decision)
+    return Plan(prior, reason, targets, delays, scores, effects, diag, tuple(notes), decision, curve)
+
+
+def _with_thrust_curve(prior, flights, cfg, cuts=None, delays=None):
+    """(prior, ThrustCurve) for a command-driven prior: its thrust curve's shape and battery
+    compensation chosen from the training flights (:func:`droneid.thrust_curve.choose_thrust_curve`),
+    the nominal scale hover-calibrated again; (prior, None) for any other prior."""
+    from .thrust_curve import choose_thrust_curve, normalised
+
+    curve = choose_thrust_curve(flights, normalised(prior, flights), cfg, cuts, delays)
+    if curve is None:
+        return prior, None
+    prior = normalised(prior, flights).with_params(expo=round(curve.expo, 4),
+                                                   v_ref=curve.v_ref if curve.voltage else None)
+    return _hover_calibrated(prior, flights, cfg, cuts), curve
 
 
 def train_rows(ds: Dataset, cuts: dict | None, test: bool = False) -> Dataset:
@@ -362,14 +399,18 @@ def holdout_cuts(train_flights, cfg, target: str, prior) -> dict:
     return {int(k): float(np.min(test.t[test.flight == k])) for k in np.unique(test.flight)}
 
 
-def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None):
-    """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in."""
+def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None, without=()):
+    """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in
+    (``without``: catalogue effects another stage decided: the battery compensation of a
+    command-driven vehicle is the thrust curve's, :mod:`droneid.thrust_curve`)."""
     builder = dataset_builder(cfg, delays)
     train = {t: train_rows(builder.build(list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
              for t in targets}
     try:
         res = diagnose_datasets(train, None, prior=prior,
-                                config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0))
+                                config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0,
+                                                      effects=tuple(e for e in CATALOGUE if e not in without)
+                                                      if without else None))
     except (ConfigError, DataError, TypeError) as exc:
         return (), {}, [f"diagnosis skipped: {exc}"]
     folded, skipped = [], []

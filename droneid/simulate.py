@@ -16,7 +16,10 @@ Rotors (:class:`_Rotors`): four in an X layout (ArduPilot QUAD/X order), rotor `
 ``T_i = k_f ω_i²`` along body +z (ω in rpm; ``k_f`` = 5.45e-9 N/rpm² puts the 0.5 kg vehicle's
 hover at 15 000 rpm). The collective ``T`` above and the torque ``J ẇ + w × J w`` of the flown
 attitude are split over the rotors (torque part scaled down where a command would leave 0..1);
-command ``u_i`` in 0..1 gives ``T_i = (t_max_n/4) u_i²`` at the nominal voltage. Each speed lags
+command ``u_i`` in 0..1 gives ``T_i = (t_max_n/4) f_e(u_i s)``, the thrust curve
+``f_e(u) = (1 − e) u + e u²`` of ``thrust_expo`` e (ArduPilot's MOT_THST_EXPO; default 1: u²), with
+``s = 1`` at the nominal voltage (``battery_sag``: ``s = (V/v_start)^(exponent/2)``, V/v_start
+for the default exponent 2, ArduPilot's voltage scaling u·V/V_ref). Each speed lags
 its command by ``motor_tau_s`` (default 0; with a lag the flight is integrated again with the
 speeds in the state). Either way the acceleration is ``Σ T_i R e3 / m − g e3 + D``, so the
 rotor-thrust prior ``v̇ = k_T Σ(ω_i/10⁴)² R e3 − g e3 − k_D v`` is exact on the true speeds with
@@ -49,7 +52,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from priors.thrust import RPM_SCALE
+from priors.thrust import RPM_SCALE, inverse_thrust_curve, thrust_curve
 
 from .errors import ConfigError, check_choice, did_you_mean
 from .flight import Flight, Provenance, Signal, canonical_unit
@@ -129,6 +132,7 @@ DEFAULT_PARAMS = MappingProxyType({
     "yaw_moment_m": 0.016,     # rotor drag torque per unit thrust (m)
     "inertia_xx": 0.0022, "inertia_yy": 0.0029, "inertia_zz": 0.0048,   # kg m^2, Bebop 2 class
     "motor_tau_s": 0.0,        # first-order lag of each rotor speed behind its command (s)
+    "thrust_expo": 1.0,        # thrust curve of a command: T_i = T_max ((1-e) u + e u^2) (ArduPilot's MOT_THST_EXPO)
     "rpm_delay_s": 0.0,        # logged motor speeds lead the speeds that act by this (s)
     "rpm_noise": 30.0,         # white noise on the logged rpm (rpm std, with noise=True)
 })
@@ -305,6 +309,7 @@ class _Rotors:
         A = np.vstack([np.ones(4), y, -x, -P["yaw_moment_m"] * ccw])
         self.torque_mix = np.linalg.pinv(A)[:, 1:]     # (4, 3): rotor thrust (N) per torque (N m)
         self.k_f = P["k_f"]
+        self.expo = P.get("thrust_expo", 1.0)
         self.t_max = P["t_max_n"] / 4.0
         self.w_max = math.sqrt(self.t_max / self.k_f)
         self.inertia = np.array([P["inertia_xx"], P["inertia_yy"], P["inertia_zz"]])
@@ -328,6 +333,10 @@ class _Rotors:
             elif d < 0:
                 scale = min(scale, base / -d)
         scale = max(scale, 0.0)
+        if self.expo != 1.0:     # the thrust curve's inverse (ArduPilot's thrust linearisation)
+            return [min(k * float(inverse_thrust_curve(min(max((base + scale * d) / self.t_max, 0.0), 1.0),
+                                                       self.expo)), 1.0)
+                    for k, d in zip(self._cmd_scale, dT)]
         return [min(k * math.sqrt(min(max((base + scale * d) / self.t_max, 0.0), 1.0)), 1.0)
                 for k, d in zip(self._cmd_scale, dT)]
 
@@ -338,7 +347,15 @@ class _Rotors:
 
     def speeds(self, u, gain):
         """Rotor speeds (rpm) the commands ``u`` (n, 4) settle to at battery gain ``gain`` (n,)."""
+        if self.expo != 1.0:
+            return self.w_max * np.sqrt(thrust_curve(u * np.sqrt(np.asarray(gain, float))[:, None], self.expo))
         return self.w_max * u * np.sqrt(np.asarray(gain, float))[:, None]
+
+    def speed(self, u: float, gain: float) -> float:
+        """:meth:`speeds` of one command (scalar, for the integrator)."""
+        if self.expo != 1.0:
+            return self.w_max * math.sqrt(thrust_curve(u * math.sqrt(gain), self.expo))
+        return self.w_max * math.sqrt(gain) * u
 
 
 # ---------------------------------------------------------------------------------------
@@ -406,13 +423,20 @@ class _Dyn:
             q = self.ge_r / (4.0 * max(pz, self.ge_r / 2.0))
             ge = 1.0 / (1.0 - q * q)
             gain *= ge
-        if dT is None:
+        if dT is None and self.rotors.expo != 1.0:   # the collective through the thrust curve
+            e = self.rotors.expo
+            thrust = self.tmax * thrust_curve(float(inverse_thrust_curve(throttle, e)) * math.sqrt(gain_batt), e) * ge
+        elif dT is None:
             thrust = throttle * self.tmax * gain
         else:
             rot = self.rotors
-            k = rot.w_max * math.sqrt(gain_batt)        # settled speed per unit command (rpm)
             w = s[12:16]
-            dw = [(k * c - v) / self.motor_tau for c, v in zip(rot.command(throttle * self.tmax, dT), w)]
+            if rot.expo != 1.0:
+                dw = [(rot.speed(c, gain_batt) - v) / self.motor_tau
+                      for c, v in zip(rot.command(throttle * self.tmax, dT), w)]
+            else:
+                k = rot.w_max * math.sqrt(gain_batt)        # settled speed per unit command (rpm)
+                dw = [(k * c - v) / self.motor_tau for c, v in zip(rot.command(throttle * self.tmax, dT), w)]
             thrust = ge * rot.k_f * sum(gi * v * v for gi, v in zip(rot.gain.tolist(), w))
         # --- attitude lag ---
         dr = (r_d - r) / self.tau
@@ -507,6 +531,8 @@ def _check_params(params, path):
     for k in ("yaw_moment_m", "motor_tau_s", "rpm_delay_s", "rpm_noise"):
         if P[k] < 0:
             raise ConfigError(f"The '{k}' parameter of simulate must be >= 0. Got {P[k]} instead.")
+    if not 0.0 <= P["thrust_expo"] <= 1.0:
+        raise ConfigError(f"The 'thrust_expo' parameter of simulate must be in [0, 1]. Got {P['thrust_expo']} instead.")
     if P["sim_rate_hz"] < 200:
         raise ConfigError(f"The 'sim_rate_hz' parameter of simulate must be >= 200. Got {P['sim_rate_hz']} instead.")
     return P
@@ -761,8 +787,13 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
             "motor_tau_s": P["motor_tau_s"], "rpm_delay_s": rpm_delay,
             "thrust_gain": rot.gain.tolist(),
             "rpm_noise": P["rpm_noise"] if noise else 0.0,
-            "command_map": "T_i = (t_max_n/4) u_i^2 at the nominal voltage; rpm_i = rpm_max u_i "
-                           "sqrt(battery gain) once settled (lag motor_tau_s)",
+            "thrust_expo": P["thrust_expo"],
+            "k_cmd": P["t_max_n"] / 4.0 / m,
+            "k_cmd_unit": "m/s^2 per unit of the thrust curve f_e(u) of one motor: (t_max_n/4)/mass_kg",
+            "v_ref": (bs or {}).get("v_start", P["battery_v"]),
+            "command_map": "T_i = (t_max_n/4) f_e(u_i s), f_e(u) = (1-e) u + e u^2 (e = thrust_expo), "
+                           "s = sqrt(battery gain) (V/v_start for battery_sag's exponent 2); rpm_i = "
+                           "rpm_max sqrt(f_e(u_i s)) once settled (lag motor_tau_s)",
             "layout": "X, ArduPilot QUAD/X order: 1 front-right CCW, 2 back-left CCW, "
                       "3 front-left CW, 4 back-right CW",
         },

@@ -218,12 +218,15 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
     (``blocks``: time blocks of the training flights), and hold at its nominal value 1 each of the
     first ``n_physical`` terms (default: every term with a physical bound) that the data cannot pin
     down: interval wider than ±:data:`IDENTIFIABLE_REL` of max(|value|, 1), or collinear (VIF >
-    :data:`VIF_LIMIT`). Evolved and effect terms (free) are reported, never held.
+    :data:`VIF_LIMIT`). Physical terms collinear with each other are first tied into one term, their
+    sum with one fitted scale (:func:`_tie_collinear`): a pair is never held at nominal values
+    nobody measured. Evolved and effect terms (free) are reported, never held.
 
     With the rows' ``flight`` ids and times ``t`` (``sources``: the flights' names), every
     vehicle constant left free (a term with a physical bound: thrust, tilt, drag) also gets its
     constancy across flights or stretches of one flight (:func:`constancy_of`), and with several
     flights its interval becomes the hull of the bootstrap's and the between-flight one."""
+    model, n_physical, notes = _tie_collinear(model, columns, y.size, n_physical)
     lo, hi = model.bounds()
     k = len(model.terms)
     phys = [i for i in range(k if n_physical is None else n_physical)
@@ -232,7 +235,7 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
     iv = fitted.intervals(columns, y, blocks, seed=seed)
     A = model.design(columns, y.size)
     free_int = lo[-1] != hi[-1]
-    held, notes = {}, []
+    held = {}
     for i in phys:
         lab = model.labels[i]
         a, b = iv[lab]
@@ -270,6 +273,44 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
                 a, b = iv[lab]
                 iv[lab] = (max(min(a, c.between[0]), lo[i]), min(max(b, c.between[1]), hi[i]))
     return PhysicalFit(fitted, iv, held, at_bound, tuple(notes), constancy)
+
+
+def _physical_indices(model: TermModel, n_physical: int | None) -> list[int]:
+    lo, hi = model.bounds()
+    return [i for i in range(len(model.terms) if n_physical is None else n_physical)
+            if (np.isfinite(lo[i]) or np.isfinite(hi[i])) and lo[i] != hi[i]]
+
+
+def _tie_collinear(model: TermModel, columns, n: int, n_physical: int | None) -> tuple:
+    """(model, n_physical, notes): two or more physical terms with the same bounds that are
+    collinear with each other (VIF > :data:`VIF_LIMIT` each, and each nearly a combination of
+    the others alone) become ONE term, their sum at its nominal scale with one fitted
+    coefficient: the data identify that combination and nothing else, so neither term is held
+    at a nominal value nobody measured (issue 36). Unchanged without such a group."""
+    phys = _physical_indices(model, n_physical)
+    if len(phys) < 2:
+        return model, n_physical, []
+    lo, hi = model.bounds()
+    A = model.design(columns, n)
+    free_int = lo[-1] != hi[-1]
+    vif = {i: _vif(A, i, free_int) for i in phys}
+    group = [i for i in phys if vif[i] > VIF_LIMIT]
+    if len(group) < 2 or len({(lo[i], hi[i]) for i in group}) != 1:
+        return model, n_physical, []
+    sub = A[:, group + [A.shape[1] - 1]]      # _vif reads the last column as the intercept's
+    if min(_vif(sub, j, free_int) for j in range(len(group))) <= VIF_LIMIT:
+        return model, n_physical, []    # collinear with other terms, not within the group
+    first = group[0]
+    keep = [i for i in range(len(model.terms)) if i not in group[1:]]
+    terms = [sp.Add(*[model.terms[i] for i in group]) if i == first else model.terms[i] for i in keep]
+    label = "⟨" + " + ".join(model.labels[i].strip("⟨⟩") for i in group) + "⟩"
+    labels = [label if i == first else model.labels[i] for i in keep]
+    tied = TermModel(tuple(terms), tuple(labels), lo=tuple(lo[i] for i in keep), hi=tuple(hi[i] for i in keep),
+                     intercept_bounds=model.intercept_bounds, offset=model.offset)
+    note = (f"{', '.join(model.labels[i] for i in group)} are collinear (VIF "
+            f"{', '.join(f'{vif[i]:.3g}' for i in group)} > {VIF_LIMIT:g}): the data identify only their "
+            f"sum, fitted as one scale {label} (their nominal ratio kept)")
+    return tied, (None if n_physical is None else n_physical - len(group) + 1), [note]
 
 
 def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.ndarray, t: np.ndarray,

@@ -184,6 +184,7 @@ class FlightBuilder:
         self.firmware: str | None = None
         self.vehicle_type: str = "unknown"          # one of droneid.flight.VEHICLE_TYPES
         self.vehicle_declared: str | None = None    # the raw declaration it came from
+        self.parameters: dict[str, float] = {}      # the vehicle parameters the log declares (kept: VEHICLE_PARAMETERS)
 
     # -- diagnostics ---------------------------------------------------------------------
     def skip(self, reason: str, n: int = 1) -> None:
@@ -269,7 +270,8 @@ class FlightBuilder:
         prov = Provenance(files=(self.path,), format=self.format, vehicle=self.vehicle,
                           firmware=self.firmware, notes=tuple(self.notes),
                           vehicle_type=self.vehicle_type, vehicle_declared=self.vehicle_declared,
-                          signal_sources=tuple((n, s.unit, s.source) for n, s in self.signals.items()))
+                          signal_sources=tuple((n, s.unit, s.source) for n, s in self.signals.items()),
+                          parameters=tuple(sorted(self.parameters.items())))
         diag = Diagnostics(self.skipped, tuple(self.warnings))
         return Flight(self.signals, prov, diag, self.segments, tuple(self.events))
 

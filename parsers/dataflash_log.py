@@ -16,6 +16,8 @@ What is read (old 3.x names / new 4.x names), converted from NED/FRD to ENU/FLU:
 * ``GPS`` (3D fix only) Lat Lng Alt -> lat lon alt; ``BARO`` Alt -> baro_alt
 * ``MODE`` -> "mode" events; ``EV`` ARMED/DISARMED/NOT_LANDED/LAND_COMPLETE and ``ARM`` -> segments
   and events; ``ERR`` -> "error" events (subsystem 12, crash check -> "crash"); ``MSG`` -> firmware.
+* ``PARM`` -> the vehicle parameters droneid reads (thrust curve, command normalisation, voltage
+  scaling: :data:`droneid.flight.VEHICLE_PARAMETERS`) in ``Provenance.parameters``
 
 Time: the boot clock of each message (``TimeUS`` µs or ``TimeMS`` ms; 3.x ``GPS`` uses ``T``, as
 its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages without a time field
@@ -30,7 +32,7 @@ import re
 
 import numpy as np
 
-from droneid.flight import Flight
+from droneid.flight import VEHICLE_PARAMETERS, Flight
 from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
 from ._build import (FlightBuilder, ardupilot_motor_channels, flu_columns, frame_motors, intervals_from_bool,
@@ -115,6 +117,8 @@ def read_dataflash(path) -> Flight:
     if "PARM" in data:
         for name, value in types["PARM"].rows:
             params[name] = value
+    b.parameters = {k: float(f"{params[k]:.7g}") for k in VEHICLE_PARAMETERS   # PARM holds float32
+                    if k in params and isinstance(params[k], (int, float)) and math.isfinite(params[k])}
 
     # firmware, vehicle
     for row in types.get("MSG", TypeRows((), None)).rows:

@@ -132,9 +132,10 @@ class PriorModel:
 
     def thrust_signals(self, target: str) -> list[str]:
         """The logged signals the thrust terms of ``target`` read (motor speeds, commands,
-        thrust), not the attitude that only turns them; [] for a prior without thrust terms."""
+        thrust), not the attitude that only turns them nor the battery voltage that scales a
+        command; [] for a prior without thrust terms."""
         return sorted({s for f in self.features(target) if f.role == "thrust" for s in f.signals
-                       if s not in ("roll", "pitch", "yaw")})
+                       if s not in ("roll", "pitch", "yaw", "battery_voltage")})
 
     def hover_calibrated(self, columns: Mapping[str, np.ndarray], target: str = "vz_dot") -> "PriorModel":
         """This prior with its :attr:`hover_param` set by hover balance on data (``columns``: the

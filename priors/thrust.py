@@ -22,17 +22,25 @@ if TYPE_CHECKING:
 # sympy (and droneid.expressions, which imports it) inside the functions that build expressions:
 # the simulator imports this module for RPM_SCALE, and `droneid simulate` needs no sympy
 
-__all__ = ["THRUST_SOURCES", "RPM_SCALE", "body_z_world", "thrust_columns", "motor_count", "in_rpm_unit"]
+__all__ = ["THRUST_SOURCES", "RPM_SCALE", "COMMAND_SOURCES", "NOMINAL_EXPO", "body_z_world",
+           "thrust_curve", "inverse_thrust_curve", "thrust_columns", "motor_count", "in_rpm_unit"]
 
 
 #: Where the rotor-thrust prior takes the thrust from, most physically direct first:
 #: source -> (the signals it needs (``{i}`` = motor index), unit, description)
 THRUST_SOURCES = {
     "rpm": ("rpm{i}", "rpm", "motor speeds: thrust = k_T Σ ω_i² (rotor momentum theory)"),
-    "motor": ("motor{i}", "1", "motor commands u_i (0..1): thrust = a Σ u_i² + b Σ u_i (a fitted map)"),
+    "motor": ("motor{i}", "1", "motor commands u_i (0..1): thrust = k Σ f_e(u_i), the thrust curve "
+              "f_e(u) = (1 − e) u + e u² (ArduPilot's MOT_THST_EXPO form)"),
     "thrust": ("thrust", "N", "collective thrust T (N): specific thrust = T / m"),
-    "throttle": ("throttle", "1", "collective command u (0..1): thrust = a u² + b u (a fitted map)"),
+    "throttle": ("throttle", "1", "collective command u (0..1): thrust = k f_e(u), the thrust curve "
+                 "f_e(u) = (1 − e) u + e u²"),
 }
+#: the sources whose thrust is a COMMAND mapped through the thrust curve :func:`thrust_curve`
+COMMAND_SOURCES = ("motor", "throttle")
+#: the thrust curve's shape a command prior is written with before the data choose one
+#: (:func:`droneid.thrust_curve.choose_thrust_curve`): ArduPilot's default MOT_THST_EXPO
+NOMINAL_EXPO = 0.65
 #: rpm are scaled by this before squaring so coefficients read as numbers near one (1/s² per (10⁴ rpm)²)
 RPM_SCALE = 1e4
 
@@ -46,12 +54,42 @@ def body_z_world(roll, pitch, yaw) -> tuple:
             sp.cos(roll) * sp.cos(pitch))
 
 
-def thrust_columns(source: str, motors: int = 4, rpm_unit: str = "rpm") -> tuple[tuple[str, sp.Expr, str], ...]:
+def thrust_curve(u, expo: float):
+    """ArduPilot's thrust curve (MOT_THST_EXPO): the thrust of a normalised command ``u`` (0..1)
+    relative to full thrust, ``f_e(u) = (1 − e) u + e u²`` (1 at u = 1, 0 at u = 0); ``expo`` e
+    in [0, 1]: 0 linear, 1 quadratic (rotor momentum theory with speed ∝ command). Works on
+    numbers, numpy arrays and sympy expressions."""
+    e = float(expo)
+    return (1.0 - e) * u + e * u * u if e != 1.0 else u * u
+
+
+def inverse_thrust_curve(f, expo: float):
+    """The command ``u`` whose :func:`thrust_curve` is ``f`` (0..1): what ArduPilot's thrust
+    linearisation sends for a wanted thrust fraction. Numbers and numpy arrays."""
+    import numpy as np
+
+    e = float(expo)
+    if e == 1.0:
+        return np.sqrt(f)
+    if e == 0.0:
+        return f
+    return (-(1.0 - e) + np.sqrt((1.0 - e) ** 2 + 4.0 * e * f)) / (2.0 * e)
+
+
+def thrust_columns(source: str, motors: int = 4, expo: float = NOMINAL_EXPO,
+                   v_ref: float | None = None, spin: tuple[float, float] = (0.0, 1.0), rpm_unit: str = "rpm"
+                   ) -> tuple[tuple[str, sp.Expr, str], ...]:
     """The thrust magnitude terms of a source: ((name, expr, unit of its coefficient), ...).
 
     ``rpm``: Σ (ω_i/10⁴)² (``rpm_unit``: the unit the log's motor speeds are in, ``rpm`` or
-    ``erpm`` for electrical rpm, named in the coefficient's unit); ``motor``: Σ u_i² and Σ u_i;
-    ``throttle``: u² and u; ``thrust``: T.
+    ``erpm`` for electrical rpm, named in the coefficient's unit); ``thrust``: T. A command source (:data:`COMMAND_SOURCES`) has ONE
+    term, its commands through the thrust curve of shape ``expo`` (:func:`thrust_curve`):
+    ``motor``: Σ f_e(u_i); ``throttle``: f_e(u). Two terms (Σu², Σu) would be collinear on any
+    flight that stays near hover, and neither is measured: the shape is chosen from the data
+    (:mod:`droneid.thrust_curve`), the scale fitted. ``v_ref`` (V): the commands are scaled by
+    the battery voltage the motors see, u·V/v_ref (ArduPilot's voltage scaling), None: not.
+    ``spin`` (low, high): the commands where the thrust curve starts and ends (ArduPilot's
+    MOT_SPIN_MIN/MAX on the PWM range), u = (command − low)/(high − low); (0, 1): the command.
     """
     import sympy as sp
 
@@ -59,13 +97,21 @@ def thrust_columns(source: str, motors: int = 4, rpm_unit: str = "rpm") -> tuple
     if source == "rpm":
         w = [symbol(f"rpm{i}") / RPM_SCALE for i in range(1, motors + 1)]
         return (("sum_rpm_sq", sp.Add(*[x ** 2 for x in w]), f"m/s² per (10⁴ {rpm_unit})²"),)
-    if source == "motor":
-        u = [symbol(f"motor{i}") for i in range(1, motors + 1)]
-        return (("sum_cmd_sq", sp.Add(*[x ** 2 for x in u]), "m/s²"),
-                ("sum_cmd", sp.Add(*u), "m/s²"))
-    if source == "throttle":
-        u = symbol("throttle")
-        return (("throttle_sq", u ** 2, "m/s²"), ("throttle_lin", u, "m/s²"))
+    if source in COMMAND_SOURCES:
+        if not (isinstance(expo, (int, float)) and 0.0 <= float(expo) <= 1.0):
+            raise ConfigError(f"The 'expo' parameter of the thrust curve must be in [0, 1]. Got {expo!r} instead.")
+        scale = symbol("battery_voltage") / sp.Float(v_ref) if v_ref else sp.Integer(1)
+        lo, hi = (float(x) for x in spin)
+        if not 0.0 <= lo < hi <= 1.0:
+            raise ConfigError(f"The 'spin' parameter of the thrust curve must be 0 <= low < high <= 1. "
+                              f"Got {spin!r} instead.")
+
+        def norm(n):
+            u = symbol(n)
+            return u if (lo, hi) == (0.0, 1.0) else (u - sp.Float(lo)) / sp.Float(hi - lo)
+        names = [f"motor{i}" for i in range(1, motors + 1)] if source == "motor" else ["throttle"]
+        expr = sp.Add(*[thrust_curve(norm(n) * scale, expo) for n in names])
+        return (("sum_cmd_curve" if source == "motor" else "throttle_curve", expr, "m/s²"),)
     if source == "thrust":
         return (("thrust_N", symbol("thrust"), "1/kg"),)
     raise ConfigError(f"unknown thrust source {source!r}{did_you_mean(str(source), THRUST_SOURCES)}; "

@@ -41,6 +41,9 @@ def _command(available):
 
 
 def _applicable(ctx):
+    if ctx.tilt is not None and any(s.name == "battery_voltage" for s in ctx.tilt.free_symbols):
+        return ("the prior's thrust already scales its commands with the battery voltage "
+                "(identify's battery compensation, docs/priors.md)")
     if ctx.tilt is not None and ctx.tilt_role == "thrust" and any(
             s.name == "thrust" or s.name.startswith("rpm") for s in ctx.tilt.free_symbols):
         return ("the prior's thrust comes from measured rotor speeds or thrust, which already "

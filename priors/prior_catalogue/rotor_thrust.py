@@ -12,14 +12,16 @@ from droneid.targets import TARGETS
 
 from .. import constraints as pc
 from ..base import PriorFeature, PriorModel, check_param
-from ..thrust import RPM_SCALE, THRUST_SOURCES, body_z_world, thrust_columns
+from ..thrust import COMMAND_SOURCES, NOMINAL_EXPO, RPM_SCALE, THRUST_SOURCES, body_z_world, thrust_columns
 
 #: the prior's name and its place among the built-in priors
 NAME, ORDER = "rotor-thrust", 20
 
 
 def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D: float = 0.28,
-                 g: float = 9.81, rotor_drag: bool = False, rpm_unit: str = "rpm") -> PriorModel:
+                 g: float = 9.81, rotor_drag: bool = False, expo: float = NOMINAL_EXPO,
+                 v_ref: float | None = None, spin_min: float = 0.0, spin_max: float = 1.0,
+                 rpm_unit: str = "rpm") -> PriorModel:
     """Rotor-thrust quadrotor model: logged thrust along the body z axis, gravity, linear drag::
 
         v̇ = (k_T · thrust(source)) R(roll, pitch, yaw) e3 − g e3 − k_D v   (world ENU)
@@ -31,6 +33,12 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
     rotor-drag law −k_r (Σ ω_i/10⁴) v (blade flapping and induced drag grow with rotor speed).
     ``rpm_unit``: ``erpm`` when the log's motor speeds are electrical rpm (the descriptions say
     per (10⁴ erpm)²; the pole-pair factor is left to the fitted scale).
+    A command source (``motor``, ``throttle``) maps its commands through the thrust curve
+    (1 − e)u + e u² of shape ``expo`` e (:func:`priors.thrust.thrust_curve`; identify chooses e
+    from the training flights, :mod:`droneid.thrust_curve`), and with ``v_ref`` (V) scales them by
+    the battery voltage, u·V/v_ref; ``spin_min``/``spin_max``: the commands (0..1) where the curve
+    starts and ends (ArduPilot's MOT_SPIN_MIN/MAX), u = (command − spin_min)/(spin_max − spin_min).
+    All are ignored for ``rpm`` and ``thrust``.
     """
     if rpm_unit not in ("rpm", "erpm"):
         raise ConfigError(f"The 'rpm_unit' parameter of prior 'rotor-thrust' must be 'rpm' or 'erpm'. "
@@ -40,7 +48,20 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
     if not isinstance(motors, int) or isinstance(motors, bool) or not 1 <= motors <= 16:
         raise ConfigError(f"The 'motors' parameter of prior 'rotor-thrust' must be an integer in 1..16. "
                           f"Got {motors!r} instead.")
-    cols = thrust_columns(source, motors, rpm_unit)
+    command = source in COMMAND_SOURCES
+    if command:
+        check_param("rotor-thrust", "expo", expo)
+        if not 0.0 <= expo <= 1.0:
+            raise ConfigError(f"The 'expo' parameter of prior 'rotor-thrust' must be in [0, 1]. Got {expo!r} instead.")
+        if v_ref is not None and not check_param("rotor-thrust", "v_ref", v_ref) > 0:
+            raise ConfigError(f"The 'v_ref' parameter of prior 'rotor-thrust' must be > 0 V. Got {v_ref!r} instead.")
+        for name, v in (("spin_min", spin_min), ("spin_max", spin_max)):
+            check_param("rotor-thrust", name, v)
+        if not 0.0 <= spin_min < spin_max <= 1.0:
+            raise ConfigError(f"The 'spin_min'/'spin_max' parameters of prior 'rotor-thrust' must satisfy "
+                              f"0 <= spin_min < spin_max <= 1. Got {spin_min!r}, {spin_max!r} instead.")
+    cols = (thrust_columns(source, motors, expo, v_ref, (spin_min, spin_max)) if command
+            else thrust_columns(source, motors, rpm_unit=rpm_unit))
     roll, pitch, yaw = (symbol(n) for n in ("roll", "pitch", "yaw"))
     b = dict(zip("xyz", body_z_world(roll, pitch, yaw)))
     signals = sorted({s.name for _, e, _ in cols for s in e.free_symbols},
@@ -68,7 +89,9 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
         f"Rotor-thrust model: {THRUST_SOURCES[source][2]}, along the body z axis rotated by the "
         f"full attitude, minus gravity, minus linear drag k_D v.",
         terms, inputs, {"source": source, "motors": motors, "k_T": k_T, "k_D": k_D, "g": g,
-                        "rotor_drag": rotor_drag, **({"rpm_unit": rpm_unit} if rpm_unit != "rpm" else {})},
+                        "rotor_drag": rotor_drag, **({"rpm_unit": rpm_unit} if rpm_unit != "rpm" else {}),
+                        **({"expo": float(expo), "v_ref": v_ref, "spin_min": float(spin_min),
+                            "spin_max": float(spin_max)} if command else {})},
         vehicle="multirotor", constraints=span_constraints,
         # free fall at zero thrust: gravity is the only constant (known, fixed), no free one
         intercept={t: (0.0, 0.0) for t in terms}, hover_param="k_T", factory=rotor_thrust)

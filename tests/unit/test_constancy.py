@@ -144,3 +144,30 @@ def test_leads_point_to_what_moves_a_constant_and_what_the_diagnosis_said():
     text = leads(bad, diag)
     assert "wind (not detected)" in text and "anisotropic_drag (untestable)" in text and "thrust" not in text
     assert leads(good, diag) == ""
+
+
+def test_collinear_physical_terms_are_tied_into_the_combination_the_data_identify():
+    """Issue 36: a command map Σu² + Σu near hover is collinear (VIF > 100); the pair is fitted
+    as one scale on its sum, never held at a nominal 1 nobody measured, and that scale is
+    measured (the planted thrust near hover is about half the two nominal terms' sum)."""
+    import sympy as sp
+
+    from droneid.expressions import symbol
+    from droneid.terms import TermModel
+    from droneid.validation import time_blocks
+    rng = np.random.default_rng(0)
+    n = 2000
+    u, vz = 0.5 + 0.03 * rng.standard_normal(n), rng.standard_normal(n)
+    t, fl = np.arange(n) * 0.05, np.zeros(n, int)
+    y = 9.81 * (0.6 * u ** 2 / 0.25 + 0.4 * u / 0.5) - 9.81 - 0.3 * vz + 0.05 * rng.standard_normal(n)
+    m = TermModel((9.81 / 0.25 * symbol("motor1") ** 2, 9.81 / 0.5 * symbol("motor1"), -symbol("vz")),
+                  ("⟨sq⟩", "⟨lin⟩", "⟨drag⟩"), lo=(0, 0, 0), hi=(np.inf,) * 3, intercept_bounds=(0, 0),
+                  offset=sp.Float(-9.81))
+    ev = physical_fit(m, {"motor1": u, "vz": vz}, y, time_blocks(t, fl), flight=fl, t=t, sources=("a",))
+    assert ev.held == {}
+    assert ev.model.labels == ("⟨sq + lin⟩", "⟨drag⟩")
+    lo, hi = ev.intervals["⟨sq + lin⟩"]
+    assert 0.49 < lo <= hi < 0.51                      # pinned down, near half the nominal sum
+    pred = ev.model.predict({"motor1": u, "vz": vz}, n)
+    assert np.sqrt(np.mean((pred - y) ** 2)) < 0.1      # noise 0.05 m/s²; both held at 1 would be ~10
+    assert "collinear" in ev.notes[0] and "one scale" in ev.notes[0]

@@ -353,3 +353,32 @@ def test_x_mix_signs_follow_the_ardupilot_quad_x_layout():
     # a command that would leave 0..1 keeps the collective and scales the torque part down
     u = rot.commands(np.array([4 * rot.t_max * 0.98]), np.array([[1.0, -1.0, 1.0, -1.0]]))
     assert np.all(u <= 1.0) and np.sum(u ** 2) * rot.t_max == pytest.approx(4 * rot.t_max * 0.98)
+
+
+@pytest.mark.parametrize("expo,sag", [(0.35, False), (0.65, True)])
+def test_command_driven_vehicle_follows_its_thrust_curve(expo, sag):
+    """Issue 36: commands through the thrust curve (1 − e)u + e u², scaled by V/v_start under
+    battery sag; without motor lag the curve on the logged commands is the vertical force exactly,
+    with one the rotor speeds still are (the speeds carry the lag)."""
+    from droneid.frames import euler_to_matrix
+    from priors.thrust import thrust_curve
+    eff = {"thrust_variation": {"amp_m": 0.5, "period_s": 3.0}}
+    if sag:
+        eff["battery_sag"] = {"v_start": 12.6, "v_end": 9.9, "exponent": 2.0}
+    r = simulate(path="eight", duration_s=6.0, seed=3, noise=False, thrust_expo=expo, effects=eff)
+    f, tr = r.flight, r.truth
+    assert tr["rotors"]["thrust_expo"] == expo
+    s = f["battery_voltage"].values / 12.6 if sag else 1.0
+    u = np.column_stack([f[f"motor{i}"].values for i in range(1, 5)])
+    R = euler_to_matrix(np.array(tr["true"]["roll"]), np.array(tr["true"]["pitch"]), np.array(tr["true"]["yaw"]))
+    thrust = tr["rotors"]["k_cmd"] * np.sum(thrust_curve(u * np.atleast_1d(s)[:, None] if sag else u, expo), axis=1)
+    az = thrust * R[:, 2, 2] - 9.81 - tr["params"]["k_drag"] * np.array(tr["true"]["vz"])
+    assert np.max(np.abs(az - np.array(tr["az"]))) < 1e-4      # m/s²; a wrong curve is off by ~0.1
+    lagged = simulate(path="eight", duration_s=6.0, seed=3, noise=False, thrust_expo=expo, effects=eff,
+                      motor_tau_s=0.05)
+    assert lagged.truth["model"]["rotor_rmse_z"] < 1e-6
+
+
+def test_thrust_expo_out_of_range_is_refused():
+    with pytest.raises(ConfigError, match="thrust_expo"):
+        simulate(path="hover", duration_s=1.0, thrust_expo=1.2)

@@ -1,0 +1,151 @@
+"""The thrust curve of command-driven vehicles (issue 36): one shape e of (1 − e)u + e u² and one
+scale, chosen on the training flights with an interval; battery compensation by the block test."""
+import numpy as np
+import pytest
+
+from droneid.errors import ConfigError
+from droneid.settings import IdentifyConfig
+from droneid.simulate import simulate
+from droneid.thrust_curve import choose_thrust_curve, declared_parameters, profile_expo
+from priors.registry import get_prior
+from priors.thrust import inverse_thrust_curve, thrust_curve
+
+
+@pytest.mark.parametrize("e", [0.0, 0.3, 0.65, 1.0])
+def test_curve_ends_and_inverse(e):
+    u = np.linspace(0, 1, 11)
+    f = thrust_curve(u, e)
+    assert f[0] == 0 and f[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(f) > 0)
+    np.testing.assert_allclose(inverse_thrust_curve(f, e), u, atol=1e-12)
+
+
+@pytest.mark.parametrize("source,signals", [("motor", {"motor1", "motor2", "motor3", "motor4"}),
+                                            ("throttle", {"throttle"})])
+def test_command_prior_has_one_thrust_term_per_axis(source, signals):
+    """Σu² and Σu side by side are collinear near hover: a command prior has ONE thrust term."""
+    p = get_prior("rotor-thrust", source=source, expo=0.4)
+    for t in p.targets:
+        thrust = [f for f in p.features(t) if f.role == "thrust"]
+        assert len(thrust) == 1
+    assert set(p.thrust_signals("vz_dot")) == signals
+    pv = p.with_params(v_ref=12.6)
+    assert "battery_voltage" in pv.inputs("vz_dot")
+    assert "battery_voltage" not in pv.thrust_signals("vz_dot")   # the offset moves commands only
+    # the voltage scales the command: u·V/V_ref through the curve
+    cols = {n: np.array([0.5]) for n in p.inputs("vz_dot")}
+    cols.update(battery_voltage=np.array([6.3]), roll=np.zeros(1), pitch=np.zeros(1), yaw=np.zeros(1))
+    th = [i for i, f in enumerate(pv.features("vz_dot")) if f.role == "thrust"][0]
+    n = 4 if source == "motor" else 1
+    k = pv.params["k_T"]
+    assert pv.evaluate(cols, "vz_dot")[0, th] == pytest.approx(k * n * thrust_curve(0.25, 0.4))
+
+
+def test_expo_out_of_range_is_refused():
+    with pytest.raises(ConfigError, match="expo"):
+        get_prior("rotor-thrust", source="motor", expo=1.5)
+
+
+def _planted(e, n=4000, noise=0.05, seed=0, spread=0.25, jitter=0.02):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    u = 0.5 + spread * np.sin(0.7 * t) * np.sin(0.13 * t + 1) + jitter * rng.standard_normal(n)
+    lin, quad = 4 * u, 4 * u * u
+    drag = -0.28 * np.cos(0.5 * t)
+    y = 2.5 * ((1 - e) * lin + e * quad) + 0.8 * drag + noise * rng.standard_normal(n)
+    units = np.repeat(np.arange(n // 200), 200)
+    return lin, quad, drag, y, units
+
+
+@pytest.mark.parametrize("e", [0.3, 0.7])
+def test_profile_recovers_a_planted_expo_within_its_interval(e):
+    prof = profile_expo(*_planted(e))
+    lo, hi = prof["interval"]
+    assert lo <= e <= hi
+    assert hi - lo < 0.2
+    assert prof["scale_interval"][0] <= 2.5 <= prof["scale_interval"][1]
+    assert min(prof["profile"].values()) == pytest.approx(1.0)
+
+
+def test_a_flat_profile_says_so():
+    """Commands that hardly move (hover only) cannot tell the shapes apart: a wide interval."""
+    prof = profile_expo(*_planted(0.5, spread=0.0, jitter=0.002, noise=0.3))
+    lo, hi = prof["interval"]
+    assert hi - lo > 0.5
+
+
+def _command_flights(expo, sag, n=3, duration=20.0):
+    eff = {"thrust_variation": {"amp_m": 0.8, "period_s": 3.0}}
+    if sag:
+        eff["battery_sag"] = {"v_start": 12.6, "v_end": 9.9, "exponent": 2.0}
+    out = []
+    for seed, path in enumerate(("random", "eight", "lissajous")[:n]):
+        r = simulate(path=path, duration_s=duration, seed=seed, thrust_expo=expo, effects=eff)
+        out.append(r.flight.without("rpm1", "rpm2", "rpm3", "rpm4"))
+    return out
+
+
+@pytest.mark.parametrize("expo,sag", [(0.4, True), (0.7, False)])
+def test_choose_thrust_curve_on_simulated_command_flights(expo, sag):
+    flights = _command_flights(expo, sag)
+    cfg = IdentifyConfig()
+    prior = get_prior("rotor-thrust", source="motor")
+    tc = choose_thrust_curve(flights, prior, cfg)
+    lo, hi = tc.interval
+    assert lo - 0.01 <= expo <= hi + 0.01, tc.text()
+    assert tc.identified
+    assert tc.decision is not None
+    assert tc.voltage is sag, tc.text()          # kept only where the battery sags
+    assert tc.hover_interval[0] - 0.01 <= 0.5 <= tc.hover_interval[1] + 0.01   # m g / t_max
+    d = tc.to_dict()
+    assert d["expo"] == tc.expo and d["voltage"] is sag
+
+
+def test_declared_parameters_agreeing_flights_only():
+    class P:
+        def __init__(self, params):
+            self.parameters = tuple(params.items())
+
+    class F:
+        def __init__(self, params):
+            self.provenance = P(params)
+
+    got = declared_parameters([F({"MOT_THST_EXPO": 0.65, "MOT_THST_HOVER": 0.3, "OTHER": 1}),
+                               F({"MOT_THST_EXPO": 0.65, "MOT_THST_HOVER": 0.35})])
+    assert got == {"MOT_THST_EXPO": 0.65}
+
+
+def test_lag_is_exact_on_a_ramp_and_restarts_after_gaps():
+    from droneid.thrust_curve import lagged
+    t = np.arange(0, 2, 0.05)
+    tau = 0.07
+    y = lagged(t, t, np.zeros(t.size, int), tau)
+    np.testing.assert_allclose(y, t - tau * (1 - np.exp(-t / tau)), atol=1e-12)
+    t2 = np.concatenate([t, t[-1] + 1.0 + t])          # a gap of 1 s: starts afresh
+    y2 = lagged(t2, t2, np.zeros(t2.size, int), tau)
+    assert y2[t.size] == t2[t.size]
+    assert np.array_equal(lagged(t, t, np.zeros(t.size, int), 0.0), t)
+
+
+@pytest.mark.slow
+def test_a_motor_lag_is_found_and_the_shape_profiled_with_it():
+    """A 60 ms first-order motor lag (the bench_commands setup): the block test keeps a lag near
+    the planted one and the shape comes out within 0.01 of the planted 0.45 (a pure offset
+    leaves it ~0.02 low)."""
+    eff = lambda j: {"thrust_variation": {"amp_m": 0.5, "period_s": 3.0 + j}}   # noqa: E731
+    flights = [simulate(path=p, duration_s=30.0, seed=s, thrust_expo=0.45, motor_tau_s=0.06,
+                        effects=eff(s)).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
+               for s, p in enumerate(("random", "eight", "lissajous"))]
+    tc = choose_thrust_curve(flights, get_prior("rotor-thrust", source="motor"), IdentifyConfig())
+    assert tc.lag_decision is not None and tc.lag_decision.accepted, tc.text()
+    assert tc.lag_interval[0] - 0.011 <= 0.06 <= tc.lag_interval[1] + 0.011
+    assert abs(tc.expo - 0.45) < 0.01, tc.text()
+    assert "motor lag" in tc.text() and tc.to_dict()["lag_s"] == tc.lag_s
+
+
+def test_a_curve_the_data_cannot_choose_is_said_to_be_unmeasured():
+    from droneid.plan import plan_identification
+    f = simulate(path="hover", duration_s=1.2, seed=0).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
+    plan = plan_identification([f], IdentifyConfig(effects="none", delays="none"))
+    assert plan.thrust_curve is None
+    assert plan.notes[0].startswith("thrust curve of the commands NOT chosen from the data")
