@@ -5,8 +5,8 @@ The rotational model is chosen per body axis by :func:`droneid.rotation_choice.s
 (leave-one-flight-out open-loop validation on training flights only): each axis holds its rate,
 decays it (``ω̇_k = −c_k ω_k``: the closed loop stopping a rotation), is pulled back to level
 (roll and pitch, the term ``attitude`` below: the attitude controller) or takes the torque model,
-a rung being taken only if it beats the one below on every held-out flight in every regime of
-calm to hard flight. It steps with a translational model in
+a rung being taken by :mod:`droneid.decide`'s calibrated rule over the (held-out flight, regime of
+calm to hard flight) cells. It steps with a translational model in
 :class:`droneid.openloop.IdentifiedVehicle`; :func:`droneid.vehicle_export.export_vehicle` writes it as
 Python or C. On the shared Crazyflie squares the torque model is the best pooled, but worse than
 the simpler rungs in their calm windows, and the choice refuses it; the spring it takes for roll
