@@ -16,9 +16,10 @@ from priors.torque import RotorLayout, get_layout
 from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
-from .rotation import (RotationModel, segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
+from .rotation import (RotationModel, segment_bounds, body_velocity, fit_rotation,
                        flying_mask, flying_segments, tilt, translation_rows)
-from .rotation_decay import DAMPING_GRID, damping_interval, fit_damping, regime_of
+from .rotation_decay import DAMPING_GRID, damping_folds, damping_interval, fit_damping, regime_of
+from .rotation_folds import downdatable, rotation_folds, translation_folds
 from .rotation_ladder import AXES as _AXES, climb
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "RUNGS", "VEHICLE_RUNGS",
@@ -364,15 +365,20 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     layout = get_layout(layout) if isinstance(layout, str) else layout
     tkw = {"delay_steps": translation_delay_steps, "rad_s_per_rpm": rad_s_per_rpm}
     trows = [translation_rows(log, window_s=window_s, **tkw) for log in logs]   # once per log
+    # the leave-one-flight-out fits from sums over the flights computed once (droneid.rotation_folds)
+    trs = translation_folds(trows, [log.name for log in logs], **tkw)
+    decays = damping_folds(logs, grid=damping_grid, regimes=regimes)
+    shared = [rotation_folds(logs, layout, cand, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm)
+              if downdatable(cand) else None for cand in candidates]
     folds = []   # per held-out flight: name, test segments, translation, damping c, torque fits, errors
     for name in names:
         train = [log for log in logs if log.name != name]
         test = [seg for log in logs if log.name == name for seg in flying_segments(log)]
         if not test or not _windows_in(test, stride):
             continue
-        tr = fit_translation_rows([r for r, log in zip(trows, logs) if log.name != name], **tkw)
-        c = fit_damping(train, grid=damping_grid, regimes=regimes)
-        torques = [_fit_candidate(train, layout, cand, window_s, rad_s_per_rpm) for cand in candidates]
+        tr, c = trs[name], decays[name]
+        torques = [sh[name] if sh is not None else _fit_candidate(train, layout, cand, window_s, rad_s_per_rpm)
+                   for sh, cand in zip(shared, candidates)]
         errs = {"held": _window_errors(IdentifiedVehicle(tr, HeldRates()), test, stride),
                 "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride)}
         spring = None
