@@ -544,13 +544,10 @@ def identify_layout(logs: Sequence[StateLog], *, window_s: float = 0.05,
         raise DataError("identify_layout: no training row with every motor turning in flight")
     M = rows[0][0].shape[1]
     coefs = np.zeros((3, M))
+    groups = np.concatenate([np.full(s.shape[0], j) for j, (s, _, _) in enumerate(rows)])
     for k in range(3):
-        A, y = [], []
-        for j, (s, w, wd) in enumerate(rows):
-            onehot = np.zeros((s.shape[0], len(rows)))
-            onehot[:, j] = 1.0
-            A.append(np.column_stack([s, -w[:, k], onehot]))
-            y.append(wd[:, k])
-        beta = robust_fit(np.vstack(A), np.concatenate(y)).beta
+        A = np.vstack([np.column_stack([s, -w[:, k]]) for s, w, _ in rows])
+        # a trim per log: free intercepts profiled out (robust_fit_grouped: no one-hot columns)
+        beta = robust_fit_grouped(A, np.concatenate([wd[:, k] for _, _, wd in rows]), groups).beta
         coefs[k] = beta[:M] - beta[:M].mean()
     return np.sign(coefs), coefs
