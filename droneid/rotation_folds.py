@@ -53,7 +53,7 @@ def translation_folds(rows: Sequence[tuple[np.ndarray, np.ndarray] | None], name
     for name in dict.fromkeys(names):
         mine = np.array([names[i] == name for i in ids])
         if mine.all():
-            continue
+            raise DataError(f"fit_translation: no training row with every motor turning in flight besides {name}")
         beta = gram_bounded_lstsq(S[~mine].sum(axis=0), lo)
         out[name] = TranslationModel(float(beta[0]), np.asarray(beta[1:4]), int(delay_steps), float(rad_s_per_rpm))
     return out
