@@ -14,7 +14,15 @@ Prints per flight count the share of planted effects found (recall), the effects
 not planted (false positives; controls' separately) and the wall time; the rule's promise
 (issue 37): the share found must not fall as flights are added, and false positives must not
 rise. Exit 1 when the share found falls from one count to the next. ``--quick``: 6 cases, counts
-2 and 4, 10 s flights. The ω̇ rungs are not part of it (not done: see docs/benchmarks.md).
+2 and 4, 10 s flights.
+
+The ω̇ rungs (``--no-rotation`` leaves them out): the planted rigid-body rotation of
+tests/unit/test_rotation_planted.py (a torque model with rotor drag and decay, each flight with
+its own balance point; 15 s flights from smooth random motor speeds, the flights of a smaller
+count the start of the larger), chosen by identify's rotational stage
+(:func:`droneid.rotation_choice.select_rotation`, its defaults but the planted model's terms as
+the one torque candidate): per flight count the share of the three axes that reach the planted
+torque rung.
 """
 from __future__ import annotations
 
@@ -43,6 +51,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the case set (default 0)")
     ap.add_argument("--quick", action="store_true", help="6 cases, counts 2 and 4, 10 s flights")
+    ap.add_argument("--no-rotation", action="store_true", help="leave out the ω̇ rungs")
     args = ap.parse_args(argv)
     cases = 6 if args.quick else args.cases
     counts = [2, 4] if args.quick else [int(c) for c in args.counts.split(",")]
@@ -71,8 +80,31 @@ def main(argv=None) -> int:
         if b < a:
             ok = False
             print(f"the share found FALLS from {na} to {nb} flights ({a:.2f} -> {b:.2f})")
+    if not args.no_rotation:
+        ok = _rotation_curve(counts) and ok
     print(f"the share found never falls as flights are added: {'yes' if ok else 'NO'}")
     return 0 if ok else 1
+
+
+def _rotation_curve(counts: list[int]) -> bool:
+    """The ω̇ rungs' power curve (module docstring); True when the share never falls."""
+    sys.path.insert(0, str(HERE.parent / "tests" / "unit"))
+    from test_rotation_planted import DRAG_TERMS, _balanced_flight   # the planted rotation of the tests
+    from droneid.rotation_choice import select_rotation
+    rng = np.random.default_rng(7)
+    t0 = time.perf_counter()
+    logs = [_balanced_flight(100 + i, rng.uniform(-500.0, 500.0, 4), name=f"planted{i}") for i in range(max(counts))]
+    shares = []
+    print(f"ω̇ rungs: the planted torque model on 3 axes, {len(logs)} simulated flights of 15 s, select_rotation")
+    for n in counts:
+        ch = select_rotation(logs[:n], candidates=({"terms": DRAG_TERMS, "balance_weight_s": 1.0},),
+                             translation_delay_steps=0, stride=10)
+        took = sum(r == "torque" for r in ch.axis_choice)
+        shares.append(took / 3)
+        cells = max(st["cells"] for ax in ch.ladder for st in ax["steps"])
+        print(f"{n:7d} {took:3d}/3   {took / 3:6.2f}  rungs {'/'.join(ch.axis_choice)} ({cells} cells per step)")
+    print(f"(ω̇: {time.perf_counter() - t0:.0f} s)")
+    return all(b >= a for a, b in zip(shares, shares[1:]))
 
 
 if __name__ == "__main__":
