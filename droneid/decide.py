@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -49,7 +49,8 @@ import numpy as np
 from .errors import ConfigError
 from .regression import blocked_cv
 
-__all__ = ["Decision", "decide", "decide_predictions", "decide_designs", "decide_family",
+__all__ = ["Decision", "decide", "decide_units", "decide_predictions", "decide_designs", "decide_family",
+           "holm_step_down",
            "block_differences", "block_log_ratios", "paired_block_test", "holm_threshold", "N_FLIPS"]
 
 #: random sign patterns of the sign-flip test when 2^B is too many to enumerate (B > 16)
@@ -189,41 +190,75 @@ def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: i
     position (:func:`holm_threshold`); ``min_effect_pct``: smallest held-out RMSE reduction (%)
     that counts; ``weights``: optional per-row weights; ``what``: a name for the evidence line.
     """
+    _, m0, m1, _, rows = block_differences(err_without, err_with, blocks, weights)
+    return decide_units(m0, m1, rows, alpha=alpha, family_size=family_size, rank=rank,
+                        min_effect_pct=min_effect_pct, what=what)
+
+
+#: how :func:`decide_units` reads its per-unit errors: (what the pooled figure is called, the
+#: units' name, whether the errors are squared (the effect is then on their root))
+_LOSSES = {"mse": ("CV RMSE", "blocks", True), "simerr": ("SimErr", "cells", False)}
+
+
+def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, family_size: int = 1,
+                 rank: int = 1, min_effect_pct: float = 1.0, loss: str = "mse", what: str = "") -> Decision:
+    """The rule (module docstring, steps 2-4) on one held-out error per unit of each model.
+
+    ``loss_without``/``loss_with`` (U,): each unit's held-out error without/with the candidate,
+    ≥ 0, in the same units; ``rows`` (U,): the rows (or windows) behind each unit, the weights of
+    the pooled error (default 1 each). ``loss``: ``"mse"``, the units' mean squared residuals
+    (:func:`decide` passes its blocks'; the effect is the drop of the pooled RMSE, the root of
+    the row-weighted mean), or ``"simerr"``, a mean open-loop simulation error per unit (e.g. a
+    (flight, regime) cell's mean SimErr of held-out windows, rad/s; the effect is the drop of the
+    row-weighted mean itself, the units are called cells). The test is on ``d_u = ln(loss_without_u /
+    loss_with_u)`` (:func:`block_log_ratios`, :func:`paired_block_test`); ``alpha``,
+    ``family_size``, ``rank``, ``min_effect_pct`` and ``what`` as :func:`decide`. At least 3 units.
+    """
+    if loss not in _LOSSES:
+        raise ConfigError(f"The 'loss' parameter of decide_units must be one of {', '.join(_LOSSES)}. "
+                          f"Got {loss!r} instead.")
     if not (0 <= min_effect_pct < 100):
         raise ConfigError(f"The 'min_effect_pct' parameter must be in [0, 100). Got {min_effect_pct!r} instead.")
     thr = holm_threshold(alpha, family_size, rank)
-    ids, m0, m1, d, rows = block_differences(err_without, err_with, blocks, weights)
-    if ids.size < 3:
-        raise ConfigError(f"decide needs at least 3 validation blocks with data. Got {ids.size} instead.")
+    m0 = np.asarray(loss_without, float).ravel()
+    m1 = np.asarray(loss_with, float).ravel()
+    rows = np.ones(m0.size) if rows is None else np.asarray(rows, float).ravel()
+    if not (m0.size == m1.size == rows.size):
+        raise ConfigError(f"loss_without, loss_with and rows must have the same length. Got "
+                          f"{m0.size}, {m1.size} and {rows.size} instead.")
+    label, units, squared = _LOSSES[loss]
+    if m0.size < 3:
+        raise ConfigError(f"decide needs at least 3 validation {units} with data. Got {m0.size} instead.")
     pooled0 = float(np.sum(m0 * rows) / np.sum(rows))
     pooled1 = float(np.sum(m1 * rows) / np.sum(rows))
     dn = block_log_ratios(m0, m1)
     t, p = paired_block_test(dn)
-    r0, r1 = math.sqrt(pooled0), math.sqrt(pooled1)
+    r0, r1 = (math.sqrt(pooled0), math.sqrt(pooled1)) if squared else (pooled0, pooled1)
     pct = 100.0 * (1.0 - r1 / r0) if r0 > 0 else 0.0
-    better = int(np.sum(d > 0))
+    better = int(np.sum(m0 - m1 > 0))
+    n = int(m0.size)
     reasons = []
     if not p < thr:
-        reasons.append(f"block test p = {p:.2g} ≥ {thr:.2g}")
-        if 2.0 ** -ids.size >= thr:
-            reasons.append(f"{ids.size} blocks cannot reach p < {thr:.2g} (a sign-flip p is ≥ 2^−B): "
-                           "use more blocks")
+        reasons.append(f"{'block' if squared else 'cell'} test p = {p:.2g} ≥ {thr:.2g}")
+        if 2.0 ** -n >= thr:
+            reasons.append(f"{n} {units} cannot reach p < {thr:.2g} (a sign-flip p is ≥ 2^−B): "
+                           f"use more {units}")
     if pct < min_effect_pct:
-        reasons.append(f"held-out RMSE {'falls' if pct >= 0 else 'rises'} by {abs(pct):.2f} % "
-                       f"({'<' if pct >= 0 else 'not'} {min_effect_pct:g} %)")
+        reasons.append(f"held-out {'RMSE' if squared else label} {'falls' if pct >= 0 else 'rises'} by "
+                       f"{abs(pct):.2f} % ({'<' if pct >= 0 else 'not'} {min_effect_pct:g} %)")
     accepted = not reasons
     holm = (f"Bonferroni over {family_size}" if rank == 1 else f"Holm rank {rank} of {family_size}")
-    # the pooled RMSE and the typical block can move apart (a few blocks carry the pooled gain):
+    # the pooled error and the typical unit can move apart (a few units carry the pooled gain):
     # a fall of the pooled error beside p = 1 must not read as a gain the test ignored
     apart = (pct > 0 and t < 0) or (pct < 0 and t > 0)
-    change = f"{-pct:+.1f} %" + (f", pooled over the rows; the typical block {'gets worse' if t < 0 else 'improves'}"
-                                 if apart else "")
-    line = (f"{what + ': ' if what else ''}CV RMSE {r0:.4g} -> {r1:.4g} ({change}), "
-            f"t = {t:.2f} over {ids.size} blocks, sign-flip p = {p:.2g} "
+    change = f"{-pct:+.1f} %" + (f", pooled over the rows; the typical {units[:-1] if units.endswith('s') else units} "
+                                 f"{'gets worse' if t < 0 else 'improves'}" if apart else "")
+    line = (f"{what + ': ' if what else ''}{label} {r0:.4g} -> {r1:.4g} ({change}), "
+            f"t = {t:.2f} over {n} {units}, sign-flip p = {p:.2g} "
             f"{'<' if p < thr else '≥'} {thr:.2g} (α = {alpha:g}, {holm}), "
-            f"{better}/{ids.size} blocks better: " + ("accepted" if accepted else
-                                                      "rejected (" + "; ".join(reasons) + ")"))
-    return Decision(accepted, float(t), float(p), float(thr), int(ids.size), float(pct), line,
+            f"{better}/{n} {units} better: " + ("accepted" if accepted else
+                                                "rejected (" + "; ".join(reasons) + ")"))
+    return Decision(accepted, float(t), float(p), float(thr), n, float(pct), line,
                     r0, r1, better, tuple(float(x) for x in dn), int(family_size), int(rank),
                     tuple(reasons))
 
@@ -251,20 +286,31 @@ def decide_family(err_without, candidates: Mapping[str, np.ndarray], blocks, *, 
     ``candidates``: {name: per-row held-out residuals with that candidate}; ``family_size``:
     default the number of candidates (larger when others were tried elsewhere). Candidates are
     ordered by p; the k-th is tested at ``alpha / (m − k + 1)``; after the first rejection every
-    later one is rejected too (Holm). Returns {name: Decision} in the input order; choose among
-    the accepted ones (e.g. the lowest held-out error).
+    later one is rejected too (Holm, :func:`holm_step_down`). Returns {name: Decision} in the
+    input order; choose among the accepted ones (e.g. the lowest held-out error).
     """
     names: Sequence[str] = list(candidates)
     m = len(names) if family_size is None else int(family_size)
     if m < len(names):
         raise ConfigError(f"family_size ({m}) is smaller than the number of candidates ({len(names)})")
-    first = {n: decide(err_without, candidates[n], blocks, alpha=alpha, family_size=max(m, 1),
-                       min_effect_pct=min_effect_pct, weights=weights, what=n) for n in names}
+    return holm_step_down(lambda n, k: decide(err_without, candidates[n], blocks, alpha=alpha,
+                                              family_size=max(m, 1), rank=k, min_effect_pct=min_effect_pct,
+                                              weights=weights, what=n), names)
+
+
+def holm_step_down(decide_at: Callable[[str, int], Decision], names: Sequence[str]) -> dict[str, Decision]:
+    """Holm's step-down over the candidates ``names``, each decided by ``decide_at(name, rank)``
+    (a :class:`Decision` at Holm position ``rank``; the caller fixes alpha and the family size,
+    which may exceed ``len(names)``). The candidates are ordered by their p at rank 1 (ties by
+    name); the k-th is decided at rank k; after the first whose p misses its threshold every later
+    one is rejected too (a candidate rejected for its size alone does not stop the order).
+    Returns {name: Decision} in the order of ``names``."""
+    names = list(names)
+    first = {n: decide_at(n, 1) for n in names}
     order = sorted(names, key=lambda n: (first[n].p_value, n))
     out, stopped = {}, False
     for k, n in enumerate(order, 1):
-        dec = decide(err_without, candidates[n], blocks, alpha=alpha, family_size=m, rank=k,
-                     min_effect_pct=min_effect_pct, weights=weights, what=n)
+        dec = decide_at(n, k)
         if stopped and dec.accepted:
             dec = Decision(**{**asdict(dec), "accepted": False,
                               "reasons": dec.reasons + ("an earlier candidate of the Holm order failed",),

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear
 
-__all__ = ["RobustFit", "robust_fit", "weighted_bounded_lstsq", "gram", "gram_bounded_lstsq",
-           "unit_grams", "blocked_cv", "bootstrap_draws", "block_bootstrap",
+__all__ = ["RobustFit", "robust_fit", "robust_fit_grouped", "weighted_bounded_lstsq", "gram", "gram_bounded_lstsq",
+           "unit_grams", "group_grams", "within_gram", "group_intercepts", "blocked_cv", "bootstrap_draws", "block_bootstrap",
            "HUBER_C", "LOSS", "N_BOOT"]
 
 #: Huber's tuning constant, in robust scales of the residuals (95 % Gaussian efficiency)
@@ -140,16 +140,26 @@ def robust_fit(A: np.ndarray, y: np.ndarray, lo=None, hi=None, *, max_iter: int 
     if not (w > 0).any():     # no usable row: every coefficient at its nearest bound to 0
         zero = np.clip(np.zeros(k), lo, hi)
         return RobustFit(zero, w, float("nan"), np.zeros(k, bool))
-    beta = weighted_bounded_lstsq(A, y, w, lo, hi)
+    return _irls(lambda w: weighted_bounded_lstsq(A, y, w, lo, hi), lambda b: A @ b, y, w, bad, lo, hi,
+                 max_iter, tol)
+
+
+def _irls(solve, fitted, y: np.ndarray, w: np.ndarray, bad: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+          max_iter: int, tol: float) -> RobustFit:
+    """Huber IRLS, one home for :func:`robust_fit` and :func:`robust_fit_grouped`: ``solve(w)``
+    the weighted bounded least squares, ``fitted(β)`` the prediction of the rows (linear in β),
+    ``w`` the starting weights, ``bad`` the rows that weigh nothing, ``lo``/``hi`` every
+    coefficient's bounds (for ``at_bound``)."""
+    beta = solve(w)
     s = 1e-12
     for _ in range(max_iter):
-        r = y - A @ beta
+        r = y - fitted(beta)
         s = _scale(r[~bad])
         u = np.abs(r) / (HUBER_C * s)
         w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300))
         w[bad] = 0.0
-        new = weighted_bounded_lstsq(A, y, w, lo, hi)
-        moved = float(np.max(np.abs(A @ (new - beta)))) if k else 0.0   # in target units
+        new = solve(w)
+        moved = float(np.max(np.abs(fitted(new - beta)))) if beta.size else 0.0   # in target units
         beta = new
         if moved <= tol * s:
             break
@@ -157,6 +167,75 @@ def robust_fit(A: np.ndarray, y: np.ndarray, lo=None, hi=None, *, max_iter: int 
     eps = 1e-9 * np.where(np.isfinite(span), np.maximum(span, 1.0), 1.0)
     at_bound = (~(lo == hi)) & ((np.abs(beta - lo) <= eps) | (np.abs(beta - hi) <= eps))
     return RobustFit(beta, w, s, at_bound)
+
+
+def group_grams(A: np.ndarray, y: np.ndarray, w: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ids, per-group :func:`gram` of ``[A 1 y]`` (G, k + 2, k + 2)): the statistics of a model
+    with one free intercept per group (e.g. a trim per flight), group by group, in O(rows · k²)."""
+    A = np.asarray(A, float)
+    ids, inv = np.unique(np.asarray(groups), return_inverse=True)
+    order = np.argsort(inv, kind="stable")
+    edges = np.searchsorted(inv[order], np.arange(ids.size + 1))
+    B = np.column_stack([A, np.ones(A.shape[0]), np.asarray(y, float)])[order]
+    ww = np.asarray(w, float)[order]
+    out = np.empty((ids.size, A.shape[1] + 2, A.shape[1] + 2))
+    for g in range(ids.size):
+        Bg = B[edges[g]:edges[g + 1]]
+        out[g] = Bg.T @ (Bg * ww[edges[g]:edges[g + 1], None])
+    return ids, out
+
+
+def within_gram(S: np.ndarray) -> np.ndarray:
+    """The :func:`gram` (k + 1 square) of ``[A y]`` with every group's free intercept profiled out
+    (each group's rows taken about their weighted mean: Frisch-Waugh-Lovell), from
+    :func:`group_grams`'s statistics ``S`` (G, k + 2, k + 2): the least squares of ``β`` with one
+    intercept per group, at the cost of k² whatever the number of groups. Groups without weight
+    add nothing. Leave groups out by passing the others' statistics."""
+    k = S.shape[1] - 2
+    keep = np.r_[0:k, k + 1]
+    n = S[:, k, k]
+    has = n > 0
+    cross = S[has][:, keep, k]                                    # Σ w·[A y] per group
+    return S[:, keep][:, :, keep].sum(axis=0) - np.einsum("gi,gj->ij", cross / n[has, None], cross)
+
+
+def group_intercepts(S: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """Each group's intercept given ``β`` (k,): its weighted mean of ``y − A β`` (0 for a group
+    without weight), from :func:`group_grams`'s ``S``."""
+    k = S.shape[1] - 2
+    n = S[:, k, k]
+    num = S[:, k, k + 1] - S[:, k, :k] @ np.asarray(beta, float)
+    return np.where(n > 0, num / np.where(n > 0, n, 1.0), 0.0)
+
+
+def robust_fit_grouped(A: np.ndarray, y: np.ndarray, groups: np.ndarray, lo=None, hi=None, *,
+                       max_iter: int = 30, tol: float = 1e-6) -> RobustFit:
+    """:func:`robust_fit` of ``y ≈ A β + b_group`` with one free intercept per group (the model of
+    ``robust_fit(np.hstack([A, onehot(groups)]), y, lo, hi)``, bounds ``lo``/``hi`` on ``β``
+    only) without the one-hot columns: each IRLS step solves for ``β`` with the intercepts
+    profiled out (:func:`within_gram`) and takes each intercept as its group's weighted mean
+    residual, so a step costs O(rows · k²) however many groups (one-hot columns cost
+    O(rows · (k + G)²) and a (k + G)-square solve). ``beta``: ``β`` then the intercepts in the
+    order of ``np.unique(groups)``."""
+    A = np.asarray(A, float)
+    y = np.asarray(y, float)
+    ids, inv = np.unique(np.asarray(groups), return_inverse=True)
+    k = A.shape[1]
+    lo, hi = _bounds(k, lo, hi)
+    bad = ~(np.isfinite(y) & np.all(np.isfinite(A), axis=1))
+    if bad.any():
+        A, y = np.where(bad[:, None], 0.0, A), np.where(bad, 0.0, y)
+    w = np.ones(y.size)
+    w[bad] = 0.0
+
+    def solve(w):
+        S = group_grams(A, y, w, inv)[1]
+        b = gram_bounded_lstsq(within_gram(S), lo, hi)
+        return np.concatenate([b, group_intercepts(S, b)])
+
+    free = np.full(ids.size, np.inf)       # the intercepts are unbounded
+    return _irls(solve, lambda b: A @ b[:k] + b[k:][inv], y, w, bad, np.concatenate([lo, -free]),
+                 np.concatenate([hi, free]), max_iter, tol)
 
 
 def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None) -> np.ndarray:

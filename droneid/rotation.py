@@ -5,8 +5,8 @@ The rotational model is chosen per body axis by :func:`droneid.rotation_choice.s
 (leave-one-flight-out open-loop validation on training flights only): each axis holds its rate,
 decays it (``ω̇_k = −c_k ω_k``: the closed loop stopping a rotation), is pulled back to level
 (roll and pitch, the term ``attitude`` below: the attitude controller) or takes the torque model,
-a rung being taken only if it beats the one below on every held-out flight in every regime of
-calm to hard flight. It steps with a translational model in
+a rung being taken by :mod:`droneid.decide`'s calibrated rule over the (held-out flight, regime of
+calm to hard flight) cells. It steps with a translational model in
 :class:`droneid.openloop.IdentifiedVehicle`; :func:`droneid.vehicle_export.export_vehicle` writes it as
 Python or C. On the shared Crazyflie squares the torque model is the best pooled, but worse than
 the simpler rungs in their calm windows, and the choice refuses it; the spring it takes for roll
@@ -70,7 +70,7 @@ from .differentiation import get_differentiator
 from .errors import DataError
 from .frames import quat_to_euler, quat_to_matrix
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, IdentifiedVehicle, StateLog
-from .regression import robust_fit
+from .regression import robust_fit, robust_fit_grouped
 
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
            "fit_vehicle", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed",
@@ -369,39 +369,56 @@ def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyfli
             raise DataError("fit_rotation: no training row with every motor turning in flight")
         prior = np.concatenate(flying).mean(axis=0)
         shell = dataclasses.replace(shell, balance_weight_s=float(balance_weight_s), balance_prior=prior)
-    rows = []
-    for log in logs:
-        # rows at the step midpoints k + 1/2: the input u_k is held over [k, k+1]
-        m = _mid(flying_mask(log).astype(float)) == 1.0
-        s, rate = shell.conditioned(log.rpm, log.dt_s)
-        wd = _mid(derivative(log, slice(10, 13), window_s))
-        vb = _mid(body_velocity(log.state[:, 6:10], log.state[:, 3:6]))
-        att = _mid(shell.about_level(log.state[:, 6:10]))
-        rows.append((m, s[:-1], _mid(log.state[:, 10:13]), rate[:-1], wd, vb, att))
+    rows = [rotation_rows(log, shell, window_s) for log in logs]
     if not any(r[0].any() for r in rows):
         raise DataError("fit_rotation: no training row with every motor turning in flight")
     n_f = len(logs)
     coef, trims = [], np.zeros((n_f, 3))
+    groups = np.concatenate([np.full(int(r[0].sum()), j) for j, r in enumerate(rows)])
     for k in range(3):
-        A, y = [], []
-        for j, (m, s, w, sr, wd, vb, att) in enumerate(rows):
-            cols = _rotation_columns(k, P, s[m], w[m], sr[m], terms, vb[m], att[m])
-            onehot = np.zeros((int(m.sum()), n_f))
-            onehot[:, j] = 1.0
-            A.append(np.column_stack(cols + [onehot]))
-            y.append(wd[m, k])
-        A, y = np.vstack(A), np.concatenate(y)
-        nc = A.shape[1] - n_f
-        lo = np.full(A.shape[1], -np.inf)
-        lo[0] = 0.0                       # torque along the layout's pattern: positive scale
-        if "damping" in terms:
-            lo[1 + ("centre" in terms)] = 0.0   # damping never feeds energy in
-        if k < 2 and "attitude" in terms:
-            lo[nc - 1] = 0.0                    # the level attitude restores, never repels
-        beta = robust_fit(A, y, lo=lo).beta
+        A = np.vstack([rotation_design(k, P, terms, r) for r in rows])
+        y = np.concatenate([wd[m, k] for m, _, _, _, wd, _, _ in rows])
+        lo = rotation_bounds(k, terms, A.shape[1])
+        # one trim per flight: a free intercept per log (robust_fit_grouped: no one-hot columns)
+        beta = robust_fit_grouped(A, y, groups, lo=lo).beta
+        nc = A.shape[1]
         coef.append(beta[:nc])
-        trims[:, k] = beta[nc:]
+        present = np.unique(groups)
+        trims[present, k] = beta[nc:]
     return dataclasses.replace(shell, coef=tuple(coef), trim=trims.mean(axis=0), flight_trims=trims)
+
+
+def rotation_rows(log: StateLog, shell: RotationModel, window_s: float) -> tuple[np.ndarray, ...]:
+    """One log's rows of :func:`fit_rotation` with the input conditioning of ``shell``, at the step
+    midpoints k + 1/2 (the input u_k is held over [k, k+1]): ``(mask, s, ω, rotor speed rates,
+    ω̇, body velocity, roll and pitch about the level)``, the mask marking the rows in flight."""
+    m = _mid(flying_mask(log).astype(float)) == 1.0
+    s, rate = shell.conditioned(log.rpm, log.dt_s)
+    wd = _mid(derivative(log, slice(10, 13), window_s))
+    vb = _mid(body_velocity(log.state[:, 6:10], log.state[:, 3:6]))
+    att = _mid(shell.about_level(log.state[:, 6:10]))
+    return m, s[:-1], _mid(log.state[:, 10:13]), rate[:-1], wd, vb, att
+
+
+def rotation_design(k: int, P: np.ndarray, terms: tuple[str, ...], rows: tuple[np.ndarray, ...],
+                    s: np.ndarray | None = None) -> np.ndarray:
+    """Axis ``k``'s design matrix (rows in flight, columns of :meth:`RotationModel.columns`) from
+    :func:`rotation_rows`; ``s`` replaces the rows' conditioned inputs when given."""
+    m, s0, w, sr, _, vb, att = rows
+    s = s0 if s is None else s
+    return np.column_stack(_rotation_columns(k, P, s[m], w[m], sr[m], terms, vb[m], att[m]))
+
+
+def rotation_bounds(k: int, terms: tuple[str, ...], nc: int) -> np.ndarray:
+    """Lower bounds of axis ``k``'s ``nc`` coefficients: the torque along the layout's pattern is a
+    positive scale, damping never feeds energy in, the level attitude restores, never repels."""
+    lo = np.full(nc, -np.inf)
+    lo[0] = 0.0
+    if "damping" in terms:
+        lo[1 + ("centre" in terms)] = 0.0
+    if k < 2 and "attitude" in terms:
+        lo[nc - 1] = 0.0
+    return lo
 
 
 # -- translation ---------------------------------------------------------------------------------
@@ -527,14 +544,11 @@ def identify_layout(logs: Sequence[StateLog], *, window_s: float = 0.05,
         raise DataError("identify_layout: no training row with every motor turning in flight")
     M = rows[0][0].shape[1]
     coefs = np.zeros((3, M))
+    groups = np.concatenate([np.full(s.shape[0], j) for j, (s, _, _) in enumerate(rows)])
     for k in range(3):
-        A, y = [], []
-        for j, (s, w, wd) in enumerate(rows):
-            onehot = np.zeros((s.shape[0], len(rows)))
-            onehot[:, j] = 1.0
-            A.append(np.column_stack([s, -w[:, k], onehot]))
-            y.append(wd[:, k])
-        beta = robust_fit(np.vstack(A), np.concatenate(y)).beta
+        A = np.vstack([np.column_stack([s, -w[:, k]]) for s, w, _ in rows])
+        # a trim per log: free intercepts profiled out (robust_fit_grouped: no one-hot columns)
+        beta = robust_fit_grouped(A, np.concatenate([wd[:, k] for _, _, wd in rows]), groups).beta
         coefs[k] = beta[:M] - beta[:M].mean()
     return np.sign(coefs), coefs
 

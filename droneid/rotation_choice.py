@@ -16,9 +16,11 @@ from priors.torque import RotorLayout, get_layout
 from .errors import ConfigError, DataError
 from .openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedVehicle, StateLog, rollout, window_errors
 from .regression import robust_fit
-from .rotation import (RotationModel, segment_bounds, body_velocity, fit_rotation, fit_translation_rows,
+from .rotation import (RotationModel, segment_bounds, body_velocity, fit_rotation,
                        flying_mask, flying_segments, tilt, translation_rows)
-from .rotation_decay import DAMPING_GRID, damping_interval, fit_damping, regime_of
+from .rotation_decay import DAMPING_GRID, damping_folds, damping_interval, fit_damping, regime_of
+from .rotation_folds import downdatable, rotation_folds, translation_folds
+from .rotation_ladder import AXES as _AXES, climb
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "RUNGS", "VEHICLE_RUNGS",
            "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID", "DEFAULT_CANDIDATES",
@@ -148,7 +150,6 @@ RUNGS = ("held", "damping", "attitude", "torque")
 VEHICLE_RUNGS = ("held", "damping", "torque")
 #: attitude stiffness values (1/s²) tried by :func:`fit_attitude`
 STIFFNESS_GRID = (0.0, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
-_AXES = ("roll", "pitch", "yaw")
 _CHUNK = 8192   # windows simulated at once
 
 
@@ -166,8 +167,10 @@ class RotationChoice:
     rotational target's verdict); ``held``: the same for the rates held (ω̇ = 0, the benchmark's
     Physics row, each target's baseline); ``chosen``: index into ``table`` of the per-axis row
     (``None`` when every axis is held). ``axis_choice``: per axis (roll, pitch, yaw) one of
-    :data:`RUNGS`; ``ladder``: per axis the decisions, each rung's wins per held-out flight and
-    regime against the rung below, and the test's level (:func:`select_rotation`).
+    :data:`RUNGS`; ``ladder``: per axis its steps (:func:`select_rotation`): each rung against the
+    rung below, its wins per held-out flight and regime, its error ratio per regime, the cells,
+    the rule's p, Holm threshold, effect (% lower pooled SimErr) and evidence line, and whether it
+    was taken; with the test's ``alpha``, ``family_size`` and ``min_effect_pct``.
     """
     model: RotationModel | None
     table: tuple[dict, ...]
@@ -307,7 +310,8 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
                     candidates: Sequence[dict] = DEFAULT_CANDIDATES, translation_delay_steps: int = 3,
                     stride: int = 20, window_s: float = 0.05,
                     rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM, regimes: int = 4,
-                    alpha: float = 0.05, damping_grid: Sequence[float] = DAMPING_GRID,
+                    alpha: float = 0.01, min_effect_pct: float = 1.0,
+                    damping_grid: Sequence[float] = DAMPING_GRID,
                     rungs: Sequence[str] = VEHICLE_RUNGS) -> RotationChoice:
     """Choose the rotational model per body axis by blocked validation on TRAINING flights only.
 
@@ -322,25 +326,25 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     Each axis then climbs the ladder ``rungs`` (a subsequence of :data:`RUNGS` starting at
     ``held``; default :data:`VEHICLE_RUNGS`): ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k) →
     [``attitude``, opt-in: roll and pitch only: −c_k ω_k − κ_k (θ_k − θ0_k), the controller
-    holding the vehicle level] → ``torque``, one rung at a time. A rung is taken only if it beats the axis's
-    current rung on EVERY held-out flight in EVERY regime: the validation windows are split into
-    ``regimes`` classes by how far the held rate drifts in them (quantiles of the held body-rate
-    error of the axis, so calm stretches, ordinary flight and hard manoeuvres each count on their
-    own), and per flight and regime the mean body-rate error of the axis is compared. The pooled
-    SimErr alone is ruled by the few windows where the rates change most (the squares' corners:
-    the top quarter of the held error is ~4× its median), and a model that wins there and loses
-    in calm flight does not transfer to flights that are mostly calm.
+    holding the vehicle level] → ``torque``, one rung at a time, each rung tested against the rung
+    directly below it. The validation windows of an axis are split into ``regimes`` classes by how
+    far the held rate drifts in them (quantiles of the held body-rate error of the axis, so calm
+    stretches, ordinary flight and hard manoeuvres each count on their own); every (held-out
+    flight, regime) cell with at least 3 windows is one unit, its figure the axis's mean body-rate
+    SimErr there. The pooled SimErr alone is ruled by the few windows where the rates change
+    most (the squares' corners: the top quarter of the held error is ~4× its median), and a model
+    that wins there and loses in calm flight does not transfer to flights that are mostly calm.
 
-    As a test: if in some regime the two rungs were exchangeable between flights, winning on all
-    ``F`` held-out flights has probability ``2^−F``, and requiring it in every regime keeps that
-    level (an intersection-union test; nominal, as the folds share training flights). A rung is
-    taken only when ``2^−F ≤ alpha`` (so with ``alpha = 0.05`` at least five training flights);
-    regime-flight cells with fewer than 3 windows are left out, and ``F`` is then the fewest
-    flights counted in a regime.
+    The decision is :mod:`droneid.decide`'s one calibrated rule (:func:`droneid.decide.decide_units`):
+    ``d = ln(SimErr without / SimErr with)`` per cell, the one-sided sign-flip test over the cells,
+    Holm's step-down at ``alpha`` over every step of every axis (3 axes × 2 rungs by default), and
+    the pooled SimErr of the axis lower by at least ``min_effect_pct`` %. A rung is taken when its
+    step is accepted and the axis took every rung below it. More training flights give more
+    cells, so more power: 2 flights (8 cells, p ≥ 2^−8) cannot pass α/6 = 0.0017; 3 can.
 
     The chosen rungs are refitted on every training flight and combined by
     :func:`per_axis_model`; the per-axis model's own validation (its folds combined alike) is
-    the last row of the table. ConfigError for ``regimes`` < 1 or ``alpha`` outside (0, 1].
+    the last row of the table. ConfigError for ``regimes`` < 1 or ``alpha`` outside (0, 1).
     """
     names = list(dict.fromkeys(log.name for log in logs))
     if len(names) < 2:
@@ -349,8 +353,8 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
         raise DataError("select_rotation: no candidate settings")
     if int(regimes) != regimes or regimes < 1:
         raise ConfigError(f"The 'regimes' parameter of select_rotation must be a positive integer. Got {regimes!r} instead.")
-    if not 0.0 < alpha <= 1.0:
-        raise ConfigError(f"The 'alpha' parameter of select_rotation must be in (0, 1]. Got {alpha!r} instead.")
+    if not 0.0 < alpha < 1.0:
+        raise ConfigError(f"The 'alpha' parameter of select_rotation must be in (0, 1). Got {alpha!r} instead.")
     regimes = int(regimes)
     rungs = tuple(rungs)
     if not rungs or rungs[0] != "held" or any(r not in RUNGS for r in rungs) \
@@ -361,15 +365,20 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     layout = get_layout(layout) if isinstance(layout, str) else layout
     tkw = {"delay_steps": translation_delay_steps, "rad_s_per_rpm": rad_s_per_rpm}
     trows = [translation_rows(log, window_s=window_s, **tkw) for log in logs]   # once per log
+    # the leave-one-flight-out fits from sums over the flights computed once (droneid.rotation_folds)
+    trs = translation_folds(trows, [log.name for log in logs], **tkw)
+    decays = damping_folds(logs, grid=damping_grid, regimes=regimes)
+    shared = [rotation_folds(logs, layout, cand, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm)
+              if downdatable(cand) else None for cand in candidates]
     folds = []   # per held-out flight: name, test segments, translation, damping c, torque fits, errors
     for name in names:
         train = [log for log in logs if log.name != name]
         test = [seg for log in logs if log.name == name for seg in flying_segments(log)]
         if not test or not _windows_in(test, stride):
             continue
-        tr = fit_translation_rows([r for r, log in zip(trows, logs) if log.name != name], **tkw)
-        c = fit_damping(train, grid=damping_grid, regimes=regimes)
-        torques = [_fit_candidate(train, layout, cand, window_s, rad_s_per_rpm) for cand in candidates]
+        tr, c = trs[name], decays[name]
+        torques = [sh[name] if sh is not None else _fit_candidate(train, layout, cand, window_s, rad_s_per_rpm)
+                   for sh, cand in zip(shared, candidates)]
         errs = {"held": _window_errors(IdentifiedVehicle(tr, HeldRates()), test, stride),
                 "damping": _window_errors(IdentifiedVehicle(tr, _damping_model(layout, c, rad_s_per_rpm)), test, stride)}
         spring = None
@@ -399,13 +408,10 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     best = min(range(len(candidates)), key=lambda i: (cand_rows[i]["rates_simerr"], cand_rows[i]["attitude_simerr"]))
     for f in folds:
         f["errs"]["torque"] = f["errs"][best]
-    ladder_rungs, rungs, ladder = rungs, [], []
-    level = 0.5 ** len(folds)
-    for k in range(3):
-        rung, steps = _climb(folds, k, regimes, level, alpha, ladder_rungs)
-        rungs.append(rung)
-        ladder.append({"axis": _AXES[k], "choice": rung, "level": level, "alpha": float(alpha), "regimes": int(regimes),
-                       "flights": [f["name"] for f in folds], "steps": steps})
+    rungs, steps, family = climb(folds, rungs, regimes, alpha, min_effect_pct)
+    ladder = [{"axis": _AXES[k], "choice": rungs[k], "alpha": float(alpha), "family_size": family,
+               "min_effect_pct": float(min_effect_pct), "regimes": int(regimes),
+               "flights": [f["name"] for f in folds], "steps": steps[k]} for k in range(3)]
     table = tuple(cand_rows) + (damp_row, *att_rows)
     if all(r == "held" for r in rungs):
         return RotationChoice(None, table, held_row, None, tuple(rungs), tuple(ladder))
@@ -419,40 +425,6 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     model = per_axis_model(rungs, fit_damping(logs, grid=damping_grid, regimes=regimes), torque, layout,
                            rad_s_per_rpm, spring)
     return RotationChoice(model, table + (mixed_row,), held_row, len(table), tuple(rungs), tuple(ladder))
-
-
-def _climb(folds: list[dict], k: int, regimes: int, level: float, alpha: float, rungs: Sequence[str] = RUNGS,
-           min_windows: int = 3) -> tuple[str, list[dict]]:
-    """Axis ``k``'s ladder (:func:`select_rotation`): (the rung taken, one record per step: the
-    rung, the rung it is tested against, ``wins`` per held-out flight and regime (None: too few
-    windows), ``ratio`` per regime of its mean error to the other's pooled over the flights,
-    calmest regime first, the test's ``level`` (2^-F with F the fewest flights counted in a
-    regime) and whether it was taken)."""
-    held = np.concatenate([f["errs"]["held"]["axis"][:, k] for f in folds])
-    current, steps = "held", []
-    for rung in rungs[1:]:
-        if rung == "attitude" and k == 2:
-            continue            # no level to return to in yaw
-        wins = []
-        for f in folds:
-            cls = regime_of(f["errs"]["held"]["axis"][:, k], regimes, held)
-            new, old = f["errs"][rung]["axis"][:, k], f["errs"][current]["axis"][:, k]
-            wins.append([None if (cls == q).sum() < min_windows else bool(new[cls == q].mean() < old[cls == q].mean())
-                         for q in range(regimes)])
-        cells = [w for row in wins for w in row if w is not None]
-        # the sign test's level: in each regime, 2^-(flights with enough windows there)
-        step_level = max(0.5 ** sum(row[q] is not None for row in wins) for q in range(regimes))
-        taken = bool(cells) and all(cells) and max(level, step_level) <= alpha
-        cls = regime_of(held, regimes)
-        new = np.concatenate([f["errs"][rung]["axis"][:, k] for f in folds])
-        old = np.concatenate([f["errs"][current]["axis"][:, k] for f in folds])
-        ratio = [float(new[cls == q].mean() / old[cls == q].mean()) if (cls == q).any() and old[cls == q].mean() > 0
-                 else None for q in range(regimes)]
-        steps.append({"rung": rung, "against": current, "wins": wins, "ratio": ratio,
-                      "level": max(level, step_level), "taken": taken})
-        if taken:
-            current = rung
-    return current, steps
 
 
 def _windows_in(logs: Sequence[StateLog], stride: int, H: int = 50) -> int:

@@ -15,7 +15,7 @@ from .regression import N_BOOT
 from .rotation import segment_bounds
 from .validation import time_blocks
 
-__all__ = ["DAMPING_GRID", "fit_damping", "damping_interval", "regime_of"]
+__all__ = ["DAMPING_GRID", "fit_damping", "damping_folds", "damping_interval", "regime_of"]
 
 #: rate decays (1/s) tried by :func:`fit_damping` and by
 #: :func:`droneid.rotation_choice.fit_rotation_multistep`
@@ -33,6 +33,22 @@ def fit_damping(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRI
     rungs by: a decay fitted to the pooled error follows the hard manoeuvres alone. Returns (3,)."""
     err, _, _ = _decay_errors(logs, grid, horizon, stride)
     return np.asarray(grid, float)[_best_decay(err, regimes)]
+
+
+def damping_folds(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRID, horizon: int = 50,
+                  stride: int = 5, regimes: int = 4) -> dict[str, np.ndarray]:
+    """{flight name: :func:`fit_damping` on every other flight (logs of one name are one flight)}:
+    the windows' errors are computed once and each fold chooses on the other flights' windows (the
+    same windows in the same order as a fit on those flights alone: the same decays)."""
+    err, _, flight = _decay_errors(logs, grid, horizon, stride)
+    names = list(dict.fromkeys(log.name for log in logs))
+    g = np.asarray(grid, float)
+    out = {}
+    for j, name in enumerate(names):
+        if not np.any(flight != j):
+            raise DataError(f"fit_damping: no flight segment longer than {int(horizon)} steps besides {name}")
+        out[name] = g[_best_decay(err[:, flight != j], regimes)]
+    return out
 
 
 def damping_interval(logs: Sequence[StateLog], *, grid: Sequence[float] = DAMPING_GRID, horizon: int = 50,

@@ -241,16 +241,21 @@ def _axes(record: Mapping, val_model: Sequence[float], test_held: Sequence[float
 
 
 def _why_held(ladder: Mapping) -> str:
-    """Why an axis could not leave ``held`` whatever the data said: the sign test's level with
-    this few held-out flights is above alpha (one rung must win on every flight: 2^-F <= alpha);
-    "" when the test could have passed."""
+    """Why an axis could not leave ``held`` whatever the data said: too few (held-out flight,
+    regime) cells for any step to reach the first threshold of Holm's order, ``alpha /
+    family_size`` (a sign-flip p over B cells is at least 2^-B); "" when some step could have
+    passed."""
     steps = ladder.get("steps") or ()
-    alpha = float(ladder.get("alpha", 0.05))
-    if not steps or any(st["level"] <= alpha for st in steps):
+    alpha = float(ladder.get("alpha", 0.01))
+    family = int(ladder.get("family_size", 1))
+    first = alpha / family
+    if not steps or any(2.0 ** -int(st.get("cells", 0)) < first for st in steps):
         return ""
-    need = math.ceil(math.log2(1.0 / alpha))
+    need = math.floor(math.log2(1.0 / first)) + 1
+    most = max(int(st.get("cells", 0)) for st in steps)
     return (f"with {len(ladder.get('flights') or ())} held-out training flight(s) no rung can pass the test "
-            f"(a rung must win on every flight, and 2^-F <= α = {alpha:g} needs at least {need})")
+            f"({most} flight-regime cells: a sign-flip p is at least 2^-{most}, and the first step of Holm's "
+            f"order needs p < α/{family} = {first:.2g}, so at least {need} cells)")
 
 
 def _axis_simerr(model, logs: Sequence[StateLog]) -> list[float]:

@@ -202,8 +202,8 @@ def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test
     not pass at all), so there is nothing to compare. The model keeps the rung whatever the test
     flights say (they never choose); the verdict says how far to trust it."""
     if rung == "held":
-        why = why_held or (f"no rotational term beat holding this body rate on every held-out training flight "
-                           f"(validation SimErr {val_held:.3g} rad/s held)")
+        why = why_held or (f"no rotational term beat holding this body rate consistently over the held-out "
+                           f"training flights' (flight, regime) cells (validation SimErr {val_held:.3g} rad/s held)")
         return Verdict("no better", f"{target}: {why}: the rate is held")
     what = _RUNG_WORDS.get(rung, rung)
     vgain = improvement_pct(val_held, val_model)

@@ -320,8 +320,8 @@ def test_identify_folds_the_effect_the_diagnosis_finds(planted):
 
 def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_do():
     """Two simulated training flights with the full state and motor speeds: the rotational job
-    runs in the batch, and with two flights no rung can reach the test's level (2^-2 > 0.05), so
-    every axis holds its rate and says so. A log without motor speeds gets a note, not a failure."""
+    runs in the batch, and with two flights no rung can reach the test's first Holm threshold
+    (8 flight-regime cells: p >= 2^-8 > 0.01/6), so every axis holds its rate and says so. A log without motor speeds gets a note, not a failure."""
     from droneid.identify import IdentifyConfig, identify
     from droneid.simulate import simulate
     cfg = IdentifyConfig.make(runs=1, generations=100, population_size=60, jobs=1, seed=1)
@@ -332,7 +332,8 @@ def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_d
     assert all(a.rung == "held" and a.verdict_kind == "no better" for a in rot.axes)
     assert all("with 2 held-out training flight(s) no rung can pass the test" in a.verdict for a in rot.axes)
     assert rot.model is None and rot.dt_s > 0
-    assert all(step["level"] == 0.25 for step in rot.choice["ladder"])
+    assert all(ax["family_size"] == 6 and ax["alpha"] == 0.01 for ax in rot.choice["ladder"])
+    assert all(st["cells"] <= 8 and not st["taken"] for ax in rot.choice["ladder"] for st in ax["steps"])
     back = type(res).from_dict(res.to_dict()).rotation
     assert back.to_dict() == rot.to_dict()
     no_rpm = [f.without("rpm1", "rpm2", "rpm3", "rpm4") for f in train]

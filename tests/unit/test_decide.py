@@ -173,3 +173,31 @@ def test_a_pooled_fall_that_most_blocks_contradict_says_so():
     assert "pooled over the rows; the typical block gets worse" in d.evidence
     ok = decide(e0, 0.8 * e0, b, alpha=0.01)
     assert "pooled over the rows" not in ok.evidence
+
+
+def test_decide_units_on_simulation_errors_pools_the_error_itself():
+    """Per-unit SimErr (not squared residuals): the effect is the drop of the window-weighted mean
+    SimErr, the units are cells, and the test is the same sign-flip test on the log ratios."""
+    from droneid.decide import decide_units
+    m0 = np.array([10.0, 20.0, 40.0, 80.0] * 4)
+    m1 = 0.5 * m0
+    d = decide_units(m0, m1, np.full(16, 30), alpha=0.01, family_size=6, loss="simerr", what="roll damping")
+    assert d.accepted and d.effect_pct == pytest.approx(50.0) and d.rmse_without == pytest.approx(37.5)
+    assert d.p_value == pytest.approx(1 / (1 + 50_000)) and d.n_blocks == 16
+    assert "SimErr 37.5 -> 18.75" in d.evidence and "16/16 cells better" in d.evidence
+    # the same figures read as mean squared errors: the effect is on their root
+    assert decide_units(m0, m1, np.full(16, 30), loss="mse").effect_pct == pytest.approx(100 * (1 - 0.5 ** 0.5))
+    with pytest.raises(ConfigError, match="'loss' parameter"):
+        decide_units(m0, m1, loss="mae")
+    with pytest.raises(ConfigError, match="at least 3 validation cells"):
+        decide_units(m0[:2], m1[:2], loss="simerr")
+
+
+def test_holm_step_down_is_the_family_rule_over_any_decisions():
+    from droneid.decide import decide_units, holm_step_down
+    base = np.array([1.0, 2.0, 3.0, 4.0] * 3)
+    gains = {"a": 0.5, "b": 0.9, "c": 1.0}          # consistent, consistent, none
+    out = holm_step_down(lambda n, k: decide_units(base, gains[n] * base, alpha=0.01, family_size=3, rank=k,
+                                                   loss="simerr"), list(gains))
+    assert [out[n].accepted for n in "abc"] == [True, True, False]
+    assert sorted(out[n].rank for n in "abc") == [1, 2, 3]

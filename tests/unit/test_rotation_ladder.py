@@ -1,6 +1,7 @@
-"""The per-axis ladder of droneid.rotation_choice (issue 28): the rate decay fitted by its worst
-regime, the decision rule (a rung is taken only if it beats the rung below on every held-out
-flight in every regime, at the sign test's level), and the per-axis model it builds."""
+"""The per-axis ladder of droneid.rotation_choice (issues 28, 37.2): the rate decay fitted by its
+worst regime, the decision rule (droneid.decide's: (held-out flight, regime) cells as units, log
+ratios of their SimErr, the one-sided sign-flip test, Holm over every axis-rung step, a minimum
+effect), and the per-axis model it builds."""
 from __future__ import annotations
 
 import json
@@ -12,7 +13,8 @@ from droneid.errors import DataError
 from droneid.openloop import StateLog
 from droneid.rotation import RotationModel, fit_rotation, tilt
 from droneid.errors import ConfigError
-from droneid.rotation_choice import _climb, fit_attitude, per_axis_model
+from droneid.rotation_choice import RUNGS, VEHICLE_RUNGS, fit_attitude, per_axis_model
+from droneid.rotation_ladder import climb as _climb_all
 from droneid.rotation_decay import damping_interval, fit_damping
 from priors.torque import get_layout
 
@@ -80,41 +82,75 @@ def test_the_decay_interval_covers_what_the_fit_converges_to_and_is_not_vacuous(
     assert informative >= 7
 
 
-def _folds(new_by_regime, n_flights=5, n=400, seed=0):
-    """Hand-built validation errors of one axis: held errors spread over four decades (calm to
-    manoeuvre), a rung whose error is the held one times ``new_by_regime[q]`` in regime ``q``, and
-    the attitude and torque rungs 3x and 2x worse than held everywhere."""
+def _folds(new_by_regime, n_flights=5, n=400, seed=0, torque=2.0):
+    """Hand-built validation errors of one axis (the same on all three): held errors spread over
+    four decades (calm to manoeuvre), a decay rung whose error is the held one times
+    ``new_by_regime[q]`` in regime ``q`` (a (flight count, regimes) array: per flight), the
+    attitude rung 3x worse than held everywhere and the torque rung ``torque`` x held."""
     rng = np.random.default_rng(seed)
+    factor = np.broadcast_to(np.asarray(new_by_regime, float), (n_flights, 4))
     folds = []
     for j in range(n_flights):
         held = np.exp(rng.uniform(np.log(0.1), np.log(100.0), n))
         q = np.digitize(held, np.quantile(held, [0.25, 0.5, 0.75]))
-        new = held * np.asarray(new_by_regime)[q]
+        new = held * factor[j][q]
         axis = lambda e: {"axis": np.column_stack([e, e, e])}   # noqa: E731 - same on every axis
         folds.append({"name": f"f{j}", "errs": {"held": axis(held), "damping": axis(new), "attitude": axis(held * 3.0),
-                                                 "torque": axis(held * 2.0)}})
+                                                 "torque": axis(held * torque)}})
     return folds
 
 
-def test_a_rung_that_wins_pooled_but_loses_in_calm_flight_is_not_taken():
-    # 3x worse in the calmest quarter, 5x better in the hardest: far better pooled
-    folds = _folds([3.0, 0.9, 0.8, 0.2])
+def _climb(folds, rungs=VEHICLE_RUNGS, alpha=0.01, min_effect_pct=1.0):
+    """Roll's rung and steps of :func:`_climb_all`, and the family size."""
+    choice, steps, m = _climb_all(folds, rungs, 4, alpha, min_effect_pct)
+    return choice[0], steps[0], m
+
+
+def test_a_rung_that_wins_pooled_but_loses_more_than_it_wins_cell_by_cell_is_not_taken():
+    # 3x worse in the calmest quarter, 2x better in the hardest: far better pooled (the hard
+    # windows' errors are 100x the calm ones'), but the cells' log ratios sum below zero
+    folds = _folds([3.0, 1.5, 0.9, 0.5])
     pooled = sum(f["errs"]["damping"]["axis"][:, 0].sum() for f in folds) / sum(f["errs"]["held"]["axis"][:, 0].sum() for f in folds)
-    assert pooled < 0.5
-    rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
+    assert pooled < 0.7
+    rung, steps, _ = _climb(folds)
     assert rung == "held"
-    assert steps[0]["wins"][0] == [False, True, True, True] and not steps[0]["taken"]
+    assert steps[0]["wins"][0] == [False, False, True, True] and not steps[0]["taken"]
+    assert steps[0]["p_value"] > 0.5 and steps[0]["effect_pct"] > 30      # big pooled effect, no consistency
 
 
-def test_a_rung_that_wins_everywhere_is_taken_only_at_a_level_the_flights_can_reach():
+def test_a_rung_that_wins_everywhere_is_taken_under_holm_and_the_rung_above_is_tested_against_it():
     folds = _folds([0.9, 0.9, 0.8, 0.5])
-    rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
-    assert rung == "damping" and steps[0]["taken"]
+    rung, steps, m = _climb(folds, RUNGS)
+    assert m == 8          # roll and pitch: decay, attitude, torque; yaw: decay, torque
+    assert rung == "damping" and steps[0]["taken"] and steps[0]["cells"] == 20
+    assert steps[0]["p_value"] < steps[0]["threshold"] <= 0.01
     assert [(st["rung"], st["against"], st["taken"]) for st in steps] == [
         ("damping", "held", True), ("attitude", "damping", False), ("torque", "damping", False)]   # 3x, 2x worse
-    four = folds[:4]   # 1/16 > 0.05: four flights cannot establish it
-    assert _climb(four, 0, 4, 0.5 ** 4, 0.05)[0] == "held"
-    assert _climb(four, 0, 4, 0.5 ** 4, 0.1)[0] == "damping"
+    # a rung not taken leaves the next to be tested against the rung the axis stands on
+    better_torque = _folds([1.0, 1.0, 1.0, 1.0], torque=0.5)
+    rung, steps, _ = _climb(better_torque)
+    assert rung == "torque" and [(st["rung"], st["against"], st["taken"]) for st in steps] == [
+        ("damping", "held", False), ("torque", "held", True)]
+
+
+def test_more_flights_never_make_the_ladder_weaker():
+    """The rule that needed every cell won held the decay on 12 flights that lose a few of 48 cells;
+    the sign-flip test over the cells takes it, and with the same flights repeated takes it too.
+    Two flights (8 cells, p >= 2^-8) cannot reach alpha / 6; three can."""
+    factor = np.tile([0.8, 0.8, 0.7, 0.6], (12, 1))
+    factor[[1, 4, 7, 10], 0] = 1.05                     # 4 of 48 cells a little worse
+    rung, steps, _ = _climb(_folds(factor, n_flights=12))
+    assert rung == "damping" and sum(not w for row in steps[0]["wins"] for w in row) >= 3   # cells cut at pooled quartiles
+    assert _climb(_folds(np.tile(factor, (2, 1)), n_flights=24))[0] == "damping"
+    two, three = _climb(_folds([0.8, 0.8, 0.7, 0.6], n_flights=2)), _climb(_folds([0.8, 0.8, 0.7, 0.6], n_flights=3))
+    assert two[0] == "held" and two[1][0]["p_value"] == pytest.approx(2.0 ** -8) and two[1][0]["cells"] == 8
+    assert three[0] == "damping" and three[1][0]["p_value"] == pytest.approx(2.0 ** -12)
+
+
+def test_a_consistent_but_negligible_gain_is_not_taken():
+    rung, steps, _ = _climb(_folds([0.998, 0.998, 0.998, 0.998]))
+    assert rung == "held" and steps[0]["p_value"] < 1e-3 and 0 < steps[0]["effect_pct"] < 1.0
+    assert any("SimErr falls by 0.20 %" in steps[0]["evidence"] for _ in (0,))
 
 
 def test_per_axis_model_holds_damps_or_keeps_the_torque_per_axis():
@@ -142,19 +178,18 @@ def test_per_axis_model_holds_damps_or_keeps_the_torque_per_axis():
         per_axis_model(("torque", "held", "held"), [1.0] * 3, None, LAYOUT, 1.0)
 
 
-def test_a_regime_seen_on_too_few_flights_cannot_establish_a_rung():
-    """Two of five flights have no calm windows: the calm regime is judged on three flights only
-    (level 1/8 > 0.05), so even a rung that wins every cell there is not taken."""
+def test_a_cell_with_too_few_windows_is_no_unit():
+    """Two of five flights have hard windows only: their three calmer cells are left out (14
+    cells, not 20), and the rest still decide."""
     folds = _folds([0.9, 0.9, 0.8, 0.5])
     for f in folds[:2]:
         e = f["errs"]
         keep = e["held"]["axis"][:, 0] > 50.0          # the hard windows only
         for name in e:
             e[name] = {"axis": e[name]["axis"][keep]}
-    rung, steps = _climb(folds, 0, 4, 0.5 ** 5, 0.05)
-    assert steps[0]["wins"][0][0] is None and all(c for row in steps[0]["wins"] for c in row if c is not None)
-    assert steps[0]["level"] == 0.125 and rung == "held"
-    assert _climb(folds, 0, 4, 0.5 ** 5, 0.125)[0] == "damping"
+    rung, steps, _ = _climb(folds)
+    assert steps[0]["wins"][0][:3] == [None] * 3 and all(c for row in steps[0]["wins"] for c in row if c is not None)
+    assert steps[0]["cells"] == 14 and rung == "damping"
 
 
 def test_select_rotation_rejects_a_bad_regime_count_or_level():
@@ -163,8 +198,9 @@ def test_select_rotation_rejects_a_bad_regime_count_or_level():
     logs = [_decaying_flight(1, [4.0] * 3, n=300, name="a"), _decaying_flight(2, [4.0] * 3, n=300, name="b")]
     with pytest.raises(ConfigError, match="'regimes' parameter"):
         select_rotation(logs, regimes=0)
-    with pytest.raises(ConfigError, match="'alpha' parameter"):
-        select_rotation(logs, alpha=0.0)
+    for alpha in (0.0, 1.0):
+        with pytest.raises(ConfigError, match="'alpha' parameter"):
+            select_rotation(logs, alpha=alpha)
     for rungs in (("damping",), ("held", "torque", "damping"), ("held", "spring")):
         with pytest.raises(ConfigError, match="'rungs' parameter"):
             select_rotation(logs, rungs=rungs)

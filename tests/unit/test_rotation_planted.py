@@ -100,12 +100,12 @@ def test_a_new_flights_balance_point_is_found_from_its_own_motor_speeds(drag_fli
 
 @pytest.mark.slow   # shares a ~10 s simulated-flight fixture
 def test_selection_keeps_the_planted_structure(drag_flights):
-    """Three training flights: winning on all three held-out flights has probability 1/8 under
-    exchangeable rungs, so the test is run at that level; every axis climbs to the planted torque
-    model, which beats the rung below on every flight in every regime."""
+    """Three training flights, 12 (flight, regime) cells per step: enough for the sign-flip test to
+    pass Holm's thresholds at α = 0.01 (p ≥ 2^-12 against 0.01/6 for the first); every axis
+    climbs to the planted torque model, which beats the decay below it in every cell."""
     cands = [{"terms": ("damping",), "balance_weight_s": 1.0},
              {"terms": DRAG_TERMS, "balance_weight_s": 1.0}]
-    choice = select_rotation(drag_flights, candidates=cands, translation_delay_steps=0, stride=10, alpha=0.125)
+    choice = select_rotation(drag_flights, candidates=cands, translation_delay_steps=0, stride=10)
     assert choice.axis_choice == ("torque", "torque", "torque") and choice.beats_held
     assert choice.table[1]["rates_simerr"] < choice.table[0]["rates_simerr"] < choice.held["rates_simerr"]
     row = choice.table[choice.chosen]
@@ -119,11 +119,13 @@ def test_selection_keeps_the_planted_structure(drag_flights):
     import json
     back = json.loads(json.dumps(choice.to_dict()))
     assert back["axis_choice"] == ["torque"] * 3 and back["chosen"] == choice.chosen
-    assert back["ladder"][0]["steps"][-1]["taken"] and len(back["ladder"][0]["steps"][-1]["ratio"]) == 4
-    # at the default level (0.05) three flights cannot establish any rung: every rate is held
-    strict = select_rotation(drag_flights, candidates=cands[1:], translation_delay_steps=0, stride=10)
-    assert strict.model is None and strict.axis_choice == ("held", "held", "held")
-    assert strict.ladder[0]["level"] == 0.125 and not strict.ladder[0]["steps"][-1]["taken"]
+    top = back["ladder"][0]["steps"][-1]
+    assert top["taken"] and len(top["ratio"]) == 4 and top["cells"] == 12
+    assert top["p_value"] < top["threshold"] and back["ladder"][0]["family_size"] == 6
+    # two of the flights: 8 cells cannot reach 0.01/6 (p ≥ 2^-8), so every rate is held
+    two = select_rotation(drag_flights[:2], candidates=cands[1:], translation_delay_steps=0, stride=10)
+    assert two.model is None and two.axis_choice == ("held", "held", "held")
+    assert all(st["p_value"] >= 2.0 ** -8 and not st["taken"] for st in two.ladder[0]["steps"])
 
 
 def test_selection_holds_the_rates_when_no_model_beats_holding_them():

@@ -52,7 +52,7 @@ def test_the_test_flights_never_reach_the_choice(monkeypatch):
     def fake_select(logs, layout, **kw):
         seen.extend(log.name for log in logs)
         held = {"rates_simerr": 3.0, "attitude_simerr": 1.0, "rates_axis_simerr": [1.0, 1.0, 1.0]}
-        ladder = tuple({"axis": ax, "choice": "held", "level": 0.25, "alpha": 0.05, "regimes": 4,
+        ladder = tuple({"axis": ax, "choice": "held", "alpha": 0.01, "family_size": 6, "regimes": 4,
                         "flights": ["train1", "train2"], "steps": []} for ax in ("roll", "pitch", "yaw"))
         return RotationChoice(None, (), held, None, ("held",) * 3, ladder)
 
