@@ -33,7 +33,7 @@ def read_log(path, **options) -> Flight:
     seconds), the format detected from the file. ``options``: ``format``, ``topics`` (MCAP role ->
     topic), ``body`` (Motive), ``column_map`` (CSV canonical name -> column), ``sysid`` (MAVLink),
     ``vehicle``, and the log's own convention when it is not droneid's: ``world_frame="ned"``,
-    ``body_frame="frd"``, ``time_unit="ms"``, ``scale={"vx": "1/3.6"}`` (see
+    ``body_frame="frd"``, ``time_unit="ms"``, ``scales={"vx": "1/3.6"}`` (see
     :func:`parsers.read_flight`; :func:`droneid.consistency.check_flight` says which a log needs)."""
     return read_flight(path, **options)
 

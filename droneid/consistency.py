@@ -141,12 +141,22 @@ class Consistency:
 
 # -- grids and relations --------------------------------------------------------------------------
 def _step(flight: Flight, names) -> float:
-    return max(float(np.median(np.diff(flight[n].t))) for n in names)
+    """The coarsest median sample step (s) of ``names``; NaN when a signal has fewer than 2
+    samples or no positive step (a damaged log: the checks that need it skip)."""
+    steps = []
+    for n in names:
+        d = np.diff(flight[n].t)
+        d = d[np.isfinite(d) & (d > 0)]
+        steps.append(float(np.median(d)) if d.size else math.nan)
+    return max(steps) if steps and all(math.isfinite(x) for x in steps) else math.nan
 
 
 def _grids(flight: Flight, names, h: float, k: int) -> list[np.ndarray]:
     """Uniform grids of step ``h`` over where every signal of ``names`` has data (its bursts),
-    each long enough for a smoothing window of ``k`` samples and a derivative."""
+    each long enough for a smoothing window of ``k`` samples and a derivative (none when the step
+    is not a positive number: a damaged log)."""
+    if not (math.isfinite(h) and h > 0):
+        return []
     ivs = [(flight.start_s, flight.end_s)]
     for n in names:
         ivs = _intersect(ivs, flight[n].bursts(max_gap_s=max(0.5, 3 * h)))
@@ -164,7 +174,8 @@ def _smooth(x: np.ndarray, k: int) -> np.ndarray:
 
 
 def _window(h: float, seconds: float) -> int:
-    return max(3, int(round(seconds / h)))     # samples of a moving average of ``seconds``
+    """Samples of a moving average of ``seconds`` at step ``h`` (at least 3)."""
+    return max(3, int(round(seconds / h))) if math.isfinite(h) and h > 0 else 3
 
 
 def _on_grid(flight, name, t, angle=False):
@@ -237,6 +248,8 @@ def _velocity_position(flight: Flight):
         return Check(name, "skipped", why), {}
     names = [n for pv in axes for n in pv]
     h = _step(flight, names)
+    if not math.isfinite(h):
+        return Check(name, "skipped", "fewer than 2 time-ordered samples"), {}
     k = _window(h, SMOOTH_S)
     cols = {n: [] for n in names}
     dcols = {p: [] for p, _ in axes}
@@ -268,6 +281,8 @@ def _rates_attitude(flight: Flight):
     if not flight.has(*need):
         return Check("body rates vs attitude", "skipped", "no body rates and attitude"), {}
     h = _step(flight, need)
+    if not math.isfinite(h):
+        return Check("body rates vs attitude", "skipped", "fewer than 2 time-ordered samples"), {}
     k = _window(h, SMOOTH_S)
     meas, ref = [], []
     for t in _grids(flight, need, h, k):
@@ -290,6 +305,8 @@ def _horizontal(flight: Flight):
     if not flight.has(*need):
         return Check(name, "skipped", "no horizontal velocity and attitude"), {}
     h = _step(flight, need)
+    if not math.isfinite(h):
+        return Check(name, "skipped", "fewer than 2 time-ordered samples"), {}
     # a step of 0.2 s or more is smoothed as if it were ms (µs, ns): only the time check, which
     # compares the gain with 1000^-2k, uses the result of such slow data
     k = _window(h / 1000 ** max(0, math.ceil(math.log10(h / 0.2) / 3)), ACCEL_SMOOTH_S)
@@ -336,6 +353,8 @@ def _vertical(flight: Flight, acc_frd: bool = False):
     if _too_slow(flight, need):
         return Check(name, "skipped", _too_slow(flight, need)), {}
     h = _step(flight, need)
+    if not math.isfinite(h):
+        return Check(name, "skipped", "fewer than 2 time-ordered samples"), {}
     k = _window(h, ACCEL_SMOOTH_S)
     U, D = [], []
     for t in _grids(flight, need, h, k):

@@ -153,7 +153,7 @@ def _rotation_model(where: str, section) -> RotationModel | None:
 #: of the CLI's --format, --topic, --body, --column, --sysid, --vehicle, --world-frame, --body-frame,
 #: --time-unit, --scale), with each value's type
 READER_OPTION_TYPES = {"format": str, "topics": dict, "body": str, "column_map": dict, "sysid": int,
-                        "vehicle": str, "world_frame": str, "body_frame": str, "time_unit": str, "scale": dict}
+                        "vehicle": str, "world_frame": str, "body_frame": str, "time_unit": str, "scales": dict}
 
 
 _KIND_NAMES = {str: "a string", int: "an integer", dict: "a map of names to names"}

@@ -84,7 +84,7 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
                 body: str | None = None, column_map: Mapping[str, str] | None = None,
                 sysid: int | None = None, vehicle: str | None = None, world_frame: str | None = None,
                 body_frame: str | None = None, time_unit: str | None = None,
-                scale: Mapping[str, object] | None = None, **options) -> Flight:
+                scales: Mapping[str, object] | None = None, **options) -> Flight:
     """Read one flight log into a :class:`Flight` (internal convention: ENU/FLU, SI, seconds).
 
     Parameters
@@ -98,7 +98,7 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     vehicle : the vehicle type (one of :data:`droneid.flight.VEHICLE_TYPES`) when the log does not
         declare it (mocap CSV, MCAP) or declares it wrongly; the log's declaration is kept in
         ``vehicle_declared``.
-    world_frame, body_frame, time_unit, scale : the log's own convention when it is not droneid's
+    world_frame, body_frame, time_unit, scales : the log's own convention when it is not droneid's
         (``"ned"``, ``"frd"``, ``"ms"``, ``{"vx": "1/3.6"}``): converted once, after the reader,
         for every format (:func:`parsers._convention.convert`; docs/logs.md, "Convention checks").
     options : any other keyword option of a plug-in reader (its ``Reader.options``).
@@ -119,7 +119,7 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
         raise ConfigError(f"option(s) {', '.join(bad)} do not apply to {fmt} logs ({path})")
     reader = spec.read
     flight = _guarded(reader, path, fmt, opts)
-    flight = convert(flight, world_frame=world_frame, body_frame=body_frame, time_unit=time_unit, scale=scale)
+    flight = convert(flight, world_frame=world_frame, body_frame=body_frame, time_unit=time_unit, scale=scales)
     if vehicle is not None:
         prov = flight.provenance
         said = f"; the log declares {prov.vehicle_declared}" if prov.vehicle_declared else ""

@@ -134,7 +134,7 @@ def log_options(args) -> dict:
             "world_frame": getattr(args, "world_frame", None),
             "body_frame": getattr(args, "body_frame", None),
             "time_unit": getattr(args, "time_unit", None),
-            "scale": _pairs(getattr(args, "scale", None), "scale")}
+            "scales": _pairs(getattr(args, "scale", None), "scale")}
 
 
 def read_logs(paths, args=None, recorded: dict | None = None) -> list:
@@ -162,10 +162,10 @@ def read_logs(paths, args=None, recorded: dict | None = None) -> list:
 
 
 #: reader options that are maps (``--column``/``--topic``/``--scale``): given entries override recorded ones
-_MAP_OPTIONS = ("topics", "column_map", "scale")
+_MAP_OPTIONS = ("topics", "column_map", "scales")
 #: reader options every format takes (read_flight's own); the others are a reader's own options
-_ANY_FORMAT = ("format", "vehicle", "world_frame", "body_frame", "time_unit", "scale")
-_MAP_FLAGS = {"column_map": "--column", "topics": "--topic", "scale": "--scale"}
+_ANY_FORMAT = ("format", "vehicle", "world_frame", "body_frame", "time_unit", "scales")
+_MAP_FLAGS = {"column_map": "--column", "topics": "--topic", "scales": "--scale"}
 
 
 def merged_log_options(recorded: dict, given: dict, path) -> dict:

@@ -190,7 +190,7 @@ def test_every_command_that_reads_logs_takes_the_reader_options(command):
     assert log_options(args) == {"format": "csv", "topics": {"pose": "/a"}, "body": "b1",
                                  "column_map": {"vx": "c"}, "sysid": 3, "vehicle": "multirotor",
                                  "world_frame": "ned", "body_frame": "frd", "time_unit": "ms",
-                                 "scale": {"vx": "1/3.6", "wz": "-1"}}
+                                 "scales": {"vx": "1/3.6", "wz": "-1"}}
 
 
 def test_export_header_states_the_mapping(result, capsys):
