@@ -53,7 +53,8 @@ from .differentiation import CentralDifference
 from .errors import ConventionError
 from .flight import Flight
 from .frames import body_rates_from_euler, euler_to_matrix
-from .in_flight import _intersect, resample_signal
+from .in_flight import resample_signal
+from .signal_grid import grids, lag_of, on_grid, rate_of, smooth, step_of, window
 from .regression import robust_fit
 
 __all__ = ["Check", "Finding", "Consistency", "check_flight", "check_flights", "raise_if_inconsistent",
@@ -139,50 +140,7 @@ class Consistency:
                 "checks": [c.to_dict() for c in self.checks]}
 
 
-# -- grids and relations --------------------------------------------------------------------------
-def _step(flight: Flight, names) -> float:
-    """The coarsest median sample step (s) of ``names``; NaN when a signal has fewer than 2
-    samples or no positive step (a damaged log: the checks that need it skip)."""
-    steps = []
-    for n in names:
-        d = np.diff(flight[n].t)
-        d = d[np.isfinite(d) & (d > 0)]
-        steps.append(float(np.median(d)) if d.size else math.nan)
-    return max(steps) if steps and all(math.isfinite(x) for x in steps) else math.nan
-
-
-def _grids(flight: Flight, names, h: float, k: int) -> list[np.ndarray]:
-    """Uniform grids of step ``h`` over where every signal of ``names`` has data (its bursts),
-    each long enough for a smoothing window of ``k`` samples and a derivative (none when the step
-    is not a positive number: a damaged log)."""
-    if not (math.isfinite(h) and h > 0):
-        return []
-    ivs = [(flight.start_s, flight.end_s)]
-    for n in names:
-        ivs = _intersect(ivs, flight[n].bursts(max_gap_s=max(0.5, 3 * h)))
-    return [np.arange(a, b + 1e-9 * h, h) for a, b in ivs if (b - a) / h >= 2 * k + 3]
-
-
-def _smooth(x: np.ndarray, k: int) -> np.ndarray:
-    """Moving average over ``k`` samples; the k//2 samples at each end are nan."""
-    if k <= 1:
-        return x
-    out = np.convolve(x, np.ones(k) / k, mode="same")
-    out[: k // 2] = np.nan
-    out[len(out) - k // 2:] = np.nan
-    return out
-
-
-def _window(h: float, seconds: float) -> int:
-    """Samples of a moving average of ``seconds`` at step ``h`` (at least 3)."""
-    return max(3, int(round(seconds / h))) if math.isfinite(h) and h > 0 else 3
-
-
-def _on_grid(flight, name, t, angle=False):
-    v = resample_signal(flight[name], t)
-    return np.unwrap(v) if angle else v
-
-
+# -- relations ----------------------------------------------------------------------------------
 def _relate(meas: np.ndarray, ref: np.ndarray) -> tuple[float, float, int]:
     """(slope, correlation, n) of ``meas ≈ slope·ref`` about their medians: a Huber fit (robust
     to glitches), the correlation weighted by its weights; (nan, nan, n) when too few samples or
@@ -200,15 +158,6 @@ def _relate(meas: np.ndarray, ref: np.ndarray) -> tuple[float, float, int]:
     den = math.sqrt(float(np.sum(w * mw * mw) * np.sum(w * rw * rw)))
     corr = float(np.sum(w * mw * rw) / den) if den > 0 else math.nan
     return float(fit.beta[0]), corr, n
-
-
-def _lag(meas: np.ndarray, ref: np.ndarray, h: float, max_s: float = 0.5) -> float:
-    """The delay (s) of ``meas`` behind ``ref`` that correlates best, within ±``max_s`` (in grid
-    steps ``h``): reported, never named (no reader option shifts one signal)."""
-    m, r = (np.nan_to_num(x - np.nanmedian(x)) for x in (meas, ref))
-    n = min(max(1, int(round(max_s / h))), len(m) // 4)
-    c = [np.corrcoef(m[n + j:len(m) - n + j], r[n:len(r) - n])[0, 1] for j in range(-n, n + 1)]
-    return (int(np.nanargmax(c)) - n) * h if np.isfinite(c).any() else math.nan
 
 
 def _power_of_1000(slope: float) -> int:
@@ -233,11 +182,6 @@ def _too_slow(flight: Flight, names) -> str:
     return f"logged too slowly ({', '.join(slow)} < {MIN_RATE_HZ:g} Hz)" if slow else ""
 
 
-def _rate_of(flight, name, t, k):
-    """d(name)/dt on the grid ``t`` (central differences), smoothed over ``k`` samples."""
-    return _smooth(CentralDifference()(np.nan_to_num(_on_grid(flight, name, t)), t), k)
-
-
 # -- the checks -------------------------------------------------------------------------------------
 def _velocity_position(flight: Flight):
     """velocity against the derivative of position, per axis, and across axes (swaps)."""
@@ -247,16 +191,14 @@ def _velocity_position(flight: Flight):
         why = "velocity derived from position" if flight.has("vx") else "no position and velocity"
         return Check(name, "skipped", why), {}
     names = [n for pv in axes for n in pv]
-    h = _step(flight, names)
-    if not math.isfinite(h):
-        return Check(name, "skipped", "fewer than 2 time-ordered samples"), {}
-    k = _window(h, SMOOTH_S)
+    h = step_of(flight, names)
+    k = window(h, SMOOTH_S)
     cols = {n: [] for n in names}
     dcols = {p: [] for p, _ in axes}
-    for t in _grids(flight, names, h, k):
+    for t in grids(flight, names, h, k):
         for p, v in axes:
-            cols[v].append(_smooth(_on_grid(flight, v, t), k))
-            dcols[p].append(_rate_of(flight, p, t, k))
+            cols[v].append(smooth(on_grid(flight, v, t), k))
+            dcols[p].append(rate_of(flight, p, t, k))
     if not dcols[axes[0][0]]:
         return Check(name, "skipped", "no stretch where position and velocity both have data"), {}
     V = {v: np.concatenate(cols[v]) for _, v in axes}
@@ -264,7 +206,7 @@ def _velocity_position(flight: Flight):
     res = {}
     for p, v in axes:
         res[v] = {q: _relate(V[v], D[q]) for q, _ in axes}
-    lags = {v: _lag(V[v], D[p], h) for p, v in axes}
+    lags = {v: lag_of(V[v], D[p], h) for p, v in axes}
     numbers = ({f"{v}/d{p}": res[v][p][0] for p, v in axes} | {f"corr {v},d{p}": res[v][p][1] for p, v in axes}
                | {f"lag {v} s": lag for v, lag in lags.items()})
     return None, {"axes": axes, "res": res, "numbers": numbers, "lags": lags}
@@ -280,17 +222,15 @@ def _rates_attitude(flight: Flight):
     need = _RATES
     if not flight.has(*need):
         return Check("body rates vs attitude", "skipped", "no body rates and attitude"), {}
-    h = _step(flight, need)
-    if not math.isfinite(h):
-        return Check("body rates vs attitude", "skipped", "fewer than 2 time-ordered samples"), {}
-    k = _window(h, SMOOTH_S)
+    h = step_of(flight, need)
+    k = window(h, SMOOTH_S)
     meas, ref = [], []
-    for t in _grids(flight, need, h, k):
-        e = np.column_stack([_on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw")])
+    for t in grids(flight, need, h, k):
+        e = np.column_stack([on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw")])
         de = np.column_stack([CentralDifference()(np.nan_to_num(e[:, i]), t) for i in range(3)])
         w_att = body_rates_from_euler(e, de)
-        ref.append(np.column_stack([_smooth(w_att[:, i], k) for i in range(3)]))
-        meas.append(np.column_stack([_smooth(_on_grid(flight, n, t), k) for n in ("wx", "wy", "wz")]))
+        ref.append(np.column_stack([smooth(w_att[:, i], k) for i in range(3)]))
+        meas.append(np.column_stack([smooth(on_grid(flight, n, t), k) for n in ("wx", "wy", "wz")]))
     if not meas:
         return Check("body rates vs attitude", "skipped", "no stretch where attitude and rates both have data"), {}
     M, R = np.vstack(meas), np.vstack(ref)
@@ -304,19 +244,19 @@ def _horizontal(flight: Flight):
     need = _HORIZONTAL
     if not flight.has(*need):
         return Check(name, "skipped", "no horizontal velocity and attitude"), {}
-    h = _step(flight, need)
-    if not math.isfinite(h):
+    h = step_of(flight, need)
+    if not h > 0:
         return Check(name, "skipped", "fewer than 2 time-ordered samples"), {}
     # a step of 0.2 s or more is smoothed as if it were ms (µs, ns): only the time check, which
     # compares the gain with 1000^-2k, uses the result of such slow data
-    k = _window(h / 1000 ** max(0, math.ceil(math.log10(h / 0.2) / 3)), ACCEL_SMOOTH_S)
+    k = window(h / 1000 ** max(0, math.ceil(math.log10(h / 0.2) / 3)), ACCEL_SMOOTH_S)
     A, P, Pn = [], [], []
-    for t in _grids(flight, need, h, k):
-        ax, ay = (_rate_of(flight, n, t, k) for n in ("vx", "vy"))
-        r, p, y = (_on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw"))
+    for t in grids(flight, need, h, k):
+        ax, ay = (rate_of(flight, n, t, k) for n in ("vx", "vy"))
+        r, p, y = (on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw"))
         for out, yy in ((P, y), (Pn, -y)):
             z = euler_to_matrix(r, p, yy)[..., :, 2]      # the body z axis in the world
-            out.append(_smooth(G * (z[:, 0] + 1j * z[:, 1]) / z[:, 2], k))
+            out.append(smooth(G * (z[:, 0] + 1j * z[:, 1]) / z[:, 2], k))
         A.append(ax + 1j * ay)
     if not A:
         return Check(name, "skipped", "no stretch where velocity and attitude both have data"), {}
@@ -352,24 +292,22 @@ def _vertical(flight: Flight, acc_frd: bool = False):
     need = ["vz", *names]
     if _too_slow(flight, need):
         return Check(name, "skipped", _too_slow(flight, need)), {}
-    h = _step(flight, need)
-    if not math.isfinite(h):
-        return Check(name, "skipped", "fewer than 2 time-ordered samples"), {}
-    k = _window(h, ACCEL_SMOOTH_S)
+    h = step_of(flight, need)
+    k = window(h, ACCEL_SMOOTH_S)
     U, D = [], []
-    for t in _grids(flight, need, h, k):
-        D.append(_rate_of(flight, "vz", t, k))
+    for t in grids(flight, need, h, k):
+        D.append(rate_of(flight, "vz", t, k))
         if src.startswith("the acc"):
-            a = np.column_stack([_on_grid(flight, n, t) for n in ("ax", "ay", "az")])
+            a = np.column_stack([on_grid(flight, n, t) for n in ("ax", "ay", "az")])
             if acc_frd:         # the gravity check found an FRD accelerometer: judge it as FLU
                 a[:, 1:] *= -1.0
             # the world z component of R·a (R body to world): R's third row
-            R = euler_to_matrix(*(_on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw")))
+            R = euler_to_matrix(*(on_grid(flight, n, t, angle=True) for n in ("roll", "pitch", "yaw")))
             u = np.einsum("nj,nj->n", R[:, 2, :], a)
         else:
-            vals = np.column_stack([_on_grid(flight, n, t) for n in names])
+            vals = np.column_stack([on_grid(flight, n, t) for n in names])
             u = np.sum(vals ** 2, axis=1) if src.startswith("Σ rpm") else np.sum(vals, axis=1)
-        U.append(_smooth(u, k))
+        U.append(smooth(u, k))
     if not U:
         return Check(name, "skipped", "no stretch where vz and the thrust both have data"), {}
     slope, corr, n = _relate(np.concatenate(U), np.concatenate(D))
