@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_commands.py [--seeds 10] [--jobs 2]
 
-Simulated vehicles (:func:`droneid.simulate.simulate`, known truth) that log motor commands but
+Simulated vehicles (:func:`droneid.simulation.simulator.simulate`, known truth) that log motor commands but
 no rotor speeds (rpm1..4 removed): per seed the thrust curve's shape ``thrust_expo`` e drawn from
 [0.3, 0.7], a first-order motor lag from [20, 80] ms, and on two seeds of three a battery sagging
 from 4.2 to 3.3 V per cell (3S: 12.6 -> 9.9 V over each flight, ArduPilot's voltage scaling:
@@ -58,7 +58,7 @@ def case_spec(seed: int) -> dict:
 def _true_rmse(sim, t_rows, ts: float) -> tuple[float, float]:
     """v̇z RMSE on the test flight's rows at ``t_rows`` (s) of (the true command model without the
     lag, the true dynamics: the simulator's own acceleration, motor lag included)."""
-    from droneid.dataset_builder import DatasetBuilder
+    from droneid.dataset.builder import DatasetBuilder
     from priors.thrust import thrust_curve
 
     tr = sim.truth
@@ -78,7 +78,7 @@ def _true_rmse(sim, t_rows, ts: float) -> tuple[float, float]:
 def run_case(spec: dict) -> dict:
     warnings.simplefilter("ignore")
     from droneid import Identifier
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
 
     t0 = time.perf_counter()
     sims = [simulate(**f) for f in spec["flights"]]

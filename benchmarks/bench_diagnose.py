@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/bench_diagnose.py [--flights 48] [--per-case 1] [--jobs 2] [--seed 0] [--quick] [--verbose]
 
-Simulates ``--flights`` flights with :func:`droneid.simulate.simulate` (ours; the graders' sets
-come from another simulator) and runs :func:`droneid.diagnose.diagnose` on each with its DEFAULTS
+Simulates ``--flights`` flights with :func:`droneid.simulation.simulator.simulate` (ours; the graders' sets
+come from another simulator) and runs :func:`droneid.diagnosis.diagnose.diagnose` on each with its DEFAULTS
 (``prior="auto"`` as the CLI, ``DiagnoseConfig()``), one flight at a time, training flight only.
 
 Flights (all drawn from ``--seed``):
@@ -146,8 +146,8 @@ def flight_spec(i: int, seed: int, duration_s: float) -> dict:
 def run_flight(spec: dict) -> dict:
     """Simulate and diagnose one flight (defaults); returns what was added and why."""
     warnings.simplefilter("ignore")
-    from droneid.diagnose import diagnose
-    from droneid.simulate import simulate
+    from droneid.diagnosis.diagnose import diagnose
+    from droneid.simulation.simulator import simulate
 
     t0 = time.perf_counter()
     flights = []

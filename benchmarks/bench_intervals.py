@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_intervals.py [--seeds 20] [--flights 4] [--jobs 2] [--quick]
     .venv/bin/python benchmarks/bench_intervals.py --squares ../shared/real_logs/mocap/crazyflie_nanodrone
 
-Simulated vehicles (:func:`droneid.simulate.simulate`, known truth), ``--flights`` flights each
+Simulated vehicles (:func:`droneid.simulation.simulator.simulate`, known truth), ``--flights`` flights each
 (paths eight, square, lissajous, random in turn, climbing and descending 0.3 m, 30 s at 100 Hz,
 motor speeds logged when they act), identified with identify's pipeline (rotor-thrust prior, v̇x and v̇z, no
 effects folded, the input offset chosen as identify chooses it, a token SNGP budget: only the
@@ -88,7 +88,7 @@ def case_spec(seed: int, condition: str, n_flights: int) -> dict:
 def run_case(spec: dict) -> dict:
     """Identify one simulated vehicle; per vehicle constant its value, interval, constancy and truth."""
     warnings.simplefilter("ignore")
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
 
     t0 = time.perf_counter()
     res = _identify([simulate(**f).flight for f in spec["flights"]])

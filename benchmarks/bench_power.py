@@ -5,7 +5,7 @@
 Each case is one simulated vehicle with planted effects (``bench_diagnose.flight_spec``: the
 same catalogue, vehicles, paths and noise; every 4th case a control with none), flown ``n`` times
 (the same path, other seeds: other noise, gusts and start) and diagnosed on those ``n`` flights
-together (:func:`droneid.diagnose.diagnose`, its defaults, training flights only), for every
+together (:func:`droneid.diagnosis.diagnose.diagnose`, its defaults, training flights only), for every
 ``n`` of ``--counts``. Flights are short (``--duration``, default 12 s) so that two flights
 leave some effects unproven: the curve is what more flights buy. The flights of a smaller count
 are the first flights of the larger (nested).
@@ -20,7 +20,7 @@ The ω̇ rungs (``--no-rotation`` leaves them out): the planted rigid-body rotat
 tests/unit/test_rotation_planted.py (a torque model with rotor drag and decay, each flight with
 its own balance point; 15 s flights from smooth random motor speeds, the flights of a smaller
 count the start of the larger), chosen by identify's rotational stage
-(:func:`droneid.rotation_choice.select_rotation`, its defaults but the planted model's terms as
+(:func:`droneid.rotation.choice.select_rotation`, its defaults but the planted model's terms as
 the one torque candidate): per flight count the share of the three axes that reach the planted
 torque rung.
 """
@@ -90,7 +90,7 @@ def _rotation_curve(counts: list[int]) -> bool:
     """The ω̇ rungs' power curve (module docstring); True when the share never falls."""
     sys.path.insert(0, str(HERE.parent / "tests" / "unit"))
     from test_rotation_planted import DRAG_TERMS, _balanced_flight   # the planted rotation of the tests
-    from droneid.rotation_choice import select_rotation
+    from droneid.rotation.choice import select_rotation
     rng = np.random.default_rng(7)
     t0 = time.perf_counter()
     logs = [_balanced_flight(100 + i, rng.uniform(-500.0, 500.0, 4), name=f"planted{i}") for i in range(max(counts))]

@@ -75,7 +75,7 @@ def run(files: list[Path], extra: list[str]) -> dict:
 
 def stages(files: list[Path], rotation: str, quick: bool) -> dict[str, tuple[float, float]]:
     """{stage: (wall s, CPU s with forked workers)} of one identify in this process."""
-    import droneid.identify as ident
+    import droneid.identify.pipeline as ident
     return _stages(ident, files, rotation, quick)
 
 
@@ -86,7 +86,7 @@ def _clock():
 
 def _stages(ident, files, rotation, quick):
     from parsers import read_flight
-    from droneid.rotation_stage import choose_rotation
+    from droneid.rotation.stage import choose_rotation
     spent: dict[str, list[float]] = {}
 
     def timed(name, fn):

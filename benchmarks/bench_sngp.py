@@ -234,7 +234,7 @@ def main(argv=None) -> int:
 
 def paper_constraints(seed, m=50):
     """The paper's four vx_dot constraints (vx = 0; all demand vx_dot = 0)."""
-    from priors.constraints import get_constraints
+    from priors.registry import get_constraints
     return get_constraints("paper", "vx_dot").sample(NAMES, n_per_constraint=m, seed=seed)
 
 

@@ -137,8 +137,8 @@ def startup_table(repeats: int, previous: Path | None) -> dict:
 
 
 def fit_table_rows(repeats: int, sizes, tables: dict, previous: Path | None) -> dict:
-    from droneid.fit import FitConfig, fit_table   # the warm, in-process engine figures
-    from droneid.runner import default_jobs
+    from droneid.engine.fit import FitConfig, fit_table   # the warm, in-process engine figures
+    from droneid.engine.runner import default_jobs
 
     runs = {n: [] for n in sizes}
     before = {n: [] for n in sizes}
@@ -264,10 +264,10 @@ def instrument(F):
 
 real_import = importlib.import_module
 def hooked(name, package=None):
-    first = name == "droneid.fit" and name not in sys.modules
+    first = name == "droneid.engine.fit" and name not in sys.modules
     module = real_import(name, package)
     if first:
-        mark("imports of the engine (numpy, numba, droneid.fit, droneid.sngp)")
+        mark("imports of the engine (numpy, numba, droneid.engine.fit, droneid.sngp)")
         instrument(module)
     return module
 importlib.import_module = hooked

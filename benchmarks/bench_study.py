@@ -33,11 +33,11 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args(argv)
 
-    from droneid.identify import IdentifyConfig
-    from droneid.runner import default_jobs
-    from droneid.simulate import simulate
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.engine.runner import default_jobs
+    from droneid.simulation.simulator import simulate
     from droneid.report import study as study_report
-    from droneid.study import study
+    from droneid.identify.study import study
 
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
     test = simulate(path="square", duration_s=12.55, seed=12).flight

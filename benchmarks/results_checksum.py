@@ -7,7 +7,7 @@ Hashes (sha256 over JSON with floats written exactly, ``float.hex``):
 - every variant of the paper-budget study (2 targets x 2 scenarios x 3 prior variants, 1 run each,
   60 000 generations, population 500, seed 0) on the simulated data of ``bench_study.py``: the
   equations, seeds, errors and p-values of ``study(...).to_dict()`` without its wall times;
-- ``droneid fit``'s pipeline (:func:`droneid.fit.fit_table`, the command's defaults) on the
+- ``droneid fit``'s pipeline (:func:`droneid.engine.fit.fit_table`, the command's defaults) on the
   tables of ``bench_startup.py`` (160 and 1 000 samples; no prior, and the three tilt-drag terms
   as prior features): the fitted model (raw terms, coefficients, intercept), its generations and
   its training and test errors. The fits run their search threads side by side on ``--jobs``
@@ -55,9 +55,9 @@ def digest(obj) -> str:
 
 
 def study_checksums(generations: int) -> dict[str, str]:
-    from droneid.identify import IdentifyConfig
-    from droneid.simulate import simulate
-    from droneid.study import study
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.simulation.simulator import simulate
+    from droneid.identify.study import study
 
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
     test = simulate(path="square", duration_s=12.55, seed=12).flight
@@ -75,7 +75,7 @@ def study_checksums(generations: int) -> dict[str, str]:
 
 def fit_checksums(generations: int, jobs: int = 2) -> dict[str, str]:
     from bench_startup import write_tables
-    from droneid.fit import FitConfig, fit_table
+    from droneid.engine.fit import FitConfig, fit_table
 
     import tempfile
     out = {}

@@ -4,7 +4,7 @@ The Python API (docs/api.md), imported on first use so that ``droneid --version`
 
 - ``droneid.read_log(path, **options) -> Flight``;
 - ``droneid.Identifier(prior=…, differentiator=…, constraints=…, effects=…).fit(flights)`` ->
-  :class:`droneid.identify.IdentificationResult`, with ``.predict(flight)`` and ``.export(lang)``.
+  :class:`droneid.identify.pipeline.IdentificationResult`, with ``.predict(flight)`` and ``.export(lang)``.
 
 Stages (one object, one verb each): ``parsers.read_flight(path) -> Flight``, dataset building
 ``Flight -> Dataset``, the plan, the problem, the SNGP search, the ladder, and reports. See
@@ -14,7 +14,7 @@ __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_log", "Identifier", "IdentificationResult"]
 
-_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify"}
+_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify.pipeline"}
 
 
 def __getattr__(name):

@@ -13,7 +13,7 @@ feature_library=…, optimizer=…)``: a prior (a name, ``FILE.toml:NAME`` or a
 :class:`priors.base.PriorModel` object), a differentiator (``central``, ``forward``, ``savgol``,
 ``spline``), a constraint set (``paper``: the prior's own, ``none`` or a TOML file), effects
 (``auto``: diagnosed and folded in, or ``none``) and every other setting of
-:class:`droneid.settings.IdentifyConfig`. docs/api.md walks through it.
+:class:`droneid.identify.settings.IdentifyConfig`. docs/api.md walks through it.
 """
 from __future__ import annotations
 
@@ -21,20 +21,20 @@ from collections.abc import Callable, Sequence
 
 from parsers import read_flight
 
-from .flight import Flight
-from .identify import IdentificationResult, identify
-from .settings import IdentifyConfig
+from droneid.logs.flight import Flight
+from droneid.identify.pipeline import IdentificationResult, identify
+from droneid.identify.settings import IdentifyConfig
 
 __all__ = ["read_log", "Identifier"]
 
 
 def read_log(path, **options) -> Flight:
-    """One flight log read into a :class:`~droneid.flight.Flight` (ENU world, FLU body, SI units,
+    """One flight log read into a :class:`~droneid.logs.flight.Flight` (ENU world, FLU body, SI units,
     seconds), the format detected from the file. ``options``: ``format``, ``topics`` (MCAP role ->
     topic), ``body`` (Motive), ``column_map`` (CSV canonical name -> column), ``sysid`` (MAVLink),
     ``vehicle``, and the log's own convention when it is not droneid's: ``world_frame="ned"``,
     ``body_frame="frd"``, ``time_unit="ms"``, ``scales={"vx": "1/3.6"}`` (see
-    :func:`parsers.read_flight`; :func:`droneid.consistency.check_flight` says which a log needs)."""
+    :func:`parsers.read_flight`; :func:`droneid.logs.consistency.check_flight` says which a log needs)."""
     return read_flight(path, **options)
 
 
@@ -49,7 +49,7 @@ class Identifier:
     effects, delays : ``auto`` (decided on the training flights by calibrated tests) or ``none``
     empirical, k_D : the user's empirical model every verdict compares with (tilt-drag, 0.28 1/s)
     quick : the quick budget instead of the paper's
-    settings : any other :class:`~droneid.settings.IdentifyConfig` field (``runs``, ``seed``,
+    settings : any other :class:`~droneid.identify.settings.IdentifyConfig` field (``runs``, ``seed``,
         ``ts``, ``targets``, ``jobs``, …)
     """
 

@@ -15,9 +15,9 @@ import os
 import sys
 from collections.abc import Iterable, Sequence
 
-from . import __version__
-from .commands import COMMANDS
-from .errors import DroneIdError
+from droneid import __version__
+from droneid.commands import COMMANDS
+from droneid.errors import DroneIdError
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 

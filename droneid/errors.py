@@ -67,7 +67,7 @@ class DataError(DroneIdError, ValueError):
 
 class ConventionError(DataError):
     """Flights whose redundant signals disagree the way a convention mistake makes them disagree
-    (:mod:`droneid.consistency`): a head line, then one line per finding naming the file and the
+    (:mod:`droneid.logs.consistency`): a head line, then one line per finding naming the file and the
     reader option that fixes it (the one error whose text has several lines)."""
 
     def __init__(self, lines: Iterable[str], role: str = ""):

@@ -1,5 +1,5 @@
-"""Flight-log readers and writers. Every reader returns one :class:`droneid.flight.Flight`
-in droneid's internal convention (see :mod:`droneid.frames`).
+"""Flight-log readers and writers. Every reader returns one :class:`droneid.logs.flight.Flight`
+in droneid's internal convention (see :mod:`droneid.core.frames`).
 
 ``read_flight(path)`` recognises the format by the file's CONTENT (magic bytes, header rows);
 the extension only names it in errors. A format is a plug-in: any module of this package that
@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from droneid.errors import ConfigError, DroneIdError, LogFormatError, check_choice, did_you_mean
-from droneid.flight import VEHICLE_TYPES, Flight
+from droneid.logs.flight import VEHICLE_TYPES, Flight
 
 from ._convention import convert
 from ._guard import captured_output
@@ -95,7 +95,7 @@ def read_flight(path, *, format: str | None = None, topics: Mapping[str, str] | 
     body : the rigid body to read from a Motive CSV with several bodies.
     column_map : CSV canonical name -> column name overrides, e.g. ``{"x": "pos_x"}``.
     sysid : MAVLink system id of the vehicle in a tlog (default: the vehicle's heartbeat).
-    vehicle : the vehicle type (one of :data:`droneid.flight.VEHICLE_TYPES`) when the log does not
+    vehicle : the vehicle type (one of :data:`droneid.logs.flight.VEHICLE_TYPES`) when the log does not
         declare it (mocap CSV, MCAP) or declares it wrongly; the log's declaration is kept in
         ``vehicle_declared``.
     world_frame, body_frame, time_unit, scales : the log's own convention when it is not droneid's

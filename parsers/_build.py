@@ -13,8 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Diagnostics, Event, Flight, Provenance, Signal
-from droneid.frames import frd_to_flu
+from droneid.logs.flight import Diagnostics, Event, Flight, Provenance, Signal
+from droneid.core.frames import frd_to_flu
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +28,7 @@ __all__ = ["FlightBuilder", "intervals_from_bool", "central_difference", "pwm_to
 
 def flu_columns(names: tuple[str, str, str], x, y, z) -> dict:
     """``{names[i]: component}`` of an FRD body vector (rates, accelerations) in FLU
-    (:func:`droneid.frames.frd_to_flu`), ready for :meth:`FlightBuilder.add_many`."""
+    (:func:`droneid.core.frames.frd_to_flu`), ready for :meth:`FlightBuilder.add_many`."""
     return dict(zip(names, frd_to_flu(x, y, z)))
 
 
@@ -182,7 +182,7 @@ class FlightBuilder:
         self.notes: list[str] = []
         self.vehicle: str | None = None
         self.firmware: str | None = None
-        self.vehicle_type: str = "unknown"          # one of droneid.flight.VEHICLE_TYPES
+        self.vehicle_type: str = "unknown"          # one of droneid.logs.flight.VEHICLE_TYPES
         self.vehicle_declared: str | None = None    # the raw declaration it came from
         self.parameters: dict[str, float] = {}      # the vehicle parameters the log declares (kept: VEHICLE_PARAMETERS)
 

@@ -2,18 +2,18 @@
 
 Readers take a flat CSV's or an MCAP's values as droneid's convention (ENU world, FLU body,
 seconds, SI). When a log is not, the reader options say what it is and :func:`convert` turns the
-read flight into droneid's convention; :mod:`droneid.consistency` names the option to use:
+read flight into droneid's convention; :mod:`droneid.logs.consistency` names the option to use:
 
 * ``scale={"vx": "1/3.6"}`` (``--scale NAME=FACTOR``, repeatable): multiply a signal as read by a
   factor (a number, ``a/b``, ``pi``: ``1/3.6`` for km/h, ``pi/180`` for degrees, ``-1`` for a
   sign). Scaling ``roll``, ``pitch`` or ``yaw`` rebuilds the quaternion from the scaled angles
   (``--scale yaw=-1`` for a heading that turns clockwise).
 * ``world_frame="ned"`` (``--world-frame``): the position and velocity are north, east, down:
-  ``(x, y, z) = (E, N, -D)`` (:func:`droneid.frames.ned_to_enu`).
+  ``(x, y, z) = (E, N, -D)`` (:func:`droneid.core.frames.ned_to_enu`).
 * ``body_frame="frd"`` (``--body-frame``): the body rates and accelerations are forward, right,
   down: y and z negated. With ``world_frame="ned"`` as well, the attitude is that of an FRD body
-  in NED and is converted too (:func:`droneid.frames.euler_frd_ned_to_flu_enu`,
-  :func:`droneid.frames.quat_flu_enu_from_frd_ned`); with one of the two alone the attitude is
+  in NED and is converted too (:func:`droneid.core.frames.euler_frd_ned_to_flu_enu`,
+  :func:`droneid.core.frames.quat_flu_enu_from_frd_ned`); with one of the two alone the attitude is
   taken as FLU in ENU.
 * ``time_unit="ms"`` (``--time-unit {s,ms,us,ns}``): the time stamps the reader took as seconds
   are in that unit; every stamp, segment and event is scaled.
@@ -32,8 +32,8 @@ from dataclasses import replace
 import numpy as np
 
 from droneid.errors import ConfigError, check_choice, did_you_mean
-from droneid.flight import TIME_UNITS, Flight, Signal
-from droneid.frames import (BODY_FRAMES, WORLD_FRAMES, euler_frd_ned_to_flu_enu, euler_to_quat, ned_to_enu,
+from droneid.logs.flight import TIME_UNITS, Flight, Signal
+from droneid.core.frames import (BODY_FRAMES, WORLD_FRAMES, euler_frd_ned_to_flu_enu, euler_to_quat, ned_to_enu,
                             quat_flu_enu_from_frd_ned, quat_to_euler, wrap_angle)
 
 from ._build import central_difference

@@ -9,14 +9,14 @@ pre-2017 sdlog2 ``.px4log`` (:mod:`parsers.px4log`): one home for each.
   :func:`add_landed`: how a PX4 attitude quaternion, PWM outputs, battery, arming state and land
   detector become signals, segments and events.
 
-Frames (NED/FRD -> ENU/FLU) are :mod:`droneid.frames`', as for every reader.
+Frames (NED/FRD -> ENU/FLU) are :mod:`droneid.core.frames`', as for every reader.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from droneid.flight import vehicle_from_mav_type
-from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
+from droneid.logs.flight import vehicle_from_mav_type
+from droneid.core.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler
 
 from ._build import FlightBuilder, intervals_from_bool, pwm_formula, pwm_to_unit
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 from droneid.errors import ConfigError
-from droneid.plugins import public_modules
+from droneid.core.plugins import public_modules
 
 __all__ = ["Reader", "discover", "clear_cache"]
 

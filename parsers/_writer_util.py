@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from droneid.errors import DataError
-from droneid.flight import Signal
-from droneid.frames import euler_to_quat, quat_to_euler, unwrap_angle, wrap_angle
+from droneid.logs.flight import Signal
+from droneid.core.frames import euler_to_quat, quat_to_euler, unwrap_angle, wrap_angle
 
 #: fixed epoch of written logs (2024-01-01 00:00:00 UTC): outputs never depend on the clock
 EPOCH_S = 1_704_067_200

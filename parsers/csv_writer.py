@@ -13,8 +13,8 @@ import os
 
 import numpy as np
 
-from droneid.flight import is_canonical
-from droneid.io_util import atomic_write_text
+from droneid.logs.flight import is_canonical
+from droneid.core.io_util import atomic_write_text
 
 from ._writer_util import group, require_some
 

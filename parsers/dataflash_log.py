@@ -17,7 +17,7 @@ What is read (old 3.x names / new 4.x names), converted from NED/FRD to ENU/FLU:
 * ``MODE`` -> "mode" events; ``EV`` ARMED/DISARMED/NOT_LANDED/LAND_COMPLETE and ``ARM`` -> segments
   and events; ``ERR`` -> "error" events (subsystem 12, crash check -> "crash"); ``MSG`` -> firmware.
 * ``PARM`` -> the vehicle parameters droneid reads (thrust curve, command normalisation, voltage
-  scaling: :data:`droneid.flight.VEHICLE_PARAMETERS`) in ``Provenance.parameters``
+  scaling: :data:`droneid.logs.flight.VEHICLE_PARAMETERS`) in ``Provenance.parameters``
 
 Time: the boot clock of each message (``TimeUS`` µs or ``TimeMS`` ms; 3.x ``GPS`` uses ``T``, as
 its ``TimeMS`` is GPS time of week), minus the first boot time seen. Messages without a time field
@@ -32,8 +32,8 @@ import re
 
 import numpy as np
 
-from droneid.flight import VEHICLE_PARAMETERS, Flight
-from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu
+from droneid.logs.flight import VEHICLE_PARAMETERS, Flight
+from droneid.core.frames import euler_frd_ned_to_flu_enu, ned_to_enu
 
 from ._build import (FlightBuilder, ardupilot_motor_channels, flu_columns, frame_motors, intervals_from_bool,
                      pwm_to_unit)

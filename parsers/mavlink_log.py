@@ -39,8 +39,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight, vehicle_from_mav_type
-from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
+from droneid.logs.flight import Flight, vehicle_from_mav_type
+from droneid.core.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
 
 from ._build import FlightBuilder, ardupilot_motor_channels, frame_motors, intervals_from_bool, pwm_to_unit
 from ._registry import Reader

@@ -45,8 +45,8 @@ import struct
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
-from droneid.flight import Flight, canonical_unit, is_canonical
-from droneid.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler, quat_to_matrix
+from droneid.logs.flight import Flight, canonical_unit, is_canonical
+from droneid.core.frames import ned_to_enu, quat_flu_enu_from_frd_ned, quat_to_euler, quat_to_matrix
 
 from ._build import FlightBuilder, command_to_unit
 from ._registry import Reader

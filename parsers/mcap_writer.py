@@ -31,7 +31,7 @@ import os
 
 import numpy as np
 
-from droneid.io_util import atomic_write_bytes
+from droneid.core.io_util import atomic_write_bytes
 
 from ._writer_util import EPOCH_NS, complete_attitude, group, require_some
 

@@ -44,8 +44,8 @@ import re
 import numpy as np
 
 from droneid.errors import ConfigError, LogFormatError, did_you_mean
-from droneid.flight import Flight, is_canonical
-from droneid.frames import quat_to_euler, wrap_angle
+from droneid.logs.flight import Flight, is_canonical
+from droneid.core.frames import quat_to_euler, wrap_angle
 
 from ._build import FlightBuilder, command_to_unit, intervals_from_bool
 from ._registry import Reader

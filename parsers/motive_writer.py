@@ -29,7 +29,7 @@ import os
 import numpy as np
 
 from droneid.errors import DataError
-from droneid.io_util import atomic_write_text
+from droneid.core.io_util import atomic_write_text
 
 from ._writer_util import complete_attitude, group, require_some
 

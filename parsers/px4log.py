@@ -2,7 +2,7 @@
 
 sdlog2 writes DataFlash records (the container is :mod:`parsers._dataflash`, shared with the
 ArduPilot reader) with PX4's own messages, in PX4's NED/FRD frames, converted here exactly as
-the ULog reader converts them (:mod:`droneid.frames`, :mod:`parsers._px4`):
+the ULog reader converts them (:mod:`droneid.core.frames`, :mod:`parsers._px4`):
 
 * ``ATT`` qw..qz (FRD -> NED) -> qw..qz and roll, pitch, yaw from it, as the ULog reader does;
   a log whose quaternion is not filled in (all 0, as in early sdlog2) gives Roll/Pitch/Yaw (rad)
@@ -32,8 +32,8 @@ import struct
 
 import numpy as np
 
-from droneid.flight import Flight, vehicle_from_mav_type
-from droneid.frames import euler_frd_ned_to_flu_enu
+from droneid.logs.flight import Flight, vehicle_from_mav_type
+from droneid.core.frames import euler_frd_ned_to_flu_enu
 
 from ._build import FlightBuilder, flu_columns
 from ._dataflash import scan, timed_columns

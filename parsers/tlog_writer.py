@@ -8,7 +8,7 @@ from the first frame recover the flight's own times. Each message is written on 
 its first field (e.g. ATTITUDE on roll's); other fields on other time bases are interpolated.
 Euler angles or quaternion missing from the flight are derived from the other.
 
-Messages (ENU/FLU -> NED/FRD through the involutions of :mod:`droneid.frames`):
+Messages (ENU/FLU -> NED/FRD through the involutions of :mod:`droneid.core.frames`):
 
 ========================  =========================================================================
 HEARTBEAT (1 Hz)          MAV_TYPE_QUADROTOR, ArduPilot, SAFETY_ARMED inside the "armed" segments
@@ -35,8 +35,8 @@ import os
 
 import numpy as np
 
-from droneid.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
-from droneid.io_util import atomic_write_bytes
+from droneid.core.frames import euler_frd_ned_to_flu_enu, ned_to_enu, quat_flu_enu_from_frd_ned
+from droneid.core.io_util import atomic_write_bytes
 
 from ._writer_util import EPOCH_US, complete_attitude, group, require_some
 

@@ -26,7 +26,7 @@ import os
 import numpy as np
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight, vehicle_from_mav_type
+from droneid.logs.flight import Flight, vehicle_from_mav_type
 
 from ._build import FlightBuilder, flu_columns
 from ._px4 import (add_arming, add_attitude_quat, add_battery, add_landed, add_local_ned, add_pwm_motors,

@@ -14,7 +14,7 @@ import numpy as np
 import sympy as sp
 
 from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
-from droneid.expressions import compile_expression
+from droneid.core.expressions import compile_expression
 
 from . import constraints as pc
 
@@ -77,7 +77,7 @@ class PriorModel:
     input_names : mapping target -> the inputs a model of that target is given (paper's choice)
     params : the parameters the terms were built with (numbers; a rotor-thrust source name)
     vehicle : the kind of vehicle the model describes, one of :data:`VEHICLE_KINDS`
-    constraints : its constraint set: a built-in set's name (:func:`priors.constraints.get_constraints`),
+    constraints : its constraint set: a built-in set's name (:func:`priors.registry.get_constraints`),
         the path of a constraints TOML, or a callable ``(prior, target, columns) -> (ConstraintSet,
         levels)`` that builds the set from the training data (``columns``: signal -> array;
         ``levels``: the domains of further inputs where drag-sign constraints are added, e.g.
@@ -182,7 +182,7 @@ class PriorModel:
             return cs, dict(levels), True
         if str(self.constraints).endswith(".toml"):
             return pc.load_constraints(self.constraints, target=target), {}, False
-        return pc.get_constraints(self.constraints, target=target, prior=self.name), {}, False
+        return pc.constraint_set(self.constraints, self.name, target), {}, False
 
     def _terms(self, target: str) -> tuple[PriorFeature, ...]:
         try:

@@ -4,14 +4,14 @@ A :class:`Constraint` is a domain (per input: a fixed value or an interval ``(lo
 relation (``eq``, ``le``, ``ge``) and a value ``c``: on every point of the domain the model must
 satisfy ``f(x) = c`` (or ``<=``/``>=``). A :class:`ConstraintSet` groups the constraints of one
 target; :meth:`ConstraintSet.sample` draws points uniformly over each domain and returns a
-:class:`droneid.constraint_samples.ConstraintSamples` for the engine. Draw the training and the test
+:class:`droneid.core.constraint_samples.ConstraintSamples` for the engine. Draw the training and the test
 samples with different seeds (:meth:`ConstraintSet.train_test`; paper: 50 + 50 per constraint).
 
 Inputs a constraint does not name are fixed at the set's ``defaults`` value, or 0 when the set
 gives none (e.g. the paper's drone constraints name every input; a ``throttle`` input a user adds
 is then held at 0 unless ``defaults = {throttle = 0.5}``).
 
-Built-in sets (:func:`get_constraints`):
+Built-in sets (:func:`priors.registry.get_constraints`):
 
 ``paper`` for ``vx_dot`` / ``vy_dot`` (prior ``tilt-drag``): with vx = 0 (vy = 0), four
 constraints each demanding zero acceleration: level in the tilt that does not act, yawed so the
@@ -47,18 +47,16 @@ from types import MappingProxyType
 
 import numpy as np
 
-from droneid.constraint_samples import ConstraintSamples
-from droneid.io_util import load_toml
+from droneid.core.constraint_samples import ConstraintSamples
+from droneid.core.io_util import load_toml
 from droneid.errors import ConfigError, MissingSignalError, did_you_mean
-from droneid.expressions import parse_expression
-from droneid.lazy import lazy_module
-from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
+from droneid.core.expressions import parse_expression
+from droneid.core.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
 #: the prior registry: its priors declare their constraint sets, so it imports this module
-_models = lazy_module("priors.registry")
 
 
-__all__ = ["Constraint", "ConstraintSet", "get_constraints", "load_constraints", "paper_drone",
+__all__ = ["Constraint", "ConstraintSet", "constraint_set", "load_constraints", "paper_drone",
            "paper_turtlebot", "rotor_thrust", "drag_sign", "extended", "CONSTRAINT_SETS"]
 
 _RELATIONS = {"eq": "eq", "==": "eq", "=": "eq", "le": "le", "<=": "le", "ge": "ge", ">=": "ge"}
@@ -296,36 +294,13 @@ def extended(base: ConstraintSet, v_max: float, level: Mapping[str, float | tupl
 CONSTRAINT_SETS = {"paper": {"tilt-drag": paper_drone, "unicycle": paper_turtlebot}}
 
 
-def _registry():
-    """The built-in priors (:data:`priors.registry.PRIORS`)."""
-    return _models.PRIORS
-
-
-def _priors_with(name: str, target: str) -> list[str]:
-    """The built-in priors that declare constraint set ``name`` and model ``target``."""
-    out = []
-    for prior in CONSTRAINT_SETS.get(name, {}):
-        model = _registry()[prior]()
-        if model.constraints == name and target in model.targets:
-            out.append(prior)
-    return out
-
-
-def get_constraints(name: str = "paper", target: str = "vx_dot", prior: str | None = None
-                    ) -> ConstraintSet:
-    """A built-in constraint set. ``prior`` picks the vehicle (``tilt-drag``: the paper's drone,
-    ``unicycle``: its TurtleBot); by default it follows from the target."""
+def constraint_set(name: str, prior: str, target: str) -> ConstraintSet:
+    """The built-in constraint set ``name`` of the built-in prior ``prior`` for ``target``
+    (:func:`priors.registry.get_constraints` finds the prior from the target when it is not named)."""
     if name not in CONSTRAINT_SETS:
         raise ConfigError(f"unknown constraint set {name!r}{did_you_mean(str(name), CONSTRAINT_SETS)}; "
                           f"built-in sets: {', '.join(CONSTRAINT_SETS)} (user sets: load_constraints(path))")
     by_prior = CONSTRAINT_SETS[name]
-    if prior is None:
-        found = _priors_with(name, target)
-        if not found:
-            known = sorted({t for p in by_prior for t in _registry()[p]().targets})
-            raise ConfigError(f"constraint set {name!r} has no constraints for {target!r}; targets: "
-                              f"{', '.join(known)}")
-        prior = found[0]
     if prior not in by_prior:
         raise ConfigError(f"constraint set {name!r} has nothing for prior {prior!r}"
                           f"{did_you_mean(str(prior), by_prior)}; priors: {', '.join(by_prior)}")

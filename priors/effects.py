@@ -59,7 +59,7 @@ physical reading in its docstring; they are found on first use and ordered by ``
 Adding one is one new module there (docs/extending.md).
 
 User effects: :func:`load_effects` reads TOML (see docs/diagnosis.md); expressions are
-parsed only with :func:`droneid.expressions.parse_expression`.
+parsed only with :func:`droneid.core.expressions.parse_expression`.
 """
 from __future__ import annotations
 
@@ -71,12 +71,12 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from droneid.io_util import load_toml
+from droneid.core.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
-from droneid.expressions import compile_expression, parse_expression, safe_format, symbol
-from droneid.flight import CANONICAL_SIGNALS
-from droneid.plugins import public_modules
-from droneid.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
+from droneid.core.expressions import compile_expression, parse_expression, safe_format, symbol
+from droneid.logs.flight import CANONICAL_SIGNALS
+from droneid.core.plugins import public_modules
+from droneid.core.targets import HORIZONTAL, TARGETS, axis_of, velocity_of
 
 from .effect_signals import high, spread, time_derivative
 from .thrust import RPM_SCALE, motor_count

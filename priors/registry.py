@@ -1,7 +1,7 @@
 """Prior models: empirical equations given to SNGP as prior features.
 
 A :class:`PriorModel` holds, per target, the terms of an equation as sympy expressions over the
-signal symbols of :func:`droneid.expressions.symbol`. ``features(target, 1)`` is the whole
+signal symbols of :func:`droneid.core.expressions.symbol`. ``features(target, 1)`` is the whole
 equation as one prior feature; ``features(target)`` (or ``n_features`` = the number of terms) is
 one prior feature per term, so least squares weighs each term separately (the paper's "3 priors").
 
@@ -19,8 +19,9 @@ import inspect
 from types import MappingProxyType
 
 from droneid.errors import ConfigError, did_you_mean
-from droneid.plugins import public_modules
+from droneid.core.plugins import public_modules
 
+from . import constraints as pc
 from .base import ROLES, PriorFeature, PriorModel
 from .prior_catalogue.rotor_thrust import rotor_thrust
 from .prior_catalogue.tilt_drag import tilt_drag
@@ -29,7 +30,8 @@ from .thrust import THRUST_SOURCES, motor_count
 from .user import load_priors
 
 __all__ = ["PriorFeature", "PriorModel", "PRIORS", "ROLES", "get_prior", "load_priors", "tilt_drag",
-           "rotor_thrust", "unicycle", "resolve_prior", "is_prior_spec", "choose_prior", "prior_for"]
+           "rotor_thrust", "unicycle", "resolve_prior", "is_prior_spec", "choose_prior", "prior_for",
+           "get_constraints"]
 
 
 def choose_prior(signals, requested: str = "auto", slow=None) -> tuple[str, dict, str]:
@@ -116,7 +118,7 @@ def prior_for(spec: str | PriorModel, signals, slow=None) -> tuple[PriorModel, s
     """(PriorModel, why) for ``spec`` on data with these ``signals``: ``auto`` (and a bare
     ``rotor-thrust``) choose with :func:`choose_prior` (``slow``: signals present but too slow);
     anything else is :func:`resolve_prior`. The one place identify, diagnose and the CLI turn
-    ``--prior`` into a model (through :func:`droneid.suitability.prior_for_flights`)."""
+    ``--prior`` into a model (through :func:`droneid.dataset.suitability.prior_for_flights`)."""
     if isinstance(spec, str) and spec in ("auto", "rotor-thrust"):
         name, params, why = choose_prior(signals, spec, slow)
         return get_prior(name, **params), why
@@ -149,3 +151,23 @@ def resolve_prior(spec: str | PriorModel, **params) -> PriorModel:
                               f"it defines {', '.join(models) or 'none'}")
         return models[name]
     return get_prior(spec, **params)
+
+
+def _priors_with(name: str, target: str) -> list[str]:
+    """The built-in priors that declare constraint set ``name`` and model ``target``."""
+    return [prior for prior in pc.CONSTRAINT_SETS.get(name, {})
+            if PRIORS[prior]().constraints == name and target in PRIORS[prior]().targets]
+
+
+def get_constraints(name: str = "paper", target: str = "vx_dot", prior: str | None = None
+                    ) -> pc.ConstraintSet:
+    """A built-in constraint set. ``prior`` picks the vehicle (``tilt-drag``: the paper's drone,
+    ``unicycle``: its TurtleBot); by default it follows from the target."""
+    if prior is None and name in pc.CONSTRAINT_SETS:
+        found = _priors_with(name, target)
+        if not found:
+            known = sorted({t for p in pc.CONSTRAINT_SETS[name] for t in PRIORS[p]().targets})
+            raise ConfigError(f"constraint set {name!r} has no constraints for {target!r}; targets: "
+                              f"{', '.join(known)}")
+        prior = found[0]
+    return pc.constraint_set(name, prior, target)

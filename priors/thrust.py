@@ -11,15 +11,15 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from droneid.errors import ConfigError, did_you_mean
-from droneid.lazy import lazy_module
+from droneid.core.lazy import lazy_module
 
 #: sympy's side: the simulator needs only RPM_SCALE, without sympy
-_expressions = lazy_module("droneid.expressions")
+_expressions = lazy_module("droneid.core.expressions")
 
 if TYPE_CHECKING:
     import sympy as sp
 
-# sympy (and droneid.expressions, which imports it) inside the functions that build expressions:
+# sympy (and droneid.core.expressions, which imports it) inside the functions that build expressions:
 # the simulator imports this module for RPM_SCALE, and `droneid simulate` needs no sympy
 
 __all__ = ["THRUST_SOURCES", "RPM_SCALE", "COMMAND_SOURCES", "NOMINAL_EXPO", "body_z_world",
@@ -39,7 +39,7 @@ THRUST_SOURCES = {
 #: the sources whose thrust is a COMMAND mapped through the thrust curve :func:`thrust_curve`
 COMMAND_SOURCES = ("motor", "throttle")
 #: the thrust curve's shape a command prior is written with before the data choose one
-#: (:func:`droneid.thrust_curve.choose_thrust_curve`): ArduPilot's default MOT_THST_EXPO
+#: (:func:`droneid.fitting.thrust_curve.choose_thrust_curve`): ArduPilot's default MOT_THST_EXPO
 NOMINAL_EXPO = 0.65
 #: rpm are scaled by this before squaring so coefficients read as numbers near one (1/s² per (10⁴ rpm)²)
 RPM_SCALE = 1e4
@@ -86,7 +86,7 @@ def thrust_columns(source: str, motors: int = 4, expo: float = NOMINAL_EXPO,
     term, its commands through the thrust curve of shape ``expo`` (:func:`thrust_curve`):
     ``motor``: Σ f_e(u_i); ``throttle``: f_e(u). Two terms (Σu², Σu) would be collinear on any
     flight that stays near hover, and neither is measured: the shape is chosen from the data
-    (:mod:`droneid.thrust_curve`), the scale fitted. ``v_ref`` (V): the commands are scaled by
+    (:mod:`droneid.fitting.thrust_curve`), the scale fitted. ``v_ref`` (V): the commands are scaled by
     the battery voltage the motors see, u·V/v_ref (ArduPilot's voltage scaling), None: not.
     ``spin`` (low, high): the commands where the thrust curve starts and ends (ArduPilot's
     MOT_SPIN_MIN/MAX on the PWM range), u = (command − low)/(high − low); (0, 1): the command.

@@ -18,7 +18,7 @@ symmetric frame (checked by :meth:`RotorLayout.check`).
 
 Layouts: :data:`LAYOUTS` by name (positions in arm lengths). A log's declaration (ArduPilot
 FRAME_CLASS/FRAME_TYPE, PX4 CA_ROTOR*) maps to a name; failing one, the sign pattern is identified
-from the data (:func:`droneid.rotation.identify_layout`) and reported.
+from the data (:func:`droneid.rotation.model.identify_layout`) and reported.
 """
 from __future__ import annotations
 

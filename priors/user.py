@@ -23,7 +23,7 @@ keyed by target instead of ``target`` + a list::
     vx_dot = ["g*cos(yaw)*tan(pitch)/cos(roll)", "-k_D*vx"]
     vy_dot = ["g*sin(yaw)*tan(pitch)/cos(roll)", "-k_D*vy"]
 
-Expressions go through :func:`droneid.expressions.parse_expression`: numbers, the canonical
+Expressions go through :func:`droneid.core.expressions.parse_expression`: numbers, the canonical
 signal names (plus those listed in ``signals``), the params, ``pi``, ``e``, ``+ - * / ** ^`` and
 the whitelisted functions only. Anything else is a :class:`ConfigError` naming the file and prior.
 
@@ -38,10 +38,10 @@ import math
 import re
 from pathlib import Path
 
-from droneid.io_util import load_toml
+from droneid.core.io_util import load_toml
 from droneid.errors import ConfigError, did_you_mean
-from droneid.expressions import ALLOWED_FUNCTIONS, parse_expression
-from droneid.flight import CANONICAL_SIGNALS
+from droneid.core.expressions import ALLOWED_FUNCTIONS, parse_expression
+from droneid.logs.flight import CANONICAL_SIGNALS
 
 from .base import VEHICLE_KINDS, PriorFeature, PriorModel
 

@@ -8,7 +8,7 @@ G = 9.81
 
 def tilt_drag_coefficients(ds, target: str) -> np.ndarray:
     """Least-squares coefficients of the tilt-drag prior's three features plus an intercept on a
-    :class:`~droneid.data.Dataset` for ``target`` (``vx_dot`` or ``vy_dot``): about (1, 1, k_D/0.28,
+    :class:`~droneid.dataset.data.Dataset` for ``target`` (``vx_dot`` or ``vy_dot``): about (1, 1, k_D/0.28,
     0) for a flight that obeys the model with drag coefficient k_D."""
     from priors.registry import get_prior
     F = get_prior("tilt-drag").evaluate(ds.columns(), target, 3)

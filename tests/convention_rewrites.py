@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from droneid.frames import euler_to_quat, quat_to_euler
+from droneid.core.frames import euler_to_quat, quat_to_euler
 
 #: mistake -> (what it does, the reader option that undoes it)
 MISTAKES = {

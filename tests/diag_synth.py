@@ -10,8 +10,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from droneid.data import Dataset
-from droneid.expressions import parse_expression
+from droneid.dataset.data import Dataset
+from droneid.core.expressions import parse_expression
 
 G = 9.81
 K_D = 0.28

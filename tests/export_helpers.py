@@ -13,7 +13,7 @@ import numpy as np
 import sympy as sp
 
 from droneid.cli import main
-from droneid.closed_form import IdentifiedModel
+from droneid.fitting.closed_form import IdentifiedModel
 
 CC = shutil.which("gcc") or shutil.which("cc")
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from droneid.flight import Flight, Provenance, Signal
-from droneid.frames import euler_to_quat, wrap_angle
+from droneid.logs.flight import Flight, Provenance, Signal
+from droneid.core.frames import euler_to_quat, wrap_angle
 
 
 def attitude(t):

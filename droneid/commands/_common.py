@@ -6,13 +6,13 @@ import os
 import sys
 import time
 
-from ..errors import ConfigError, DroneIdError
-from ..lazy import lazy_module
+from droneid.errors import ConfigError, DroneIdError
+from droneid.core.lazy import lazy_module
 
 _parsers = lazy_module("parsers")            # the readers (pymavlink, pyulog, mcap): once a log is read
-_flight = lazy_module("droneid.flight")
-_frames = lazy_module("droneid.frames")
-_predict = lazy_module("droneid.predict")
+_flight = lazy_module("droneid.logs.flight")
+_frames = lazy_module("droneid.core.frames")
+_predict = lazy_module("droneid.use.predict")
 
 
 class ProgressBar:

@@ -3,15 +3,15 @@ from __future__ import annotations
 
 import sys
 
-from ..errors import ConfigError
-from . import COMMANDS
-from ..io_util import atomic_write_text
-from ..lazy import lazy_module
-from ._common import add_log_options, log_options
+from droneid.errors import ConfigError
+from droneid.commands import COMMANDS
+from droneid.core.io_util import atomic_write_text
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import add_log_options, log_options
 
 _parsers = lazy_module("parsers")
-_align = lazy_module("droneid.align")
-_builder = lazy_module("droneid.dataset_builder")
+_align = lazy_module("droneid.dataset.align")
+_builder = lazy_module("droneid.dataset.builder")
 
 HELP = COMMANDS["dataset"].help
 

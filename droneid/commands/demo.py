@@ -15,14 +15,14 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import DataError
-from ..lazy import lazy_module
-from ._common import ProgressBar, read_logs
+from droneid.errors import DataError
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import ProgressBar, read_logs
 
-_settings = lazy_module("droneid.settings")
-_identify = lazy_module("droneid.identify")
+_settings = lazy_module("droneid.identify.settings")
+_identify = lazy_module("droneid.identify.pipeline")
 _report = lazy_module("droneid.report.identify")
-_diagnose = lazy_module("droneid.diagnose")
+_diagnose = lazy_module("droneid.diagnosis.diagnose")
 _diagnose_report = lazy_module("droneid.report.diagnose")
 
 #: about a minute on a 2-core machine (measured: `make demo` prints its wall time)

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import argparse
 
-from ..errors import ConfigError
-from ..lazy import lazy_module
-from ._common import ProgressBar, add_log_options, print_json, read_logs
+from droneid.errors import ConfigError
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import ProgressBar, add_log_options, print_json, read_logs
 
-_diagnose = lazy_module("droneid.diagnose")
+_diagnose = lazy_module("droneid.diagnosis.diagnose")
 _report = lazy_module("droneid.report.diagnose")
 _effects = lazy_module("priors.effects")
 

@@ -7,15 +7,15 @@ import math
 import sys
 from pathlib import Path
 
-from ..errors import ConfigError, DataError
-from ..io_util import atomic_write_text
-from ..lazy import lazy_module
-from ._common import options_text
+from droneid.errors import ConfigError, DataError
+from droneid.core.io_util import atomic_write_text
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import options_text
 
-_export = lazy_module("droneid.export")
-_predict = lazy_module("droneid.predict")
-_vehicle_export = lazy_module("droneid.vehicle_export")
-_rotation = lazy_module("droneid.rotation")
+_export = lazy_module("droneid.use.export")
+_predict = lazy_module("droneid.use.predict")
+_vehicle_export = lazy_module("droneid.use.vehicle_export")
+_rotation = lazy_module("droneid.rotation.model")
 
 
 def register(sub) -> None:

@@ -1,5 +1,5 @@
 """``droneid fit``: SNGP symbolic regression on a plain CSV table (the pipeline is
-:func:`droneid.fit.fit_table`; this module parses the options and prints the result)."""
+:func:`droneid.engine.fit.fit_table`; this module parses the options and prints the result)."""
 from __future__ import annotations
 
 import contextlib
@@ -10,14 +10,14 @@ import sys
 import threading
 from pathlib import Path
 
-from ..errors import ConfigError
-from ..io_util import atomic_write_json
-from ..runner import default_jobs, startup_message
-from ..lazy import lazy_module
-from ._common import ProgressBar, print_json
+from droneid.errors import ConfigError
+from droneid.core.io_util import atomic_write_json
+from droneid.engine.runner import default_jobs, startup_message
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import ProgressBar, print_json
 
 # the engine: loaded once the command runs (then sympy's import starts in the background)
-_fit = lazy_module("droneid.fit")
+_fit = lazy_module("droneid.engine.fit")
 _engine = lazy_module("droneid.sngp")
 
 
@@ -94,7 +94,7 @@ def run(args) -> int:
 
 
 def _fitted(args):
-    """Check the options, read the table(s) and fit: the :class:`~droneid.fit.FitResult`."""
+    """Check the options, read the table(s) and fit: the :class:`~droneid.engine.fit.FitResult`."""
     if args.save and Path(args.save).is_dir():
         raise ConfigError(f"--save {args.save}: is a folder; give a file name such as "
                           f"{Path(args.save) / 'model.json'}")

@@ -5,11 +5,11 @@ import argparse
 import sys
 from dataclasses import replace
 
-from ..lazy import lazy_module
-from ._common import ProgressBar, add_log_options, log_options, print_json, read_logs
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import ProgressBar, add_log_options, log_options, print_json, read_logs
 
-_settings = lazy_module("droneid.settings")      # the engine's parameters: numba
-_identify = lazy_module("droneid.identify")
+_settings = lazy_module("droneid.identify.settings")      # the engine's parameters: numba
+_identify = lazy_module("droneid.identify.pipeline")
 _report = lazy_module("droneid.report.identify")
 
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import math
 
-from ..lazy import lazy_module
-from ._common import add_log_options, print_json, read_logs
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import add_log_options, print_json, read_logs
 
-_fitness = lazy_module("droneid.suitability")
-_flight = lazy_module("droneid.flight")
-_screening = lazy_module("droneid.screening")
-_consistency = lazy_module("droneid.consistency")
+_fitness = lazy_module("droneid.dataset.suitability")
+_flight = lazy_module("droneid.logs.flight")
+_screening = lazy_module("droneid.logs.screening")
+_consistency = lazy_module("droneid.logs.consistency")
 
 
 def register(sub):
@@ -45,15 +45,15 @@ def run(args) -> int:
 
 def implausible_summary(flight) -> dict:
     """{signal: {"count", "detail"}} of the canonical signals where screening
-    (:mod:`droneid.screening`) finds implausible samples or jumps: what identify, diagnose and
+    (:mod:`droneid.logs.screening`) finds implausible samples or jumps: what identify, diagnose and
     predict leave out."""
     screens = _screening.screen_flight(flight, [n for n in flight.names if _flight.is_canonical(n)])
     return {n: {"count": sc.implausible, "detail": sc.describe()} for n, sc in screens.items() if sc.implausible}
 
 
 def with_coverage(flight, rows: list) -> list:
-    """The summary's signal rows (gap-aware rates: :attr:`droneid.flight.Signal.rate_hz`) with,
-    for signals in bursts, where they are (:func:`droneid.suitability.coverage`)."""
+    """The summary's signal rows (gap-aware rates: :attr:`droneid.logs.flight.Signal.rate_hz`) with,
+    for signals in bursts, where they are (:func:`droneid.dataset.suitability.coverage`)."""
     out = []
     for g in rows:
         c = _fitness.coverage(flight[g["name"]])
@@ -144,7 +144,7 @@ def render_consistency(c: dict) -> list[str]:
     """The "conventions" block (pure): each finding in one line with its fix (identify and
     diagnose refuse such a log), then what each check measured or why it was skipped."""
     out = [f"conventions: {len(c['findings'])} MISTAKE(S): identify and diagnose refuse this log until fixed"
-           if c["findings"] else "conventions: the redundant signals agree (droneid.consistency)"]
+           if c["findings"] else "conventions: the redundant signals agree (droneid.logs.consistency)"]
     out.extend(f"  MISTAKE: {f['line']}" for f in c["findings"])
     out.extend(f"  {ch['status']:<8} {ch['name']}: {ch['detail']}" for ch in c["checks"])
     return out

@@ -4,12 +4,12 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from ..errors import ConfigError
-from ..io_util import atomic_write_bytes
-from ..lazy import lazy_module
-from ._common import add_log_options, log_options, print_json, read_logs, recorded_options_note
+from droneid.errors import ConfigError
+from droneid.core.io_util import atomic_write_bytes
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import add_log_options, log_options, print_json, read_logs, recorded_options_note
 
-_predict = lazy_module("droneid.predict")
+_predict = lazy_module("droneid.use.predict")
 _report = lazy_module("droneid.report.predict")
 _rollout_report = lazy_module("droneid.report.rollout")
 

@@ -1,14 +1,14 @@
 """``droneid sample-logs``: regenerate the shipped sample logs (byte-identical for the same code)."""
 from __future__ import annotations
 
-from ..lazy import lazy_module
-from ._common import ProgressBar
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import ProgressBar
 
-_samples = lazy_module("droneid.sample_logs")
+_samples = lazy_module("droneid.simulation.sample_logs")
 
 
 def register(sub):
-    p = sub.add_parser("sample-logs", description="Simulate and write every sample log defined in droneid/sample_logs.py, "
+    p = sub.add_parser("sample-logs", description="Simulate and write every sample log defined in droneid/simulation/sample_logs.py, "
                                    "plus its README. The output is byte-identical on every run.")
     p.add_argument("--out", default="sample_logs", metavar="DIR", help="output folder (default sample_logs)")
     p.add_argument("--only", action="append", default=None, metavar="NAME",

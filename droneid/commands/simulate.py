@@ -1,11 +1,11 @@
 """``droneid simulate``: simulate a quadrotor flight and write it as logs plus its truth JSON."""
 from __future__ import annotations
 
-from ..errors import ConfigError
-from ..lazy import lazy_module
+from droneid.errors import ConfigError
+from droneid.core.lazy import lazy_module
 
-_simulate = lazy_module("droneid.simulate")
-_samples = lazy_module("droneid.sample_logs")
+_simulate = lazy_module("droneid.simulation.simulator")
+_samples = lazy_module("droneid.simulation.sample_logs")
 
 
 def register(sub):

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import sys
 
-from ..lazy import lazy_module
-from ._common import ProgressBar, add_log_options, print_json, read_logs
-from .identify import add_budget_arguments, config_from_args
+from droneid.core.lazy import lazy_module
+from droneid.commands._common import ProgressBar, add_log_options, print_json, read_logs
+from droneid.commands.identify import add_budget_arguments, config_from_args
 
-_study = lazy_module("droneid.study")
+_study = lazy_module("droneid.identify.study")
 _report = lazy_module("droneid.report.study")
 
 

@@ -10,6 +10,6 @@ document (``to_dict()``); study and diagnose take their result object or its JSO
 diagnosis without the time-series figures: ``diagnosis.json`` does not hold the series).
 Nothing here recomputes from logs.
 """
-from .document import Document, efmt, fmt, text_table, write_report_set
+from droneid.report.document import Document, efmt, fmt, text_table, write_report_set
 
 __all__ = ["Document", "efmt", "fmt", "text_table", "write_report_set"]

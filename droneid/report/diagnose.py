@@ -1,4 +1,4 @@
-"""Rendering of a :class:`droneid.diagnose.DiagnosisResult`: terminal summary, JSON, Markdown/HTML.
+"""Rendering of a :class:`droneid.diagnosis.diagnose.DiagnosisResult`: terminal summary, JSON, Markdown/HTML.
 
 Pure functions over the result (no printing); :func:`write` writes ``diagnosis.json``,
 ``diagnosis.md``, ``diagnosis.html`` and the figures' PNGs atomically into a folder.
@@ -12,10 +12,10 @@ import numpy as np
 
 from priors.effects import CATALOGUE
 
-from ..diagnosis_result import DiagnosisResult
-from ..errors import MissingSignalError
-from ..flight import canonical_unit
-from .document import Document, break_gaps, fmt, new_figure
+from droneid.diagnosis.result import DiagnosisResult
+from droneid.errors import MissingSignalError
+from droneid.logs.flight import canonical_unit
+from droneid.report.document import Document, break_gaps, fmt, new_figure
 
 __all__ = ["text", "document", "write"]
 
@@ -28,7 +28,7 @@ def _pair(d, key="train"):
 
 
 def _evidence_text(ev, verdict: str | None = None) -> str:
-    """The decision rule's own line (training flights only; :class:`droneid.decide.Decision`),
+    """The decision rule's own line (training flights only; :class:`droneid.fitting.decide.Decision`),
     with ``verdict`` in place of its last word(s) when the diagnosis did something else with a
     candidate that passed (not added, dropped later). The test flights are NOT in this line:
     :func:`_test_text` says what they show, on a line of its own."""
@@ -114,7 +114,7 @@ def text(result) -> str:
     else:
         lines.append("effects added: none")
     if r.candidates:
-        lines.append("every decision (one rule, droneid.decide: one-sided sign-flip test over the "
+        lines.append("every decision (one rule, droneid.fitting.decide: one-sided sign-flip test over the "
                      "validation blocks, Holm over every candidate the diagnosis may try; training "
                      "flights only):")
         for c in r.candidates:

@@ -25,9 +25,9 @@ from urllib.parse import quote
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
-from ..numerics import to_float
+from droneid.errors import ConfigError
+from droneid.core.io_util import atomic_write_bytes, atomic_write_text, current_umask, json_text
+from droneid.core.numerics import to_float
 
 __all__ = ["Document", "new_figure", "png_bytes", "fmt", "efmt", "text_table", "md_escape",
            "write_report_set", "break_gaps"]

@@ -1,6 +1,6 @@
 """Rendering an identification result: terminal text, report.md/report.html with PNG figures.
 
-Every function here takes the typed result (:class:`droneid.identify.IdentificationResult`; a
+Every function here takes the typed result (:class:`droneid.identify.pipeline.IdentificationResult`; a
 ``result.json`` dict is read with ``from_dict`` first, which refuses another schema) and renders
 it from its attributes; nothing is recomputed from logs, so a saved result can be re-rendered
 anywhere.
@@ -14,16 +14,17 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from ..constancy import constancy_line
-from ..errors import ConfigError
-from ..expressions import parse_expression
-from ..identify import IdentificationResult, TargetResult
-from .rollout import ONE_STEP_POSITION, horizon_figures
-from .rotation import rotation_lines, rotation_section
-from ..numerics import to_float
-from ..regression import LOSS
-from .document import Document, break_gaps, efmt, fmt, new_figure, text_table
-from .wording import VERDICT_KINDS, round_floats
+from droneid.fitting.constancy import constancy_line
+from droneid.errors import ConfigError
+from droneid.core.expressions import parse_expression
+from droneid.identify.pipeline import IdentificationResult, TargetResult
+from droneid.report.rollout import ONE_STEP_POSITION, horizon_figures
+from droneid.report.rotation import rotation_lines, rotation_section
+from droneid.core.numerics import to_float
+from droneid.core.regression import LOSS
+from droneid.report.document import Document, break_gaps, efmt, fmt, new_figure, text_table
+from droneid.core.text import round_floats
+from droneid.fitting.verdict import VERDICT_KINDS
 
 __all__ = ["text", "document", "write", "pareto_front", "compact", "as_result"]
 
@@ -150,7 +151,7 @@ def text(result) -> str:
 
 def horizon_rows(h: dict) -> tuple[list, list]:
     """(header, rows) of the multi-step table: velocity RMSE (m/s) per model and horizon
-    (``h``: the result's ``horizons``, :func:`droneid.rollout.horizon_section`)."""
+    (``h``: the result's ``horizons``, :func:`droneid.simulation.rollout.horizon_section`)."""
     if "rmse" not in h or not h["rmse"]:
         return [], []
     axes = [a for a in ("vx", "vy", "vz", "position")

@@ -1,11 +1,11 @@
 """``droneid predict`` for people: per target the error table (m/s²) of the identified model next to
 the empirical model's, then the multi-step prediction table, from a
-:class:`~droneid.predict.PredictionResult`."""
+:class:`~droneid.use.predict.PredictionResult`."""
 from __future__ import annotations
 
-from .document import fmt, text_table
-from .rollout import ONE_STEP_POSITION
-from .rotation import open_loop_legend
+from droneid.report.document import fmt, text_table
+from droneid.report.rollout import ONE_STEP_POSITION
+from droneid.report.rotation import open_loop_legend
 
 __all__ = ["text"]
 

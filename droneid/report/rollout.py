@@ -1,13 +1,13 @@
 """The multi-step prediction figures (error against horizon, traces) from the data of
-:func:`droneid.rollout.horizon_section` (``RolloutResult.to_dict()``): velocities in m/s,
+:func:`droneid.simulation.rollout.horizon_section` (``RolloutResult.to_dict()``): velocities in m/s,
 positions in m, horizons in s."""
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
 
-from ..rollout import AXES
-from .document import new_figure, png_bytes
+from droneid.simulation.rollout import AXES
+from droneid.report.document import new_figure, png_bytes
 
 __all__ = ["horizon_figures", "ONE_STEP_POSITION"]
 

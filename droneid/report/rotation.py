@@ -1,4 +1,4 @@
-"""Rendering identify's rotational stage (result.json's ``rotation``, :mod:`droneid.rotation_stage`):
+"""Rendering identify's rotational stage (result.json's ``rotation``, :mod:`droneid.rotation.stage`):
 the per-axis verdicts, the candidates' validation, and the whole vehicle open loop on the test
 flights (the nanodrone benchmark's metric) as a table and as drift against the horizon."""
 from __future__ import annotations
@@ -7,18 +7,18 @@ import math
 
 from collections.abc import Mapping
 
-from ..rotation import unsteerable, unsteerable_sentence
-from ..rotation_stage import RotationResult
-from .document import Document, fmt, new_figure, text_table
-from .rollout import ONE_STEP_POSITION
-from .wording import VERDICT_KINDS
+from droneid.rotation.model import unsteerable, unsteerable_sentence
+from droneid.rotation.stage import RotationResult
+from droneid.report.document import Document, fmt, new_figure, text_table
+from droneid.report.rollout import ONE_STEP_POSITION
+from droneid.fitting.verdict import VERDICT_KINDS
 
 __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "fig_open_loop_drift",
            "ladder_rows"]
 
 _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("rates", "rad/s"))
 _SHOWN = ("1", "10", "50")
-#: how droneid/rotation.py's term names read (s_i = (rotor speed / 1000 rad/s)², P the layout's patterns)
+#: how droneid/rotation/model.py's term names read (s_i = (rotor speed / 1000 rad/s)², P the layout's patterns)
 _TERM_TEXT = {"damping": "(−ω)", "pattern": "(P s)", "centre": "Σs", "rotor_drag": "v_b", "gyro": "ω_j ω_l",
               "spinup": "(P ṡpin)", "rotor_drag_thrust": "v_b Σs", "attitude": "(−(θ − θ0))"}
 

@@ -1,7 +1,7 @@
-"""Rendering a study result (:func:`droneid.study.study`): the paper's Tables II-III as terminal
+"""Rendering a study result (:func:`droneid.identify.study.study`): the paper's Tables II-III as terminal
 text, study.md/study.html with a box plot per target. Pure functions over the result.
 
-Every function takes a :class:`~droneid.study.StudyResult`, or the ``study.json`` document
+Every function takes a :class:`~droneid.identify.study.StudyResult`, or the ``study.json`` document
 (a dict), which is read through :meth:`StudyResult.from_dict` first, so a saved study renders
 exactly like a fresh one. Errors are RMSEs in m/s².
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from ..study import PRIOR_VARIANTS, SCENARIOS, StudyResult, StudyTarget, prior_label
-from .document import Document, efmt, new_figure, text_table
+from droneid.identify.study import PRIOR_VARIANTS, SCENARIOS, StudyResult, StudyTarget, prior_label
+from droneid.report.document import Document, efmt, new_figure, text_table
 
 __all__ = ["study_table", "text", "document", "write"]
 
@@ -88,7 +88,7 @@ def text(result: StudyResult | Mapping) -> str:
 
 def fig_study_box(t: str, tr: StudyTarget | Mapping):
     """Box plot of the test errors (m/s²) per scenario and prior variant of one target (a
-    :class:`~droneid.study.StudyTarget` or its ``study.json`` dict); the tick labels name the
+    :class:`~droneid.identify.study.StudyTarget` or its ``study.json`` dict); the tick labels name the
     scenario and the prior variant in full."""
     if not isinstance(tr, StudyTarget):
         tr = StudyTarget.from_dict(tr)

@@ -6,10 +6,10 @@ JSON (``to_dict``/``from_dict``) and evaluated with numpy. The operator table is
 :func:`warmup` compiles the kernels ahead (an install step; a parallel runner before it starts
 workers); :func:`kernels_ready` says whether the next fit would compile them first.
 """
-from .estimator import SNGPRegressor
-from .operators import DEFAULT_FUNCTIONS, OPERATORS
-from .precompile import kernels_ready, warmup
-from ..lazy import lazy_module
+from droneid.sngp.estimator import SNGPRegressor
+from droneid.sngp.operators import DEFAULT_FUNCTIONS, OPERATORS
+from droneid.sngp.precompile import kernels_ready, warmup
+from droneid.core.lazy import lazy_module
 
 _model = lazy_module("droneid.sngp.model")
 

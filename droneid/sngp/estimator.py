@@ -18,27 +18,27 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..constraint_samples import ConstraintSamples, constraint_rmse
-from ..errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
+from droneid.core.constraint_samples import ConstraintSamples, constraint_rmse
+from droneid.errors import (ConfigError, DataError, MissingSignalError, NotFittedError, check_choice,
                       did_you_mean)
-from ..lazy import lazy_module
-from ..numerics import lstsq as _lstsq
-from ..numerics import rmse
-from ..validation import block_ids
-from . import kernels as K
-from . import population as popmod
-from .kernels import kernels_ready
-from .operators import DEFAULT_FUNCTIONS
-from .operators import names as operator_names
-from .population import Population, Problem
-from .render import ArchiveEntry, import_symbolic_side, is_sympy, links_equation, node_exprs, render
-from .search import run_search
+from droneid.core.lazy import lazy_module
+from droneid.core.numerics import lstsq as _lstsq
+from droneid.core.numerics import rmse
+from droneid.dataset.validation import block_ids
+from droneid.sngp import kernels as K
+from droneid.sngp import population as popmod
+from droneid.sngp.kernels import kernels_ready
+from droneid.sngp.operators import DEFAULT_FUNCTIONS
+from droneid.sngp.operators import names as operator_names
+from droneid.sngp.population import Population, Problem
+from droneid.sngp.render import ArchiveEntry, import_symbolic_side, is_sympy, links_equation, node_exprs, render
+from droneid.sngp.search import run_search
 
 # sympy's side, loaded when a fit has priors or writes its equation: without priors the search
 # runs before sympy is imported
-_expressions = lazy_module("droneid.expressions")
+_expressions = lazy_module("droneid.core.expressions")
 _model = lazy_module("droneid.sngp.model")
-from .selection import best_index
+from droneid.sngp.selection import best_index
 
 log = logging.getLogger(__name__)
 

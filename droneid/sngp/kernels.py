@@ -26,7 +26,7 @@ import sys
 import numpy as np
 from numba import njit
 
-from .operators import CONST, DIV_EPS, IDENT, MAX_ABS, by_name
+from droneid.sngp.operators import CONST, DIV_EPS, IDENT, MAX_ABS, by_name
 
 _log = logging.getLogger(__name__)
 

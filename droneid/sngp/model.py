@@ -4,7 +4,7 @@ Notation of ``equation``: the sum of ``coef*term`` with coefficients to 4 signif
 then the intercept. A prior feature appears as a symbol ``P<i>`` or ``P<i>_<name>`` (e.g.
 ``0.9981*P1_gravity_x``), defined in ``priors`` (symbol -> expression over the inputs). Evolved
 features are written with the signal names; ``abs``, ``sqrt``, ``sin``, ... as in
-:mod:`droneid.expressions`, so saved terms are read back by the same safe parser.
+:mod:`droneid.core.expressions`, so saved terms are read back by the same safe parser.
 """
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from ..errors import ConfigError, DataError, MissingSignalError
-from ..expressions import compile_expression, parse_expression, round_expr, symbol, to_text
+from droneid.errors import ConfigError, DataError, MissingSignalError
+from droneid.core.expressions import compile_expression, parse_expression, round_expr, symbol, to_text
 
 __all__ = ["SymbolicModel", "to_text", "round_expr"]
 

@@ -15,13 +15,13 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..errors import DataError
-from ..lazy import lazy_module
-from ..numerics import rmse
-from . import kernels as K
-from .operators import CONST, HEAD_OPERATORS, IDENT, VAR, by_name
+from droneid.errors import DataError
+from droneid.core.lazy import lazy_module
+from droneid.core.numerics import rmse
+from droneid.sngp import kernels as K
+from droneid.sngp.operators import CONST, HEAD_OPERATORS, IDENT, VAR, by_name
 
-_expressions = lazy_module("droneid.expressions")   # sympy: only with priors
+_expressions = lazy_module("droneid.core.expressions")   # sympy: only with priors
 
 CONSTANTS = (0.0, 0.5, 1.0, 2.0, 3.0, float(np.pi))
 

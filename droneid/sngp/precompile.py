@@ -15,9 +15,9 @@ import time
 
 import numpy as np
 
-from ..constraint_samples import ConstraintSamples
-from .estimator import SNGPRegressor
-from .kernels import ENTRY_KERNELS, _target_probe, kernels_ready
+from droneid.core.constraint_samples import ConstraintSamples
+from droneid.sngp.estimator import SNGPRegressor
+from droneid.sngp.kernels import ENTRY_KERNELS, _target_probe, kernels_ready
 
 __all__ = ["ENTRY_KERNELS", "kernels_ready", "warmup"]
 

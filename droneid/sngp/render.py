@@ -16,18 +16,18 @@ import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from . import kernels as K
-from .operators import CONST, IDENT, by_code
-from ..lazy import lazy_module
+from droneid.sngp import kernels as K
+from droneid.sngp.operators import CONST, IDENT, by_code
+from droneid.core.lazy import lazy_module
 
 #: the expression tools (sympy): loaded when a model is first written as an equation
-_expressions = lazy_module("droneid.expressions")
+_expressions = lazy_module("droneid.core.expressions")
 
 if TYPE_CHECKING:
     import sympy as sp
 
-    from .model import SymbolicModel
-    from .population import Population
+    from droneid.sngp.model import SymbolicModel
+    from droneid.sngp.population import Population
 
 __all__ = ["ArchiveEntry", "node_exprs", "render", "links_equation", "guarded_simplify",
            "is_sympy", "import_symbolic_side"]

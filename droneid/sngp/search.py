@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import kernels as K
-from . import population as popmod
-from .population import Population, Problem
-from .selection import rank
+from droneid.sngp import kernels as K
+from droneid.sngp import population as popmod
+from droneid.sngp.population import Population, Problem
+from droneid.sngp.selection import rank
 
 #: Scalarisation weights on e_c in the constrained variant, cycled over threads and epochs so
 #: that the non-dominated archive spans the front.

@@ -6,7 +6,7 @@ air velocity once a wind estimate is in the model.
 """
 import sympy as sp
 
-from droneid.expressions import symbol
+from droneid.core.expressions import symbol
 from priors.effects import Effect, Interpretation, mean_k_drag
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 import math
 
-from droneid.targets import TARGETS
+from droneid.core.targets import TARGETS
 from priors.effects import PER_FLIGHT_REASON, TILT, Effect, Interpretation, spread
 
 MIN_YAW_SPAN_RAD = 0.5

@@ -4,7 +4,7 @@ Feature (v̇x, v̇y, v̇z): dG/dt from the logged attitude (smoothed derivative,
 in s, shared) -> "attitude lags by τ": G(att(t + τ)) ≈ G + τ dG/dt. Not foldable: it needs a
 time derivative.
 """
-from droneid.targets import TARGETS
+from droneid.core.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation
 
 

@@ -11,8 +11,8 @@ mean) during the training flights.
 import numpy as np
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.targets import TARGETS
+from droneid.core.expressions import symbol
+from droneid.core.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation, spread
 from priors.thrust import motor_count
 

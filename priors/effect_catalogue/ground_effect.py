@@ -22,8 +22,8 @@ import math
 import numpy as np
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.targets import TARGETS
+from droneid.core.expressions import symbol
+from droneid.core.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation, spread
 
 #: share of samples that must lie within h0 of the ground

@@ -12,7 +12,7 @@ off the centre makes the motors of one SIDE spin faster, not one motor.) The tra
 cannot show this: the rotors' shares of the thrust barely change in flight, so Σ k_i ω_i² is
 within noise of (mean k) Σ ω_i².
 
-Decision (the one rule, :func:`droneid.decide.decide`): rows are every motor's thrust share
+Decision (the one rule, :func:`droneid.fitting.decide.decide`): rows are every motor's thrust share
 k_i ω_i² / Σ_j k_j ω_j² − 1/N at every sample, validation blocks the diagnosis's time blocks;
 without the effect k_i = 1, with it the k_i come from the OTHER blocks (leave-one-block-out).
 Uncertainty: block jackknife of r_i. A motor is NAMED when |r_i − 1| ≥ ``MIN_DEVIATION`` (5 %) and
@@ -27,8 +27,8 @@ thrust, and it folds into the rotor-thrust prior.
 import numpy as np
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.targets import TARGETS
+from droneid.core.expressions import symbol
+from droneid.core.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation
 from priors.thrust import RPM_SCALE, motor_count
 

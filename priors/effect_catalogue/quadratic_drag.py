@@ -10,8 +10,8 @@ speed (a circle), c|v|v is a linear drag c|v|·v, which the prior's k_D already 
 """
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.targets import velocity_of
+from droneid.core.expressions import symbol
+from droneid.core.targets import velocity_of
 from priors.effects import Effect, Interpretation, high, must_be_positive, spread
 
 MIN_SPEED_M_S = 1.0

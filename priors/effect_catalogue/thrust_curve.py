@@ -8,8 +8,8 @@ exact rotation already).
 import numpy as np
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.targets import TARGETS
+from droneid.core.expressions import symbol
+from droneid.core.targets import TARGETS
 from priors.effects import TILT, Effect, Interpretation
 from priors.thrust import RPM_SCALE, motor_count
 

@@ -11,7 +11,7 @@ import numpy as np
 
 import sympy as sp
 
-from droneid.expressions import symbol
+from droneid.core.expressions import symbol
 from priors.effects import TILT, Effect, Interpretation, high
 
 MIN_TILT_RAD = 0.3

@@ -6,7 +6,7 @@ Precondition: the climb rate reaches ``MIN_VZ_M_S`` (0.5 m/s, 98th percentile of
 """
 import sympy as sp
 
-from droneid.expressions import symbol
+from droneid.core.expressions import symbol
 from priors.effects import Effect, Interpretation, high, must_be_positive
 
 MIN_VZ_M_S = 0.5

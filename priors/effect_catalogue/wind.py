@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from droneid.targets import HORIZONTAL, axis_of
+from droneid.core.targets import HORIZONTAL, axis_of
 from priors.effects import PER_FLIGHT_REASON, Effect, Interpretation
 
 #: the smallest linear drag (1/s) from which a wind is computed (below: no wind, w = 0)

@@ -7,8 +7,8 @@ import numpy as np
 import sympy as sp
 
 from droneid.errors import ConfigError
-from droneid.expressions import symbol
-from droneid.targets import TARGETS
+from droneid.core.expressions import symbol
+from droneid.core.targets import TARGETS
 
 from .. import constraints as pc
 from ..base import PriorFeature, PriorModel, check_param
@@ -35,7 +35,7 @@ def rotor_thrust(source: str = "rpm", motors: int = 4, k_T: float = 0.0257, k_D:
     per (10⁴ erpm)²; the pole-pair factor is left to the fitted scale).
     A command source (``motor``, ``throttle``) maps its commands through the thrust curve
     (1 − e)u + e u² of shape ``expo`` e (:func:`priors.thrust.thrust_curve`; identify chooses e
-    from the training flights, :mod:`droneid.thrust_curve`), and with ``v_ref`` (V) scales them by
+    from the training flights, :mod:`droneid.fitting.thrust_curve`), and with ``v_ref`` (V) scales them by
     the battery voltage, u·V/v_ref; ``spin_min``/``spin_max``: the commands (0..1) where the curve
     starts and ends (ArduPilot's MOT_SPIN_MIN/MAX), u = (command − spin_min)/(spin_max − spin_min).
     All are ignored for ``rpm`` and ``thrust``.

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from droneid.expressions import symbol
+from droneid.core.expressions import symbol
 
 from ..base import PriorFeature, PriorModel
 

@@ -23,7 +23,7 @@ def test_the_api_example_runs(monkeypatch, capsys):
 def test_the_package_top_exports_the_api_lazily():
     import subprocess
     import sys
-    code = ("import sys, droneid; assert 'droneid.identify' not in sys.modules; "
-            "droneid.Identifier; assert 'droneid.identify' in sys.modules; print(droneid.read_log.__module__)")
+    code = ("import sys, droneid; assert 'droneid.identify.pipeline' not in sys.modules; "
+            "droneid.Identifier; assert 'droneid.identify.pipeline' in sys.modules; print(droneid.read_log.__module__)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == "droneid.api"

@@ -83,7 +83,7 @@ def test_study_budget_line_is_silent_when_quiet(tmp_path, capsys):
 
 
 def test_progress_says_when_the_kernels_compile(monkeypatch):
-    import droneid.runner as runner
+    import droneid.engine.runner as runner
     seen = []
     monkeypatch.setattr(runner, "sngp_kernels_cached", lambda: False)
     runner.run_jobs(abs, [1], n_jobs=1, progress=lambda d, t, m="": seen.append((d, m)))
@@ -95,7 +95,7 @@ def test_progress_says_when_the_kernels_compile(monkeypatch):
 
 
 def test_progress_says_compiling_when_the_engine_has_no_compiled_kernels(monkeypatch):
-    import droneid.runner as runner
+    import droneid.engine.runner as runner
     import droneid.sngp.precompile as pre
     monkeypatch.setattr(pre, "kernels_ready", lambda: False)
     assert runner.sngp_kernels_cached() is False and "compiling" in runner.startup_message()
@@ -111,7 +111,7 @@ def sleepy(x):
 
 
 def test_progress_never_names_a_run_beside_a_count_it_does_not_match():
-    from droneid.runner import run_jobs
+    from droneid.engine.runner import run_jobs
     seen = []
     out = run_jobs(sleepy, range(4), n_jobs=2, progress=lambda d, t, m="": seen.append((d, t, m)))
     assert [d for d, _, _ in seen] == [0, 1, 2, 3, 4]
@@ -137,7 +137,7 @@ def test_fit_save_to_a_folder_names_the_folder(table, tmp_path, capsys):
 
 
 def test_atomic_write_errors_name_the_target_not_the_temp_file(tmp_path):
-    from droneid.io_util import atomic_write_text
+    from droneid.core.io_util import atomic_write_text
     with pytest.raises(IsADirectoryError) as info:
         atomic_write_text(tmp_path, "x")
     assert info.value.filename == str(tmp_path)

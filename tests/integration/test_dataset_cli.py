@@ -9,7 +9,7 @@ import pytest
 from _physics import tilt_drag_coefficients
 from conftest import SAMPLE_LOGS
 from droneid.cli import main
-from droneid.dataset_builder import DatasetBuilder
+from droneid.dataset.builder import DatasetBuilder
 
 
 def _sample(name):
@@ -79,7 +79,7 @@ def test_sample_logs_recover_g_scale_and_k_drag(fmt):
 def test_planted_offset_between_sample_mocap_csv_and_autopilot_log(other):
     from parsers import read_flight
 
-    from droneid.align import estimate_clock_offset, merge_flights
+    from droneid.dataset.align import estimate_clock_offset, merge_flights
     mocap = read_flight(_sample("paper_test_square.csv"))
     ap = read_flight(_sample(f"paper_test_square.{other}")).shifted(-0.37)
     off = estimate_clock_offset(mocap, ap)

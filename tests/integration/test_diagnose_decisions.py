@@ -1,10 +1,10 @@
-"""Every diagnose decision goes through the one rule (droneid.decide) and is reported, accepted or
+"""Every diagnose decision goes through the one rule (droneid.fitting.decide) and is reported, accepted or
 rejected; an effect that fits only with impossible values is rejected as a stand-in."""
 from __future__ import annotations
 
 import parsers
 from conftest import SAMPLE_LOGS
-from droneid.diagnose import DiagnoseConfig, diagnose
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose
 from droneid.report.diagnose import text
 
 CFG = DiagnoseConfig(generations=0)

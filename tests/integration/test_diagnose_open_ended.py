@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 import diag_synth as S
-from droneid.diagnose import DiagnoseConfig, diagnose_datasets
-from droneid.residual_search import clock_like
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
+from droneid.diagnosis.residual_search import clock_like
 
 CFG = DiagnoseConfig(generations=1500, population_size=200, seed=3)
 

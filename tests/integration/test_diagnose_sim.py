@@ -1,4 +1,4 @@
-"""Diagnosis on simulated flights (droneid.simulate) with exactly ONE undeclared effect each.
+"""Diagnosis on simulated flights (droneid.simulation.simulator) with exactly ONE undeclared effect each.
 
 Training flights are 40 s, test flights 20 s of another path, both with the same planted effect;
 the open-ended search is off here (tested separately). The full pipeline runs: DatasetBuilder
@@ -10,8 +10,8 @@ import math
 
 import pytest
 
-from droneid.diagnose import NO_FURTHER, DiagnoseConfig, diagnose
-from droneid.simulate import simulate
+from droneid.diagnosis.diagnose import NO_FURTHER, DiagnoseConfig, diagnose
+from droneid.simulation.simulator import simulate
 
 CFG = DiagnoseConfig(generations=0)
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import diag_synth as S
-from droneid.diagnose import NO_FURTHER, DiagnoseConfig, block_ids, diagnose_datasets
-from droneid.validation import block_in_flight
+from droneid.diagnosis.diagnose import NO_FURTHER, DiagnoseConfig, block_ids, diagnose_datasets
+from droneid.dataset.validation import block_in_flight
 from droneid.errors import ConfigError
 
 CFG = DiagnoseConfig(generations=0)

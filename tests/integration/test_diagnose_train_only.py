@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import diag_synth as S
-from droneid.diagnose import DiagnoseConfig, diagnose_datasets
-from droneid.expressions import compile_expression
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
+from droneid.core.expressions import compile_expression
 from priors.effects import Effect, Interpretation, load_effects
 from priors.registry import get_prior
 
@@ -216,7 +216,7 @@ def test_an_open_ended_term_in_a_measured_derivative_makes_the_model_not_simulab
 
 
 def test_folding_the_found_effects_into_the_prior_leaves_nothing_to_find():
-    from droneid.diagnose import fold_into_prior
+    from droneid.diagnosis.diagnose import fold_into_prior
     train = S.make_rotor("quadratic_drag", {"c": 0.1, "c_z": 1.0}, seed=5)
     r = diagnose_datasets(train, None, prior=ROTOR, config=CFG)
     assert sorted(r.effects_added) == ["quadratic_drag", "vertical_drag"]

@@ -265,8 +265,8 @@ def test_simulator_residual_table_is_current():
     """The recipe stated above the table, recomputed: every number to the digits printed."""
     import numpy as np
 
-    from droneid.dataset_builder import DatasetBuilder
-    from droneid.simulate import simulate
+    from droneid.dataset.builder import DatasetBuilder
+    from droneid.simulation.simulator import simulate
     from priors.registry import get_prior
     rows = _simulator_table()
     assert len(rows) == 10 and "none" in rows

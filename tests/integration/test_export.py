@@ -15,8 +15,8 @@ import sympy as sp
 
 from droneid.cli import main
 from droneid.errors import ConfigError
-from droneid.export import FORMATS, export_models
-from droneid.closed_form import IdentifiedModel
+from droneid.use.export import FORMATS, export_models
+from droneid.fitting.closed_form import IdentifiedModel
 
 from export_helpers import (CC, c_eval, c_library, export_cli, python_module, rotor_thrust_sum,
                             write_result)

@@ -1,4 +1,4 @@
-"""The full 6-DOF export (droneid.vehicle_export.export_vehicle, issue 28): the generated Python and C step
+"""The full 6-DOF export (droneid.use.vehicle_export.export_vehicle, issue 28): the generated Python and C step
 functions reproduce droneid's own open-loop simulation (openloop.simulate of the same vehicle)
 step by step from the motor speeds alone, input conditioning included."""
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.vehicle_export import export_vehicle
-from droneid.openloop import IdentifiedVehicle, StateLog, simulate
-from droneid.rotation import RotationModel, TranslationModel
+from droneid.use.vehicle_export import export_vehicle
+from droneid.simulation.openloop import IdentifiedVehicle, StateLog, simulate
+from droneid.rotation.model import RotationModel, TranslationModel
 from priors.torque import get_layout
 
 from export_helpers import CC, vehicle_c_rollout, vehicle_python_rollout

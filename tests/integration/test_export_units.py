@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from droneid.export import input_sources
+from droneid.use.export import input_sources
 from parsers import read_flight
 
 from export_helpers import export_cli, rotor_thrust_sum
@@ -16,7 +16,7 @@ from export_helpers import export_cli, rotor_thrust_sum
 def _motor_model():
     import sympy as sp
 
-    from droneid.closed_form import IdentifiedModel
+    from droneid.fitting.closed_form import IdentifiedModel
     from priors.registry import get_prior
     p = get_prior("rotor-thrust", source="motor", motors=4)
     return IdentifiedModel("vz_dot", sp.Add(*[f.expr for f in p.features("vz_dot")]), {}, "motor commands")
@@ -83,7 +83,7 @@ def test_input_sources_lists_each_reading_once():
 def test_no_python_power_in_c_or_matlab_headers_even_in_a_description(tmp_path):
     import sympy as sp
 
-    from droneid.closed_form import IdentifiedModel
+    from droneid.fitting.closed_form import IdentifiedModel
     vx = sp.Symbol("vx")
     m = IdentifiedModel("vx_dot", -0.3 * vx ** 2, {}, "drag: -0.3*vx**2 fitted")
     path = tmp_path / "result.json"

@@ -18,11 +18,11 @@ import pytest
 import sympy as sp
 
 from droneid.cli import main
-from droneid.closed_form import IdentifiedModel
+from droneid.fitting.closed_form import IdentifiedModel
 from droneid.errors import ConfigError
-from droneid.vehicle_export import export_vehicle
-from droneid.openloop import IdentifiedTranslation, IdentifiedVehicle, StateLog, simulate
-from droneid.rotation import RotationModel
+from droneid.use.vehicle_export import export_vehicle
+from droneid.simulation.openloop import IdentifiedTranslation, IdentifiedVehicle, StateLog, simulate
+from droneid.rotation.model import RotationModel
 from priors.torque import get_layout
 
 from export_helpers import CC, vehicle_c_rollout, vehicle_python_rollout
@@ -58,9 +58,9 @@ def _rotation(kind: str = "rigid") -> RotationModel | None:
     if kind == "held":
         return None
     if kind == "closed-loop":
-        import droneid.rotation
-        if "attitude" not in getattr(droneid.rotation, "CLOSED_LOOP_TERMS", ()):
-            pytest.skip("droneid.rotation has no closed-loop attitude term in this tree")
+        import droneid.rotation.model
+        if "attitude" not in getattr(droneid.rotation.model, "CLOSED_LOOP_TERMS", ()):
+            pytest.skip("droneid.rotation.model has no closed-loop attitude term in this tree")
         coef = (np.array([4.0, 3.0, 30.0]), np.array([3.0, 2.5, 25.0]), np.array([1.0, 1.5]))
         return RotationModel(get_layout("crazyflie_x"), ("damping", "attitude"), coef, np.array([0.05, -0.1, 0.02]),
                              delay_steps=1, rad_s_per_rpm=2 * np.pi / 360.0, level_rad=np.array([0.01, -0.02]))

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import LogFormatError
-from droneid.flight import Flight, Signal
+from droneid.logs.flight import Flight, Signal
 from parsers import read_flight
 
 from dataflash_fixture import DataFlashWriter, sdlog2_log

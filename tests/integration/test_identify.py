@@ -23,7 +23,7 @@ TINY = ["--generations", "300", "--population", "100", "--jobs", "1"]
 def logs(tmp_path_factory):
     """(train eight tlog, test square tlog): planted truth = the paper's model with k_D = 0.4
     (so the empirical model as given, k_D = 0.28, is off and its refit is right)."""
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     from parsers.tlog_writer import write_tlog
     d = tmp_path_factory.mktemp("logs")
     train = d / "eight.tlog"
@@ -131,8 +131,8 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
     8 runs of this budget: 0-11 % worse). On the SQUARE test flight the same runs are NOT reliably
     close to the refit: the square reaches |v| = 1.85 m/s where training stopped at 1.45 m/s, and
     evolved terms (powers of vx) extrapolate there; identify says so in a note (checked below)."""
-    from droneid.identify import IdentifyConfig, identify
-    from droneid.simulate import simulate
+    from droneid.identify.pipeline import IdentifyConfig, identify
+    from droneid.simulation.simulator import simulate
     from parsers import read_flight
     train = read_flight(logs[0])
     test = simulate(path="eight", duration_s=12, seed=2, k_drag=0.4).flight
@@ -153,7 +153,7 @@ def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, t
 
 
 def test_test_data_outside_the_training_range_are_flagged(logs):
-    from droneid.identify import IdentifyConfig, prepare_target
+    from droneid.identify.pipeline import IdentifyConfig, prepare_target
     from parsers import read_flight
     cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=10, population_size=40)
     p = prepare_target([read_flight(logs[0])], [read_flight(logs[1])], "vx_dot", cfg)
@@ -168,7 +168,7 @@ def test_study_table_shape_and_p_values(logs, tmp_path, capsys):
                            "--out", out_dir)
     assert code == 0
     from droneid.report.study import study_table
-    from droneid.study import StudyResult
+    from droneid.identify.study import StudyResult
     doc = json.loads((out_dir / "study.json").read_text())
     assert StudyResult.from_dict(doc).to_dict() == doc  # study.json reads back to the same document
     header, rows = study_table(doc)
@@ -203,7 +203,7 @@ def test_bad_input_is_one_line_exit_2(logs, capsys, argv, message):
 
 def test_identify_in_a_process_pool_matches_in_process(logs):
     """Runs are seeded from one SeedSequence: the pool gives the same runs as one process."""
-    from droneid.identify import IdentifyConfig, identify
+    from droneid.identify.pipeline import IdentifyConfig, identify
     from parsers import read_flight
     train, test = read_flight(logs[0]), read_flight(logs[1])
     cfg = dict(targets=("vx_dot",), runs=2, generations=200, population_size=80, seed=5)
@@ -228,7 +228,7 @@ def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
 
 def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
     """A KeyboardInterrupt in the third run: the first two are reported, flagged interrupted."""
-    import droneid.identify as ident
+    import droneid.identify.pipeline as ident
     from parsers import read_flight
     real = ident.run_job
 
@@ -250,7 +250,7 @@ def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
 @pytest.mark.slow
 def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
     import distributed  # a declared dependency: an import failure is a failure, not a skip
-    from droneid.identify import IdentifyConfig, identify
+    from droneid.identify.pipeline import IdentifyConfig, identify
     from parsers import read_flight
     train, test = read_flight(logs[0]), read_flight(logs[1])
     cfg = dict(targets=("vx_dot",), runs=2, generations=150, population_size=60, seed=4)
@@ -266,8 +266,8 @@ def test_identify_on_a_dask_local_cluster_matches_in_process(logs):
 def test_the_test_flights_never_decide(logs):
     """The same training flights give the same final model, ladder choices and validation errors
     with another test flight or none: test data are reported, never used."""
-    from droneid.identify import IdentifyConfig, identify
-    from droneid.simulate import simulate
+    from droneid.identify.pipeline import IdentifyConfig, identify
+    from droneid.simulation.simulator import simulate
     from parsers import read_flight
     train = read_flight(logs[0])
     other = simulate(path="circle", duration_s=12, seed=5, k_drag=0.6).flight
@@ -285,7 +285,7 @@ def test_the_test_flights_never_decide(logs):
 def test_holdout_is_cut_before_any_choice(logs):
     """With --holdout the held-out block is out of the training rows of every rung and of the
     delay choice: training data end where the test block begins, per flight."""
-    from droneid.identify import IdentifyConfig, identify
+    from droneid.identify.pipeline import IdentifyConfig, identify
     from parsers import read_flight
     cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=100, population_size=60, jobs=1,
                               test_fraction=0.3)
@@ -299,8 +299,8 @@ def test_identify_folds_the_effect_the_diagnosis_finds(planted):
     """Planted truth inside identify: a quadratic drag the rotor-thrust prior lacks is found on the
     training flight, folded into the prior features (a ladder rung with c near the planted value)
     and kept in the final model; on a control flight no effect is added."""
-    from droneid.identify import IdentifyConfig, identify
-    from droneid.simulate import simulate
+    from droneid.identify.pipeline import IdentifyConfig, identify
+    from droneid.simulation.simulator import simulate
     flight = simulate(path="lissajous", duration_s=60, seed=11, effects=planted).flight
     cfg = IdentifyConfig.make(targets=("vx_dot", "vy_dot"), runs=1, generations=200, population_size=60, jobs=1)
     res = identify([flight], None, cfg)
@@ -322,8 +322,8 @@ def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_d
     """Two simulated training flights with the full state and motor speeds: the rotational job
     runs in the batch, and with two flights no rung can reach the test's first Holm threshold
     (8 flight-regime cells: p >= 2^-8 > 0.01/6), so every axis holds its rate and says so. A log without motor speeds gets a note, not a failure."""
-    from droneid.identify import IdentifyConfig, identify
-    from droneid.simulate import simulate
+    from droneid.identify.pipeline import IdentifyConfig, identify
+    from droneid.simulation.simulator import simulate
     cfg = IdentifyConfig.make(runs=1, generations=100, population_size=60, jobs=1, seed=1)
     train = [simulate(path=p, duration_s=15, seed=s).flight for p, s in (("circle", 1), ("eight", 2))]
     res = identify(train, None, cfg)

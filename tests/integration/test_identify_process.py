@@ -28,9 +28,9 @@ def test_identify_ends_its_process_with_every_output_complete(tmp_path):
 
 _SERIAL_VS_FORKED = """
 import json, sys
-import droneid.runner as runner
-from droneid.identify import IdentifyConfig, identify
-from droneid.simulate import simulate
+import droneid.engine.runner as runner
+from droneid.identify.pipeline import IdentifyConfig, identify
+from droneid.simulation.simulator import simulate
 if sys.argv[1] == "serial":     # every stage split by fork_map runs in this process, in order
     runner.fork_map = lambda fn, shared, items, n_jobs: [fn(shared, item) for item in items]
 train = [simulate(path=p, duration_s=15, seed=s).flight for p, s in (("circle", 1), ("eight", 2))]

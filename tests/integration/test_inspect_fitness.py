@@ -9,8 +9,8 @@ import numpy as np
 
 from droneid.cli import main
 from droneid.commands.inspect import render_fitness
-from droneid.suitability import fitness_by_prior
-from droneid.flight import Flight, Provenance, Signal
+from droneid.dataset.suitability import fitness_by_prior
+from droneid.logs.flight import Flight, Provenance, Signal
 
 
 def _quad(rpm_rate=4.0, motor_rate=50.0, duration=30.0, declared=True) -> Flight:

@@ -57,7 +57,7 @@ def check(argv, what: str) -> int:
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory) -> dict[str, bytes]:
     """One short simulated flight (motor speeds logged) in every written format, as bytes."""
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     from parsers.csv_writer import write_flat_csv
     from parsers.mcap_writer import write_mcap
     from parsers.motive_writer import write_motive_csv

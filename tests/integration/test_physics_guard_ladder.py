@@ -1,7 +1,7 @@
-"""Identify's ladder applies the physics guard (droneid.physics_guard) to evolved terms: a term in
+"""Identify's ladder applies the physics guard (droneid.fitting.physics_guard) to evolved terms: a term in
 one motor's speed is refused even where it would pass every other guard and the block test (here
 the target really holds one, planted), and a folded effect keeps the sign and size its own test
-supports (droneid.diagnosis_result.folded_feature)."""
+supports (droneid.diagnosis.result.folded_feature)."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from droneid.diagnosis_result import folded_feature
-from droneid.expressions import symbol
-from droneid.identify import IdentifyConfig, prepare_target
-from droneid.ladder import final_rung
-from droneid.plan import plan_identification
-from droneid.search import RunRecord
-from droneid.simulate import simulate
+from droneid.diagnosis.result import folded_feature
+from droneid.core.expressions import symbol
+from droneid.identify.pipeline import IdentifyConfig, prepare_target
+from droneid.identify.ladder import final_rung
+from droneid.identify.plan import plan_identification
+from droneid.identify.search import RunRecord
+from droneid.simulation.simulator import simulate
 from droneid.sngp.model import SymbolicModel
 
 CFG = IdentifyConfig.make(quick=True, effects="none", delays="none")
@@ -47,7 +47,7 @@ def test_a_single_motor_term_is_refused_even_when_the_data_hold_one(problem, mon
     assert guards.chosen_run is None and not any("rpm2" in lab for lab in final.terms)
     # control: without the physics guard every other guard and the block test keep the term
     # (what identify did before), with its sign in the coefficient, never a double minus
-    monkeypatch.setattr("droneid.ladder.guard_terms", lambda terms, labels, *a, **k: (list(range(len(terms))), []))
+    monkeypatch.setattr("droneid.identify.ladder.guard_terms", lambda terms, labels, *a, **k: (list(range(len(terms))), []))
     final, guards = final_rung(p, CFG, [run])
     assert guards.chosen_run == 0 and "rpm2" in list(final.terms)[-1]
 

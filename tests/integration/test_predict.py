@@ -13,7 +13,7 @@ import pytest
 import sympy as sp
 
 from droneid.cli import main
-from droneid.closed_form import IdentifiedModel
+from droneid.fitting.closed_form import IdentifiedModel
 
 TS = 0.05
 
@@ -26,7 +26,7 @@ def _tilt_drag(target: str, k_D: float) -> IdentifiedModel:
 
 @pytest.fixture(scope="module")
 def log(tmp_path_factory):
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     from parsers.tlog_writer import write_tlog
     path = tmp_path_factory.mktemp("logs") / "square.tlog"
     write_tlog(simulate(path="square", duration_s=14, seed=2, k_drag=0.4).flight, path)
@@ -53,8 +53,8 @@ def run_cli(capsys, *argv):
 
 
 def test_predict_evaluates_the_final_model(result, log, capsys):
-    from droneid.dataset_builder import DatasetBuilder
-    from droneid.numerics import rmse
+    from droneid.dataset.builder import DatasetBuilder
+    from droneid.core.numerics import rmse
     from parsers import read_flight
     code, out, _ = run_cli(capsys, "predict", result, log, "--json")
     assert code == 0
@@ -100,8 +100,8 @@ def test_predict_horizons_table_json_and_plots(result, log, capsys, tmp_path):
 def test_delayed_inputs_equal_a_shifted_log(result, log):
     """A model reading pitch at t − 0.1 s on the log == the undelayed model on a log whose pitch is
     shifted 0.1 s later, sample by sample where both exist."""
-    from droneid.dataset_builder import DatasetBuilder
-    from droneid.predict import _predict_final
+    from droneid.dataset.builder import DatasetBuilder
+    from droneid.use.predict import _predict_final
     from parsers import read_flight
     f = read_flight(log)
     m = _tilt_drag("vx_dot", 0.4)
@@ -115,7 +115,7 @@ def test_delayed_inputs_equal_a_shifted_log(result, log):
     ok = np.isfinite(preds["identified"][i])
     assert ok.sum() > 0.8 * common.size
     np.testing.assert_allclose(preds["identified"][i][ok], preds2["identified"][j][ok], rtol=1e-9, atol=1e-12)
-    from droneid.dataset_builder import resample_signal   # the rows hold pitch read 0.1 s earlier
+    from droneid.dataset.builder import resample_signal   # the rows hold pitch read 0.1 s earlier
     np.testing.assert_allclose(ds.column("pitch"), resample_signal(f["pitch"], ds.t - 0.1), rtol=1e-12)
     assert not np.allclose(ds.column("pitch"), resample_signal(f["pitch"], ds.t))
     assert notes == ["identified: pitch read at t − 0.1 s"]

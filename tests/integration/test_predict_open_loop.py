@@ -8,8 +8,8 @@ import pytest
 import sympy as sp
 
 from droneid.cli import main
-from droneid.closed_form import IdentifiedModel
-from droneid.simulate import simulate
+from droneid.fitting.closed_form import IdentifiedModel
+from droneid.simulation.simulator import simulate
 
 
 def test_open_loop_scores_the_final_model_nominal_physics_and_the_held_state(tmp_path, capsys):

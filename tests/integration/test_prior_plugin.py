@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from droneid.api import read_log
-from droneid.plan import dataset_builder, plan_identification
-from droneid.problem import prepare_target
-from droneid.settings import IdentifyConfig
+from droneid.identify.plan import dataset_builder, plan_identification
+from droneid.identify.problem import prepare_target
+from droneid.identify.settings import IdentifyConfig
 from plugins.lifting_body import lifting_body
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_logs" / "rotor_climb_eight.flat.csv"

@@ -39,7 +39,7 @@ def _renamed_copy(src, dst) -> None:
 
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory):
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     from parsers.csv_writer import write_flat_csv
     from parsers.tlog_writer import write_tlog
     d = tmp_path_factory.mktemp("logs")

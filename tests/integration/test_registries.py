@@ -5,7 +5,7 @@ import pytest
 
 from conftest import SAMPLE_LOGS
 from droneid.cli import main
-from droneid.differentiation import DIFFERENTIATORS
+from droneid.core.differentiation import DIFFERENTIATORS
 from parsers import READERS
 from priors.effects import CATALOGUE
 from priors.registry import PRIORS

@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.flight import Signal
-from droneid.identify import IdentifyConfig, _horizons, prepare_target, summarise_target
-from droneid.plan import plan_identification
-from droneid.simulate import simulate
+from droneid.logs.flight import Signal
+from droneid.identify.pipeline import IdentifyConfig, _horizons, prepare_target, summarise_target
+from droneid.identify.plan import plan_identification
+from droneid.simulation.simulator import simulate
 from priors.thrust import RPM_SCALE
 
 pytestmark = pytest.mark.slow

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.dataset_builder import DatasetBuilder
-from droneid.simulate import simulate
+from droneid.dataset.builder import DatasetBuilder
+from droneid.simulation.simulator import simulate
 from priors.registry import get_prior
 from priors.thrust import RPM_SCALE
 
@@ -107,7 +107,7 @@ def _delay_flights(delay_s, late_s=0.0):
 
 
 def _identify_delays(delay_s, late_s=0.0):
-    from droneid.identify import IdentifyConfig, identify
+    from droneid.identify.pipeline import IdentifyConfig, identify
     train, test = _delay_flights(delay_s, late_s)
     cfg = IdentifyConfig.make(runs=1, generations=200, population_size=60, jobs=1, effects="none", delays="auto")
     res = identify(train, test, cfg)
@@ -131,8 +131,8 @@ def test_identify_reads_a_late_motor_stream_later_and_keeps_the_stop_and_go_flig
     """The motor stream of a merged log stamped 80 ms late (issue 25): the offset is −80 ± 20 ms
     (read later: a clock correction), with its interval and evidence, and the random path's
     stops (hovers at altitude) stay airborne."""
-    from droneid.dataset_builder import in_flight_intervals
-    from droneid.identify import IdentifyConfig, identify
+    from droneid.dataset.builder import in_flight_intervals
+    from droneid.identify.pipeline import IdentifyConfig, identify
     train, test = _delay_flights(0.0, late_s=0.08)
     for f in train:
         assert in_flight_intervals(f)[0] == [(f["z"].start_s, f["z"].end_s)]   # no hover cut out
@@ -147,10 +147,10 @@ def test_identify_reads_a_late_motor_stream_later_and_keeps_the_stop_and_go_flig
 
 
 def test_the_rotor_sample_log_shows_its_planted_delay():
-    """sample_logs/rotor_climb_eight (droneid/sample_logs.py) is there to show the rotor-thrust prior
+    """sample_logs/rotor_climb_eight (droneid/simulation/sample_logs.py) is there to show the rotor-thrust prior
     and its delay: identify's plan on the simulated sample picks both."""
-    from droneid.identify import IdentifyConfig, plan_identification
-    from droneid.sample_logs import SAMPLES
+    from droneid.identify.pipeline import IdentifyConfig, plan_identification
+    from droneid.simulation.sample_logs import SAMPLES
     spec = next(s for s in SAMPLES if s.name == "rotor_climb_eight")
     res = simulate(**spec.sim)
     plan = plan_identification([res.flight], IdentifyConfig.make(runs=1, effects="none", delays="auto"))
@@ -168,8 +168,8 @@ def test_the_offset_search_chooses_the_same_on_one_worker_and_on_two():
     # delay_scores), must be those of the search in this process
     from dataclasses import replace
 
-    from droneid.identify import IdentifyConfig
-    from droneid.plan import choose_offset, resolve_plan_prior
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.identify.plan import choose_offset, resolve_plan_prior
     train, _ = _delay_flights(0.04, 0.0)
     cfg = IdentifyConfig.make(jobs=1, effects="none", delays="auto")
     prior, _ = resolve_plan_prior(cfg, train)
@@ -189,8 +189,8 @@ def test_each_flight_gets_its_own_offset_and_flights_with_other_clocks_are_not_s
     offset, the others at the chosen one, the vehicle's terms fitted on all) on the side of its
     planted delay. One step of the profile: a flight's own offset is pulled toward the others'
     (the vehicle's terms are fitted with them), so it is not asked to hit its delay exactly."""
-    from droneid.identify import IdentifyConfig
-    from droneid.plan import choose_offset, resolve_plan_prior
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.identify.plan import choose_offset, resolve_plan_prior
     cfg = IdentifyConfig.make(jobs=1, effects="none", delays="auto")
     same, _ = _delay_flights(0.04, 0.0)
     prior, _ = resolve_plan_prior(cfg, same)

@@ -9,7 +9,7 @@ import pytest
 from droneid.cli import main
 from droneid.commands.simulate import parse_effect_args
 from droneid.errors import ConfigError
-from droneid.sample_logs import FORMATS, SAMPLES, sample_command
+from droneid.simulation.sample_logs import FORMATS, SAMPLES, sample_command
 
 from conftest import ROOT, SAMPLE_LOGS
 
@@ -100,7 +100,7 @@ def test_readme_command_reproduces_the_sample(tmp_path):
 
 
 def test_every_sample_carries_the_rotor_signals():
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     for spec in SAMPLES:
         names = simulate(**dict(spec.sim, duration_s=1.0)).flight.names
         for i in range(1, 5):
@@ -111,10 +111,10 @@ def test_every_sample_carries_the_rotor_signals():
 def test_flat_csv_output_carries_rpm_and_motor_commands(tmp_path):
     import numpy as np
 
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     from parsers import read_flight
     res = simulate(path="circle", duration_s=2.0, rate_hz=20.0, seed=1, rpm_delay_s=0.04)
-    from droneid.sample_logs import save
+    from droneid.simulation.sample_logs import save
     (p, _) = save(res, tmp_path, "c", formats=("flatcsv",))
     assert p.name == "c.flat.csv"
     got = read_flight(p)

@@ -1,18 +1,18 @@
-"""A tiny real study returns a :class:`droneid.study.StudyResult` whose study.json reads back to
+"""A tiny real study returns a :class:`droneid.identify.study.StudyResult` whose study.json reads back to
 the same document (simulated flight with planted truth; budgets of seconds)."""
 from __future__ import annotations
 
 import json
 import math
 
-from droneid.identify import IdentifyConfig, RunRecord
-from droneid.study import PRIOR_VARIANTS, RUN_KEYS, SCENARIOS, StudyResult, variant_key
+from droneid.identify.pipeline import IdentifyConfig, RunRecord
+from droneid.identify.study import PRIOR_VARIANTS, RUN_KEYS, SCENARIOS, StudyResult, variant_key
 
 
 def test_a_tiny_study_is_typed_and_round_trips_through_study_json(tmp_path):
     from droneid.report import study as report
-    from droneid.simulate import simulate
-    from droneid.study import study
+    from droneid.simulation.simulator import simulate
+    from droneid.identify.study import study
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
     test = simulate(path="square", duration_s=8.0, seed=12).flight
     cfg = IdentifyConfig.make(targets=("vx_dot",), runs=2, generations=50, population_size=40, jobs=1, seed=0)
@@ -39,8 +39,8 @@ def test_the_study_runs_a_user_toml_prior_and_records_its_spec():
     """--prior FILE.toml:NAME reaches every target's problem (not only the first resolution)."""
     from pathlib import Path
 
-    from droneid.simulate import simulate
-    from droneid.study import study
+    from droneid.simulation.simulator import simulate
+    from droneid.identify.study import study
     spec = f"{Path(__file__).resolve().parents[2] / 'priors' / 'example_priors.toml'}:tilt-quadratic-drag"
     train = simulate(path="eight", duration_s=8.0, seed=11).flight
     cfg = IdentifyConfig.make(targets=("vx_dot",), runs=1, generations=30, population_size=40, jobs=1,

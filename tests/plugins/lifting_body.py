@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.targets import TARGETS
+from droneid.core.expressions import symbol
+from droneid.core.targets import TARGETS
 from priors import constraints as pc
 from priors.base import PriorFeature, PriorModel
 from priors.thrust import body_z_world, thrust_columns

@@ -14,8 +14,8 @@ LOGS = ("ardupilot/copter33_quad_log171.bin", "px4/x500_sitl_events.ulg")
 
 
 def _ladders(path):
-    from droneid.identify import IdentifyConfig, prepare_target, summarise_target
-    from droneid.plan import plan_identification
+    from droneid.identify.pipeline import IdentifyConfig, prepare_target, summarise_target
+    from droneid.identify.plan import plan_identification
     from parsers import read_flight
     train = [read_flight(str(real_log(path)))]
     cfg = IdentifyConfig.make(quick=True)
@@ -56,7 +56,7 @@ def test_declared_expo_and_hover_are_shown_beside_the_identified(identified):
 def test_arducopter_462_declares_its_curve_normalisation_and_voltage_scaling():
     """The 4.6.2 log (too little flight to identify) declares the whole command map in PARM: the
     reader keeps it, and the command prior runs its curve from MOT_SPIN_MIN to MOT_SPIN_MAX."""
-    from droneid.thrust_curve import declared_parameters, normalised
+    from droneid.fitting.thrust_curve import declared_parameters, normalised
     from parsers import read_flight
     from priors.registry import get_prior
     f = read_flight(str(real_log("ardupilot/copter462_quad_first80k.bin")))

@@ -12,7 +12,7 @@ import pytest
 from conftest import REAL_LOGS, real_log
 from convention_rewrites import MISTAKES, reader_kwargs, rewrite_all
 from droneid.cli import main
-from droneid.consistency import check_flight
+from droneid.logs.consistency import check_flight
 from droneid.errors import LogFormatError
 from parsers import read_flight
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.dataset_builder import DatasetBuilder
+from droneid.dataset.builder import DatasetBuilder
 
 from _physics import tilt_drag_coefficients
 from conftest import real_log

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from conftest import real_log
-from droneid.dataset_builder import DatasetBuilder
-from droneid.diagnose import DiagnoseConfig, diagnose, diagnose_datasets
+from droneid.dataset.builder import DatasetBuilder
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose, diagnose_datasets
 from diag_synth import decisions
 from priors.registry import get_prior
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.closed_form import IdentifiedModel
+from droneid.fitting.closed_form import IdentifiedModel
 
 from conftest import real_log
 from export_helpers import CC, c_eval, c_library, export_cli, python_module, rotor_thrust_sum, write_result
@@ -17,8 +17,8 @@ def test_exported_code_matches_predict_on_a_real_crazyflie_log(tmp_path):
     """The rotor-thrust prior summed, on the Crazyflie square_run2 log at its 100 Hz: the values
     ``predict`` computes (IdentifiedModel.evaluate on the dataset it builds), the exported Python
     and the compiled C agree to 1e-9 relative."""
-    from droneid.dataset_builder import DatasetBuilder
-    from droneid.predict import _predict_final
+    from droneid.dataset.builder import DatasetBuilder
+    from droneid.use.predict import _predict_final
     from parsers import read_flight
     flight = read_flight(real_log("mocap/crazyflie_nanodrone/square_run2.csv"))
     m = IdentifiedModel("vx_dot", rotor_thrust_sum("vx_dot").expr, description="rotor-thrust prior, summed")
@@ -44,8 +44,8 @@ def test_vehicle_export_steps_as_the_open_loop_simulation_on_a_real_crazyflie_fl
     what predict --open-loop scores), to 1e-9."""
     import json
 
-    from droneid.openloop import IdentifiedTranslation, IdentifiedVehicle, simulate, state_log
-    from droneid.rotation import KNOWN_TERMS, fit_rotation, flying_mask
+    from droneid.simulation.openloop import IdentifiedTranslation, IdentifiedVehicle, simulate, state_log
+    from droneid.rotation.model import KNOWN_TERMS, fit_rotation, flying_mask
     from export_helpers import vehicle_c_rollout, vehicle_python_rollout
     from parsers import read_flight
     train = state_log(read_flight(real_log("mocap/crazyflie_nanodrone/square_run1.csv")))

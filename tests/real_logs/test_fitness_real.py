@@ -1,4 +1,4 @@
-"""droneid.suitability.assess on the shared real logs (moved from tests/unit/test_fitness.py): the
+"""droneid.dataset.suitability.assess on the shared real logs (moved from tests/unit/test_fitness.py): the
 verdict for the tilt-drag model at Ts = 0.05 s, and the fitness block of ``droneid inspect``."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import json
 import pytest
 
 from droneid.cli import main
-from droneid.suitability import TILT_DRAG_SIGNALS, assess
+from droneid.dataset.suitability import TILT_DRAG_SIGNALS, assess
 from parsers import read_flight
 
 from conftest import real_log

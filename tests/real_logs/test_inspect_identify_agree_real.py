@@ -1,6 +1,6 @@
 """inspect and identify agree on every shared real log (issue 29, item 2): the fitness block of
 ``droneid inspect`` is the verdict identify reaches (the same prior resolution, the same
-:func:`droneid.suitability.prior_fitness`), and its sample count is the number of rows identify's
+:func:`droneid.dataset.suitability.prior_fitness`), and its sample count is the number of rows identify's
 dataset builder makes, within 5 %."""
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import sys
 
 import pytest
 
-from droneid.dataset_builder import DatasetBuilder
+from droneid.dataset.builder import DatasetBuilder
 from droneid.errors import DroneIdError
-from droneid.suitability import check_prior_data, fitness_by_prior, usable_signals
-from droneid.targets import targets_for
+from droneid.dataset.suitability import check_prior_data, fitness_by_prior, usable_signals
+from droneid.core.targets import targets_for
 from parsers import read_flight
 from priors.registry import prior_for
 

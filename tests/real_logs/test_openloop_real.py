@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.openloop import QUANTITIES, Constant, NominalPhysics, open_loop, state_log
+from droneid.simulation.openloop import QUANTITIES, Constant, NominalPhysics, open_loop, state_log
 from parsers import read_flight
 
 from conftest import real_log
@@ -51,8 +51,8 @@ def test_reference_rows_match_the_published_ones(melon):
 @pytest.mark.slow
 def test_vehicle_identified_on_three_squares_beats_holding_the_state_on_the_other_two():
     """Blocked validation on training flights only (the melon runs are test flights)."""
-    from droneid.rotation import VehicleModel, fit_translation, flying_segments
-    from droneid.rotation_choice import fit_rotation_multistep
+    from droneid.rotation.model import VehicleModel, fit_translation, flying_segments
+    from droneid.rotation.choice import fit_rotation_multistep
     fit_on = _logs([f"square_run{i}" for i in (3, 4, 5)])
     held = [seg for log in _logs(["square_run1", "square_run2"]) for seg in flying_segments(log)]
     model = VehicleModel(fit_translation(fit_on, delay_steps=2),

@@ -209,7 +209,7 @@ def test_horizontal_acceleration_follows_tilt(rel):
 
 def test_physics_check_catches_a_pitch_sign_flip():
     """The same check on a flight with pitch negated (the classic NED->ENU mistake) fails."""
-    from droneid.flight import Signal
+    from droneid.logs.flight import Signal
     f = read_flight(real_log("mocap/crazyflie_nanodrone/square_run2.csv"))
     p = f["pitch"]
     bad = f.with_signals(Signal("pitch", p.t, -p.values, p.unit, p.source))

@@ -4,7 +4,7 @@ validation on the five squares only; the melon runs are test flights, scored aft
 What was measured (docs/use-the-model.md): on the held-out squares the torque model is three
 times better than holding the rates when pooled (the corners, where the controller stops the
 rotation), but in the calmer half of the windows it is worse than the rung below, on every
-square: the ladder's rule (droneid.decide's sign-flip test over the 20 (square, regime) cells,
+square: the ladder's rule (droneid.fitting.decide's sign-flip test over the 20 (square, regime) cells,
 Holm over the 6 axis-rung steps at α = 0.01) refuses it. Every axis takes the rate decay, which
 beats holding the rates on every square in every regime on roll and pitch, and in 19 of 20 cells
 on yaw (it loses the calmest quarter of square 1). On the melon runs that model is below holding
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.openloop import IdentifiedVehicle, flight_state_logs, open_loop
-from droneid.rotation import fit_translation
-from droneid.rotation_choice import RUNGS, HeldRates, select_rotation
+from droneid.simulation.openloop import IdentifiedVehicle, flight_state_logs, open_loop
+from droneid.rotation.model import fit_translation
+from droneid.rotation.choice import RUNGS, HeldRates, select_rotation
 from parsers import read_flight
 
 from conftest import real_log

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from droneid.cli import main
-from droneid.flight import canonical_unit
+from droneid.logs.flight import canonical_unit
 
 from conftest import real_log
 

@@ -16,7 +16,7 @@ import droneid.commands
 from droneid.cli import build_parser, chosen_command
 from droneid.commands import COMMANDS
 
-HEAVY = ("sympy", "numba", "pandas", "scipy", "droneid.sngp", "droneid.fit", "droneid.identify",
+HEAVY = ("sympy", "numba", "pandas", "scipy", "droneid.sngp", "droneid.engine.fit", "droneid.identify.pipeline",
          "parsers")
 
 _PROBE = """
@@ -120,7 +120,7 @@ def test_fit_as_a_process_writes_everything_before_it_ends_without_teardown(tmp_
 def test_the_engine_and_fits_pipeline_import_without_sympy():
     """Without priors or constraints the search starts before sympy is imported (sympy is then
     imported in a background thread while the search runs)."""
-    code = ("import sys, droneid.fit, droneid.sngp.kernels, droneid.sngp.population; "
-            "print(sorted(m for m in ('sympy', 'droneid.expressions') if m in sys.modules))")
+    code = ("import sys, droneid.engine.fit, droneid.sngp.kernels, droneid.sngp.population; "
+            "print(sorted(m for m in ('sympy', 'droneid.core.expressions') if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip() == "[]", r.stdout + r.stderr

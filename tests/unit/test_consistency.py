@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from convention_rewrites import MISTAKES, reader_kwargs, rewrite_all
-from droneid.consistency import ConventionError, check_flight
+from droneid.logs.consistency import ConventionError, check_flight
 from droneid.errors import ConfigError
-from droneid.flight import Flight, Provenance, Signal
-from droneid.frames import euler_to_quat, quat_to_euler
+from droneid.logs.flight import Flight, Provenance, Signal
+from droneid.core.frames import euler_to_quat, quat_to_euler
 from parsers import read_flight
 from parsers._convention import convert, parse_factor
 
@@ -54,7 +54,7 @@ def test_the_sample_logs_as_written_raise_nothing():
 
 
 def test_identify_and_diagnose_refuse_before_any_fit(rewritten):
-    from droneid.suitability import check_prior_data
+    from droneid.dataset.suitability import check_prior_data
     from priors.registry import prior_for
     flights = [read_flight(rewritten["kmh"]), read_flight(SIM)]
     prior, _ = prior_for("tilt-drag", set(flights[0].names))

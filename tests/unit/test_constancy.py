@@ -1,4 +1,4 @@
-"""Vehicle constants across flights (droneid.constancy, terms.physical_fit with flights): the
+"""Vehicle constants across flights (droneid.fitting.constancy, terms.physical_fit with flights): the
 constancy test flags a coefficient that moves between flights, keeps one that does not, has its
 size on exact-noise draws, and the interval of a pooled constant covers how flights differ."""
 from __future__ import annotations
@@ -8,10 +8,10 @@ import math
 import numpy as np
 import sympy as sp
 
-from droneid.constancy import (ALPHA, Constancy, constancy_line, constancy_sentence, heterogeneity,
+from droneid.fitting.constancy import (ALPHA, Constancy, constancy_line, constancy_sentence, heterogeneity,
                                holm_flags, n_stretches, units_of)
-from droneid.terms import TermModel, physical_fit
-from droneid.validation import time_blocks
+from droneid.fitting.terms import TermModel, physical_fit
+from droneid.dataset.validation import time_blocks
 
 
 def test_heterogeneity_of_agreeing_and_disagreeing_units():
@@ -137,7 +137,7 @@ def test_a_tiny_spread_is_not_a_finding():
 
 
 def test_leads_point_to_what_moves_a_constant_and_what_the_diagnosis_said():
-    from droneid.constancy import leads
+    from droneid.fitting.constancy import leads
     bad = {"minus_kD_vx": Constancy("flight", {"a": (0.2, 0.1, 0.3), "b": (1.4, 1.3, 1.5)}, 1e-9, False)}
     good = {"minus_kD_vx": Constancy("flight", {"a": (1.0, 0.9, 1.1), "b": (1.0, 0.9, 1.1)}, 0.9, True)}
     diag = {"not_detected": ["wind"], "untestable": {"anisotropic_drag": "why"}, "effects_added": []}
@@ -152,9 +152,9 @@ def test_collinear_physical_terms_are_tied_into_the_combination_the_data_identif
     measured (the planted thrust near hover is about half the two nominal terms' sum)."""
     import sympy as sp
 
-    from droneid.expressions import symbol
-    from droneid.terms import TermModel
-    from droneid.validation import time_blocks
+    from droneid.core.expressions import symbol
+    from droneid.fitting.terms import TermModel
+    from droneid.dataset.validation import time_blocks
     rng = np.random.default_rng(0)
     n = 2000
     u, vz = 0.5 + 0.03 * rng.standard_normal(n), rng.standard_normal(n)

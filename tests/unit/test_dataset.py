@@ -3,11 +3,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from droneid.dataset_builder import DatasetBuilder, resample_signal, subsample
-from droneid.validation import split_by_flight, split_time_block
+from droneid.dataset.builder import DatasetBuilder, resample_signal, subsample
+from droneid.dataset.validation import split_by_flight, split_time_block
 from droneid.errors import ConfigError, DataError, MissingSignalError
-from droneid.flight import Event, Flight, Signal
-from droneid.frames import wrap_angle
+from droneid.logs.flight import Event, Flight, Signal
+from droneid.core.frames import wrap_angle
 
 from synth_flights import attitude, tilt_accel, tilt_drag_flight, tilt_drag_truth
 
@@ -245,8 +245,8 @@ def test_other_derivative_targets(flight):
 def test_span_ending_a_hair_below_a_grid_point_keeps_its_last_sample():
     """A log whose time stamps end at 12.7999999999 s (float round-off of 12.8) must still build
     with the central differentiator (the grid must not step past the signal's end)."""
-    from droneid.dataset_builder import DatasetBuilder
-    from droneid.flight import Flight, Signal
+    from droneid.dataset.builder import DatasetBuilder
+    from droneid.logs.flight import Flight, Signal
     t = np.arange(257) * 0.05
     t[-1] = 12.799999999999999
     sig = {n: Signal(n, t, v, u) for n, v, u in [

@@ -3,8 +3,8 @@ import re
 import numpy as np
 import pytest
 
-from droneid.align import estimate_clock_offset, merge_flights
-from droneid.dataset_builder import DatasetBuilder
+from droneid.dataset.align import estimate_clock_offset, merge_flights
+from droneid.dataset.builder import DatasetBuilder
 from droneid.errors import DataError, MissingSignalError
 
 from synth_flights import tilt_drag_flight

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from droneid.dataset_builder import DatasetBuilder
-from droneid.simulate import simulate
+from droneid.dataset.builder import DatasetBuilder
+from droneid.simulation.simulator import simulate
 
 
 @pytest.mark.parametrize("method", ["forward", "savgol"])

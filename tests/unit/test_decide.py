@@ -1,4 +1,4 @@
-"""The one decision rule (droneid.decide): accepts consistent held-out gains, rejects noise at
+"""The one decision rule (droneid.fitting.decide): accepts consistent held-out gains, rejects noise at
 its stated family-wise level, Holm step-down over a family."""
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import inspect
 import numpy as np
 import pytest
 
-from droneid.decide import Decision, decide, decide_designs, decide_family, holm_threshold
+from droneid.fitting.decide import Decision, decide, decide_designs, decide_family, holm_threshold
 from droneid.errors import ConfigError
-from droneid.validation import block_ids
+from droneid.dataset.validation import block_ids
 
 
 def _blocks(n=960, k=12):
@@ -147,7 +147,7 @@ def test_block_statistic_is_antisymmetric_in_the_two_models():
 def test_the_sign_flip_p_is_that_of_fresh_draws_every_time():
     # the random sign patterns are drawn once per block count and reused (speed); every p must
     # be the one the fixed-seed draws give, call after call and for any data
-    from droneid.decide import N_FLIPS, paired_block_test
+    from droneid.fitting.decide import N_FLIPS, paired_block_test
 
     def fresh_p(d):
         rng = np.random.default_rng(20251125)
@@ -178,7 +178,7 @@ def test_a_pooled_fall_that_most_blocks_contradict_says_so():
 def test_decide_units_on_simulation_errors_pools_the_error_itself():
     """Per-unit SimErr (not squared residuals): the effect is the drop of the window-weighted mean
     SimErr, the units are cells, and the test is the same sign-flip test on the log ratios."""
-    from droneid.decide import decide_units
+    from droneid.fitting.decide import decide_units
     m0 = np.array([10.0, 20.0, 40.0, 80.0] * 4)
     m1 = 0.5 * m0
     d = decide_units(m0, m1, np.full(16, 30), alpha=0.01, family_size=6, loss="simerr", what="roll damping")
@@ -194,7 +194,7 @@ def test_decide_units_on_simulation_errors_pools_the_error_itself():
 
 
 def test_holm_step_down_is_the_family_rule_over_any_decisions():
-    from droneid.decide import decide_units, holm_step_down
+    from droneid.fitting.decide import decide_units, holm_step_down
     base = np.array([1.0, 2.0, 3.0, 4.0] * 3)
     gains = {"a": 0.5, "b": 0.9, "c": 1.0}          # consistent, consistent, none
     out = holm_step_down(lambda n, k: decide_units(base, gains[n] * base, alpha=0.01, family_size=3, rank=k,

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 
 import diag_synth as S
-from droneid.diagnose import DiagnoseConfig, diagnose_datasets
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
 from droneid.report.diagnose import write
 from droneid.report.diagnose import text as render_text
 
@@ -72,7 +72,7 @@ def test_axis_labels_of_explaining_signals_carry_units():
 def test_a_saved_diagnosis_reads_back_and_renders_the_same_summary(tmp_path):
     import pytest
 
-    from droneid.diagnose import DiagnosisResult
+    from droneid.diagnosis.diagnose import DiagnosisResult
     from droneid.errors import DataError
     r = _result()
     d = json.loads(json.dumps(r.to_dict()))

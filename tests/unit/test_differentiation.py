@@ -3,7 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from droneid.differentiation import DIFFERENTIATORS, get_differentiator
+from droneid.core.differentiation import DIFFERENTIATORS, get_differentiator
 from droneid.errors import ConfigError, DataError
 
 

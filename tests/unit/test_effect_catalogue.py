@@ -12,7 +12,7 @@ import pytest
 
 import diag_synth as S
 import priors.effect_catalogue as package
-from droneid.diagnose import DiagnoseConfig, diagnose_datasets
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
 from droneid.errors import ConfigError
 from priors import effects
 from priors.effects import CATALOGUE, get_effect

@@ -1,11 +1,11 @@
 """Per-motor thrust (priors/effect_catalogue/motor_thrust): a simulated weak motor is named with
-its ratio; healthy motors are not; the decision is the one rule of droneid.decide."""
+its ratio; healthy motors are not; the decision is the one rule of droneid.fitting.decide."""
 from __future__ import annotations
 
 import pytest
 
-from droneid.diagnose import DiagnoseConfig, diagnose
-from droneid.simulate import simulate
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose
+from droneid.simulation.simulator import simulate
 from priors.effect_catalogue.motor_thrust import ratios_from_means
 
 CFG = DiagnoseConfig(generations=0)

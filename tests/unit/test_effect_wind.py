@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import diag_synth as S
-from droneid.diagnose import DiagnoseConfig, diagnose_datasets
+from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
 from priors.effects import CATALOGUE, EffectContext
 
 WIND = CATALOGUE["wind"]

@@ -11,7 +11,7 @@ import pytest
 
 import diag_synth as S
 from droneid.errors import ConfigError
-from droneid.targets import TARGETS
+from droneid.core.targets import TARGETS
 from priors.effects import CATALOGUE, TILT, Effect, EffectContext, Interpretation, load_effects, \
     time_derivative
 from priors.registry import get_prior
@@ -194,7 +194,7 @@ def test_user_effect_errors(tmp_path, body, match):
 
 
 # -- foldable effects: expressions over canonical signals reproduce the fitted columns ------------
-from droneid.expressions import compile_expression  # noqa: E402
+from droneid.core.expressions import compile_expression  # noqa: E402
 from priors.effects import is_measured_derivative, thrust_proxy  # noqa: E402
 
 

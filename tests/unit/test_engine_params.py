@@ -2,8 +2,8 @@
 reaches SNGPRegressor under the name its signature gives (no translation table to drift)."""
 import inspect
 
-from droneid.diagnose import DiagnoseConfig
-from droneid.identify import IdentifyConfig
+from droneid.diagnosis.diagnose import DiagnoseConfig
+from droneid.identify.pipeline import IdentifyConfig
 from droneid.sngp import SNGPRegressor
 
 ENGINE = set(SNGPRegressor.param_names())

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from droneid.constraint_samples import ConstraintSamples, EQ, GE, LE, constraint_rmse, violations
+from droneid.core.constraint_samples import ConstraintSamples, EQ, GE, LE, constraint_rmse, violations
 from droneid.errors import ConfigError
-from droneid.expressions import compile_expression, parse_expression, symbol
+from droneid.core.expressions import compile_expression, parse_expression, symbol
 
 
 def test_parse_tilt_drag_term():

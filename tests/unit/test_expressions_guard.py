@@ -8,7 +8,7 @@ import sympy as sp
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from droneid.errors import ConfigError, DroneIdError, MissingSignalError
-from droneid.expressions import compile_expression, parse_expression, safe_format, symbol
+from droneid.core.expressions import compile_expression, parse_expression, safe_format, symbol
 
 
 @pytest.mark.parametrize("text, part", [

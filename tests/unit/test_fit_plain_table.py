@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from droneid.fit import FitConfig, prepare, read_plain_table
+from droneid.engine.fit import FitConfig, prepare, read_plain_table
 
 
 def _same_as_pandas(path) -> None:
@@ -74,7 +74,7 @@ def test_fit_reads_a_plain_table_without_importing_pandas(tmp_path):
     path = tmp_path / "t.csv"
     rng = np.random.default_rng(0)
     np.savetxt(path, rng.normal(size=(40, 3)), delimiter=",", header="a,b,y", comments="")
-    code = ("import sys; from droneid.fit import FitConfig, prepare; "
+    code = ("import sys; from droneid.engine.fit import FitConfig, prepare; "
             f"p = prepare({str(path)!r}, FitConfig(target='y')); "
             "print(p.X.shape, 'pandas' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

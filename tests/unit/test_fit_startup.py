@@ -16,7 +16,7 @@ import json, sys
 import droneid.commands.fit as C
 from droneid.sngp import estimator as E
 C._import_quietly()                  # what the background thread imports, here to completion
-import droneid.fit as F
+import droneid.engine.fit as F
 seen = {}
 search = E.run_search
 def run_search(*a, **k):

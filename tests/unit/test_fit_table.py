@@ -1,10 +1,10 @@
-"""droneid.fit: the table pipeline behind `droneid fit`, from Python (no CLI)."""
+"""droneid.engine.fit: the table pipeline behind `droneid fit`, from Python (no CLI)."""
 import numpy as np
 import pandas as pd
 import pytest
 
 from droneid.errors import DataError, MissingSignalError
-from droneid.fit import FitConfig, fit_table, prepare
+from droneid.engine.fit import FitConfig, fit_table, prepare
 
 
 def _table(n=200, seed=0):

@@ -1,4 +1,4 @@
-"""droneid.suitability.assess (issue 13): planted flights with known rates, airborne time, vehicle
+"""droneid.dataset.suitability.assess (issue 13): planted flights with known rates, airborne time, vehicle
 type and excitation; the inspect block. The verdicts on the shared real logs:
 tests/real_logs/test_fitness_real.py."""
 from __future__ import annotations
@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from droneid.cli import main
-from droneid.dataset_builder import DatasetBuilder
+from droneid.dataset.builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError
-from droneid.suitability import (MIN_AIRBORNE_S, TILT_DRAG_SIGNALS, assess)
-from droneid.flight import Flight, Provenance, Signal
+from droneid.dataset.suitability import (MIN_AIRBORNE_S, TILT_DRAG_SIGNALS, assess)
+from droneid.logs.flight import Flight, Provenance, Signal
 from parsers import read_flight
 
 
@@ -193,7 +193,7 @@ def test_undeclared_vehicle_is_judged_from_its_data():
 def test_problems_are_ordered_from_the_most_fundamental():
     """never airborne, then no valid state estimate, then missing signals, then rates; the
     mapping hint fits the format (no --column / --topic for a ULog)."""
-    from droneid.flight import Diagnostics
+    from droneid.logs.flight import Diagnostics
     f = _flight(armed=False, vel_rate=1.0).without("vx")
     f = replace(f, provenance=replace(f.provenance, format="ulog"),
                 diagnostics=Diagnostics({"vehicle_local_position samples with v_xy_valid false": 9}))
@@ -214,7 +214,7 @@ def test_rates_and_samples_are_gap_aware():
     """A signal in bursts: its rate is per second of data, and only the bursts count as samples
     (a 100 Hz signal logged 2 s out of every 20 s is 100 Hz over 20 % of the time, not 100 Hz over
     all of it)."""
-    from droneid.suitability import coverage
+    from droneid.dataset.suitability import coverage
     f = _flight(duration=60.0)
     keep = (f["vx"].t % 20.0) < 2.0
     bursty = Signal("vx", f["vx"].t[keep], f["vx"].values[keep], "m/s")
@@ -264,8 +264,8 @@ def test_undeclared_vehicle_types_are_one_line_naming_the_flights():
 
 
 def test_identify_says_undeclared_vehicles_once_over_training_and_test_flights():
-    from droneid.identify import _data_notes
-    from droneid.report.wording import undeclared_line
+    from droneid.identify.pipeline import _data_notes
+    from droneid.core.text import undeclared_line
     def fitness(names):
         und = tuple((n, "the data look like a multirotor (x)", "the data look like a multirotor") for n in names)
         return SimpleNamespace(undeclared=und, warnings=(undeclared_line(list(und)),

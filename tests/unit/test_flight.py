@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import DataError, DroneIdError, MissingSignalError
-from droneid.flight import Diagnostics, Flight, Provenance, Signal, canonical_unit, is_canonical
+from droneid.logs.flight import Diagnostics, Flight, Provenance, Signal, canonical_unit, is_canonical
 
 
 def _flight():
@@ -72,7 +72,7 @@ def test_canonical_names():
 def test_clean_drops_a_lone_damaged_stamp_not_everything_after_it():
     """One flipped bit in a stamp (2**25 s ahead) once made every later sample 'backwards'."""
     import numpy as np
-    from droneid.flight import Signal
+    from droneid.logs.flight import Signal
     t = np.arange(100) * 0.01
     t[40] += 2.0 ** 25
     s, dropped = Signal.clean("x", t, np.arange(100.0), "m")
@@ -89,7 +89,7 @@ def test_a_flight_survives_pickling_for_a_worker_process():
     # and read-only, and the same provenance, diagnostics, segments and events
     import pickle
 
-    from droneid.flight import Event
+    from droneid.logs.flight import Event
     t = np.linspace(0.0, 1.0, 11)
     f = Flight({"vx": Signal("vx", t, np.sin(t), "m/s", "LOCAL_POSITION_NED.vx")},
                diagnostics=Diagnostics({"bad crc": 2}, ("a gap",)),

@@ -2,7 +2,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from droneid import frames
+from droneid.core import frames
 
 angle = st.floats(-3.0, 3.0)
 small = st.floats(-1.4, 1.4)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from droneid.dataset_builder import in_flight_intervals
-from droneid.flight import Flight, Signal
+from droneid.dataset.builder import in_flight_intervals
+from droneid.logs.flight import Flight, Signal
 
 
 def _stop_and_go(take_off: bool) -> Flight:

@@ -1,4 +1,4 @@
-"""The trust guards of identify (droneid.terms, droneid.ladder) on data with a planted law."""
+"""The trust guards of identify (droneid.fitting.terms, droneid.identify.ladder) on data with a planted law."""
 import math
 from types import SimpleNamespace
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from droneid.expressions import symbol
-from droneid.regression import blocked_cv
-from droneid.terms import TermModel, drag_slope, plausible, trim_terms
-from droneid.validation import validation_blocks
+from droneid.core.expressions import symbol
+from droneid.core.regression import blocked_cv
+from droneid.fitting.terms import TermModel, drag_slope, plausible, trim_terms
+from droneid.dataset.validation import validation_blocks
 
 v, a = symbol("vx"), symbol("pitch")
 
@@ -95,7 +95,7 @@ def test_drag_slope_flags_a_velocity_term_that_turns_over():
 
 
 def test_functions_of_functions_are_unreadable(data):
-    from droneid.terms import nested_functions
+    from droneid.fitting.terms import nested_functions
     assert nested_functions(v ** 2 * a) == 0 and nested_functions(sp.sin(v) * sp.cos(a)) == 1
     assert nested_functions(sp.cos(sp.sin(v) + 1)) == 2
     cols, y, flight, t = data
@@ -107,7 +107,7 @@ def test_functions_of_functions_are_unreadable(data):
 
 
 def test_negligible_addends_are_dropped_from_the_shown_equation():
-    from droneid.terms import drop_negligible
+    from droneid.fitting.terms import drop_negligible
     r, w = symbol("roll"), symbol("rpm4")
     cols = {"roll": np.linspace(0.1, 0.5, 20), "rpm4": np.linspace(5e4, 1.4e5, 20), "vx": np.linspace(-1, 1, 20)}
     e = 1.1e-10 * (4 * r ** 2 * w ** 2 + w + 3.142) * sp.sin(v)
@@ -116,13 +116,13 @@ def test_negligible_addends_are_dropped_from_the_shown_equation():
 
 
 def _rung(rmse_test, rmse_validation, at_bound=None, constraint_rmse_test=float("nan")):
-    """What a verdict reads of a rung (droneid.ladder.Rung's attributes)."""
+    """What a verdict reads of a rung (droneid.identify.ladder.Rung's attributes)."""
     return SimpleNamespace(rmse_test=rmse_test, rmse_validation=rmse_validation, at_bound=at_bound or {},
                            constraint_rmse_test=constraint_rmse_test)
 
 
 def test_verdicts_read_as_what_they_are():
-    from droneid.report.wording import verdict
+    from droneid.fitting.verdict import verdict
     rung = _rung
     emp = rung(1.0, 1.0)
     v = verdict("vx_dot", rung(0.6, 0.5), emp, False, False, 2.0)
@@ -141,7 +141,7 @@ def test_verdicts_read_as_what_they_are():
 
 
 def test_a_model_outside_its_physics_is_not_to_be_trusted_however_well_it_fits():
-    from droneid.report.wording import verdict
+    from droneid.fitting.verdict import verdict
     emp = _rung(1.0, 1.0)
     pulled = _rung(0.5, 0.5, at_bound={"⟨minus_kD_vz⟩": 0.0})
     v = verdict("vz_dot", pulled, emp, False, False)
@@ -171,8 +171,8 @@ def test_physical_terms_that_offset_each_other_do_not_cost_a_real_evolved_term()
 def test_rows_where_a_feature_is_not_finite_are_left_out_and_counted():
     """A folded feature such as a motor's share of thrust is 0/0 where every motor stops for a
     sample; no fit or SNGP run may see such a row (it would fail every run), and the notes say so."""
-    from droneid.data import Dataset
-    from droneid.problem import _finite_rows
+    from droneid.dataset.data import Dataset
+    from droneid.identify.problem import _finite_rows
     from priors.base import PriorFeature
     n = 50
     u = np.linspace(1.0, 2.0, n)
@@ -190,8 +190,8 @@ def test_rows_where_a_feature_is_not_finite_are_left_out_and_counted():
 def test_constraint_samples_where_a_feature_is_undefined_are_left_out():
     """The rotor-thrust constraint "no thrust at rest" samples every rotor speed at 0, where a
     motor's share of thrust is 0/0; those samples are left out instead of failing every run."""
-    from droneid.constraint_samples import ConstraintSamples
-    from droneid.terms import defined_samples
+    from droneid.core.constraint_samples import ConstraintSamples
+    from droneid.fitting.terms import defined_samples
     from priors.base import PriorFeature
     X = np.array([[0.0, 0.0], [1.0, 2.0], [0.0, 0.0], [3.0, 1.0]])
     cs = ConstraintSamples(X, np.zeros(4), np.array([-9.81, 0.0, -9.81, 0.0]), np.array([0, 1, 0, 1]),
@@ -206,8 +206,8 @@ def test_constraint_samples_where_a_feature_is_undefined_are_left_out():
 def test_a_verdict_says_when_predicting_zero_beats_both_models():
     """x500_sitl_events: both models err by about twice the target's spread (0.0298 vs 0.0306,
     σ 0.0164) and the verdict said "keep the empirical model"."""
-    from droneid.ladder import trivial_errors
-    from droneid.report.wording import verdict
+    from droneid.identify.ladder import trivial_errors
+    from droneid.fitting.verdict import verdict
     nan = float("nan")
     rng = np.random.default_rng(0)
     y = rng.normal(0.0, 0.0164, 400)

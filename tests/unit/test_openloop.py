@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from droneid.errors import DataError
-from droneid.flight import Flight, Signal
-from droneid.frames import qmul
-from droneid.openloop import (QUANTITIES, Constant, NominalPhysics, StateLog, open_loop,
+from droneid.logs.flight import Flight, Signal
+from droneid.core.frames import qmul
+from droneid.simulation.openloop import (QUANTITIES, Constant, NominalPhysics, StateLog, open_loop,
                               quat_angle, simulate, state_log, window_errors)
 
 

@@ -1,10 +1,10 @@
 """The open-loop metric's windows: airborne stretches clear of gaps and screened glitches, the
-rule of the datasets and of the multi-step prediction (droneid.openloop.flight_state_logs)."""
+rule of the datasets and of the multi-step prediction (droneid.simulation.openloop.flight_state_logs)."""
 import numpy as np
 
-from droneid.flight import Signal
-from droneid.openloop import flight_state_logs
-from droneid.simulate import simulate
+from droneid.logs.flight import Signal
+from droneid.simulation.openloop import flight_state_logs
+from droneid.simulation.simulator import simulate
 
 
 def test_a_motor_speed_glitch_splits_the_stretch_and_no_window_crosses_it():
@@ -27,7 +27,7 @@ def test_every_stretch_is_on_one_grid_step_so_windows_can_be_pooled():
     """Two flights whose stamps differ in step (jitter, another logger): every stretch is put on
     the median step of all of them, and open_loop pools them without refusing."""
     from dataclasses import replace as dc_replace
-    from droneid.openloop import Constant, open_loop
+    from droneid.simulation.openloop import Constant, open_loop
     a = simulate(path="circle", duration_s=6, seed=1).flight
     b = simulate(path="circle", duration_s=6, seed=2, rate_hz=99.0).flight
     b = dc_replace(b, provenance=dc_replace(b.provenance, files=("other.csv",)))

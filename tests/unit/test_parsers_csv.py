@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError, LogFormatError
-from droneid.frames import euler_to_quat
+from droneid.core.frames import euler_to_quat
 from parsers import detect_format, read_flight
 
 

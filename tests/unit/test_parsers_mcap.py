@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError, LogFormatError
-from droneid.frames import euler_to_quat
+from droneid.core.frames import euler_to_quat
 from parsers import detect_format, read_flight
 from parsers.mcap_log import read_mcap
 
@@ -118,7 +118,7 @@ def test_every_role_read_and_fast_path_equals_decoder(tmp_path):
 def test_odometry_twist_is_rotated_from_body_to_world(tmp_path):
     p = tmp_path / "odom.mcap"
     t, q = _write(p)
-    from droneid.frames import quat_to_matrix
+    from droneid.core.frames import quat_to_matrix
     v_world = quat_to_matrix(q)[:, :, 0]          # body +x (forward) at 1 m/s, seen in the world
     h = read_flight(_only(tmp_path, p, "/drone/odom"))
     assert h["vx"].source.startswith("/drone/odom")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import LogFormatError
-from droneid.frames import euler_to_quat
+from droneid.core.frames import euler_to_quat
 from parsers import detect_format, read_flight
 
 from dataflash_fixture import DataFlashWriter, sdlog2_log

@@ -107,7 +107,7 @@ def test_corrupt_frames_and_garbage_are_counted(tmp_path):
 def test_attitude_quaternion_and_highres_imu(tmp_path):
     """An FRD->NED quaternion for roll 0.1, pitch 0.2 (nose up), heading north comes out as the
     FLU->ENU quaternion of roll 0.1, pitch -0.2, yaw +90 deg; HIGHRES_IMU is SI already."""
-    from droneid.frames import euler_to_quat, quat_to_euler
+    from droneid.core.frames import euler_to_quat, quat_to_euler
     q_ned = euler_to_quat(0.1, 0.2, 0.0)        # the same Z-Y-X formula, applied in NED/FRD
     msgs = []
     for i in range(5):

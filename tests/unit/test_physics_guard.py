@@ -1,11 +1,11 @@
-"""The physics guard on found terms (droneid.physics_guard): one motor alone, absolute position,
+"""The physics guard on found terms (droneid.fitting.physics_guard): one motor alone, absolute position,
 mixed units are refused whoever found the term (identify's ladder, diagnose's open-ended search)."""
 import pytest
 import sympy as sp
 
-from droneid.ladder import evolved_labels
-from droneid.physics_guard import ACCELERATION, dimension, term_problem
-from droneid.residual_search import physics_refusal
+from droneid.identify.ladder import evolved_labels
+from droneid.fitting.physics_guard import ACCELERATION, dimension, term_problem
+from droneid.diagnosis.residual_search import physics_refusal
 
 MOTORS = ["rpm1", "rpm2", "rpm3", "rpm4", "vx", "vz", "pitch", "roll", "x", "y", "z"]
 E = sp.sympify

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from droneid.dataset_builder import DatasetBuilder
+from droneid.dataset.builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError, MissingSignalError
-from droneid.expressions import symbol
+from droneid.core.expressions import symbol
 from priors.registry import PRIORS, PriorFeature, get_prior, load_priors, resolve_prior
 
 from synth_flights import tilt_drag_flight
@@ -164,7 +164,7 @@ def test_shipped_example_files_load():
     assert len(cs) == 3 and cs.target == "vx_dot"
     s = cs.sample(("vx", "pitch", "roll", "yaw", "throttle"), 10, seed=0)
     cols = {n: s.X[:, i] for i, n in enumerate(s.input_names)}
-    from droneid.constraint_samples import constraint_rmse
+    from droneid.core.constraint_samples import constraint_rmse
     pred = get_prior("tilt-drag").evaluate(cols, "vx_dot", 1)[:, 0]
     assert constraint_rmse(pred, s) < 1e-12  # the paper's model meets these too
 
@@ -176,8 +176,8 @@ def test_a_user_prior_declares_its_vehicle_and_its_constraint_file(tmp_path):
                                      'target = "vx_dot"\nfeatures = ["9.81*tan(pitch)", "-0.3*vx"]\n')
     p = load_priors(tmp_path / "p.toml")["t"]
     assert p.vehicle == "multirotor" and p.constraints == str(tmp_path / "c.toml")   # relative to the file
-    from droneid.identify import IdentifyConfig
-    from droneid.problem import constraint_sets as _constraint_set_for
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.identify.problem import constraint_sets as _constraint_set_for
     train_cs, eval_cs = _constraint_set_for(IdentifyConfig.make(effects="none", delays="none"), "vx_dot", p)
     assert train_cs is not None and len(train_cs.constraints) == 1
     for bad, msg in (('vehicle = "boat"', "vehicle must be one of"), ('constraints = "nope.toml"', "not found"),
@@ -194,7 +194,7 @@ def test_a_new_module_in_the_prior_catalogue_is_a_built_in_prior(tmp_path, monke
     import priors.prior_catalogue as package
     from priors import registry as models
     (tmp_path / "hover_only.py").write_text(
-        "from droneid.expressions import symbol\n"
+        "from droneid.core.expressions import symbol\n"
         "from priors.base import PriorFeature, PriorModel\n"
         "NAME, ORDER = 'hover-only', 40\n"
         "def FACTORY():\n"

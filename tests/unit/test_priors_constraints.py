@@ -3,11 +3,11 @@ import math
 import numpy as np
 import pytest
 
-from droneid.constraint_samples import EQ, GE, LE, constraint_rmse
+from droneid.core.constraint_samples import EQ, GE, LE, constraint_rmse
 from droneid.errors import ConfigError, MissingSignalError
-from priors.constraints import (CONSTRAINT_SETS, Constraint, ConstraintSet, get_constraints,
+from priors.registry import get_constraints, get_prior
+from priors.constraints import (CONSTRAINT_SETS, Constraint, ConstraintSet,
                                 load_constraints)
-from priors.registry import get_prior
 
 A = math.pi / 15
 

@@ -6,13 +6,13 @@ import math
 import numpy as np
 import sympy as sp
 
-from droneid.expressions import c_code, octave_code, symbol
-from droneid.export import c_functions
-from droneid.closed_form import IdentifiedModel
-from droneid.flight import Signal
-from droneid.openloop import CRAZYFLIE_RAD_S_PER_ERPM, rad_s_per_rpm_text
-from droneid.simulate import simulate
-from droneid.suitability import prior_for_flights
+from droneid.core.expressions import c_code, octave_code, symbol
+from droneid.use.export import c_functions
+from droneid.fitting.closed_form import IdentifiedModel
+from droneid.logs.flight import Signal
+from droneid.simulation.openloop import CRAZYFLIE_RAD_S_PER_ERPM, rad_s_per_rpm_text
+from droneid.simulation.simulator import simulate
+from droneid.dataset.suitability import prior_for_flights
 
 
 def test_c_and_matlab_code_print_floats_shortest():

@@ -7,7 +7,7 @@ import pytest
 
 from droneid.commands._common import merged_log_options, options_text
 from droneid.errors import DataError
-from droneid.predict import _reader_options
+from droneid.use.predict import _reader_options
 
 NONE = {"format": None, "topics": None, "body": None, "column_map": None, "sysid": None, "vehicle": None}
 
@@ -21,7 +21,7 @@ def csv_log(tmp_path):
 
 @pytest.fixture()
 def tlog(tmp_path):
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     from parsers.tlog_writer import write_tlog
     p = tmp_path / "a.tlog"
     write_tlog(simulate(path="hover", duration_s=1, seed=0).flight, p)

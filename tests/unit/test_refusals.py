@@ -12,8 +12,8 @@ import pytest
 
 from droneid.cli import build_parser
 from droneid.errors import DataError
-from droneid.flight import Flight, Provenance, Signal
-from droneid.suitability import TILT_DRAG_SIGNALS, assess, check_prior_data, fitness_by_prior
+from droneid.logs.flight import Flight, Provenance, Signal
+from droneid.dataset.suitability import TILT_DRAG_SIGNALS, assess, check_prior_data, fitness_by_prior
 from priors.registry import get_prior
 
 
@@ -71,7 +71,7 @@ def test_the_no_airborne_refusal_names_only_options_of_the_command_run(command):
 def test_predict_names_a_fix_it_has_for_a_missing_signal():
     """Was: "map a column to it (--column yaw=COLUMN) or choose other inputs": predict cannot
     choose inputs, the model it applies reads yaw."""
-    from droneid.predict import _fitness
+    from droneid.use.predict import _fitness
     models = {"vx_dot": {"inputs": ["vx", "roll", "pitch", "yaw"]}}
     with pytest.raises(DataError, match="signal 'yaw' is missing") as err:
         _fitness(models, [_flight().without("yaw")], 0.05)

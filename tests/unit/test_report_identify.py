@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError, DataError
-from droneid.closed_form import IdentifiedModel
-from droneid.identify import (FeatureText, IdentificationResult, IdentifyConfig, PlanRecord, RunRecord,
+from droneid.fitting.closed_form import IdentifiedModel
+from droneid.identify.pipeline import (FeatureText, IdentificationResult, IdentifyConfig, PlanRecord, RunRecord,
                               TargetResult)
-from droneid.ladder import GuardReport, Interval, Rung
+from droneid.identify.ladder import GuardReport, Interval, Rung
 from droneid.report.identify import pareto_front, write
 from droneid.report.identify import text as render_text
-from droneid.report.wording import display_term, improvement_pct, readable_equation
-from droneid.search import run_seeds, select_best
+from droneid.core.text import display_term, improvement_pct, readable_equation
+from droneid.identify.search import run_seeds, select_best
 
 SIGNALS = ["vx", "pitch", "roll", "yaw", "rpm1", "rpm2", "rpm3", "rpm4"]
 

@@ -2,7 +2,7 @@
 import json
 import math
 
-from droneid.predict import PredictionResult
+from droneid.use.predict import PredictionResult
 from droneid.report import predict as predict_report
 
 

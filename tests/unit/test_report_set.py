@@ -49,7 +49,7 @@ def test_bad_names_and_file_targets_are_refused(tmp_path):
 
 _KILLED_WRITER = textwrap.dedent("""
     import os, sys
-    import droneid.io_util as io
+    import droneid.core.io_util as io
     from droneid.report.document import write_report_set
     real, count = io.atomic_write_bytes, [0]
     def dying(path, data):

@@ -1,4 +1,4 @@
-"""Multi-step prediction (droneid.rollout) against flights with known analytic solutions.
+"""Multi-step prediction (droneid.simulation.rollout) against flights with known analytic solutions.
 
 Planted truth: the log follows v̇x = −k_true vx (vx = v0 e^(−k_true t)) and v̇y = a_true; the models
 integrate v̇x = −k vx and v̇y = a, so the error at horizon τ = h·dt is known in closed form for
@@ -14,10 +14,10 @@ import pytest
 import sympy as sp
 
 from droneid.errors import ConfigError, DataError
-from droneid.flight import Flight, Signal
-from droneid.closed_form import IdentifiedModel
+from droneid.logs.flight import Flight, Signal
+from droneid.fitting.closed_form import IdentifiedModel
 from droneid.report.rollout import horizon_figures
-from droneid.rollout import CONSTANT_VELOCITY, horizon_section, rollout_errors
+from droneid.simulation.rollout import CONSTANT_VELOCITY, horizon_section, rollout_errors
 
 DT, T_END = 0.01, 20.0
 K_TRUE, V0, A_TRUE = 0.3, 2.0, 0.2

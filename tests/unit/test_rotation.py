@@ -1,4 +1,4 @@
-"""The rotor-torque layouts and the vehicle model of droneid.rotation recover planted truth:
+"""The rotor-torque layouts and the vehicle model of droneid.rotation.model recover planted truth:
 synthetic flights simulated open loop from known coefficients (issue 28). The fits share one
 simulated-flight fixture (about 10 s to build): those tests are marked slow."""
 from __future__ import annotations
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.openloop import StateLog, open_loop, simulate
-from droneid.rotation import (RotationModel, TranslationModel, VehicleModel, centred, fit_rotation,
+from droneid.simulation.openloop import StateLog, open_loop, simulate
+from droneid.rotation.model import (RotationModel, TranslationModel, VehicleModel, centred, fit_rotation,
                               fit_translation, flying_segments, identify_layout)
-from droneid.rotation_choice import fit_rotation_multistep
+from droneid.rotation.choice import fit_rotation_multistep
 from priors.torque import LAYOUTS, RotorLayout, get_layout
 
 DT = 0.01

@@ -1,4 +1,4 @@
-"""Leave-one-flight-out fits by downdating (droneid.rotation_folds, issue 38): the robust fit with
+"""Leave-one-flight-out fits by downdating (droneid.rotation.folds, issue 38): the robust fit with
 one free intercept per group is the one-hot robust fit without its columns, and the folds of the
 rotational choice recover planted truth from sums computed once."""
 from __future__ import annotations
@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.openloop import StateLog
-from droneid.regression import robust_fit, robust_fit_grouped
-from droneid.openloop import CRAZYFLIE_RAD_S_PER_ERPM
-from droneid.rotation import TranslationModel, fit_rotation, fit_translation, translation_rows
-from droneid.rotation_decay import damping_folds, fit_damping
-from droneid.rotation_folds import downdatable, rotation_folds, translation_folds
+from droneid.simulation.openloop import StateLog
+from droneid.core.regression import robust_fit, robust_fit_grouped
+from droneid.simulation.openloop import CRAZYFLIE_RAD_S_PER_ERPM
+from droneid.rotation.model import TranslationModel, fit_rotation, fit_translation, translation_rows
+from droneid.rotation.decay import damping_folds, fit_damping
+from droneid.rotation.folds import downdatable, rotation_folds, translation_folds
 from test_rotation_ladder import _decaying_flight
 from test_rotation_planted import DRAG_COEF, DRAG_TERMS, LAYOUT, _balanced_flight
 

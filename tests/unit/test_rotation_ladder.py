@@ -1,5 +1,5 @@
-"""The per-axis ladder of droneid.rotation_choice (issues 28, 37.2): the rate decay fitted by its
-worst regime, the decision rule (droneid.decide's: (held-out flight, regime) cells as units, log
+"""The per-axis ladder of droneid.rotation.choice (issues 28, 37.2): the rate decay fitted by its
+worst regime, the decision rule (droneid.fitting.decide's: (held-out flight, regime) cells as units, log
 ratios of their SimErr, the one-sided sign-flip test, Holm over every axis-rung step, a minimum
 effect), and the per-axis model it builds."""
 from __future__ import annotations
@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from droneid.errors import DataError
-from droneid.openloop import StateLog
-from droneid.rotation import RotationModel, fit_rotation, tilt
+from droneid.simulation.openloop import StateLog
+from droneid.rotation.model import RotationModel, fit_rotation, tilt
 from droneid.errors import ConfigError
-from droneid.rotation_choice import RUNGS, VEHICLE_RUNGS, fit_attitude, per_axis_model
-from droneid.rotation_ladder import climb as _climb_all
-from droneid.rotation_decay import damping_interval, fit_damping
+from droneid.rotation.choice import RUNGS, VEHICLE_RUNGS, fit_attitude, per_axis_model
+from droneid.rotation.ladder import climb as _climb_all
+from droneid.rotation.decay import damping_interval, fit_damping
 from priors.torque import get_layout
 
 DT = 0.01
@@ -194,7 +194,7 @@ def test_a_cell_with_too_few_windows_is_no_unit():
 
 def test_select_rotation_rejects_a_bad_regime_count_or_level():
     from droneid.errors import ConfigError
-    from droneid.rotation_choice import select_rotation
+    from droneid.rotation.choice import select_rotation
     logs = [_decaying_flight(1, [4.0] * 3, n=300, name="a"), _decaying_flight(2, [4.0] * 3, n=300, name="b")]
     with pytest.raises(ConfigError, match="'regimes' parameter"):
         select_rotation(logs, regimes=0)
@@ -209,7 +209,7 @@ def test_select_rotation_rejects_a_bad_regime_count_or_level():
 def _sprung_flight(seed, c, kappa, level, n=3000, name="spring"):
     """Roll and pitch as a planted spring-damper about ``level`` (rad), ``θ̇ = ω``,
     ``ω̇ = −c ω − κ (θ − level)`` (stepped by RK4), the rates kicked at random times; yaw 0."""
-    from droneid.frames import euler_to_quat
+    from droneid.core.frames import euler_to_quat
     rng = np.random.default_rng(seed)
     A = [np.array([[0.0, 1.0], [-k, -cc]]) * DT for cc, k in zip(c, kappa)]
     step = [np.eye(2) + a + a @ a / 2 + a @ a @ a / 6 + a @ a @ a @ a / 24 for a in A]

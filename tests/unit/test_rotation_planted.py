@@ -1,4 +1,4 @@
-"""The rotational model of droneid.rotation against planted truth (issue 28): the simulator's rigid
+"""The rotational model of droneid.rotation.model against planted truth (issue 28): the simulator's rigid
 body (torques from rotor thrust differences through the layout, yaw from the rotor drag torques,
 the gyroscopic ω × Jω), a planted rotor drag moment with a balance point of its own per flight,
 the choice by blocked validation, and the whole vehicle stepped by openloop.IdentifiedVehicle."""
@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droneid.openloop import IdentifiedVehicle, StateLog, open_loop, simulate, state_log
-from droneid.rotation import RotationModel, TranslationModel, balanced, fit_rotation, fit_translation
-from droneid.rotation_choice import select_rotation
-from droneid.simulate import simulate as simulate_flight
+from droneid.simulation.openloop import IdentifiedVehicle, StateLog, open_loop, simulate, state_log
+from droneid.rotation.model import RotationModel, TranslationModel, balanced, fit_rotation, fit_translation
+from droneid.rotation.choice import select_rotation
+from droneid.simulation.simulator import simulate as simulate_flight
 from priors.torque import get_layout
 from test_rotation import _smooth_noise   # smooth random motor speeds, shared with the older rotation tests
 
@@ -45,7 +45,7 @@ def drag_flights():
 
 
 def test_simulator_rigid_body_is_recovered_from_rotor_speeds():
-    """droneid.simulate flies a closed-loop quad whose rotors deliver ``J ω̇ + ω × Jω``: the fit
+    """droneid.simulation.simulator flies a closed-loop quad whose rotors deliver ``J ω̇ + ω × Jω``: the fit
     finds k_f·arm/J per axis, k_f·k_m/J_z for yaw, the inertia ratios of the gyroscopic term, and
     no damping or rotor drag moment (the simulator has none)."""
     runs = [simulate_flight(path=p, duration_s=20, seed=s, noise=False) for p, s in (("random", 1), ("lissajous", 2))]
@@ -172,7 +172,7 @@ def test_column_names_follow_the_coefficients():
 
 @pytest.mark.slow   # shares a ~10 s simulated-flight fixture
 def test_multistep_fit_recovers_the_rotor_drag_moment(drag_flights):
-    from droneid.rotation_choice import fit_rotation_multistep
+    from droneid.rotation.choice import fit_rotation_multistep
     m = fit_rotation_multistep(drag_flights, rotor_drag=True, spinup=False, damping_grid=(2.0, 3.0, 4.0), stride=10)
     for k in range(3):
         got = dict(zip(m.columns(k), m.coef[k]))

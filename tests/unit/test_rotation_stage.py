@@ -1,4 +1,4 @@
-"""identify's rotational stage (droneid.rotation_stage): what it chooses on, what it says, and
+"""identify's rotational stage (droneid.rotation.stage): what it chooses on, what it says, and
 that its record reads back."""
 import math
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from droneid.errors import DataError
-from droneid.report.wording import axis_verdict
-from droneid.rotation_stage import AxisResult, RotationResult, choose_rotation, speed_scale
+from droneid.fitting.verdict import axis_verdict
+from droneid.rotation.stage import AxisResult, RotationResult, choose_rotation, speed_scale
 
 
 def test_axis_verdict_needs_validation_and_test_alike():
@@ -32,7 +32,7 @@ def test_axis_verdict_needs_validation_and_test_alike():
 
 
 def test_speed_scale_follows_the_recorded_unit():
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     flight = simulate(path="circle", duration_s=3, seed=1).flight
     scale, why = speed_scale(flight)
     assert scale == pytest.approx(2 * math.pi / 60) and "rpm" in why
@@ -43,10 +43,10 @@ def test_speed_scale_follows_the_recorded_unit():
 def test_the_test_flights_never_reach_the_choice(monkeypatch):
     """Through identify (in process): select_rotation sees the training flights' stretches only;
     the test flights are scored after the choice, with the final v̇ models."""
-    import droneid.rotation_stage as stage
-    from droneid.identify import IdentifyConfig, identify
-    from droneid.rotation_choice import RotationChoice
-    from droneid.simulate import simulate
+    import droneid.rotation.stage as stage
+    from droneid.identify.pipeline import IdentifyConfig, identify
+    from droneid.rotation.choice import RotationChoice
+    from droneid.simulation.simulator import simulate
     seen = []
 
     def fake_select(logs, layout, **kw):
@@ -73,7 +73,7 @@ def _named(flight, name):
 
 
 def test_one_training_flight_cannot_choose():
-    from droneid.simulate import simulate
+    from droneid.simulation.simulator import simulate
     with pytest.raises(DataError, match="at least two training flights"):
         choose_rotation([simulate(path="circle", duration_s=6, seed=1).flight], frame="quad_x")
 

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.frames import euler_to_matrix
-from droneid.closed_form import IdentifiedModel
+from droneid.core.frames import euler_to_matrix
+from droneid.fitting.closed_form import IdentifiedModel
 from priors.constraints import rotor_thrust as rotor_constraints
 from priors.registry import choose_prior, get_prior
 
@@ -20,7 +20,7 @@ def _columns(n=200, seed=0):
 
 
 def test_rotor_thrust_is_thrust_along_the_rotated_body_z_minus_gravity_and_drag():
-    """Checked against droneid.frames' own rotation matrix (independent code)."""
+    """Checked against droneid.core.frames' own rotation matrix (independent code)."""
     k_T, k_D, g = 1.09, 0.28, 9.81
     prior = get_prior("rotor-thrust", source="rpm", motors=4, k_T=k_T, k_D=k_D)
     cols = _columns()
@@ -43,7 +43,7 @@ def test_rotor_thrust_as_given_meets_its_own_constraints():
         samples = cs.sample(list(prior.inputs(t)), n_per_constraint=40, seed=3)
         cols = {n: samples.X[:, i] for i, n in enumerate(samples.input_names)}
         pred = prior.evaluate(cols, t, 1)[:, 0]
-        from droneid.constraint_samples import constraint_rmse
+        from droneid.core.constraint_samples import constraint_rmse
         assert constraint_rmse(pred, samples) < 1e-9, t
 
 
@@ -87,11 +87,11 @@ def test_identified_model_round_trips_through_its_dict():
 
 def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_too_slow():
     """4 Hz ESC telemetry must not win over 100 Hz motor commands, in either pipeline."""
-    from droneid.diagnose import choose_diagnose_prior
-    from droneid.flight import Signal
-    from droneid.identify import IdentifyConfig
-    from droneid.plan import resolve_plan_prior
-    from droneid.simulate import simulate
+    from droneid.diagnosis.diagnose import choose_diagnose_prior
+    from droneid.logs.flight import Signal
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.identify.plan import resolve_plan_prior
+    from droneid.simulation.simulator import simulate
     f = simulate(path="eight", duration_s=10.0, rate_hz=100.0, seed=3).flight
     assert f.has("rpm1", "motor1")
     slow = [Signal(n, f[n].t[::25], f[n].values[::25], f[n].unit) for n in ("rpm1", "rpm2", "rpm3", "rpm4")]

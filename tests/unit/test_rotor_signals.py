@@ -11,7 +11,7 @@ import pytest
 
 from droneid.cli import main
 from droneid.errors import ConfigError
-from droneid.flight import Flight, Signal, canonical_unit, is_canonical
+from droneid.logs.flight import Flight, Signal, canonical_unit, is_canonical
 from parsers import read_flight
 
 from dataflash_fixture import DataFlashWriter

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.runner import run_jobs
+from droneid.engine.runner import run_jobs
 
 
 def square(x):
@@ -89,7 +89,7 @@ def _scaled(shared, item):
 
 _FORK_MAP = """
 import json, os
-from droneid.runner import fork_map
+from droneid.engine.runner import fork_map
 def scaled(shared, item):
     return shared["f"](item) * shared["k"]
 # a lambda cannot be pickled: the forked workers get it with the fork itself
@@ -112,7 +112,7 @@ def test_fork_map_keeps_the_order_and_never_pickles_what_is_shared():
 
 
 def test_fork_map_raises_a_workers_exception_as_it_is():
-    from droneid.runner import fork_map
+    from droneid.engine.runner import fork_map
     with pytest.raises(ConfigError, match="bad item, shared 3"):
         fork_map(_scaled, {"f": lambda x: x, "k": 3}, [1, "boom", 2], 2)
 
@@ -121,7 +121,7 @@ def test_fork_map_stays_in_this_process_when_another_thread_is_alive():
     import os
     import threading
 
-    from droneid.runner import fork_map
+    from droneid.engine.runner import fork_map
     stop = threading.Event()
     t = threading.Thread(target=stop.wait)
     t.start()

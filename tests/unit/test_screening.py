@@ -1,11 +1,11 @@
-"""Screening of implausible samples (droneid.screening): the documented rule finds planted
+"""Screening of implausible samples (droneid.logs.screening): the documented rule finds planted
 glitches and leaves clean signals alone; inspect counts what it finds."""
 from __future__ import annotations
 
 import numpy as np
 
-from droneid.flight import Flight, Signal
-from droneid.screening import JUMP_FACTOR, screen_signal
+from droneid.logs.flight import Flight, Signal
+from droneid.logs.screening import JUMP_FACTOR, screen_signal
 
 
 def _rpm(n=3000, seed=0):

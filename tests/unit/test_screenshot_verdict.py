@@ -98,7 +98,7 @@ def _render(kind: str, tmp_path):
 
 @pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (make browser, or apt-get install chromium)")
 def test_the_verdict_box_colour_follows_the_verdict(tmp_path):
-    from droneid.report.wording import VERDICT_KINDS
+    from droneid.fitting.verdict import VERDICT_KINDS
     assert set(EXPECTED) == set(VERDICT_KINDS), "a verdict kind without an expected colour here"
     seen = {}
     for kind, family in EXPECTED.items():

@@ -3,7 +3,7 @@ import math
 
 from hypothesis import given, strategies as st
 
-from droneid.identify import RunRecord, select_best
+from droneid.identify.pipeline import RunRecord, select_best
 from droneid.sngp.selection import best_index, nan_last, rank
 
 err = st.one_of(st.floats(0, 1e3), st.just(math.nan))

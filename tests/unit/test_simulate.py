@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.simulate import EFFECTS, PATHS, parse_effects, simulate, tilt_drag_model
+from droneid.simulation.simulator import EFFECTS, PATHS, parse_effects, simulate, tilt_drag_model
 
 G, KD = 9.81, 0.28
 RATE = 20.0
@@ -75,7 +75,7 @@ def test_flight_contents(control):
     assert f.segments["in_flight"] == ((0.0, DUR),)
     assert np.allclose(np.diff(f["x"].t), 1 / RATE)
     # the quaternion is the logged Euler angles
-    from droneid.frames import quat_to_euler
+    from droneid.core.frames import quat_to_euler
     r, p, y = quat_to_euler(np.column_stack(_cols(f, "qw", "qx", "qy", "qz")))
     np.testing.assert_allclose(r, f["roll"].values, atol=1e-12)
     np.testing.assert_allclose(p, f["pitch"].values, atol=1e-12)
@@ -159,7 +159,7 @@ def test_anisotropic_drag_residual():
     res = simulate(path="eight", duration_s=DUR, rate_hz=RATE, seed=3, effects={"anisotropic_drag": None})
     f = res.flight
     rx, ry, _, idx = _residual(f)
-    from droneid.frames import euler_to_matrix
+    from droneid.core.frames import euler_to_matrix
     R = euler_to_matrix(*(v[idx] for v in _cols(f, "roll", "pitch", "yaw")))
     v = np.column_stack([c[idx] for c in _cols(f, "vx", "vy", "vz")])
     vb = np.einsum("nji,nj->ni", R, v)
@@ -338,7 +338,7 @@ def test_battery_sag_slows_the_rotors_and_ground_effect_adds_thrust_at_the_same_
 
 def test_x_mix_signs_follow_the_ardupilot_quad_x_layout():
     """Motor 1 front-right CCW, 2 back-left CCW, 3 front-left CW, 4 back-right CW (FLU body)."""
-    from droneid.simulate import DEFAULT_PARAMS, _Rotors
+    from droneid.simulation.simulator import DEFAULT_PARAMS, _Rotors
     rot = _Rotors(dict(DEFAULT_PARAMS))
     zero = np.zeros((1, 3))
     roll_left_up, nose_down, yaw_ccw = np.eye(3)[:, None, :]     # +x, +y, +z angular accelerations
@@ -360,7 +360,7 @@ def test_command_driven_vehicle_follows_its_thrust_curve(expo, sag):
     """Issue 36: commands through the thrust curve (1 − e)u + e u², scaled by V/v_start under
     battery sag; without motor lag the curve on the logged commands is the vertical force exactly,
     with one the rotor speeds still are (the speeds carry the lag)."""
-    from droneid.frames import euler_to_matrix
+    from droneid.core.frames import euler_to_matrix
     from priors.thrust import thrust_curve
     eff = {"thrust_variation": {"amp_m": 0.5, "period_s": 3.0}}
     if sag:

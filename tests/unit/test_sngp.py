@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from droneid.constraint_samples import ConstraintSamples
+from droneid.core.constraint_samples import ConstraintSamples
 from droneid.errors import ConfigError, DataError, MissingSignalError, NotFittedError
 from droneid.sngp import OPERATORS, SNGPRegressor, SymbolicModel
 from droneid.sngp import kernels as K
@@ -16,7 +16,7 @@ from sngp_data import G, KD, NAMES, TILT_DRAG_3, flight_data
 
 def paper_constraints(seed, m=50):
     """The paper's four vx_dot constraints (vx = 0, all demand vx_dot = 0)."""
-    from priors.constraints import get_constraints
+    from priors.registry import get_constraints
     return get_constraints("paper", "vx_dot").sample(NAMES, n_per_constraint=m, seed=seed)
 
 
@@ -102,7 +102,7 @@ def test_evolved_features_capture_effect_the_prior_lacks():
 
 
 def _prior_values(text, X):
-    from droneid.expressions import compile_expression, parse_expression
+    from droneid.core.expressions import compile_expression, parse_expression
     return compile_expression(parse_expression(text, NAMES), NAMES)({n: X[:, i] for i, n in enumerate(NAMES)})
 
 
@@ -248,7 +248,7 @@ def test_progress_called_and_json_round_trip():
     assert d["prior_coef"].keys() == {"gx", "gy"}
     assert m.latex_ and isinstance(m.expr_, object)
     # the simplified sympy expression evaluates to the same predictions
-    from droneid.expressions import compile_expression
+    from droneid.core.expressions import compile_expression
     np.testing.assert_allclose(compile_expression(m.expr_, NAMES)(cols), m.predict(X), rtol=1e-9, atol=1e-9)
 
 

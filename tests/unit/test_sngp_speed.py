@@ -113,10 +113,10 @@ def test_fresh_cache_compiles_everything_and_a_second_process_only_loads(tmp_pat
 
 def test_study_keeps_the_papers_fixed_budget(monkeypatch):
     """identify may stop runs early (the estimator's default); the study must not."""
-    from droneid import runner
-    from droneid.identify import IdentifyConfig
-    from droneid.simulate import simulate
-    from droneid.study import study
+    from droneid.engine import runner
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.simulation.simulator import simulate
+    from droneid.identify.study import study
 
     captured = []
 

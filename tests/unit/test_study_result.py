@@ -1,4 +1,4 @@
-"""The study's typed result (:class:`droneid.study.StudyResult`): ``to_dict`` is the study.json
+"""The study's typed result (:class:`droneid.identify.study.StudyResult`): ``to_dict`` is the study.json
 document, ``from_dict`` reads it back, a document that is not a study result is refused in one
 line, and the report renders the object and its JSON alike. Built by hand (no SNGP run)."""
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from droneid.errors import DataError, DroneIdError
-from droneid.identify import RunRecord
-from droneid.study import (PRIOR_VARIANTS, RUN_KEYS, SCENARIOS, STUDY_SCHEMA, StudyResult, StudyTarget,
+from droneid.identify.pipeline import RunRecord
+from droneid.identify.study import (PRIOR_VARIANTS, RUN_KEYS, SCENARIOS, STUDY_SCHEMA, StudyResult, StudyTarget,
                            StudyVariant, variant_key)
 
 

@@ -1,12 +1,12 @@
 """The one target table: every module that needs a target's axis, velocity or default inputs
-reads it from droneid.targets, and the core package never imports parsers or priors."""
+reads it from droneid.core.targets, and the core package never imports parsers or priors."""
 import subprocess
 import sys
 
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.targets import HORIZONTAL, TARGETS, axis_of, by_velocity, get_target, state_of, velocity_of
+from droneid.core.targets import HORIZONTAL, TARGETS, axis_of, by_velocity, get_target, state_of, velocity_of
 
 
 def test_each_target_is_the_derivative_of_its_velocity_along_its_axis():
@@ -24,7 +24,7 @@ def test_an_unknown_target_is_refused_with_a_hint():
 
 
 def test_the_modules_that_used_their_own_copies_agree_with_the_table():
-    from droneid.rollout import AXES
+    from droneid.simulation.rollout import AXES
     from priors.effects import EffectContext
     from priors.constraints import drag_sign
     assert AXES == {t.velocity: (t.name, t.position) for t in TARGETS.values()}
@@ -36,8 +36,8 @@ def test_the_modules_that_used_their_own_copies_agree_with_the_table():
         drag_sign("vz_dot", 2.0)
 
 
-CORE = ("droneid.flight", "droneid.frames", "droneid.errors", "droneid.numerics", "droneid.expressions",
-        "droneid.io_util", "droneid.constraint_samples", "droneid.targets", "droneid.plugins")
+CORE = ("droneid.logs.flight", "droneid.core.frames", "droneid.errors", "droneid.core.numerics", "droneid.core.expressions",
+        "droneid.core.io_util", "droneid.core.constraint_samples", "droneid.core.targets", "droneid.core.plugins")
 
 
 def test_the_core_modules_import_neither_parsers_nor_priors():
@@ -49,8 +49,8 @@ def test_the_core_modules_import_neither_parsers_nor_priors():
 
 def test_a_target_the_prior_does_not_model_is_refused_before_any_work(tmp_path):
     """`--prior tilt-drag --target vz_dot`: one line naming the prior and what it models."""
-    from droneid.identify import IdentifyConfig
-    from droneid.plan import fixed_plan
+    from droneid.identify.pipeline import IdentifyConfig
+    from droneid.identify.plan import fixed_plan
     with pytest.raises(ConfigError, match="prior 'tilt-drag' has no model of vz_dot; it models vx_dot, vy_dot"):
         fixed_plan(IdentifyConfig.make(prior="tilt-drag", targets=("vz_dot",)))
     plan = fixed_plan(IdentifyConfig.make(prior="auto"))

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.settings import IdentifyConfig
-from droneid.simulate import simulate
-from droneid.thrust_curve import choose_thrust_curve, declared_parameters, profile_expo
+from droneid.identify.settings import IdentifyConfig
+from droneid.simulation.simulator import simulate
+from droneid.fitting.thrust_curve import choose_thrust_curve, declared_parameters, profile_expo
 from priors.registry import get_prior
 from priors.thrust import inverse_thrust_curve, thrust_curve
 
@@ -116,7 +116,7 @@ def test_declared_parameters_agreeing_flights_only():
 
 
 def test_lag_is_exact_on_a_ramp_and_restarts_after_gaps():
-    from droneid.thrust_curve import lagged
+    from droneid.fitting.thrust_curve import lagged
     t = np.arange(0, 2, 0.05)
     tau = 0.07
     y = lagged(t, t, np.zeros(t.size, int), tau)
@@ -144,7 +144,7 @@ def test_a_motor_lag_is_found_and_the_shape_profiled_with_it():
 
 
 def test_a_curve_the_data_cannot_choose_is_said_to_be_unmeasured():
-    from droneid.plan import plan_identification
+    from droneid.identify.plan import plan_identification
     f = simulate(path="hover", duration_s=1.2, seed=0).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
     plan = plan_identification([f], IdentifyConfig(effects="none", delays="none"))
     assert plan.thrust_curve is None

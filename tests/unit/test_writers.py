@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from droneid.errors import DataError
-from droneid.flight import Flight, Signal
-from droneid.frames import (euler_frd_ned_to_flu_enu, euler_to_quat, ned_to_enu,
+from droneid.logs.flight import Flight, Signal
+from droneid.core.frames import (euler_frd_ned_to_flu_enu, euler_to_quat, ned_to_enu,
                             quat_flu_enu_from_frd_ned, wrap_angle)
-from droneid.simulate import simulate
+from droneid.simulation.simulator import simulate
 from parsers.mcap_writer import write_mcap
 from parsers.motive_writer import motive_to_enu, write_motive_csv
 from parsers.tlog_writer import write_tlog
@@ -193,7 +193,7 @@ def test_motive_axes_are_y_up_and_right_handed(tmp_path):
     _, _, _, df = _read_motive_minimal(path)
     assert tuple(df.iloc[0, 6:9]) == (1.0, 3.0, -2.0)
     # nose down about FLU +y (north axis) = about Motive -Z; rotate body x (east = Motive X)
-    from droneid.frames import quat_to_matrix
+    from droneid.core.frames import quat_to_matrix
     qX, qY, qZ, qW = df.iloc[0, 2:6]
     R = quat_to_matrix(np.array([qW, qX, qY, qZ]))
     fwd = R @ np.array([1.0, 0.0, 0.0])

@@ -1,0 +1,243 @@
+"""Vehicle constants across flights: does a coefficient hold from flight to flight, and how well
+is it known once the flights' disagreement is counted?
+
+A model's coefficients are of two kinds (docs/estimates.md):
+
+- **vehicle constants**: the scales of the prior's thrust, thrust-direction (tilt) and drag
+  terms (:data:`VEHICLE_CONSTANT_ROLES`); they belong to the airframe and must hold on every
+  flight of it;
+- **flight conditions**: a clock offset between two log streams, wind, battery state, payload;
+  estimated per flight (wind already is: the diagnosis gives each flight its own).
+
+A pooled fit of many flights gives one value for a vehicle constant whatever the flights say,
+and a block bootstrap of it measures only the noise inside the flights: when the model lacks
+something, the constant absorbs it differently on every flight and the pooled interval is
+narrow around a value that holds nowhere. This module tests that and widens the interval:
+
+1. **Per-unit estimates.** The same terms are fitted on each flight alone (with one flight: on
+   each of :func:`n_stretches` contiguous stretches of it), each with its block-bootstrap
+   standard error (the spread of :func:`droneid.core.regression.bootstrap_draws` over the unit's
+   own time blocks).
+2. **Constancy test** (:func:`heterogeneity`): Cochran's Q, ``Q = Σ w_i (θ_i − θ̄)²`` with
+   ``w_i = 1/se_i²`` and θ̄ their weighted mean; under "one value, the flights differ by their
+   noise only", Q ~ χ²(k − 1). A coefficient whose ``p`` falls below :data:`ALPHA` (Holm over
+   the target's vehicle constants) and whose between-unit spread τ (below) is at least
+   :data:`MIN_TAU_REL` of its value is **not constant**: not a property of this vehicle under
+   this model. The bootstrap's standard errors are inflated by ``B/(B − 1)`` (B blocks) to
+   undo the block bootstrap's known small-sample shrinkage; the test's size is measured on
+   simulated flights with the model right (benchmarks/bench_intervals.py).
+3. **Between-flight interval** (:func:`heterogeneity`): the random-effects mean of the
+   per-flight values (DerSimonian-Laird τ²) with the Hartung-Knapp-Sidik-Jonkman interval,
+   ``μ ± t(k−1) · √(max(q, 1) / Σ w*)``, ``w* = 1/(se² + τ²)``: an interval for the constant
+   that counts how much flights disagree (with few flights it is wide, as it must be). The
+   coefficient's reported interval is the hull of this and the pooled block bootstrap. With one
+   flight no such interval exists: the output says the interval cannot include flight-to-flight
+   variation.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+__all__ = ["Constancy", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
+           "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS"]
+
+#: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
+VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
+#: family-wise level of "not constant" over one target's vehicle constants (Holm)
+ALPHA = 0.01
+#: a flight or stretch with fewer training rows is not fitted alone
+MIN_UNIT_ROWS = 40
+#: the smallest between-unit spread (τ, relative to the mean) called "not constant": as the
+#: decision rule's minimum effect (:mod:`droneid.fitting.decide`), a consistent but negligible spread
+#: (long flights make any difference significant) is not a finding
+MIN_TAU_REL = 0.01
+
+
+def n_stretches(n_rows: int) -> int:
+    """Contiguous stretches one flight is cut into for its constancy test: 4, fewer when a
+    stretch would have under :data:`MIN_UNIT_ROWS` rows (0: too short to test)."""
+    k = min(4, n_rows // MIN_UNIT_ROWS)
+    return k if k >= 2 else 0
+
+
+def units_of(t: np.ndarray, flight: np.ndarray, sources: Sequence[str]) -> tuple[np.ndarray, list[str], str]:
+    """(unit id per row, unit names, kind): the training flights when there are 2 or more
+    (``kind`` "flight"), else the stretches of the one flight (``kind`` "stretch", named by their
+    time span); ids are -1 for rows of no unit."""
+    t = np.asarray(t, float)
+    flight = np.asarray(flight, int)
+    ids = np.unique(flight)
+    if ids.size >= 2:
+        names = [str(sources[f]) if f < len(sources) else f"flight {f}" for f in ids]
+        return np.searchsorted(ids, flight), names, "flight"
+    k = n_stretches(t.size)
+    unit = np.full(t.size, -1)
+    if not k:
+        return unit, [], "stretch"
+    order = np.argsort(t, kind="stable")
+    unit[order] = np.minimum(k * np.arange(t.size) // t.size, k - 1)
+    names = [f"{t[unit == u].min():.1f}-{t[unit == u].max():.1f} s" for u in range(k)]
+    return unit, names, "stretch"
+
+
+def heterogeneity(values, se) -> dict:
+    """Cochran's Q test and the random-effects (HKSJ) interval of per-unit estimates ``values``
+    with standard errors ``se`` (see the module docstring). Returns ``{"p", "q", "tau",
+    "mean", "low", "high"}``; ``p`` is NaN with fewer than 2 units. A zero standard error (a
+    coefficient pinned to its bound in a unit) is floored at 1e-9 of the values' scale."""
+    v = np.asarray(values, float)
+    s = np.asarray(se, float)
+    k = v.size
+    if k < 2:
+        return {"p": math.nan, "q": math.nan, "tau": math.nan, "mean": float(v[0]) if k else math.nan,
+                "low": math.nan, "high": math.nan}
+    floor = 1e-9 * max(float(np.max(np.abs(v))), 1e-12)
+    var = np.maximum(s, floor) ** 2
+    w = 1.0 / var
+    fixed = float(np.sum(w * v) / np.sum(w))
+    q = float(np.sum(w * (v - fixed) ** 2))
+    p = float(stats.chi2.sf(q, k - 1))
+    c = float(np.sum(w) - np.sum(w * w) / np.sum(w))
+    tau2 = max(0.0, (q - (k - 1)) / c) if c > 0 else 0.0
+    ws = 1.0 / (var + tau2)
+    mu = float(np.sum(ws * v) / np.sum(ws))
+    qs = float(np.sum(ws * (v - mu) ** 2)) / (k - 1)
+    half = float(stats.t.ppf(0.975, k - 1)) * math.sqrt(max(qs, 1.0) / float(np.sum(ws)))
+    return {"p": p, "q": q, "tau": math.sqrt(tau2), "mean": mu, "low": mu - half, "high": mu + half}
+
+
+def holm_flags(p_values: Mapping[str, float], alpha: float = ALPHA) -> dict[str, bool]:
+    """{name: not constant} by Holm's step-down at ``alpha`` over the p-values given (NaN: never
+    flagged, and not counted in the family)."""
+    named = sorted(((p, n) for n, p in p_values.items() if math.isfinite(p)))
+    flags = {n: False for n in p_values}
+    m = len(named)
+    for k, (p, n) in enumerate(named):
+        if p < alpha / (m - k):
+            flags[n] = True
+        else:
+            break
+    return flags
+
+
+@dataclass(frozen=True)
+class Constancy:
+    """The constancy of one vehicle constant (result.json ``targets.<t>.constancy.<coefficient>``).
+
+    unit : "flight" (one estimate per training flight) or "stretch" (one training flight, cut in
+        contiguous stretches of time); per_unit : {unit name: (value, low, high)}, each unit's own
+        fit with its 95 % block-bootstrap interval; p : Cochran's Q p-value (NaN: untestable);
+    constant : False when the test flags it (Holm at :data:`ALPHA` over the target's vehicle
+        constants, τ ≥ :data:`MIN_TAU_REL` of the value), True otherwise, None when untestable; between : (low, high) the
+        random-effects (HKSJ) 95 % interval of the constant over the flights (None for
+        stretches: one flight cannot show flight-to-flight variation); tau : the between-unit
+        standard deviation (DerSimonian-Laird), in the coefficient's units; physical : (factor,
+        unit) turning the coefficient (a scale on nominal) into a physical value, e.g. (0.28,
+        "1/s") for a linear drag, or None
+    """
+    unit: str
+    per_unit: Mapping[str, tuple[float, float, float]]
+    p: float
+    constant: bool | None
+    between: tuple[float, float] | None = None
+    tau: float = math.nan
+    physical: tuple[float, str] | None = field(default=None)
+
+    def spread(self) -> tuple[float, float]:
+        """(lowest, highest) per-unit value."""
+        vals = [v[0] for v in self.per_unit.values()]
+        return (min(vals), max(vals)) if vals else (math.nan, math.nan)
+
+    def to_dict(self) -> dict:
+        return {"unit": self.unit, "per_flight" if self.unit == "flight" else "per_stretch":
+                {k: list(v) for k, v in self.per_unit.items()},
+                "p": self.p, "constant": self.constant,
+                "between": list(self.between) if self.between is not None else None,
+                "tau": self.tau, "physical": list(self.physical) if self.physical is not None else None}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "Constancy":
+        per = d["per_flight"] if "per_flight" in d else d["per_stretch"]
+        return cls(str(d["unit"]), {k: tuple(float(x) for x in v) for k, v in per.items()},
+                   float(d["p"]) if d["p"] is not None else math.nan, d["constant"],
+                   tuple(d["between"]) if d["between"] is not None else None,
+                   float(d["tau"]) if d["tau"] is not None else math.nan,
+                   (float(d["physical"][0]), str(d["physical"][1])) if d["physical"] is not None else None)
+
+
+def _span(c: Constancy) -> str:
+    lo, hi = c.spread()
+    text = f"{lo:.3g}-{hi:.3g}"
+    if c.physical is not None:
+        k, unit = c.physical
+        text += f" (= {k * lo:.3g}-{k * hi:.3g} {unit})"
+    return text
+
+
+def constancy_line(constancy: Mapping[str, Constancy]) -> str:
+    """One line for a report: each vehicle constant's range over the units, its p and verdict;
+    empty without any."""
+    if not constancy:
+        return ""
+    first = next(iter(constancy.values()))
+    n = len(first.per_unit)
+    where = (f"the {n} training flights" if first.unit == "flight" else
+             f"{n} stretches of the one training flight (one flight cannot show how flights differ: "
+             f"its intervals leave that out)")
+    parts = []
+    for lab, c in constancy.items():
+        verdict = {True: "constant", False: "NOT constant", None: "untestable"}[c.constant]
+        vals = [v[0] for v in c.per_unit.values()]
+        rel = 100 * c.tau / abs(float(np.mean(vals))) if vals and np.mean(vals) != 0 else math.nan
+        parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}, spread τ {rel:.2g} %: {verdict}")
+    return (f"  constancy over {where} (each fitted alone; Cochran's Q, Holm at α = {ALPHA:g}, "
+            f"and a spread τ of {100 * MIN_TAU_REL:g} % or more): "
+            + "; ".join(parts))
+
+
+#: catalogue effects (priors/effect_catalogue) that make a coefficient of this role move between
+#: flights when the model lacks them: where to look when it is NOT constant
+LEADS = {"drag": ("wind", "quadratic_drag", "anisotropic_drag", "vertical_drag"),
+         "thrust": ("battery_sag", "thrust_curve", "motor_thrust", "ground_effect"),
+         "tilt": ("attitude_bias", "attitude_delay", "thrust_direction")}
+
+
+def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -> str:
+    """Where to look when vehicle constants are NOT constant, one sentence ("" when all hold):
+    the flight conditions droneid saw differ between the flights (the clock offset, ``offset``:
+    the plan's :class:`~droneid.identify.plan.OffsetDecision`) and the catalogue effects that move such a
+    coefficient, with what the diagnosis (``diagnosis``: the plan's summary) said of each."""
+    bad = [lab for lab, c in constancy.items() if c.constant is False]
+    if not bad:
+        return ""
+    roles = sorted({"drag" if "kD" in lab or "drag" in lab else "thrust" if "sum_" in lab or "thrust" in lab
+                    else "tilt" for lab in bad})
+    said = {**{e: "not detected" for e in diagnosis.get("not_detected", ())},
+            **{e: "untestable" for e in diagnosis.get("untestable", {})},
+            **{e: "added" for e in diagnosis.get("effects_added", ())}}
+    out = []
+    if offset is not None and getattr(offset, "per_flight", None) and not offset.flights_share:
+        out.append("the flights' thrust clock offsets differ (" + ", ".join(
+            f"{1000 * b:+.0f} ms" for b, _, _ in offset.per_flight.values()) + "), one offset serves them all")
+    for role in roles:
+        cands = [f"{e} ({said.get(e, 'not tried')})" for e in LEADS[role]]
+        out.append(f"effects that move a {role} scale between flights: " + ", ".join(cands))
+    return "leads for the constants that move: " + "; ".join(out)
+
+
+def constancy_sentence(constancy: Mapping[str, Constancy]) -> str:
+    """The verdict's words on the vehicle constants that do not hold across the units ("" when
+    every one holds or none was tested)."""
+    bad = [(lab, c) for lab, c in constancy.items() if c.constant is False]
+    if not bad:
+        return ""
+    among = "flights" if bad[0][1].unit == "flight" else "stretches of the flight"
+    names = "; ".join(f"{lab} {_span(c)}" for lab, c in bad)
+    return (f"NOT vehicle constants: {names} differ between the training {among} by more than their "
+            f"noise allows: not a property of this vehicle under this model (something the model lacks "
+            f"moves them)")

@@ -1,0 +1,566 @@
+"""The identification pipeline: flights in, identified models compared with the empirical one out.
+
+The one place where the stages are composed:
+
+    plan (:mod:`droneid.identify.plan`: prior, input offset, effects, from the training flights)
+    -> problem (:mod:`droneid.identify.problem`: datasets, prior features, constraints, physical rungs)
+    -> search (:mod:`droneid.identify.search`: independent SNGP runs in workers)
+    -> ladder (:mod:`droneid.identify.ladder`: guards, the final rung)
+    -> result (:class:`TargetResult` per target, :class:`IdentificationResult`)
+
+- :class:`IdentifyConfig`: every knob, validated once; ``IdentifyConfig.make(quick=...)`` fills the
+  paper's budget or the quick one. Engine parameters are checked by the engine
+  (:meth:`droneid.sngp.SNGPRegressor.default_params` names them).
+- :func:`identify` composes the stages for every target; :func:`summarise_target` turns a
+  target's finished runs into its :class:`TargetResult`.
+- Results are typed (frozen dataclasses: :class:`~droneid.identify.ladder.Rung`,
+  :class:`~droneid.identify.ladder.GuardReport`, :class:`~droneid.identify.ladder.Interval`); ``to_dict()`` is the
+  ``result.json`` document (schema :data:`SCHEMA`, docs/result-json.md) and ``from_dict`` reads
+  it back, refusing other schemas with one line.
+
+Errors are in the target's units (m/s² for ``v̇``).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import platform
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields, replace
+
+import numpy as np
+
+from droneid import __version__
+from droneid.engine import runner
+from droneid.dataset.builder import reuse_datasets
+from droneid.errors import ConfigError, DataError
+from droneid.use.export import export_models, input_sources
+from droneid.logs.flight import Flight
+from droneid.dataset.suitability import check_prior_data
+from droneid.fitting.closed_form import SCHEMA, IdentifiedModel, check_schema
+from droneid.fitting.constancy import Constancy, constancy_sentence, leads
+from droneid.core.io_util import to_jsonable
+from droneid.identify.ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung, trivial_errors
+from droneid.use.predict import models_from_document, open_loop_section, predict_flights
+from droneid.identify.plan import holdout_cuts, plan_identification, resolve_plan_prior
+from droneid.identify.problem import TargetProblem, empirical_model, prepare_target
+from droneid.core.text import readable_equation, split_leading_number, undeclared_line
+from droneid.fitting.verdict import verdict
+from droneid.simulation.rollout import horizon_section
+from droneid.rotation.stage import RotationJob, RotationResult, rotation_job, score_rotation
+from droneid.identify.search import RunRecord, compile_once, make_jobs, run_job, select_best
+from droneid.identify.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
+from droneid.core.targets import targets_for
+
+__all__ = ["IdentifyConfig", "TargetResult", "IdentificationResult", "FeatureText", "identify",
+           "prepare_target", "make_jobs", "run_job", "summarise_target", "select_best", "RunRecord",
+           "empirical_model", "PAPER_BUDGET", "QUICK_BUDGET", "SCHEMA", "TERM_ALPHA"]
+
+log = logging.getLogger(__name__)
+
+
+
+# ------------------------------------------------------------------------------------------------
+# the result of one target
+
+
+@dataclass(frozen=True)
+class FeatureText:
+    """A prior feature as the result records it: its name, expression (sympy's text, over
+    canonical signals) and what it means."""
+    name: str
+    expr: str
+    description: str = ""
+
+    @classmethod
+    def of(cls, d: Mapping) -> "FeatureText":
+        """From result.json's ``{"name", "expr", "description"}``."""
+        return cls(str(d["name"]), str(d["expr"]), str(d.get("description") or ""))
+
+    @classmethod
+    def of_feature(cls, f) -> "FeatureText":
+        """From a :class:`priors.base.PriorFeature`."""
+        return cls(f.name, str(f.expr), f.description)
+
+
+@dataclass(frozen=True)
+class TargetResult:
+    """The identification of one target (``result.json``: ``targets.<target>``, docs/result-json.md).
+
+    inputs : the model's inputs; n_train, n_test : rows; test_data : what the test rows are;
+        holdout : whether they are a held-out block of the training flights
+    constraints : the constraint set the runs trained on (``none``: unconstrained)
+    prior_features : what the engine was given; empirical_terms : the prior's terms and effects
+    ladder : the rungs, empirical as given -> refit -> offset -> effects -> FINAL (the last)
+    guards : what the trust guards did with the runs
+    verdict, verdict_kind : one sentence, and its kind (:data:`droneid.fitting.verdict.VERDICT_KINDS`)
+    equation : the final model, readable (prior terms as ⟨name⟩, 4 significant figures)
+    identified, empirical, empirical_refit : the errors of the final model, the empirical model as
+        given and the prior refit (rmse_train, rmse_test, constraint_rmse_test, ...)
+    runs : the SNGP runs (:class:`~droneid.identify.search.RunRecord` summaries); failed_runs : {run: error}
+    test_series : t, flight, y and each model's prediction on the test rows; notes : sentences
+    intervals : the final model's 95 % intervals; screened : {"training"|"test": {signal: count}}
+    input_ranges : {input: (min, max)} over the training rows
+    """
+    target: str
+    inputs: tuple[str, ...]
+    n_train: int
+    n_test: int
+    test_data: str
+    holdout: bool
+    constraints: str
+    prior_features: tuple[FeatureText, ...]
+    empirical_terms: tuple[FeatureText, ...]
+    ladder: tuple[Rung, ...]
+    guards: GuardReport
+    verdict: str
+    verdict_kind: str
+    equation: str
+    identified: Mapping[str, object]
+    empirical: Mapping[str, object]
+    empirical_refit: Mapping[str, object]
+    runs: tuple[RunRecord, ...] = ()
+    failed_runs: Mapping[str, str] = field(default_factory=dict)
+    test_series: Mapping[str, list] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+    intervals: Mapping[str, Interval] = field(default_factory=dict)
+    screened: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
+    input_ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def final_rung(self) -> Rung:
+        return self.ladder[-1]
+
+    @property
+    def final(self) -> IdentifiedModel:
+        """The final model: what predict applies and export prints."""
+        return self.ladder[-1].model
+
+    @property
+    def empirical_model(self) -> IdentifiedModel:
+        return self.ladder[0].model
+
+    @property
+    def refit_model(self) -> IdentifiedModel:
+        return self.ladder[1].model
+
+    @property
+    def coefficients(self) -> dict:
+        """The final model's evolved terms and their coefficients."""
+        return {k: v for k, v in self.final_rung.terms.items() if not k.startswith("⟨")}
+
+    @property
+    def prior_coefficients(self) -> dict:
+        """The final model's scales of the prior's terms and effects (1 = nominal)."""
+        return {k.strip("⟨⟩"): v for k, v in self.final_rung.terms.items() if k.startswith("⟨")}
+
+    @property
+    def intercept(self) -> float | None:
+        return self.final_rung.intercept
+
+    @property
+    def constancy(self) -> Mapping[str, Constancy]:
+        """The final model's vehicle constants across the training flights (or stretches of one
+        flight): :class:`~droneid.fitting.constancy.Constancy` by coefficient (prior terms unbracketed)."""
+        return {k.strip("⟨⟩"): v for k, v in self.final_rung.constancy.items()}
+
+    @property
+    def chosen_run(self) -> RunRecord | None:
+        """The run whose evolved terms are in the final model, or None."""
+        i = self.guards.chosen_run
+        return self.runs[i] if i is not None and 0 <= i < len(self.runs) else None
+
+    def to_dict(self) -> dict:
+        """``targets.<target>`` of result.json."""
+        return to_jsonable({
+            "target": self.target, "inputs": list(self.inputs), "n_train": self.n_train, "n_test": self.n_test,
+            "test_data": self.test_data, "holdout": self.holdout, "constraints": self.constraints,
+            "prior_features": [asdict(f) for f in self.prior_features],
+            "empirical_terms": [asdict(f) for f in self.empirical_terms],
+            "ladder": [r.to_dict() for r in self.ladder], "guards": self.guards.to_dict(),
+            "verdict": self.verdict, "verdict_kind": self.verdict_kind, "equation": self.equation,
+            "equation_expanded": f"{self.target} = {self.final.text()}",
+            "coefficients": self.coefficients, "prior_coefficients": self.prior_coefficients,
+            "intercept": self.intercept, "final": self.final.to_dict(),
+            "empirical_model": self.empirical_model.to_dict(), "refit_model": self.refit_model.to_dict(),
+            "identified": dict(self.identified), "empirical": dict(self.empirical),
+            "empirical_refit": dict(self.empirical_refit), "runs": [r.summary() for r in self.runs],
+            "failed_runs": dict(self.failed_runs), "test_series": dict(self.test_series),
+            "notes": list(self.notes), "intervals": {k: v.to_list() for k, v in self.intervals.items()},
+            "constancy": {k: v.to_dict() for k, v in self.constancy.items()},
+            "screened": {k: dict(v) for k, v in self.screened.items()},
+            "input_ranges": {k: list(v) for k, v in self.input_ranges.items()}})
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "TargetResult":
+        """Read back :meth:`to_dict` (DataError naming what is missing)."""
+        try:
+            return cls(
+                str(d["target"]), tuple(d["inputs"]), int(d["n_train"]), int(d["n_test"]), str(d["test_data"]),
+                bool(d["holdout"]), str(d["constraints"]),
+                tuple(FeatureText.of(f) for f in d["prior_features"]),
+                tuple(FeatureText.of(f) for f in d["empirical_terms"]),
+                tuple(Rung.from_dict(r) for r in d["ladder"]), GuardReport.from_dict(d["guards"]),
+                str(d["verdict"]), str(d["verdict_kind"]), str(d["equation"]), dict(d["identified"]),
+                dict(d["empirical"]), dict(d["empirical_refit"]),
+                tuple(RunRecord.from_dict(r) for r in d["runs"]), dict(d["failed_runs"]),
+                dict(d["test_series"]), tuple(d["notes"]),
+                {k: Interval.of(v) for k, v in d["intervals"].items()},
+                {k: dict(v) for k, v in d["screened"].items()},
+                {k: tuple(v) for k, v in d["input_ranges"].items()})
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise DataError(f"not a target result of {SCHEMA}: {type(exc).__name__} {exc}") from None
+
+
+def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRecord | None],
+                     errors: dict | None = None, *, prior_features: int | None = None) -> TargetResult:
+    """Turn the finished runs of one target into its result (pure apart from reading ``p``)."""
+    nprior = cfg.prior_features if prior_features is None else prior_features
+    feats = {0: (), 1: p.prior1, 3: p.priors3}[nprior]
+    done = [r for r in runs if r is not None]
+    best_i = select_best(done)
+    best = done[best_i] if best_i is not None else None
+    notes = [p.test_description, *p.notes]
+    if errors:
+        notes.append(f"{len(errors)} run(s) failed: " + "; ".join(f"run {i + 1}: {e}" for i, e in errors.items()))
+    final, guards = final_rung(p, cfg, done)
+    chosen = done[guards.chosen_run] if guards.chosen_run is not None else None
+    identified = {"rmse_train": final.rmse_train, "rmse_test": final.rmse_test,
+                  "rmse_validation": final.rmse_validation, "constraint_rmse_test": final.constraint_rmse_test,
+                  "constraint_rmse_train": best.constraint_rmse_train if best is not None else math.nan,
+                  "seed": chosen.seed if chosen is not None else None,
+                  "qualified": best.qualified if best is not None else True}
+    if math.isfinite(final.constraint_rmse_test) and final.constraint_rmse_test > cfg.gamma:
+        notes.append(f"the final model breaks the prior's formal constraints (e_c = "
+                     f"{final.constraint_rmse_test:.3g} m/s² > γ = {cfg.gamma:g}): the data pull its "
+                     f"fitted scales away from the physics where there are no data (e.g. zero thrust); "
+                     f"trust it inside the training range only")
+    if guards.implausible:
+        notes.append(f"{guards.implausible} run(s) rejected: their model leaves ±{guards.bound:.3g} "
+                     f"{'m/s²' if p.target.startswith('v') else ''} on the training inputs' range ± 20 %")
+    series = {k: np.asarray(v).tolist() for k, v in p.series.items()}
+    series["identified"] = np.asarray(final.pred_test, float).tolist()
+    series["sources"] = list(p.test.sources)
+    notes.extend(final.evidence)
+    lead = leads(final.constancy, p.plan.diagnosis if p.plan is not None else {},
+                 p.plan.offset if p.plan is not None else None)
+    if lead:
+        notes.append(lead)
+    ladder = (*p.ladder, final)
+    vd = verdict(p.target, final, p.ladder[0], guards.chosen_run is not None, p.holdout, float(np.std(p.train.y)),
+                 reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma,
+                 trivial=trivial_errors(p.train.y, p.blocks, p.test.y))
+    parts = [f"{c:+.4g}·{lab}" for c, lab in (split_leading_number(lab, c) for lab, c in final.terms.items())]
+    if final.intercept is not None and final.intercept != 0:
+        parts.append(f"{final.intercept:+.4g}")
+    cset = p.constraint_set
+    return TargetResult(
+        target=p.target, inputs=tuple(p.train.input_names), n_train=len(p.train), n_test=len(p.test),
+        test_data=p.test_description, holdout=p.holdout,
+        constraints=(getattr(cset, "name", "") or "custom") if cset is not None and cfg.constrained else "none",
+        prior_features=tuple(map(FeatureText.of_feature, feats)),
+        empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
+        ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy),
+                                                                  _offset_caveat(p), _curve_caveat(p)))),
+        verdict_kind=vd.kind,
+        equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
+        readable_equation(p.target, {}, {}, final.intercept),
+        identified=identified, empirical=dict(p.empirical), empirical_refit=dict(p.empirical_refit),
+        runs=tuple(done), failed_runs={str(k): v for k, v in (errors or {}).items()}, test_series=series,
+        notes=tuple(notes), intervals={k.strip("⟨⟩"): v for k, v in final.intervals.items()},
+        input_ranges={n: (float(np.min(p.train.X[:, i])), float(np.max(p.train.X[:, i])))
+                      for i, n in enumerate(p.train.input_names)} if len(p.train) else {},
+        screened={"training": dict(p.train.screened),
+                  **({"test": dict(p.test.screened)} if len(p.test) and not p.holdout else {})})
+
+
+def _curve_caveat(p: TargetProblem) -> str:
+    """The verdict's words on the thrust curve of a command-driven vehicle (its shape, whether
+    the data pin it down, the value the log declares), "" for another vehicle."""
+    curve = p.plan.thrust_curve if p.plan is not None else None
+    return curve.verdict() if curve is not None else ""
+
+
+def _offset_caveat(p: TargetProblem) -> str:
+    """The verdict's words when the targets disagree on the thrust inputs' offset (one clock
+    offset of the log cannot be several): the target's thrust and drag scales absorb it."""
+    off = p.plan.offset if p.plan is not None else None
+    if off is None or off.targets_agree or not p.plan.delays_s:
+        return ""
+    return ("Its thrust and drag scales are NOT vehicle constants here: the targets disagree on the thrust "
+            "inputs' offset (" + ", ".join(f"{t} {1000 * b:+.0f} ms" for t, (b, _, _) in off.per_target.items())
+            + "), so the scales absorb what the model lacks.")
+
+
+# ------------------------------------------------------------------------------------------------
+# the result document
+
+
+@dataclass(frozen=True)
+class PlanRecord:
+    """What the plan and the problem stage decided, as result.json's ``config`` records it next to
+    the settings: the prior used (its parameters and why), the validation blocks, the input
+    offset with its evidence, the thrust curve of a command-driven vehicle
+    (:meth:`droneid.fitting.thrust_curve.ThrustCurve.to_dict`: its shape with interval, the battery
+    compensation's test, the values the log declares), the diagnosis, the data fitness per role."""
+    prior_used: str = ""
+    prior_params: Mapping[str, object] = field(default_factory=dict)
+    prior_reason: str = ""
+    validation: str = ""
+    delays_s: Mapping[str, float] = field(default_factory=dict)
+    delay_scores: Mapping[str, float] = field(default_factory=dict)
+    offset: Mapping[str, object] | None = None
+    thrust_curve: Mapping[str, object] | None = None
+    diagnosis: Mapping[str, object] = field(default_factory=dict)
+    fitness: Mapping[str, object] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """What ``droneid identify`` produced: per-target results plus settings, decisions,
+    provenance and versions. ``to_dict()`` is result.json; ``from_dict`` reads it back.
+
+    reader_options : the reader options the logs were read with (``--column``, ``--topic``, …):
+    predict reads its logs with them by default."""
+    targets: Mapping[str, TargetResult]
+    config: IdentifyConfig
+    plan: PlanRecord
+    provenance: Mapping[str, list]
+    versions: Mapping[str, str]
+    interrupted: bool = False
+    wall_s: float = 0.0
+    backend: str = ""
+    notes: tuple[str, ...] = ()
+    horizons: Mapping[str, object] = field(default_factory=dict)   # multi-step prediction on the test flights
+    reader_options: Mapping[str, object] = field(default_factory=dict)
+    rotation: RotationResult | None = None   # the rotational targets (issue 28); None: not modelled
+
+    def predict(self, flights, **options):
+        """The final models on other flights (a Flight or a sequence), as ``droneid predict``
+        scores them: a :class:`droneid.use.predict.PredictionResult` (``options``: ``horizons``,
+        ``open_loop``, ``ts``, ``method`` of :func:`droneid.use.predict.predict_flights`)."""
+        flights = [flights] if isinstance(flights, Flight) else list(flights)
+        return predict_flights(models_from_document(self.to_dict(), where="this result"), flights, **options)
+
+    def export(self, lang: str = "python", name: str = "droneid_model") -> str:
+        """The final models as source code (``lang``: python, c, matlab or latex), as
+        ``droneid export`` writes it."""
+        return export_models([tr.final for tr in self.targets.values()], lang, source="droneid.Identifier",
+                             name=name, inputs=input_sources(self.provenance))
+
+    def to_dict(self) -> dict:
+        return to_jsonable({
+            "schema": SCHEMA, "targets": {k: v.to_dict() for k, v in self.targets.items()},
+            "config": {**self.config.to_dict(), **asdict(self.plan)}, "provenance": dict(self.provenance),
+            "versions": dict(self.versions), "interrupted": self.interrupted, "wall_s": self.wall_s,
+            "backend": self.backend, "notes": list(self.notes), "horizons": dict(self.horizons),
+            "reader_options": dict(self.reader_options),
+            "rotation": None if self.rotation is None else self.rotation.to_dict()})
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "IdentificationResult":
+        """Read back result.json; DataError in one line for another schema (a result of version
+        1 must be re-made with this version's identify) or a malformed document."""
+        if not isinstance(d, Mapping) or "targets" not in d:
+            raise DataError("not an identification result (no 'targets')")
+        check_schema(d)
+        cfg = dict(d.get("config") or {})
+        plan = PlanRecord(**{f.name: cfg[f.name] for f in fields(PlanRecord) if f.name in cfg})
+        try:
+            config = IdentifyConfig.from_dict(cfg)
+        except TypeError as exc:
+            raise DataError(f"not an identification result: its config: {exc}") from None
+        return cls({k: TargetResult.from_dict(v) for k, v in d["targets"].items()}, config, plan,
+                   dict(d.get("provenance") or {}), dict(d.get("versions") or {}),
+                   bool(d.get("interrupted", False)), float(d.get("wall_s") or 0.0), str(d.get("backend") or ""),
+                   tuple(d.get("notes") or ()), dict(d.get("horizons") or {}), dict(d.get("reader_options") or {}),
+                   RotationResult.from_dict(d["rotation"]) if d.get("rotation") else None)
+
+
+def versions() -> dict:
+    import numpy
+    import scipy
+    import sympy
+    return {"droneid": __version__, "python": sys.version.split()[0], "numpy": numpy.__version__,
+            "scipy": scipy.__version__, "sympy": sympy.__version__, "platform": platform.platform()}
+
+
+def flight_provenance(flights: Sequence) -> list:
+    """Each flight's provenance (files, reader, options) as plain data."""
+    provs = [getattr(f, "provenance", None) for f in flights]
+    return [asdict(p) if hasattr(p, "__dataclass_fields__") else dict(p) for p in provs if p is not None]
+
+
+def identify(train_flights: Sequence, test_flights: Sequence | None = None,
+             config: IdentifyConfig | None = None, progress: Callable | None = None
+             ) -> IdentificationResult:
+    """Identify every target of ``config`` from ``train_flights``; see the module docstring.
+
+    Without ``test_flights`` a time block of the training data is held out (the result says so).
+    Ctrl-C during the runs returns the finished runs with ``interrupted=True``.
+    """
+    cfg = (config or IdentifyConfig()).validated()
+    if not train_flights:
+        raise DataError("no training flights")
+    with reuse_datasets():      # each dataset built once, shared by every stage
+        return _identify(list(train_flights), list(test_flights) if test_flights else None, cfg, progress)
+
+
+def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfig,
+              progress: Callable | None) -> IdentificationResult:
+    t0 = time.perf_counter()
+    prior, _ = resolve_plan_prior(cfg, train_flights)
+    targets = targets_for(prior, cfg.targets)
+    fitness = {"train": check_prior_data(train_flights, prior, targets, cfg.ts, "training")}
+    if test_flights:
+        fitness["test"] = check_prior_data(test_flights, prior, targets, cfg.ts, "test")
+    cuts = None
+    if not test_flights and cfg.test_fraction > 0:
+        cuts = holdout_cuts(train_flights, cfg, targets[0], prior)
+    plan = plan_identification(train_flights, cfg, progress, cuts)
+    cfg = replace(cfg, targets=plan.targets)
+    problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
+    jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
+    notes_early = []
+    if cfg.rotation != "none":   # the rotational choice needs no SNGP result: a job beside the runs, first
+        try:
+            jobs.insert(0, rotation_job(train_flights, cfg.frame))
+        except DataError as exc:
+            notes_early.append(f"rotation not modelled: {exc}")
+    compile_once(progress)
+    outcome = runner.run_jobs(run_stage_job, jobs, n_jobs=cfg.jobs, scheduler=cfg.scheduler, progress=progress,
+                              label="job")
+    results = {}
+    for t in cfg.targets:
+        idx = [i for i, j in enumerate(jobs) if j.target == t]
+        runs = [outcome.results[i] for i in idx]
+        errors = {jobs[i].index: outcome.errors[i] for i in idx if i in outcome.errors}
+        if not any(r is not None for r in runs) and not outcome.interrupted:
+            first = next(iter(errors.values()), "unknown error")
+            raise DataError(f"every SNGP run for {t} failed; the first: {first}")
+        results[t] = summarise_target(problems[t], cfg, runs, errors)
+    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes, *_data_notes(fitness), *notes_early]
+    if outcome.interrupted:
+        notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
+    prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
+    record = PlanRecord(
+        prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
+        validation=next(iter(problems.values())).validation, delays_s=dict(plan.delays_s),
+        delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
+        offset=({"offset_s": plan.offset.offset_s, "interval_s": list(plan.offset.interval_s),
+                 "evidence": plan.offset.decision.evidence if plan.offset.decision else "",
+                 "per_target": {t: list(v) for t, v in plan.offset.per_target.items()},
+                 "targets_agree": plan.offset.targets_agree,
+                 "per_flight": {f: list(v) for f, v in plan.offset.per_flight.items()},
+                 "flights_share": plan.offset.flights_share}
+                if plan.offset is not None else None),
+        thrust_curve=plan.thrust_curve.to_dict() if plan.thrust_curve is not None else None,
+        diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
+    rotation_notes: list = []       # why there is no rotational result, if there is none
+    rotation = _rotation(outcome, jobs, rotation_notes)
+    res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted, 0.0, outcome.backend,
+                               (), {}, rotation=rotation)
+    horizons = {}
+    if test_flights:    # independent scorings of the test flights, side by side on the cores
+        stages = ("horizons",) + (("rotation", "open loop") if rotation is not None else ())
+        n = cfg.jobs if cfg.jobs is not None else runner.default_jobs()
+        done = dict(zip(stages, runner.fork_map(_test_stage, (res, tuple(test_flights)), stages, n)))
+        horizons, h_notes = done["horizons"]
+        o_notes = []
+        if rotation is not None:
+            (rotation, _), (open_loop, o_notes) = done["rotation"], done["open loop"]
+            rotation = replace(rotation, open_loop_test=open_loop)
+        notes += h_notes + rotation_notes + o_notes     # the order of the serial stages they replace
+    else:
+        notes += rotation_notes
+    return replace(res, notes=tuple(notes), horizons=horizons, rotation=rotation, wall_s=time.perf_counter() - t0)
+
+
+def _test_stage(shared: tuple, stage: str) -> tuple:
+    """One scoring of the test flights (``shared``: the result before scoring and the test
+    flights; :func:`droneid.engine.runner.fork_map`): (its value, its notes). "horizons": the multi-step
+    prediction of the v̇ models (:func:`_horizons`); "rotation": the rotational result with its
+    test figures (:func:`_scored_rotation`); "open loop": the benchmark's open-loop table
+    (:func:`_open_loop_test`)."""
+    res, flights = shared
+    notes: list = []
+    if stage == "horizons":
+        return _horizons(res.targets, flights, notes), notes
+    scoring = {"rotation": _scored_rotation, "open loop": _open_loop_test}[stage]
+    return scoring(res, flights, notes), notes
+
+
+def _scored_rotation(res: "IdentificationResult", flights, notes: list) -> RotationResult:
+    """``res.rotation`` with its figures on the test flights (open loop with the final v̇ models;
+    as it is when a v̇ target is missing)."""
+    if not all(t in res.targets for t in ("vx_dot", "vy_dot", "vz_dot")):
+        return res.rotation
+    models = {t: IdentifiedModel.from_dict(res.targets[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
+    return score_rotation(res.rotation, flights, models)
+
+
+def run_stage_job(job):
+    """One job of identify's batch (:func:`droneid.engine.runner.run_jobs`): an SNGP run
+    (:func:`droneid.identify.search.run_job`) or the rotational choice (:class:`RotationJob`)."""
+    return job.run() if isinstance(job, RotationJob) else run_job(job)
+
+
+def _rotation(outcome, jobs, notes: list) -> RotationResult | None:
+    """The rotational job's result (not yet scored on the test flights), or None with a note
+    saying why there is none."""
+    idx = next((i for i, j in enumerate(jobs) if isinstance(j, RotationJob)), None)
+    if idx is None:
+        return None
+    rot = outcome.results[idx]
+    if rot is None or isinstance(rot, str):
+        notes.append(f"rotation not modelled: {rot or outcome.errors.get(idx, 'the job did not finish')}")
+        return None
+    return rot
+
+
+def _open_loop_test(res: "IdentificationResult", test_flights, notes: list) -> dict:
+    """The benchmark's open-loop metric on the test flights, as ``droneid predict --open-loop``
+    computes it from result.json (the same digits)."""
+    try:
+        return open_loop_section(models_from_document(res.to_dict(), where="this result"), test_flights,
+                                 horizons=tuple(range(1, 51)))
+    except (ConfigError, DataError) as exc:
+        notes.append(f"no open-loop figures on the test flights: {exc}")
+        return {}
+
+
+def _data_notes(fitness: Mapping) -> list[str]:
+    """The data-fitness warnings of every role ("train", "test"), the flights whose logs do not
+    declare their vehicle type said once for all of them (:func:`droneid.dataset.suitability.undeclared_line`)."""
+    undeclared = [u for f in fitness.values() if f is not None for u in f.undeclared]
+    out = [f"data: {undeclared_line(undeclared)}"] if undeclared else []
+    for role, f in fitness.items():
+        if f is not None:
+            own = undeclared_line(list(f.undeclared)) if f.undeclared else None
+            out += [f"data ({role}): {w}" for w in _grouped([w for w in f.warnings if w != own])]
+    return out
+
+
+def _grouped(warnings) -> list[str]:
+    """Per-flight warnings ``"name: text"`` with the same text said once, naming every flight."""
+    by_text: dict[str, list[str]] = {}
+    for w in warnings:
+        name, sep, text = w.partition(": ")
+        by_text.setdefault(text if sep else w, []).append(name if sep else "")
+    return [f"{', '.join(n for n in names if n)}: {text}" if any(names) else text
+            for text, names in by_text.items()]
+
+
+def _horizons(targets: Mapping[str, TargetResult], flights, notes: list, steps=(1, 10, 50)) -> dict:
+    """Multi-step prediction of the final, empirical and refit models on the test flights
+    (:func:`droneid.simulation.rollout.horizon_section`); {} with a note when it cannot be done."""
+    def models(key):   # as result.json holds them, so predict on the saved result gives the same digits
+        return {t: IdentifiedModel.from_dict(getattr(tr, key).to_dict()) for t, tr in targets.items()}
+    try:
+        return horizon_section(models("final"), models("empirical_model"), models("refit_model"),
+                               list(flights), horizons=steps)
+    except (ConfigError, DataError) as exc:
+        notes.append(f"no multi-step prediction on the test flights: {exc}")
+        return {}

@@ -1,0 +1,445 @@
+"""Apply saved identified models to other logs and measure their error.
+
+Accepts either an identification result (``result.json`` of ``droneid identify``) or a bare model
+file (the engine's ``to_dict()``, with its target named by the caller). From a result, each
+target's FINAL model (``targets.<t>.final``, an :class:`droneid.fitting.closed_form.IdentifiedModel`) is
+evaluated next to the user's empirical model as given (``empirical_model``) and its least-squares
+refit (``refit_model``); results written before the final model existed fall back to the engine
+model (``model``) and the empirical terms. The data are built with the same sampling period and
+differentiator the model was identified with; inputs with a delay are read at ``t − delay``.
+``horizons`` adds multi-step prediction errors (:mod:`droneid.simulation.rollout`).
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from priors.registry import get_prior
+
+from droneid.engine import runner
+from droneid.dataset.builder import DatasetBuilder
+from droneid.errors import ConfigError, DataError, DroneIdError, check_choice
+from droneid.core.expressions import compile_expression, parse_expression
+from droneid.dataset.suitability import assess
+from droneid.fitting.closed_form import IdentifiedModel, check_schema
+from droneid.core.targets import TARGETS, state_of
+from droneid.core.io_util import to_jsonable
+from droneid.core.numerics import rmse
+from droneid.simulation.openloop import (Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, flight_state_logs,
+                       open_loop)
+from droneid.rotation.model import RotationModel
+from droneid.rotation.stage import speed_scale
+from droneid.simulation.rollout import RolloutResult, rollout_errors, sample_inputs
+from droneid.logs.screening import implausible_counts, screen_flight
+from droneid.sngp import SymbolicModel
+
+__all__ = ["load_models", "predict_flights", "model_sets", "open_loop_section", "PredictionResult"]
+
+
+@dataclass(frozen=True)
+class PredictionResult:
+    """What :func:`predict_flights` measured.
+
+    ts : sampling period (s) and method : differentiator of the targets (as identified with);
+    targets : {target: {"equation", "inputs", "sources", "errors": {"all"|flight: {"n",
+    "rmse_identified", "rmse_empirical", "rmse_refit" | "rmse_empirical_refit"}}, "screened":
+    {flight: {signal: implausible samples}}, "out_of_range": {flight: {input: fraction of samples
+    outside the training range}}, "notes"?}},
+    errors in m/s²; fitness / warnings : the data-fitness check of the logs (None / () when the
+    models name no signals); horizons : {model: {steps: {"vx", "vy", "vz" (m/s), "position"
+    (m)}}} of multi-step prediction and horizon_info its step (s), counts and notes (None
+    without ``horizons``); rollout : the :class:`~droneid.simulation.rollout.RolloutResult` behind them,
+    with its traces (for figures; not part of :meth:`to_dict`); open_loop : the open-loop
+    metric (None without it) and open_loop_rotation whether its "identified" row has a
+    rotational model (else the rates are held); reader_options : {"recorded": the options the result was identified
+    with, "given": the options given to predict} (None when neither exists; set by the CLI).
+    """
+    ts: float
+    method: str
+    targets: dict
+    fitness: dict | None = None
+    warnings: tuple = ()
+    horizons: dict | None = None
+    horizon_info: dict | None = None
+    rollout: RolloutResult | None = field(default=None, repr=False, compare=False)
+    open_loop: dict | None = None
+    reader_options: dict | None = None
+    open_loop_rotation: bool = False
+
+    def to_dict(self) -> dict:
+        """The JSON document of ``droneid predict --json``."""
+        out = {"ts": self.ts, "method": self.method, "targets": self.targets}
+        if self.fitness is not None:
+            out["fitness"] = self.fitness
+            out["warnings"] = list(self.warnings)
+        if self.horizons is not None:
+            out["horizons"] = self.horizons
+            out["horizon_info"] = self.horizon_info
+        if self.open_loop is not None:
+            out["open_loop"] = self.open_loop
+            out["open_loop_rotation"] = self.open_loop_rotation
+        if self.reader_options is not None:
+            out["reader_options"] = self.reader_options
+        return to_jsonable(out)
+
+
+def load_models(path, targets: Sequence[str] | None = None) -> dict:
+    """{target: {"model", "inputs", "empirical_refit", ...}} plus "_config" and
+    "_reader_options" (the reader options the result was identified with: read_flight keywords,
+    ``{}`` when none were recorded) from a JSON file: an identify result.json (schema
+    :data:`droneid.fitting.closed_form.SCHEMA`; an older one is refused with one line) or a bare model."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{path}: not a JSON file ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(doc, dict):
+        raise DataError(f"{path}: expected a JSON object (an identify result.json or a model file)")
+    if "targets" in doc:
+        return models_from_document(doc, targets, where=str(path))
+    # a bare model file (SNGPRegressor.to_dict()): its target is saved in it or named by the caller
+    target = targets[0] if targets and len(targets) == 1 else doc.get("target")
+    if target not in TARGETS:
+        raise ConfigError(f"{path} is a single model without a known target: name it with --target "
+                          f"(one of {', '.join(TARGETS)})")
+    inputs = doc.get("inputs")
+    if not inputs:
+        raise DataError(f"{path}: a model file must list its 'inputs'")
+    return {target: {"model": doc, "inputs": list(inputs), "empirical_terms": [],
+                         "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {},
+            "_reader_options": {}}
+
+
+def models_from_document(doc: dict, targets: Sequence[str] | None = None, where: str = "the result") -> dict:
+    """:func:`load_models` of an identify result document (``IdentificationResult.to_dict()``)."""
+    check_schema(doc, where)
+    if not isinstance(doc["targets"], dict):
+        raise DataError(f"{where}: 'targets' must map target names to results")
+    available = [t for t, tr in doc["targets"].items() if isinstance(tr, dict) and tr.get("final")]
+    if not available:
+        raise DataError(f"{where}: the result holds no finished model")
+    chosen = list(targets) if targets else available
+    for t in chosen:
+        check_choice("target", t, available, owner=where)
+    out = {t: _entry(where, t, doc["targets"][t]) for t in chosen}
+    out["_config"] = doc.get("config") or {}
+    out["_reader_options"] = _reader_options(where, doc.get("reader_options"))
+    out["_rotation"] = _rotation_model(where, doc.get("rotation"))
+    return out
+
+
+def _rotation_model(where: str, section) -> RotationModel | None:
+    """The identified rotational model of a result's ``rotation`` section, or None (none
+    modelled, or the rates are held)."""
+    if not section:
+        return None
+    if not isinstance(section, dict):
+        raise DataError(f"{where}: 'rotation' must be an object")
+    if section.get("model") is None:
+        return None
+    try:
+        return RotationModel.from_dict(section["model"])
+    except DroneIdError as exc:
+        raise DataError(f"{where}: rotation.model: {exc}") from None
+
+
+#: the reader options a result may record (identify's ``reader_options``: the read_flight keywords
+#: of the CLI's --format, --topic, --body, --column, --sysid, --vehicle, --world-frame, --body-frame,
+#: --time-unit, --scale), with each value's type
+READER_OPTION_TYPES = {"format": str, "topics": dict, "body": str, "column_map": dict, "sysid": int,
+                        "vehicle": str, "world_frame": str, "body_frame": str, "time_unit": str, "scales": dict}
+
+
+_KIND_NAMES = {str: "a string", int: "an integer", dict: "a map of names to names"}
+
+
+def _reader_options(path, recorded) -> dict:
+    """The ``reader_options`` a result recorded (identify writes the options its logs were read
+    with), checked: unset options are left out; a damaged entry is an error naming the file."""
+    if recorded is None:
+        return {}
+    if not isinstance(recorded, dict):
+        raise DataError(f"{path}: 'reader_options' must be an object of reader options, got "
+                        f"{type(recorded).__name__}")
+    out = {}
+    for k, v in recorded.items():
+        if v is None:
+            continue
+        kind = READER_OPTION_TYPES.get(k)
+        if kind is None:
+            raise DataError(f"{path}: reader_options.{k} is not a reader option (known: "
+                            f"{', '.join(READER_OPTION_TYPES)})")
+        ok = isinstance(v, kind) and not isinstance(v, bool)
+        if ok and kind is dict:
+            ok = all(isinstance(a, str) and isinstance(b, str) for a, b in v.items())
+        if not ok:
+            raise DataError(f"{path}: reader_options.{k} must be "
+                            f"{_KIND_NAMES[kind]}, got {v!r}")
+        if v != {}:
+            out[k] = dict(v) if kind is dict else v
+    return out
+
+
+def _entry(path, target: str, tr: dict) -> dict:
+    """One target of a result.json: its final, empirical and refit IdentifiedModels (errors name
+    the file and the target), its equation and input ranges."""
+    out = {"equation": tr.get("equation")}
+    for key, name in (("final", "identified"), ("empirical_model", "empirical"), ("refit_model", "refit")):
+        if tr.get(key):
+            try:
+                out[name] = IdentifiedModel.from_dict(tr[key])
+            except DroneIdError as exc:
+                raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
+    out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
+    out["input_ranges"] = dict(tr.get("input_ranges") or {})
+    return out
+
+
+def model_sets(models: dict) -> dict:
+    """{"identified"|"empirical"|"refit": {target: IdentifiedModel}} of the translational targets
+    of :func:`load_models` output that hold final models (what multi-step prediction integrates)."""
+    targets = set(TARGETS)
+    sets: dict = {}
+    for target, m in models.items():
+        if target in targets and "identified" in m:
+            for name in ("identified", "empirical", "refit"):
+                if name in m:
+                    sets.setdefault(name, {})[target] = m[name]
+    return sets
+
+
+
+
+def _nominal_physics(cfg: dict):
+    """The benchmark's Physics row for the prior the result used (its parameters as recorded:
+    hover-calibrated on the TRAINING flights): thrust k Σ ω_i² from the motor speeds along the
+    body z axis, no drag, rates held. The prior says what its thrust is (the magnitude of its v̇z
+    thrust term, :attr:`priors.base.PriorFeature.magnitude`); None unless that is one quadratic
+    law in the rotor speeds (rpm1..), or the prior cannot be rebuilt from the record."""
+    try:
+        prior = get_prior(str(cfg["prior_used"]), **dict(cfg["prior_params"]))
+        feats = [f for f in prior.features("vz_dot") if f.role == "thrust" and f.magnitude is not None]
+    except (KeyError, TypeError, DroneIdError):
+        return None
+    if len(feats) != 1:
+        return None
+    names = sorted(s.name for s in feats[0].magnitude.free_symbols)
+    if not names or not all(re.fullmatch(r"rpm\d+", n) for n in names):
+        return None
+    law = compile_expression(feats[0].magnitude, names)
+    one, two = (float(law({n: np.full(1, u) for n in names})[0]) for u in (1.0, 2.0))
+    if not (one > 0 and math.isclose(two, 4 * one, rel_tol=1e-9)):
+        return None
+    return NominalPhysics(thrust_coeff_N_s2=one / len(names), mass_kg=1.0, rad_s_per_rpm=1.0)
+
+
+def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] = (1, 10, 50)) -> dict:
+    """The nanodrone benchmark's open-loop metric (:mod:`droneid.simulation.openloop`) on ``flights``:
+    ``{"identified" | "nominal physics" | "constant": {"1": {"position", "velocity", "attitude",
+    "rates"}, ..., "simerr": {...}}}`` over 50 steps at the log's rate from every start.
+    "identified" drives the final v̇ models by the simulated state and the logged motor speeds,
+    with the result's rotational model (``_rotation``: :mod:`droneid.rotation.stage`) or, without
+    one, the body rates held; "nominal physics" is thrust from the motor
+    speeds with the prior's nominal (hover-calibrated on the TRAINING flights) thrust scale, no
+    drag, rates held; "constant" holds the state."""
+    sets = model_sets(models)
+    if "identified" not in sets:
+        raise ConfigError("--open-loop needs the final models of vx_dot, vy_dot and vz_dot (targets.<t>.final)")
+    translation = IdentifiedTranslation(sets["identified"])
+    rotation = models.get("_rotation")
+    if rotation is not None:
+        for f in flights:   # the rotational model reads rotor speeds in the unit it was fitted on
+            scale, why = speed_scale(f)
+            if not math.isclose(scale, rotation.rad_s_per_rpm, rel_tol=1e-9):
+                raise DataError(f"{f.name}: the rotational model was identified on motor speeds at "
+                                f"{rotation.rad_s_per_rpm:.6g} rad/s per logged unit; this log's are not ({why})")
+    chosen = {"identified": translation if rotation is None else IdentifiedVehicle(translation, rotation)}
+    nominal = _nominal_physics(models.get("_config") or {})
+    if nominal is not None:
+        chosen["nominal physics"] = nominal
+    chosen["constant"] = Constant()
+    return open_loop(chosen, flight_state_logs(flights), max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
+
+
+def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
+                    method: str | None = None, horizons: Sequence[int] | None = None,
+                    open_loop: bool = False) -> PredictionResult:
+    """Per target and per flight (and all together): samples and the RMSE (m/s²) of the
+    identified model (``rmse_identified``), of the empirical model as given (``rmse_empirical``)
+    and of its refit (``rmse_refit`` for final models, ``rmse_empirical_refit`` for older results).
+
+    ``horizons`` (steps): adds ``horizons`` = {model: {h: {vx, vy, vz, position}}} (m/s, m) of
+    multi-step prediction (:func:`droneid.simulation.rollout.rollout_errors`, at the log's rate) and
+    ``horizon_info`` (step, counts, notes); needs final models. See :class:`PredictionResult`."""
+    cfg = models.get("_config", {})
+    ts = ts or cfg.get("ts") or 0.05
+    method = method or cfg.get("method") or "forward"
+    builder = DatasetBuilder(ts=ts, method=method)
+    flights = list(flights)
+    sets = model_sets(models)
+    if horizons and not sets:
+        raise ConfigError("multi-step prediction (--horizons) needs the final models of vx_dot / vy_dot / "
+                          "vz_dot (targets.<t>.final in result.json); this result has none")
+    results = {}
+    fit = _fitness(models, flights, ts)
+    for target, m in models.items():
+        if target.startswith("_"):
+            continue
+        if "identified" in m:
+            ds, preds, notes = _predict_final(builder, flights, target, m)
+        else:
+            ds, preds = _predict_engine(builder, flights, target, m)
+            notes = []
+        per = {}
+        groups = [("all", np.ones(len(ds), bool))]
+        if len(ds.sources) > 1:
+            groups += [(src, ds.flight == i) for i, src in enumerate(ds.sources)]
+        ok = np.logical_and.reduce([np.isfinite(v) for v in preds.values()])
+        for name, mask in groups:
+            mask = mask & ok
+            per[name] = {"n": int(mask.sum()), **{f"rmse_{k}": rmse(v[mask], ds.y[mask]) for k, v in preds.items()}}
+        r = {"equation": m.get("equation"), "inputs": list(ds.input_names), "sources": list(ds.sources),
+             "errors": per, "screened": _screened(flights, ds, [*ds.input_names, state_of(target)]),
+             "out_of_range": _out_of_range(ds, m.get("input_ranges") or {})}
+        if not ok.all():
+            notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
+                         f"(e.g. a delayed input read before its signal starts)")
+        if notes:
+            r["notes"] = notes
+        results[target] = r
+    roll, table, info = None, None, None
+    stages = (("horizons",) if horizons else ()) + (("open loop",) if open_loop else ())
+    # the multi-step prediction and the open-loop table are independent: side by side on the cores
+    done = dict(zip(stages, runner.fork_map(_scoring_stage, (models, sets, tuple(flights), horizons), stages,
+                                            runner.default_jobs())))
+    if "horizons" in done:
+        roll = done["horizons"]
+        info = roll.to_dict(segments=False)
+        table = info.pop("rmse")
+    ol = done.get("open loop")
+    return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
+                            tuple(fit.warnings) if fit is not None else (), table, info, roll, ol,
+                            open_loop_rotation=models.get("_rotation") is not None)
+
+
+def _scoring_stage(shared: tuple, stage: str):
+    """One of :func:`predict_flights`' scorings of ``shared`` (models, final model sets, flights,
+    horizons; :func:`droneid.engine.runner.fork_map`): "horizons", the multi-step prediction
+    (:class:`~droneid.simulation.rollout.RolloutResult`), or "open loop", the open-loop table."""
+    models, sets, flights, horizons = shared
+    if stage == "horizons":
+        return rollout_errors(sets, flights, horizons)
+    return open_loop_section(models, flights, tuple(horizons or (1, 10, 50)))
+
+
+def _screened(flights, ds, signals) -> dict:
+    """{flight: {signal: implausible samples}} of the signals a target's models read
+    (:mod:`droneid.logs.screening`); rows that use them are not scored."""
+    out = {}
+    for i, f in enumerate(flights):
+        counts = implausible_counts(screen_flight(f, signals))
+        if counts:
+            out[ds.sources[i] if i < len(ds.sources) else f.name] = counts
+    return out
+
+
+#: an input counts as outside the training range beyond this fraction of the range's span
+RANGE_MARGIN = 0.05
+
+
+def _out_of_range(ds, ranges: dict) -> dict:
+    """{flight: {input: fraction of the scored samples outside the training range ± 5 % of its
+    span}} for inputs that leave it (the model extrapolates there)."""
+    out = {}
+    for i, src in enumerate(ds.sources):
+        sel = ds.flight == i
+        if not sel.any():
+            continue
+        per = {}
+        for name, (lo, hi) in ranges.items():
+            if name not in ds.input_names:
+                continue
+            pad = RANGE_MARGIN * max(hi - lo, 1e-12)
+            v = ds.X[sel, ds.input_names.index(name)]
+            frac = float(np.mean((v < lo - pad) | (v > hi + pad)))
+            if frac > 0:
+                per[name] = frac
+        if per:
+            out[src] = per
+    return out
+
+
+def _fitness(models: dict, flights, ts: float):
+    """:func:`droneid.dataset.suitability.assess` of the flights for the signals the models read: refuses
+    (DataError) data they cannot be scored on (no airborne data, signals far too slow, a
+    multirotor model on a fixed-wing log); None when the models name no signals."""
+    needed = set()
+    for target, m in models.items():
+        if target.startswith("_"):
+            continue
+        needed.add(state_of(target))
+        for k in ("identified", "empirical", "refit"):
+            if k in m:
+                needed |= set(m[k].signals)
+        needed |= set(m.get("inputs") or ())
+    if not needed:
+        return None
+    fit = assess(list(flights), needed_signals=sorted(needed), ts=ts, prior_kind="multirotor", inputs_fixed=True)
+    fit.raise_if_refused("these logs cannot score the model: ")
+    return fit
+
+
+def _predict_final(builder, flights, target: str, m: dict):
+    """Dataset and predictions of the IdentifiedModels of one target. The rows are those identify
+    scores: the dataset is built with the final model's input delays (a row whose delayed input
+    reaches a screened sample is left out); a model read with other delays (the empirical model,
+    the prior refit) re-reads those inputs at ``t − its delay``."""
+    ims = {k: m[k] for k in ("identified", "empirical", "refit") if k in m}
+    signals = sorted({s for im in ims.values() for s in im.signals})
+    main = ims.get("identified")
+    delays = dict(main.delays_s) if main is not None else {}
+    builder = DatasetBuilder(ts=builder.ts, method=builder.method, delays_s=delays)
+    ds = builder.build(flights, target=target, inputs=tuple(signals) or (state_of(target),), extras=())
+    cols = ds.columns()
+    preds, notes = {}, []
+    for name, im in ims.items():
+        c = dict(cols)
+        for s in im.signals:
+            d = float(im.delays_s.get(s, 0.0))
+            if s not in c or d == float(delays.get(s, 0.0)):
+                continue
+            v = np.empty(len(ds))
+            for i, f in enumerate(flights):
+                sel = ds.flight == i
+                v[sel] = sample_inputs(f, [s], ds.t[sel], {s: d})[s]
+            c[s] = v
+        preds[name] = im.evaluate(c)
+        if im.delays_s:
+            notes.append(f"{name}: " + ", ".join(f"{s} read at t {'−' if d >= 0 else '+'} {abs(d):g} s"
+                                                 for s, d in im.delays_s.items()))
+    return ds, preds, notes
+
+
+def _predict_engine(builder, flights, target: str, m: dict):
+    """Dataset and predictions of an older result (engine model + empirical terms)."""
+    model = SymbolicModel.from_dict(m["model"])
+    ds = builder.build(list(flights), target=target, inputs=tuple(m["inputs"]))
+    cols = ds.columns()
+    preds = {"identified": np.asarray(model.predict(cols), float)}
+    terms, refit = m.get("empirical_terms") or [], m.get("empirical_refit") or {}
+    ev = lambda text: compile_expression(parse_expression(text, ds.input_names, what="empirical model"),  # noqa: E731
+                                         ds.input_names)(cols)
+    if m.get("empirical_expr"):
+        preds["empirical"] = ev(m["empirical_expr"])
+    if terms and refit.get("coefficients"):
+        vals = [ev(tm["expr"]) for tm in terms]
+        coefs = refit["coefficients"]
+        preds["empirical_refit"] = (sum(coefs.get(tm["name"], 0.0) * v for tm, v in zip(terms, vals))
+                                    + float(refit.get("intercept") or 0.0))
+    return ds, preds
