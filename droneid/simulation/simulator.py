@@ -586,22 +586,87 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
 
     ss = np.random.SeedSequence(int(seed))
     rng_path, rng_gust, rng_noise = (np.random.default_rng(c) for c in ss.spawn(3))
+    grid = _Grid.make(P, eff, duration_s, rate_hz)
+    drive = _drive(path, P, eff, grid, rng_path, rng_gust)
+    flown = _fly(P, eff, grid, drive)
+    cols, S, A, R, a_world, rpm_true = _logged(P, eff, grid, drive, flown, rng_noise if noise else None)
+    signals = {k: Signal(k, grid.t_log, v, canonical_unit(k), source="simulate") for k, v in cols.items()}
+    span = ((0.0, float(grid.t_log[-1])),)
+    note_params = {k: P[k] for k in sorted(P)}
+    prov = Provenance(
+        files=(), format="simulated", vehicle="simulated quadrotor", firmware=None,
+        vehicle_type="multirotor",
+        notes=(f"simulate(path={path!r}, duration_s={float(duration_s)}, rate_hz={float(rate_hz)}, "
+               f"seed={int(seed)}, noise={bool(noise)})",
+               f"effects: {eff if eff else 'none'}",
+               f"params: {note_params}"),
+    )
+    flight = Flight(signals, prov, segments={"armed": span, "in_flight": span})
+    truth = {"path": path, "duration_s": float(duration_s), "rate_hz": float(rate_hz), "seed": int(seed),
+             "noise": bool(noise), "params": note_params, "effects": eff,
+             **_truth(P, eff, grid, drive, flown.rotors, S, A, R, a_world, rpm_true, noise)}
+    return SimResult(flight, truth)
 
-    ts = 1.0 / rate_hz
-    n_sub = int(math.ceil(P["sim_rate_hz"] / rate_hz - 1e-9))
-    dt = ts / n_sub
-    n_log = int(round(duration_s * rate_hz)) + 1
-    delay = eff.get("attitude_delay", {}).get("tau_s", 0.0)
-    rpm_delay = P["rpm_delay_s"]
-    margin_s = max(0.5, P["vel_window_s"] + abs(delay) + rpm_delay + 0.1)
-    n_margin = int(math.ceil(margin_s / ts))
-    t0 = -n_margin * ts
-    n_steps = (n_log - 1 + 2 * n_margin) * n_sub
-    th = t0 + np.arange(2 * n_steps + 1) * (dt / 2.0)      # half-step grid
 
-    # reference: path + optional vertical motion + yaw sweep
-    total = (n_log - 1) * ts + n_margin * ts
-    rp, rv, ra = _reference(path, th, P, rng_path, total)
+@dataclass(frozen=True)
+class _Grid:
+    """The simulation's time grids (s): the log's, the integrator's (``dt``) and its half steps,
+    with a margin before and after the log for the velocity window, the delays and the lag."""
+    ts: float
+    n_sub: int
+    dt: float
+    n_log: int
+    n_margin: int
+    t0: float
+    n_steps: int
+    th: np.ndarray          # half-step grid
+    total: float            # the reference's length (s)
+    delay: float            # attitude_delay's tau_s (s)
+
+    @classmethod
+    def make(cls, P: dict, eff: dict, duration_s: float, rate_hz: float) -> "_Grid":
+        ts = 1.0 / rate_hz
+        n_sub = int(math.ceil(P["sim_rate_hz"] / rate_hz - 1e-9))
+        dt = ts / n_sub
+        n_log = int(round(duration_s * rate_hz)) + 1
+        delay = eff.get("attitude_delay", {}).get("tau_s", 0.0)
+        margin_s = max(0.5, P["vel_window_s"] + abs(delay) + P["rpm_delay_s"] + 0.1)
+        n_margin = int(math.ceil(margin_s / ts))
+        t0 = -n_margin * ts
+        n_steps = (n_log - 1 + 2 * n_margin) * n_sub
+        th = t0 + np.arange(2 * n_steps + 1) * (dt / 2.0)
+        return cls(ts, n_sub, dt, n_log, n_margin, t0, n_steps, th, (n_log - 1) * ts + n_margin * ts, delay)
+
+    @property
+    def t_int(self) -> np.ndarray:
+        return self.t0 + np.arange(self.n_steps + 1) * self.dt
+
+    @property
+    def i_log(self) -> np.ndarray:
+        return (self.n_margin + np.arange(self.n_log)) * self.n_sub
+
+    @property
+    def t_log(self) -> np.ndarray:
+        return np.arange(self.n_log) * self.ts
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """What drives the flight on the half-step grid: the reference (position, velocity,
+    acceleration, yaw, yaw rate), the wind (m/s, ENU) and the battery (V, thrust gain)."""
+    rp: np.ndarray
+    rv: np.ndarray
+    ryaw: np.ndarray
+    refs: list
+    wind: np.ndarray
+    volts: np.ndarray
+    gains: np.ndarray
+
+
+def _drive(path: str, P: dict, eff: dict, grid: _Grid, rng_path, rng_gust) -> _Drive:
+    """The reference path (+ optional vertical motion + yaw sweep), the wind and the battery."""
+    th, dt = grid.th, grid.dt
+    rp, rv, ra = _reference(path, th, P, rng_path, grid.total)
     tv = eff.get("thrust_variation")
     if tv:
         w = 2 * math.pi / tv["period_s"]
@@ -626,13 +691,32 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
     gains = np.ones(th.size)
     bs = eff.get("battery_sag")
     if bs:
-        frac = np.clip((th - 0.0) / max(total, 1e-9), 0.0, 1.0)
+        frac = np.clip((th - 0.0) / max(grid.total, 1e-9), 0.0, 1.0)
         volts = bs["v_start"] + (bs["v_end"] - bs["v_start"]) * frac
         gains = (volts / bs["v_start"]) ** bs["exponent"]
+    return _Drive(rp, rv, ryaw, refs, wind, volts, gains)
 
+
+@dataclass(frozen=True)
+class _Flown:
+    """The integrated flight on the integrator's grid: states, derivatives, the controller's
+    auxiliaries, body rates (rad/s), motor commands and rotor speeds (rpm), and the rotors."""
+    states: np.ndarray
+    derivs: np.ndarray
+    auxs: np.ndarray
+    w_int: np.ndarray
+    u_int: np.ndarray
+    rpm_int: np.ndarray
+    rotors: object
+
+
+def _fly(P: dict, eff: dict, grid: _Grid, drive: _Drive) -> _Flown:
+    """Fly the reference (RK4), then the rotors: the torque demand of the flown attitude, the
+    commands and the speeds (with lagging rotors, fly again with the four speeds in the state)."""
+    rp, gains, dt, n_steps = drive.rp, drive.gains, grid.dt, grid.n_steps
     dyn = _Dyn(P, eff)
     # initial state: on the reference, attitude at the controller's set-point (a few fixed-point passes)
-    s0 = [*rp[0], *rv[0], 0.0, 0.0, ryaw[0], 0.0, 0.0, 0.0]
+    s0 = [*rp[0], *drive.rv[0], 0.0, 0.0, drive.ryaw[0], 0.0, 0.0, 0.0]
     if "battery_sag" in eff or "ground_effect" in eff:  # start with the integrator at the hover trim
         g0 = gains[0]
         if dyn.ge_r:
@@ -640,33 +724,36 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
             g0 /= (1 - q * q)
         s0[11] = (1.0 / g0 - 1.0) * P["g"] / P["ki_z"]
     for _ in range(30):
-        s0[6], s0[7], _ = dyn.command(s0, refs[0])
-    states, derivs, auxs = _rk4(dyn, s0, refs, wind.tolist(), gains.tolist(), n_steps, dt)
+        s0[6], s0[7], _ = dyn.command(s0, drive.refs[0])
+    states, derivs, auxs = _rk4(dyn, s0, drive.refs, drive.wind.tolist(), gains.tolist(), n_steps, dt)
 
-    # ---- rotors: torque demand of the flown attitude, commands, speeds ----
-    t_int = t0 + np.arange(n_steps + 1) * dt
+    t_int = grid.t_int
     rot = dyn.rotors
     w_int = _body_rates(states[:, 6:9], derivs[:, 6:9])
     dT_int = rot.torque_thrusts(w_int, np.gradient(w_int, dt, axis=0))
     if P["motor_tau_s"] > 0:
         # lagging rotors: fly again with the 4 speeds in the state (the torque demand of the
         # lag-free flight as an input), so the acceleration follows the lagged Σ k_f ω_i²
-        dT_half = np.column_stack([np.interp(th, t_int, dT_int[:, k]) for k in range(4)])
+        dT_half = np.column_stack([np.interp(grid.th, t_int, dT_int[:, k]) for k in range(4)])
         u0 = rot.commands(auxs[:1, 4] * P["t_max_n"], dT_int[:1])
         s0 = s0 + rot.speeds(u0, gains[:1])[0].tolist()
-        states, derivs, auxs = _rk4(dyn, s0, refs, wind.tolist(), gains.tolist(), n_steps, dt,
+        states, derivs, auxs = _rk4(dyn, s0, drive.refs, drive.wind.tolist(), gains.tolist(), n_steps, dt,
                                     dT_half.tolist())
         w_int = _body_rates(states[:, 6:9], derivs[:, 6:9])
     u_int = rot.commands(auxs[:, 4] * P["t_max_n"], dT_int)
     rpm_int = states[:, 12:16] if P["motor_tau_s"] > 0 else rot.speeds(u_int, gains[::2])
+    return _Flown(states, derivs, auxs, w_int, u_int, rpm_int, rot)
 
-    # ---- sample at log times ----
-    i_log = (n_margin + np.arange(n_log)) * n_sub
-    t_log = np.arange(n_log) * ts
+
+def _logged(P: dict, eff: dict, grid: _Grid, drive: _Drive, flown: _Flown, rng_noise):
+    """The logged columns at the log times (``rng_noise`` None: noise-free), and the true states,
+    auxiliaries, rotation matrices, world accelerations and rotor speeds behind them."""
+    states, t_int, t_log, i_log = flown.states, grid.t_int, grid.t_log, grid.i_log
+    n_log, delay = grid.n_log, grid.delay
     S = states[i_log]
-    A = auxs[i_log]
+    A = flown.auxs[i_log]
     roll_t, pitch_t, yaw_t = S[:, 6], S[:, 7], S[:, 8]
-    wx_t, wy_t, wz_t = w_int[i_log].T
+    wx_t, wy_t, wz_t = flown.w_int[i_log].T
     R = euler_to_matrix(roll_t, pitch_t, yaw_t)
     a_world = A[:, :3]
     spec_world = a_world + np.array([0.0, 0.0, P["g"]])
@@ -684,7 +771,8 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
         att_log[1] = att_log[1] + ab["pitch"]
 
     pos = states[:, 0:3]
-    if noise:
+    if rng_noise is not None:
+        dt = grid.dt
         pos_noisy = pos + rng_noise.normal(0.0, P["pos_noise_m"], size=pos.shape)
         half = int(round(P["vel_window_s"] / 2 / dt))
         j = np.arange(-half, half + 1)
@@ -694,25 +782,27 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
         att_log = [a + rng_noise.normal(0.0, P["att_noise_rad"], n_log) for a in att_log]
         gyro = np.column_stack([wx_t, wy_t, wz_t]) + rng_noise.normal(0.0, P["gyro_noise"], (n_log, 3))
         acc = spec_body + rng_noise.normal(0.0, P["acc_noise"], (n_log, 3))
-        volt_log = np.interp(t_log, th, volts) + rng_noise.normal(0.0, P["volt_noise"], n_log)
+        volt_log = np.interp(t_log, grid.th, drive.volts) + rng_noise.normal(0.0, P["volt_noise"], n_log)
     else:
         vel_log = S[:, 3:6].copy()
         pos_log = S[:, 0:3].copy()
         gyro = np.column_stack([wx_t, wy_t, wz_t])
         acc = spec_body.copy()
-        volt_log = np.interp(t_log, th, volts)
+        volt_log = np.interp(t_log, grid.th, drive.volts)
     att_log[2] = wrap_angle(att_log[2])
     q = euler_to_quat(*att_log)
     q = np.where(q[:, :1] < 0, -q, q)
 
     throttle = A[:, 4]
     thrust_cmd = throttle * P["t_max_n"]     # what the flight controller believes it commands
-    motors = u_int[i_log]
+    motors = flown.u_int[i_log]
     # logged speeds: rpm_delay_s ahead of the speeds that act, plus white noise
+    rpm_delay = P["rpm_delay_s"]
+    rpm_int = flown.rpm_int
     rpm_true = rpm_int[i_log]
     rpm_log = (np.column_stack([np.interp(t_log + rpm_delay, t_int, rpm_int[:, k]) for k in range(4)])
                if rpm_delay > 0 else rpm_true.copy())
-    if noise:
+    if rng_noise is not None:
         rpm_log = rpm_log + rng_noise.normal(0.0, P["rpm_noise"], rpm_log.shape)
 
     cols = {
@@ -727,28 +817,26 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
         "rpm1": rpm_log[:, 0], "rpm2": rpm_log[:, 1], "rpm3": rpm_log[:, 2], "rpm4": rpm_log[:, 3],
         "battery_voltage": volt_log,
     }
-    signals = {k: Signal(k, t_log, v, canonical_unit(k), source="simulate") for k, v in cols.items()}
-    span = ((0.0, float(t_log[-1])),)
-    note_params = {k: P[k] for k in sorted(P)}
-    prov = Provenance(
-        files=(), format="simulated", vehicle="simulated quadrotor", firmware=None,
-        vehicle_type="multirotor",
-        notes=(f"simulate(path={path!r}, duration_s={float(duration_s)}, rate_hz={float(rate_hz)}, "
-               f"seed={int(seed)}, noise={bool(noise)})",
-               f"effects: {eff if eff else 'none'}",
-               f"params: {note_params}"),
-    )
-    flight = Flight(signals, prov, segments={"armed": span, "in_flight": span})
+    return cols, S, A, R, a_world, rpm_true
 
-    # ---- truth ----
+
+def _rms(x) -> float:
+    """RMS (m/s²), to 1e-12: below that it is round-off, which differs between numpy builds."""
+    return round(float(np.sqrt(np.mean(np.square(x)))), 12)
+
+
+def _truth(P: dict, eff: dict, grid: _Grid, drive: _Drive, rot, S, A, R, a_world, rpm_true,
+           noise: bool) -> dict:
+    """The ground truth at the log times: true accelerations and states, the models' errors on
+    the true states, and the rotors' constants (JSON-able)."""
+    t_log, th = grid.t_log, grid.th
+    roll_t, pitch_t, yaw_t = S[:, 6], S[:, 7], S[:, 8]
     vx_t, vy_t = S[:, 3], S[:, 4]
     mx, my = tilt_drag_model(vx_t, vy_t, roll_t, pitch_t, yaw_t, P["k_drag"], P["g"])
     ex_, ey_ = _exact_hover_model(vx_t, vy_t, roll_t, pitch_t, yaw_t, P["k_drag"], P["g"])
-    wind_log = np.column_stack([np.interp(t_log, th, wind[:, 0]), np.interp(t_log, th, wind[:, 1])])
-
-    def rms(x):  # m/s², to 1e-12: below that it is round-off, which differs between numpy builds
-        return round(float(np.sqrt(np.mean(np.square(x)))), 12)
-
+    wind_log = np.column_stack([np.interp(t_log, th, drive.wind[:, 0]), np.interp(t_log, th, drive.wind[:, 1])])
+    bs = eff.get("battery_sag")
+    rpm_delay = P["rpm_delay_s"]
     m = P["mass_kg"]
     k_T = P["k_f"] * RPM_SCALE ** 2 / m
     # the rotor-thrust prior with the planted k_T, k_D on the true states and true speeds
@@ -756,9 +844,7 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
                    - np.array([0.0, 0.0, P["g"]]) - P["k_drag"] * S[:, 3:6])
     rotor_err = a_world - rotor_model
 
-    truth = {
-        "path": path, "duration_s": float(duration_s), "rate_hz": float(rate_hz), "seed": int(seed),
-        "noise": bool(noise), "params": note_params, "effects": eff,
+    return {
         "t": _round(t_log), "ax": _round(a_world[:, 0]), "ay": _round(a_world[:, 1]),
         "az": _round(a_world[:, 2]),
         "true": {
@@ -767,12 +853,12 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
             "thrust_n": _round(A[:, 3]), "wind_x": _round(wind_log[:, 0]), "wind_y": _round(wind_log[:, 1]),
         },
         "model": {
-            "geometry_rmse_x": rms(mx - ex_), "geometry_rmse_y": rms(my - ey_),
+            "geometry_rmse_x": _rms(mx - ex_), "geometry_rmse_y": _rms(my - ey_),
             "geometry_max_abs": float(max(np.max(np.abs(mx - ex_)), np.max(np.abs(my - ey_)))),
-            "truth_rmse_x": rms(a_world[:, 0] - mx), "truth_rmse_y": rms(a_world[:, 1] - my),
+            "truth_rmse_x": _rms(a_world[:, 0] - mx), "truth_rmse_y": _rms(a_world[:, 1] - my),
             "max_tilt_rad": float(np.max(np.abs(np.concatenate([roll_t, pitch_t])))),
-            "rotor_rmse_x": rms(rotor_err[:, 0]), "rotor_rmse_y": rms(rotor_err[:, 1]),
-            "rotor_rmse_z": rms(rotor_err[:, 2]),
+            "rotor_rmse_x": _rms(rotor_err[:, 0]), "rotor_rmse_y": _rms(rotor_err[:, 1]),
+            "rotor_rmse_z": _rms(rotor_err[:, 2]),
             "note": "paper tilt-drag model on the TRUE states vs the exact Z-Y-X hover-balance "
                     "geometry (geometry_*) and vs the true accelerations (truth_*); rotor_*: the "
                     "rotor-thrust prior with rotors.k_T and k_drag on the true states and the "
@@ -798,7 +884,6 @@ def simulate(*, path: str = "eight", duration_s: float | None = None, rate_hz: f
                       "3 front-left CW, 4 back-right CW",
         },
     }
-    return SimResult(flight, truth)
 
 
 def _round(x, nd: int = 9):

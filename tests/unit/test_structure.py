@@ -46,7 +46,6 @@ LONG_FUNCTIONS = {
     "droneid/sngp/kernels.py:run_chunk": "numba kernel: one compiled loop, calls cost inside nopython code",
     "droneid/sngp/kernels.py:_solve_model": "numba kernel: the least-squares solve inlined for speed",
     "droneid/sngp/kernels.py:_propagate": "numba kernel: one compiled loop over the population",
-    "droneid/simulation/simulator.py:simulate": "the planted-truth vehicle's one integration loop: every effect it plants acts on the same state at the same step",
     "droneid/logs/consistency.py:_judge": "one verdict per convention check, in the order a reader checks them",
     "droneid/core/expressions.py:parse_expression": "the parser's allow-list walk: one case per sympy node kind",
     "droneid/dataset/builder.py:_build": "the dataset build's steps in their order, each a call",
