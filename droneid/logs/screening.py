@@ -42,7 +42,7 @@ import numpy as np
 from droneid.logs.flight import Flight, Signal
 
 __all__ = ["Screen", "screen_signal", "screen_flight", "PHYSICAL_RANGE", "RANGE_WIDTHS",
-           "JUMP_FACTOR", "MERGE_S", "PAD_S", "MIN_SAMPLES", "implausible_counts"]
+           "JUMP_FACTOR", "MERGE_S", "PAD_S", "MIN_SCREENED_SAMPLES", "implausible_counts"]
 
 #: robust-range margin, in widths of the 0.5-99.5 % band
 RANGE_WIDTHS = 3.0
@@ -56,8 +56,9 @@ MERGE_S = 0.1
 #: each merged hole is widened by this much (s) on both sides, so that no difference at the new
 #: edge of the data spans a glitch's neighbours (one grid period at the default Ts)
 PAD_S = 0.05
-#: signals with fewer samples are not screened (no robust statistics)
-MIN_SAMPLES = 20
+#: signals with fewer samples are not screened (too few for the robust median/MAD statistics);
+#: not the dataset minimum (:data:`droneid.dataset.suitability.MIN_SAMPLES`, grid samples in flight)
+MIN_SCREENED_SAMPLES = 20
 #: physical bounds by signal-name prefix: (lowest, highest) plausible value in the signal's unit
 PHYSICAL_RANGE: Mapping[str, tuple[float, float]] = {
     "rpm": (0.0, np.inf),        # motor speed (rpm or eRPM): never negative
@@ -107,7 +108,7 @@ def _physical(name: str) -> tuple[float, float]:
 def screen_signal(sig: Signal) -> Screen:
     """Screen one signal by the module's rule (see the module docstring)."""
     n = len(sig)
-    if n < MIN_SAMPLES or sig.name in _NOT_SCREENED:
+    if n < MIN_SCREENED_SAMPLES or sig.name in _NOT_SCREENED:
         return Screen(sig.name, n)
     t = np.asarray(sig.t, float)
     v = np.asarray(sig.values, float)
@@ -128,7 +129,7 @@ def screen_signal(sig: Signal) -> Screen:
     rate = np.abs(np.diff(v)) / np.maximum(np.diff(t), 1e-12)
     ok = ~(bad[1:] | bad[:-1])       # rates between plausible samples
     jumps = np.zeros(n - 1, dtype=bool)
-    if ok.sum() >= MIN_SAMPLES:
+    if ok.sum() >= MIN_SCREENED_SAMPLES:
         q = float(np.percentile(rate[ok], 99))
         if q > 0:
             jumps = ok & (rate > JUMP_FACTOR * q)
