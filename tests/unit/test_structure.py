@@ -46,7 +46,7 @@ LONG_FUNCTIONS = {
     "droneid/sngp/kernels.py:run_chunk": "numba kernel: one compiled loop, calls cost inside nopython code",
     "droneid/sngp/kernels.py:_solve_model": "numba kernel: the least-squares solve inlined for speed",
     "droneid/sngp/kernels.py:_propagate": "numba kernel: one compiled loop over the population",
-    "droneid/logs/consistency.py:_judge": "one verdict per convention check, in the order a reader checks them",
+    "droneid/logs/consistency.py:_judge": "the convention checks judge on each other's conclusions (a time-unit finding silences the unit checks; FRD needs the rates and gravity together): one pass, in the order a reader checks them",
     "droneid/core/expressions.py:parse_expression": "the parser's allow-list walk: one case per sympy node kind",
     "droneid/dataset/builder.py:_build": "the dataset build's steps in their order, each a call",
     "droneid/dataset/builder.py:_build_one": "one flight's columns, each a line",
