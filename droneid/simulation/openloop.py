@@ -42,6 +42,7 @@ from droneid.errors import ConfigError, DataError
 from droneid.core.frames import qmul, quat_to_euler, quat_to_matrix
 from droneid.logs.in_flight import in_flight_intervals, signal_gaps, subtract_intervals
 from droneid.logs.screening import screen_signal
+from droneid.simulation.rk4 import rk4_step
 
 __all__ = [
     "STATE_SIZE", "QUANTITIES", "HORIZONS", "MAX_HORIZON", "G", "StateLog", "state_log", "flight_state_logs",
@@ -251,11 +252,7 @@ def simulate(model, x0, u, dt_s: float) -> np.ndarray:
         x[:, _Q] = _normalise(x[:, _Q])
         for k in range(u.shape[1]):
             uk = u[:, k]
-            k1 = _deriv(model, x, uk)
-            k2 = _deriv(model, _stage(x, k1, 0.5 * dt_s), uk)
-            k3 = _deriv(model, _stage(x, k2, 0.5 * dt_s), uk)
-            k4 = _deriv(model, _stage(x, k3, dt_s), uk)
-            x = x + (dt_s / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            x = rk4_step(lambda y, _at: _deriv(model, y, uk), x, dt_s, stage=_stage)
             x[:, _Q] = _normalise(x[:, _Q])
             out[:, k] = x
     return out

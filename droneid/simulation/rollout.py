@@ -38,6 +38,7 @@ from droneid.errors import ConfigError, DataError, MissingSignalError
 from droneid.core.expressions import compile_expression
 from droneid.logs.flight import Flight
 from droneid.logs.screening import screen_signal
+from droneid.simulation.rk4 import rk4_step
 from droneid.fitting.closed_form import IdentifiedModel
 from droneid.core.targets import TARGETS
 
@@ -311,25 +312,31 @@ def _integrate(per: Mapping[str, IdentifiedModel], meas, pos, inputs, dt: float,
         V[a][:, 0] = v[a]
     for q in P:
         P[q][:, 0] = p[q]
+    # the state: the modelled velocities and their positions (ṗ = v along the same RK4 stages)
+    of = {AXES[a][1]: a for a in axes if AXES[a][1] in p}
+
+    def deriv(x, at, i):
+        k = rhs({a: x[a] for a in axes}, i + at)     # the model sees the velocities, never the
+        # integrated positions (a model's z is the logged height, as before the step)
+        k.update({q: x[a] for q, a in of.items()})
+        return k
+    x = {**v, **p}
     with np.errstate(all="ignore"):
         for j in range(H):
-            i = 2 * j
-            k1 = rhs(v, i)
-            v2 = {a: v[a] + 0.5 * dt * k1[a] for a in axes}
-            k2 = rhs(v2, i + 1)
-            v3 = {a: v[a] + 0.5 * dt * k2[a] for a in axes}
-            k3 = rhs(v3, i + 1)
-            v4 = {a: v[a] + dt * k3[a] for a in axes}
-            k4 = rhs(v4, i + 2)
+            x = rk4_step(lambda y, at, i=2 * j: deriv(y, at, i), x, dt, stage=_dict_axpy, update=_dict_combine)
             for a in axes:
-                q = AXES[a][1]
-                if q in p:   # ṗ = v along the same RK4 stages
-                    p[q] = p[q] + dt / 6.0 * (v[a] + 2 * v2[a] + 2 * v3[a] + v4[a])
-                    P[q][:, j + 1] = p[q]
-            v = {a: v[a] + dt / 6.0 * (k1[a] + 2 * k2[a] + 2 * k3[a] + k4[a]) for a in axes}
-            for a in axes:
-                V[a][:, j + 1] = v[a]
+                V[a][:, j + 1] = x[a]
+            for q in P:
+                P[q][:, j + 1] = x[q]
     return V, P
+
+
+def _dict_axpy(x: dict, h: float, k: dict) -> dict:
+    return {n: x[n] + h * k[n] for n in x}
+
+
+def _dict_combine(x: dict, h: float, k1: dict, k2: dict, k3: dict, k4: dict) -> dict:
+    return {n: x[n] + h * (k1[n] + 2 * k2[n] + 2 * k3[n] + k4[n]) for n in x}
 
 
 def _segments(flight: str, full, meas, preds, ok_H, t0, H: int, dt: float, k: int) -> list[RolloutSegment]:

@@ -56,6 +56,7 @@ from priors.thrust import RPM_SCALE, inverse_thrust_curve, thrust_curve
 
 from droneid.errors import ConfigError, check_choice, did_you_mean
 from droneid.logs.flight import Flight, Provenance, Signal, canonical_unit
+from droneid.simulation.rk4 import rk4_step
 from droneid.core.frames import body_rates_from_euler as _body_rates, euler_to_matrix, euler_to_quat, wrap_angle
 
 __all__ = ["simulate", "SimResult", "EFFECTS", "PATHS", "DEFAULT_PARAMS", "tilt_drag_model",
@@ -488,7 +489,6 @@ def _rk4(dyn, state0, refs, winds, gains, n_steps, dt, dTs=None):
     auxs = np.empty((n_steps + 1, 8))
     derivs = np.empty((n_steps + 1, nstate))
     s = list(state0)
-    h2 = dt / 2.0
     for i in range(n_steps + 1):
         j = 2 * i
         k1, aux = dyn.rhs(s, refs[j], winds[j], gains[j], dTs[j])
@@ -497,14 +497,17 @@ def _rk4(dyn, state0, refs, winds, gains, n_steps, dt, dTs=None):
         derivs[i] = k1
         if i == n_steps:
             break
-        s2 = [a + h2 * b for a, b in zip(s, k1)]
-        k2, _ = dyn.rhs(s2, refs[j + 1], winds[j + 1], gains[j + 1], dTs[j + 1])
-        s3 = [a + h2 * b for a, b in zip(s, k2)]
-        k3, _ = dyn.rhs(s3, refs[j + 1], winds[j + 1], gains[j + 1], dTs[j + 1])
-        s4 = [a + dt * b for a, b in zip(s, k3)]
-        k4, _ = dyn.rhs(s4, refs[j + 2], winds[j + 2], gains[j + 2], dTs[j + 2])
-        s = [a + dt / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4)]
+        s = rk4_step(lambda y, at, j=j: dyn.rhs(y, refs[j + at], winds[j + at], gains[j + at], dTs[j + at])[0],
+                     s, dt, stage=_list_axpy, update=_list_combine, k1=k1)
     return states, derivs, auxs
+
+
+def _list_axpy(x: list, h: float, k: list) -> list:
+    return [a + h * b for a, b in zip(x, k)]
+
+
+def _list_combine(x: list, h: float, k1: list, k2: list, k3: list, k4: list) -> list:
+    return [a + h * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4)]
 
 
 def _check_params(params, path):
