@@ -25,6 +25,7 @@ from . import runner
 from .dataset_builder import DatasetBuilder
 from .errors import ConfigError, DataError, DroneIdError, check_choice
 from .expressions import compile_expression
+from .flight import Flight
 from .suitability import assess
 from .closed_form import IdentifiedModel, check_schema
 from .targets import TARGETS, state_of
@@ -219,6 +220,11 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     return open_loop(chosen, flight_state_logs(flights), max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 
 
+def flight_list(flights) -> list:
+    """``flights`` (a Flight or a sequence of them) as a list."""
+    return [flights] if isinstance(flights, Flight) else list(flights)
+
+
 def final_predictions(models: dict, flights: Sequence, ts: float | None = None,
                       method: str | None = None) -> tuple[float, str, object, dict]:
     """(ts, method, fitness, {target: (dataset, predictions, notes)}): each target's rows on ``flights``
@@ -231,7 +237,7 @@ def final_predictions(models: dict, flights: Sequence, ts: float | None = None,
     ts = ts or cfg.get("ts") or 0.05
     method = method or cfg.get("method") or "forward"
     builder = DatasetBuilder(ts=ts, method=method)
-    flights = list(flights)
+    flights = flight_list(flights)
     fit = _fitness(models, flights, ts)
     out = {}
     for target, m in models.items():
@@ -251,7 +257,7 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
     m; :func:`droneid.rollout.rollout_errors`, at the log's rate) and ``horizon_info`` (step,
     counts, notes); needs final models. ``open_loop``: adds the open-loop table
     (:func:`open_loop_section`). See :class:`~droneid.score.Score`."""
-    flights = list(flights)
+    flights = flight_list(flights)
     sets = model_sets(models)
     if horizons and not sets:
         raise ConfigError("multi-step prediction (--horizons) needs the final models of vx_dot / vy_dot / "
