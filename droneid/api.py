@@ -25,10 +25,10 @@ from dataclasses import fields
 
 from parsers import read_flight
 
-from .errors import ConfigError, did_you_mean
+from .errors import ConfigError, check_choice, did_you_mean
 from .flight import Flight
 from .identify import IdentificationResult, identify
-from .settings import IdentifyConfig
+from .settings import METHODS, IdentifyConfig
 
 __all__ = ["read_log", "Identifier"]
 
@@ -135,6 +135,7 @@ class Identifier:
     def config(self) -> IdentifyConfig:
         """The validated settings these parameters make (ConfigError naming a bad one)."""
         self.set_params(**self.settings)   # every name checked, with "did you mean"
+        check_choice("differentiator", self.differentiator, METHODS, owner="Identifier")
         given = {_CONFIG_NAME[k]: v for k, v in self.get_params().items() if k in _CONFIG_NAME}
         return IdentifyConfig.make(**given, **self.settings)
 
