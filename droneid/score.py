@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 from .io_util import to_jsonable
 
-__all__ = ["Errors", "TargetScore", "HorizonErrors", "Score"]
+__all__ = ["Errors", "TargetScore", "HorizonErrors", "OpenLoopErrors", "Score"]
 
 #: the refit error's key in predict documents written before the final models existed
 _OLD_REFIT = "rmse_empirical_refit"
@@ -105,6 +105,31 @@ class HorizonErrors:
 
 
 @dataclass(frozen=True)
+class OpenLoopErrors:
+    """One model's open-loop error at one horizon (or SimErr, their sum over 1..50 steps): MAE of
+    the position (m), velocity (m/s), attitude (rad) and body rates (rad/s) (:mod:`droneid.openloop`)."""
+    position: float
+    velocity: float
+    attitude: float
+    rates: float
+
+    def to_dict(self) -> dict:
+        return {"position": self.position, "velocity": self.velocity, "attitude": self.attitude, "rates": self.rates}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "OpenLoopErrors":
+        return cls(*(_number(d[k]) for k in ("position", "velocity", "attitude", "rates")))
+
+
+def _open_loop(table: Mapping | None) -> dict | None:
+    """The open-loop table typed: {model: {"1" | … | "simerr": OpenLoopErrors}}."""
+    if table is None:
+        return None
+    return {m: {h: e if isinstance(e, OpenLoopErrors) else OpenLoopErrors.from_dict(e) for h, e in per.items()}
+            for m, per in table.items()}
+
+
+@dataclass(frozen=True)
 class Score:
     """What the final models scored on other flights (``droneid predict``).
 
@@ -115,8 +140,8 @@ class Score:
     horizon_info its step ``dt_s`` (s), ``n_starts``, ``skipped`` and notes (None without
     horizons); rollout : the :class:`~droneid.rollout.RolloutResult` behind them, with its
     traces (for figures; not part of :meth:`to_dict`); open_loop : the open-loop table
-    ({model: {steps | "simerr": {"position" (m), "velocity" (m/s), "attitude" (rad), "rates"
-    (rad/s)}}}, None without it) and open_loop_rotation whether its "identified" row has a
+    ({model: {"1" | "10" | … steps | "simerr": :class:`OpenLoopErrors`}}, None without it; a
+    plain document given here is typed) and open_loop_rotation whether its "identified" row has a
     rotational model (else the rates are held); reader_options : {"recorded": the options the
     result was identified with, "given": the options given} (None when neither; set by the CLI).
     """
@@ -132,6 +157,9 @@ class Score:
     reader_options: Mapping | None = None
     open_loop_rotation: bool = False
 
+    def __post_init__(self):
+        object.__setattr__(self, "open_loop", _open_loop(self.open_loop))
+
     def __repr__(self) -> str:
         lines = [f"Score(ts={self.ts:g} s, method={self.method!r}, targets={list(self.targets)})"]
         for t, s in self.targets.items():
@@ -145,6 +173,12 @@ class Score:
             lines.append(f"  open loop: {list(self.open_loop)}")
         return "\n".join(lines)
 
+    def open_loop_table(self) -> dict | None:
+        """The open-loop table as plain data ({model: {steps | "simerr": {quantity: MAE}}})."""
+        if self.open_loop is None:
+            return None
+        return {m: {h: e.to_dict() for h, e in per.items()} for m, per in self.open_loop.items()}
+
     def to_dict(self) -> dict:
         """The JSON document of ``droneid predict --json``."""
         out = {"ts": self.ts, "method": self.method, "targets": {t: s.to_dict() for t, s in self.targets.items()}}
@@ -155,7 +189,7 @@ class Score:
             out["horizons"] = {m: {str(h): e.to_dict() for h, e in per.items()} for m, per in self.horizons.items()}
             out["horizon_info"] = self.horizon_info
         if self.open_loop is not None:
-            out["open_loop"] = self.open_loop
+            out["open_loop"] = self.open_loop_table()
             out["open_loop_rotation"] = self.open_loop_rotation
         if self.reader_options is not None:
             out["reader_options"] = self.reader_options

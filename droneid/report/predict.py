@@ -52,7 +52,7 @@ def text(res) -> str:
                    + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")")
         out.append(ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:] + "\n")
     if res.open_loop is not None:
-        out += open_loop_lines(res.open_loop, res.open_loop_rotation)
+        out += open_loop_lines(res.open_loop_table(), res.open_loop_rotation)
     return "\n".join(out)
 
 

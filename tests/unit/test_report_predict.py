@@ -31,6 +31,16 @@ def test_the_json_document_reads_back_into_the_same_score():
     assert e.n == 10 and e.rmse_identified == 0.25 and math.isnan(e.rmse_empirical) and e.rmse_refit is None
 
 
+def test_the_open_loop_table_is_typed_and_reads_back():
+    per = {"1": {"position": 0.004, "velocity": 0.01, "attitude": 0.003, "rates": 0.1},
+           "simerr": {"position": 1.0, "velocity": 2.0, "attitude": 0.5, "rates": 9.0}}
+    res = _result(open_loop={"identified": per, "constant": per})
+    assert res.open_loop["identified"]["simerr"].rates == 9.0
+    back = Score.from_dict(json.loads(json.dumps(res.to_dict())))
+    assert back.open_loop == res.open_loop and back.to_dict() == res.to_dict()
+    assert res.to_dict()["open_loop"] == {"identified": per, "constant": per}
+
+
 def test_an_older_document_s_refit_error_reads_as_the_refit():
     """Documents written before the final models named the refit's error rmse_empirical_refit."""
     old = {"ts": 0.05, "method": "forward", "targets": {"vx_dot": {
