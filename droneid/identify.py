@@ -36,18 +36,19 @@ from . import __version__, runner
 from .dataset_builder import reuse_datasets
 from .errors import ConfigError, DataError
 from .export import export_models, input_sources
-from .flight import Flight
 from .suitability import check_prior_data
 from .closed_form import SCHEMA, IdentifiedModel, check_schema
 from .constancy import Constancy, constancy_sentence, leads
 from .io_util import to_jsonable
 from .ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung, trivial_errors
 from .predict import models_from_document, open_loop_section, predict_flights
+from .prediction import PredictionResult, predict_models
 from .plan import holdout_cuts, plan_identification, resolve_plan_prior
 from .problem import TargetProblem, empirical_model, prepare_target
 from .report.wording import readable_equation, split_leading_number, undeclared_line, verdict
 from .rollout import horizon_section
 from .rotation_stage import RotationJob, RotationResult, rotation_job, score_rotation
+from .score import Score
 from .search import RunRecord, compile_once, make_jobs, run_job, select_best
 from .settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
 from .targets import targets_for
@@ -126,6 +127,10 @@ class TargetResult:
     intervals: Mapping[str, Interval] = field(default_factory=dict)
     screened: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
     input_ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"TargetResult({self.target!r}, verdict_kind={self.verdict_kind!r}, n_train={self.n_train}, "
+                f"n_test={self.n_test}, equation={self.equation!r})")
 
     @property
     def final_rung(self) -> Rung:
@@ -335,12 +340,43 @@ class IdentificationResult:
     reader_options: Mapping[str, object] = field(default_factory=dict)
     rotation: RotationResult | None = None   # the rotational targets (issue 28); None: not modelled
 
-    def predict(self, flights, **options):
-        """The final models on other flights (a Flight or a sequence), as ``droneid predict``
-        scores them: a :class:`droneid.predict.PredictionResult` (``options``: ``horizons``,
-        ``open_loop``, ``ts``, ``method`` of :func:`droneid.predict.predict_flights`)."""
-        flights = [flights] if isinstance(flights, Flight) else list(flights)
-        return predict_flights(models_from_document(self.to_dict(), where="this result"), flights, **options)
+    def __repr__(self) -> str:
+        head = (f"IdentificationResult(targets={list(self.targets)}, prior={self.plan.prior_used!r}, "
+                f"runs={self.config.runs}, wall_s={self.wall_s:.1f}{', interrupted' if self.interrupted else ''})")
+        return "\n".join([head, *(f"  {t}: {tr.verdict_kind}: {tr.equation}" for t, tr in self.targets.items())])
+
+    def predict(self, flights, *, horizons: Sequence[int] | None = None, ts: float | None = None,
+                method: str | None = None) -> PredictionResult:
+        """The final models' predictions on ``flights`` (a Flight or a sequence of them).
+
+        Parameters
+        ----------
+        horizons : steps ahead (at the log's rate) to simulate the states to; None: v̇ only
+        ts, method : the grid's period (s) and the measured v̇'s differentiator; None: as identified
+
+        Returns
+        -------
+        PredictionResult : per target v̇ (m/s²) of each model and as measured on the grid
+            (``to_frame()``: a DataFrame with ``t_s``), and with ``horizons`` the simulated states"""
+        return predict_models(self._models(), flights, horizons=horizons, ts=ts, method=method)
+
+    def score(self, flights, *, horizons: Sequence[int] | None = None, open_loop: bool = False,
+              ts: float | None = None, method: str | None = None) -> Score:
+        """The final models' errors on ``flights`` (a Flight or a sequence), as ``droneid predict``.
+
+        Parameters
+        ----------
+        horizons : steps ahead (at the log's rate) of the multi-step prediction errors; None: none
+        open_loop : also the open-loop table (the nanodrone benchmark's metric)
+        ts, method : as :meth:`predict`
+
+        Returns
+        -------
+        Score : per target and flight the RMSE (m/s²) of the final, empirical and refit models"""
+        return predict_flights(self._models(), flights, horizons=horizons, open_loop=open_loop, ts=ts, method=method)
+
+    def _models(self) -> dict:   # predict's models of this result
+        return models_from_document(self.to_dict(), where="this result")
 
     def export(self, lang: str = "python", name: str = "droneid_model") -> str:
         """The final models as source code (``lang``: python, c, matlab or latex), as
