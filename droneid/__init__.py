@@ -4,7 +4,9 @@ The Python API (docs/api.md), imported on first use so that ``droneid --version`
 
 - ``droneid.read_log(path, **options) -> Flight``;
 - ``droneid.Identifier(prior=…, differentiator=…, constraints=…, effects=…).fit(flights)`` ->
-  :class:`droneid.identify.pipeline.IdentificationResult`, with ``.predict(flight)`` and ``.export(lang)``.
+  :class:`droneid.identify.pipeline.IdentificationResult`, with ``.predict(flight)`` (a
+  :class:`PredictionResult`: v̇ on the flight's grid), ``.score(flight)`` (a :class:`Score`: the
+  error tables) and ``.export(lang)``.
 
 Stages (one object, one verb each): ``parsers.read_flight(path) -> Flight``, dataset building
 ``Flight -> Dataset``, the plan, the problem, the SNGP search, the ladder, and reports. See
@@ -12,9 +14,10 @@ docs/signals.md for the frame and unit conventions.
 """
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "read_log", "Identifier", "IdentificationResult"]
+__all__ = ["__version__", "read_log", "Identifier", "IdentificationResult", "PredictionResult", "Score"]
 
-_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify.pipeline"}
+_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify.pipeline",
+        "PredictionResult": "droneid.use.prediction", "Score": "droneid.use.score"}
 
 
 def __getattr__(name):

@@ -37,19 +37,20 @@ from droneid.engine import runner
 from droneid.dataset.builder import reuse_datasets
 from droneid.errors import ConfigError, DataError
 from droneid.use.export import export_models, input_sources
-from droneid.logs.flight import Flight
 from droneid.dataset.suitability import check_prior_data
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel, check_schema
 from droneid.fitting.constancy import Constancy, constancy_sentence, leads
 from droneid.core.io_util import to_jsonable
 from droneid.identify.ladder import TERM_ALPHA, GuardReport, Interval, Rung, final_rung, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section, predict_flights
+from droneid.use.prediction import PredictionResult, predict_models
 from droneid.identify.plan import holdout_cuts, plan_identification, resolve_plan_prior
 from droneid.identify.problem import TargetProblem, empirical_model, prepare_target
 from droneid.core.text import readable_equation, split_leading_number, undeclared_line
 from droneid.fitting.verdict import verdict
 from droneid.simulation.rollout import horizon_section
 from droneid.rotation.stage import RotationJob, RotationResult, rotation_job, score_rotation
+from droneid.use.score import Score
 from droneid.identify.search import RunRecord, compile_once, make_jobs, run_job, select_best
 from droneid.identify.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
 from droneid.core.targets import targets_for
@@ -128,6 +129,10 @@ class TargetResult:
     intervals: Mapping[str, Interval] = field(default_factory=dict)
     screened: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
     input_ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"TargetResult({self.target!r}, verdict_kind={self.verdict_kind!r}, n_train={self.n_train}, "
+                f"n_test={self.n_test}, equation={self.equation!r})")
 
     @property
     def final_rung(self) -> Rung:
@@ -337,12 +342,43 @@ class IdentificationResult:
     reader_options: Mapping[str, object] = field(default_factory=dict)
     rotation: RotationResult | None = None   # the rotational targets (issue 28); None: not modelled
 
-    def predict(self, flights, **options):
-        """The final models on other flights (a Flight or a sequence), as ``droneid predict``
-        scores them: a :class:`droneid.use.predict.PredictionResult` (``options``: ``horizons``,
-        ``open_loop``, ``ts``, ``method`` of :func:`droneid.use.predict.predict_flights`)."""
-        flights = [flights] if isinstance(flights, Flight) else list(flights)
-        return predict_flights(models_from_document(self.to_dict(), where="this result"), flights, **options)
+    def __repr__(self) -> str:
+        head = (f"IdentificationResult(targets={list(self.targets)}, prior={self.plan.prior_used!r}, "
+                f"runs={self.config.runs}, wall_s={self.wall_s:.1f}{', interrupted' if self.interrupted else ''})")
+        return "\n".join([head, *(f"  {t}: {tr.verdict_kind}: {tr.equation}" for t, tr in self.targets.items())])
+
+    def predict(self, flights, *, horizons: Sequence[int] | None = None, ts: float | None = None,
+                method: str | None = None) -> PredictionResult:
+        """The final models' predictions on ``flights`` (a Flight or a sequence of them).
+
+        Parameters
+        ----------
+        horizons : steps ahead (at the log's rate) to simulate the states to; None: v̇ only
+        ts, method : the grid's period (s) and the measured v̇'s differentiator; None: as identified
+
+        Returns
+        -------
+        PredictionResult : per target v̇ (m/s²) of each model and as measured on the grid
+            (``to_frame()``: a DataFrame with ``t_s``), and with ``horizons`` the simulated states"""
+        return predict_models(self._models(), flights, horizons=horizons, ts=ts, method=method)
+
+    def score(self, flights, *, horizons: Sequence[int] | None = None, open_loop: bool = False,
+              ts: float | None = None, method: str | None = None) -> Score:
+        """The final models' errors on ``flights`` (a Flight or a sequence), as ``droneid predict``.
+
+        Parameters
+        ----------
+        horizons : steps ahead (at the log's rate) of the multi-step prediction errors; None: none
+        open_loop : also the open-loop table (the nanodrone benchmark's metric)
+        ts, method : as :meth:`predict`
+
+        Returns
+        -------
+        Score : per target and flight the RMSE (m/s²) of the final, empirical and refit models"""
+        return predict_flights(self._models(), flights, horizons=horizons, open_loop=open_loop, ts=ts, method=method)
+
+    def _models(self) -> dict:   # predict's models of this result
+        return models_from_document(self.to_dict(), where="this result")
 
     def export(self, lang: str = "python", name: str = "droneid_model") -> str:
         """The final models as source code (``lang``: python, c, matlab or latex), as

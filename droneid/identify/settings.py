@@ -17,7 +17,7 @@ from droneid.errors import ConfigError, check_choice
 from droneid.sngp import SNGPRegressor
 from droneid.core.targets import TARGETS
 
-__all__ = ["IdentifyConfig", "PAPER_BUDGET", "QUICK_BUDGET", "METHODS"]
+__all__ = ["IdentifyConfig", "PAPER_BUDGET", "QUICK_BUDGET", "METHODS", "CONSTRAINT_ALIASES"]
 
 #: the paper's setup per run (Table I); identify makes 4 runs per target by default (the paper: 50;
 #: `study` 10): the trust guards decide what survives, and on the shared Crazyflie flights 4 and 10
@@ -28,6 +28,9 @@ QUICK_BUDGET = {"generations": 3000, "population_size": 200, "runs": 4}
 #: the engine's own defaults (its signature) for what neither budget sets
 _ENGINE = SNGPRegressor.default_params()
 METHODS = ("forward", "central", "savgol", "spline")
+#: ``constraints``: "prior" is the prior's own constraint set, recorded as "paper" (its first name,
+#: still accepted: the paper's constraints are the built-in priors' own sets)
+CONSTRAINT_ALIASES = {"prior": "paper"}
 
 
 @dataclass(frozen=True)
@@ -50,7 +53,8 @@ class IdentifyConfig:
         of the training flights by this fraction
     search_rows : SNGP searches on at most this many training rows (every k-th, time order kept;
         0: all); the trust guards refit and validate every proposed term on ALL training rows
-    constraints : "paper", "none" or the path of a constraints TOML file
+    constraints : "paper" (the prior's own set; "prior" is read as it), "none" or the path of a
+        constraints TOML file
     runs : independent SNGP runs per target; jobs : parallel workers (None: all cores);
     scheduler : a Dask scheduler address (``tcp://host:port``) instead of local workers
     generations, population_size, n_features, max_depth, gamma : SNGP budget (paper: 60000, 500, 10, 7, 0.05)
@@ -113,6 +117,8 @@ class IdentifyConfig:
         given = {k: v for k, v in given.items() if v is not None or k in ("jobs", "scheduler")}
         for k, v in budget.items():
             given.setdefault(k, v)
+        if isinstance(given.get("constraints"), str) and given["constraints"] in CONSTRAINT_ALIASES:
+            given["constraints"] = CONSTRAINT_ALIASES[given["constraints"]]
         if isinstance(given.get("targets"), str):
             given["targets"] = tuple(s.strip() for s in given["targets"].split(",") if s.strip())
         return cls(quick=quick, **given).validated()

@@ -1,6 +1,6 @@
 """``droneid predict`` for people: per target the error table (m/s²) of the identified model next to
 the empirical model's, then the multi-step prediction table, from a
-:class:`~droneid.use.predict.PredictionResult`."""
+:class:`~droneid.use.score.Score`."""
 from __future__ import annotations
 
 from droneid.report.document import fmt, text_table
@@ -10,46 +10,49 @@ from droneid.report.rotation import open_loop_legend
 __all__ = ["text"]
 
 #: one name per model across identify, predict, the plots and the docs: the final model, the
-#: empirical model (as given) and the prior refit
+#: empirical model (as given) and the prior refit (:class:`~droneid.use.score.Errors` fields)
 _LABELS = {"rmse_identified": "e_d final model", "rmse_empirical": "e_d empirical model",
-           "rmse_refit": "e_d prior refit", "rmse_empirical_refit": "e_d prior refit"}
+           "rmse_refit": "e_d prior refit"}
 
 
 def text(res) -> str:
-    """The terminal report: warnings, one table per target, the horizon table when measured."""
+    """The terminal report of a :class:`~droneid.use.score.Score`: warnings, one table per target, the
+    horizon table when measured."""
     out = [f"warning: {w}" for w in res.warnings]
     for t, r in res.targets.items():
-        out.append(f"== {t}: {r['equation'] or '(model)'}")
-        keys = [k for k in _LABELS if k in next(iter(r["errors"].values()))]
+        out.append(f"== {t}: {r.equation or '(model)'}")
+        first = next(iter(r.errors.values()))
+        keys = [k for k in _LABELS if getattr(first, k) is not None]
         header = ["data", "samples"] + [_LABELS[k] for k in keys]
-        rows = [[name, str(e["n"])] + [fmt(e[k]) for k in keys] for name, e in r["errors"].items()]
+        rows = [[name, str(e.n)] + [fmt(getattr(e, k)) for k in keys] for name, e in r.errors.items()]
         out.append(text_table(header, rows))
-        for src, counts in (r.get("screened") or {}).items():
+        for src, counts in r.screened.items():
             out.append(f"screened: {src}: " + ", ".join(f"{n} {c}" for n, c in counts.items())
                        + " implausible sample(s) or jump(s); rows that use them are not scored")
-        for src, fr in (r.get("out_of_range") or {}).items():
+        for src, fr in r.out_of_range.items():
             out.append(f"unlike the training data: {src}: " + ", ".join(
                 f"{n} outside its training range on {100 * v:.1f} % of the samples" for n, v in fr.items())
                 + " (the model extrapolates there)")
-        out += [f"note: {note}" for note in r.get("notes", ())]
+        out += [f"note: {note}" for note in r.notes]
         out.append(f"errors: RMSE in m/s²; targets by {res.method} differences at Ts = {res.ts} s "
                    f"(as at identification)\n")
     if res.horizons is not None:
         info = res.horizon_info
         out.append(f"== multi-step prediction: RK4 at dt = {fmt(info['dt_s'])} s; velocities of the modelled "
                    f"axes integrated, every other signal from the log")
+        tables = {m: {h: e.to_dict() for h, e in per.items()} for m, per in res.horizons.items()}
         cols = [k for k in ("vx", "vy", "vz", "position")
-                if any(k in e for per in res.horizons.values() for e in per.values())]
+                if any(k in e for per in tables.values() for e in per.values())]
         header = ["model", "steps", "s", "starts"] + [f"{k} (m)" if k == "position" else f"{k} (m/s)" for k in cols]
         rows = [[m, str(h), fmt(h * info["dt_s"]), str(info["n_starts"][str(h)])]
                 + [fmt(e.get(k)) for k in cols]
-                for m, per in res.horizons.items() for h, e in ((int(h), e) for h, e in per.items())]
+                for m, per in tables.items() for h, e in per.items()]
         out.append(text_table(header, rows))
         out.append("errors: RMSE at the horizon over every start (skipped starts: "
                    + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")")
         out.append(ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:] + "\n")
     if res.open_loop is not None:
-        out += open_loop_lines(res.open_loop, res.open_loop_rotation)
+        out += open_loop_lines(res.open_loop_table(), res.open_loop_rotation)
     return "\n".join(out)
 
 

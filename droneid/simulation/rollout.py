@@ -90,7 +90,9 @@ class RolloutResult:
     position_axes : {model: position axes of its position error (empty: none)};
     rmse : {model: {h: {"vx", "vy", "vz", "position"}}} in m/s (velocities) and m (position),
     only the axes the model covers; n_starts / skipped : {h: count}; nonfinite : {model: {h: count}};
-    segments : a few predicted traces for plots; notes : what was done.
+    segments : a few predicted traces for plots; notes : what was done;
+    states : with ``keep_states``, that model's simulated states {h: {column: (n_h,) array}} at every start
+    valid for ``h`` (:func:`rollout_errors`; not part of :meth:`to_dict`).
     """
     horizons: tuple[int, ...]
     dt_s: float
@@ -102,6 +104,7 @@ class RolloutResult:
     nonfinite: Mapping[str, Mapping[int, int]]
     segments: tuple[RolloutSegment, ...] = ()
     notes: tuple[str, ...] = field(default_factory=tuple)
+    states: Mapping[int, Mapping[str, np.ndarray]] | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self, segments: bool = True) -> dict:
         """Plain data (JSON-able; horizons as string keys); ``segments=False`` leaves the traces out."""
@@ -166,14 +169,18 @@ def _check_horizons(horizons) -> tuple[int, ...]:
 
 def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
                    horizons: Sequence[int] = (1, 10, 50), dt_s: float | None = None,
-                   n_segments: int = 6) -> RolloutResult:
+                   n_segments: int = 6, keep_states: str | None = None) -> RolloutResult:
     """Multi-step prediction errors of each model set against the log, plus the constant-velocity
     baseline (see the module docstring for the exact metric).
 
     models : {name: {target: IdentifiedModel}} with targets among vx_dot, vy_dot, vz_dot (e.g.
         {"identified": {...}, "empirical": {...}}); flights : a Flight or a sequence of them;
     horizons : steps; dt_s : step in s (default: the reference velocity signal's median period,
-        taken from the first flight); n_segments : predicted traces kept for plots.
+        taken from the first flight); n_segments : predicted traces kept for plots; keep_states : the
+        name of a model set whose simulated states to keep (``states``: per horizon h, columns
+        ``flight``, ``t0_s`` (start, s), ``t_s`` (= t0_s + h·dt_s), the predicted world velocities
+        ``vx``.. (m/s) and positions ``x``.. (m) of its modelled axes, and each as logged,
+        ``vx_logged``.., at ``t_s``).
     All starts of a flight are integrated at once (arrays over starts)."""
     sets = _check_models(models)
     hs = _check_horizons(horizons)
@@ -194,6 +201,7 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
     n_starts = {h: 0 for h in hs}
     skipped = {h: 0 for h in hs}
     notes, segments = [], []
+    kept: dict[int, list] = {h: [] for h in hs}
     pos_axes: dict[str, tuple[str, ...]] = {}
     for fi, f0 in enumerate(flights):
         f, _ = with_euler_from_quaternion(f0)
@@ -261,6 +269,9 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
             else:
                 v, p = _integrate(sets[m], meas, pos, inputs, dt_s, H)
             preds[m] = v
+            if m == keep_states:
+                for h in hs:
+                    kept[h].append(_states(f.name, t0, h, dt_s, ok[h], {**v, **p}, {**meas, **pos}))
             for h in hs:
                 sel = ok[h]
                 for a in axes[m]:
@@ -277,8 +288,20 @@ def rollout_errors(models: Mapping[str, Mapping[str, IdentifiedModel]], flights,
                 for h in hs} for m in names}
     notes.append("state: " + "; ".join(f"{m}: {', '.join(axes[m])}" for m in names)
                  + "; every other signal taken from the log")
+    states = None if keep_states is None else {
+        h: {k: np.concatenate([part[k] for part in parts]) for k in parts[0]} for h, parts in kept.items() if parts}
     return RolloutResult(hs, float(dt_s), axes, pos_axes, rmse, n_starts, skipped, nonfinite,
-                         tuple(segments), tuple(notes))
+                         tuple(segments), tuple(notes), states)
+
+
+def _states(flight: str, t0, h: int, dt: float, ok, predicted, logged) -> dict[str, np.ndarray]:
+    """The simulated state ``h`` steps after each start valid for ``h`` (see ``keep_states`` of
+    :func:`rollout_errors`), as columns."""
+    out = {"flight": np.full(int(ok.sum()), flight, dtype=object), "t0_s": t0[ok], "t_s": t0[ok] + h * dt}
+    for k, arr in predicted.items():
+        out[k] = arr[ok, h]
+        out[f"{k}_logged"] = logged[k][ok, h]
+    return out
 
 
 def _accumulate(acc: dict, bad: dict, h: int, key: str, err: np.ndarray, count_bad: bool) -> None:

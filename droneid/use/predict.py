@@ -4,10 +4,10 @@ Accepts either an identification result (``result.json`` of ``droneid identify``
 file (the engine's ``to_dict()``, with its target named by the caller). From a result, each
 target's FINAL model (``targets.<t>.final``, an :class:`droneid.fitting.closed_form.IdentifiedModel`) is
 evaluated next to the user's empirical model as given (``empirical_model``) and its least-squares
-refit (``refit_model``); results written before the final model existed fall back to the engine
-model (``model``) and the empirical terms. The data are built with the same sampling period and
+refit (``refit_model``); a bare model file is the engine's model alone. The data are built with the same sampling period and
 differentiator the model was identified with; inputs with a delay are read at ``t − delay``.
-``horizons`` adds multi-step prediction errors (:mod:`droneid.simulation.rollout`).
+``horizons`` adds multi-step prediction errors (:mod:`droneid.simulation.rollout`). The errors are typed
+(:class:`droneid.use.score.Score`); :func:`final_predictions` gives the predictions themselves.
 """
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ import json
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -25,72 +24,27 @@ from priors.registry import get_prior
 from droneid.engine import runner
 from droneid.dataset.builder import DatasetBuilder
 from droneid.errors import ConfigError, DataError, DroneIdError, check_choice
-from droneid.core.expressions import compile_expression, parse_expression
+from droneid.core.expressions import compile_expression
+from droneid.logs.flight import Flight
 from droneid.dataset.suitability import assess
 from droneid.fitting.closed_form import IdentifiedModel, check_schema
 from droneid.core.targets import TARGETS, state_of
-from droneid.core.io_util import to_jsonable
 from droneid.core.numerics import rmse
 from droneid.simulation.openloop import (Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, flight_state_logs,
                        open_loop)
 from droneid.rotation.model import RotationModel
 from droneid.rotation.stage import speed_scale
-from droneid.simulation.rollout import RolloutResult, rollout_errors, sample_inputs
+from droneid.simulation.rollout import rollout_errors, sample_inputs
+from droneid.use.score import Errors, HorizonErrors, Score, TargetScore
 from droneid.logs.screening import implausible_counts, screen_flight
 from droneid.sngp import SymbolicModel
 
-__all__ = ["load_models", "predict_flights", "model_sets", "open_loop_section", "PredictionResult"]
-
-
-@dataclass(frozen=True)
-class PredictionResult:
-    """What :func:`predict_flights` measured.
-
-    ts : sampling period (s) and method : differentiator of the targets (as identified with);
-    targets : {target: {"equation", "inputs", "sources", "errors": {"all"|flight: {"n",
-    "rmse_identified", "rmse_empirical", "rmse_refit" | "rmse_empirical_refit"}}, "screened":
-    {flight: {signal: implausible samples}}, "out_of_range": {flight: {input: fraction of samples
-    outside the training range}}, "notes"?}},
-    errors in m/s²; fitness / warnings : the data-fitness check of the logs (None / () when the
-    models name no signals); horizons : {model: {steps: {"vx", "vy", "vz" (m/s), "position"
-    (m)}}} of multi-step prediction and horizon_info its step (s), counts and notes (None
-    without ``horizons``); rollout : the :class:`~droneid.simulation.rollout.RolloutResult` behind them,
-    with its traces (for figures; not part of :meth:`to_dict`); open_loop : the open-loop
-    metric (None without it) and open_loop_rotation whether its "identified" row has a
-    rotational model (else the rates are held); reader_options : {"recorded": the options the result was identified
-    with, "given": the options given to predict} (None when neither exists; set by the CLI).
-    """
-    ts: float
-    method: str
-    targets: dict
-    fitness: dict | None = None
-    warnings: tuple = ()
-    horizons: dict | None = None
-    horizon_info: dict | None = None
-    rollout: RolloutResult | None = field(default=None, repr=False, compare=False)
-    open_loop: dict | None = None
-    reader_options: dict | None = None
-    open_loop_rotation: bool = False
-
-    def to_dict(self) -> dict:
-        """The JSON document of ``droneid predict --json``."""
-        out = {"ts": self.ts, "method": self.method, "targets": self.targets}
-        if self.fitness is not None:
-            out["fitness"] = self.fitness
-            out["warnings"] = list(self.warnings)
-        if self.horizons is not None:
-            out["horizons"] = self.horizons
-            out["horizon_info"] = self.horizon_info
-        if self.open_loop is not None:
-            out["open_loop"] = self.open_loop
-            out["open_loop_rotation"] = self.open_loop_rotation
-        if self.reader_options is not None:
-            out["reader_options"] = self.reader_options
-        return to_jsonable(out)
+__all__ = ["load_models", "predict_flights", "model_sets", "open_loop_section", "final_predictions"]
 
 
 def load_models(path, targets: Sequence[str] | None = None) -> dict:
-    """{target: {"model", "inputs", "empirical_refit", ...}} plus "_config" and
+    """{target: {"identified", "empirical", "refit" (IdentifiedModels) | "model" (a bare engine model),
+    "inputs", "equation", ...}} plus "_config" and
     "_reader_options" (the reader options the result was identified with: read_flight keywords,
     ``{}`` when none were recorded) from a JSON file: an identify result.json (schema
     :data:`droneid.fitting.closed_form.SCHEMA`; an older one is refused with one line) or a bare model."""
@@ -111,8 +65,7 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     inputs = doc.get("inputs")
     if not inputs:
         raise DataError(f"{path}: a model file must list its 'inputs'")
-    return {target: {"model": doc, "inputs": list(inputs), "empirical_terms": [],
-                         "empirical_refit": {}, "equation": doc.get("equation")}, "_config": {},
+    return {target: {"model": doc, "inputs": list(inputs), "equation": doc.get("equation")}, "_config": {},
             "_reader_options": {}}
 
 
@@ -267,35 +220,51 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     return open_loop(chosen, flight_state_logs(flights), max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 
 
-def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
-                    method: str | None = None, horizons: Sequence[int] | None = None,
-                    open_loop: bool = False) -> PredictionResult:
-    """Per target and per flight (and all together): samples and the RMSE (m/s²) of the
-    identified model (``rmse_identified``), of the empirical model as given (``rmse_empirical``)
-    and of its refit (``rmse_refit`` for final models, ``rmse_empirical_refit`` for older results).
+def flight_list(flights) -> list:
+    """``flights`` (a Flight or a sequence of them) as a list."""
+    return [flights] if isinstance(flights, Flight) else list(flights)
 
-    ``horizons`` (steps): adds ``horizons`` = {model: {h: {vx, vy, vz, position}}} (m/s, m) of
-    multi-step prediction (:func:`droneid.simulation.rollout.rollout_errors`, at the log's rate) and
-    ``horizon_info`` (step, counts, notes); needs final models. See :class:`PredictionResult`."""
+
+def final_predictions(models: dict, flights: Sequence, ts: float | None = None,
+                      method: str | None = None) -> tuple[float, str, object, dict]:
+    """(ts, method, fitness, {target: (dataset, predictions, notes)}): each target's rows on ``flights``
+    (a :class:`~droneid.dataset.data.Dataset` built with the sampling period ``ts`` (s) and differentiator
+    ``method`` the models were identified with unless given) and the v̇ (m/s²) of its models on them:
+    {"identified", "empirical", "refit": (n,) arrays} for final models, {"identified"} for a bare
+    model file. The data are first checked fit to score (DataError otherwise; ``fitness``: the
+    :class:`~droneid.dataset.suitability.Fitness` of that check, None when the models name no signals)."""
     cfg = models.get("_config", {})
     ts = ts or cfg.get("ts") or 0.05
     method = method or cfg.get("method") or "forward"
     builder = DatasetBuilder(ts=ts, method=method)
-    flights = list(flights)
+    flights = flight_list(flights)
+    fit = _fitness(models, flights, ts)
+    out = {}
+    for target, m in models.items():
+        if not target.startswith("_"):
+            out[target] = (_predict_final(builder, flights, target, m) if "identified" in m
+                           else (*_predict_engine(builder, flights, target, m), []))
+    return ts, method, fit, out
+
+
+def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
+                    method: str | None = None, horizons: Sequence[int] | None = None,
+                    open_loop: bool = False) -> Score:
+    """Per target and per flight (and all together): samples and the RMSE (m/s²) of the
+    identified model, of the empirical model as given and of its refit (:class:`~droneid.use.score.Errors`).
+
+    ``horizons`` (steps): adds the multi-step prediction errors {model: {h: HorizonErrors}} (m/s,
+    m; :func:`droneid.simulation.rollout.rollout_errors`, at the log's rate) and ``horizon_info`` (step,
+    counts, notes); needs final models. ``open_loop``: adds the open-loop table
+    (:func:`open_loop_section`). See :class:`~droneid.use.score.Score`."""
+    flights = flight_list(flights)
     sets = model_sets(models)
     if horizons and not sets:
         raise ConfigError("multi-step prediction (--horizons) needs the final models of vx_dot / vy_dot / "
                           "vz_dot (targets.<t>.final in result.json); this result has none")
+    ts, method, fit, predicted = final_predictions(models, flights, ts, method)
     results = {}
-    fit = _fitness(models, flights, ts)
-    for target, m in models.items():
-        if target.startswith("_"):
-            continue
-        if "identified" in m:
-            ds, preds, notes = _predict_final(builder, flights, target, m)
-        else:
-            ds, preds = _predict_engine(builder, flights, target, m)
-            notes = []
+    for target, (ds, preds, notes) in predicted.items():
         per = {}
         groups = [("all", np.ones(len(ds), bool))]
         if len(ds.sources) > 1:
@@ -303,16 +272,13 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         ok = np.logical_and.reduce([np.isfinite(v) for v in preds.values()])
         for name, mask in groups:
             mask = mask & ok
-            per[name] = {"n": int(mask.sum()), **{f"rmse_{k}": rmse(v[mask], ds.y[mask]) for k, v in preds.items()}}
-        r = {"equation": m.get("equation"), "inputs": list(ds.input_names), "sources": list(ds.sources),
-             "errors": per, "screened": _screened(flights, ds, [*ds.input_names, state_of(target)]),
-             "out_of_range": _out_of_range(ds, m.get("input_ranges") or {})}
+            per[name] = Errors(int(mask.sum()), **{f"rmse_{k}": rmse(v[mask], ds.y[mask]) for k, v in preds.items()})
         if not ok.all():
             notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
                          f"(e.g. a delayed input read before its signal starts)")
-        if notes:
-            r["notes"] = notes
-        results[target] = r
+        results[target] = TargetScore(models[target].get("equation"), tuple(ds.input_names), tuple(ds.sources), per,
+                                      _screened(flights, ds, [*ds.input_names, state_of(target)]),
+                                      _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes))
     roll, table, info = None, None, None
     stages = (("horizons",) if horizons else ()) + (("open loop",) if open_loop else ())
     # the multi-step prediction and the open-loop table are independent: side by side on the cores
@@ -321,11 +287,11 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
     if "horizons" in done:
         roll = done["horizons"]
         info = roll.to_dict(segments=False)
-        table = info.pop("rmse")
-    ol = done.get("open loop")
-    return PredictionResult(ts, method, results, fit.to_dict() if fit is not None else None,
-                            tuple(fit.warnings) if fit is not None else (), table, info, roll, ol,
-                            open_loop_rotation=models.get("_rotation") is not None)
+        del info["rmse"]
+        table = {m: {h: HorizonErrors(**e) for h, e in per.items()} for m, per in roll.rmse.items()}
+    return Score(ts, method, results, fit.to_dict() if fit is not None else None,
+                 tuple(fit.warnings) if fit is not None else (), table, info, roll, done.get("open loop"),
+                 open_loop_rotation=models.get("_rotation") is not None)
 
 
 def _scoring_stage(shared: tuple, stage: str):
@@ -427,19 +393,7 @@ def _predict_final(builder, flights, target: str, m: dict):
 
 
 def _predict_engine(builder, flights, target: str, m: dict):
-    """Dataset and predictions of an older result (engine model + empirical terms)."""
+    """Dataset and prediction of a bare model file (the engine's model: ``{"identified"}``)."""
     model = SymbolicModel.from_dict(m["model"])
     ds = builder.build(list(flights), target=target, inputs=tuple(m["inputs"]))
-    cols = ds.columns()
-    preds = {"identified": np.asarray(model.predict(cols), float)}
-    terms, refit = m.get("empirical_terms") or [], m.get("empirical_refit") or {}
-    ev = lambda text: compile_expression(parse_expression(text, ds.input_names, what="empirical model"),  # noqa: E731
-                                         ds.input_names)(cols)
-    if m.get("empirical_expr"):
-        preds["empirical"] = ev(m["empirical_expr"])
-    if terms and refit.get("coefficients"):
-        vals = [ev(tm["expr"]) for tm in terms]
-        coefs = refit["coefficients"]
-        preds["empirical_refit"] = (sum(coefs.get(tm["name"], 0.0) * v for tm, v in zip(terms, vals))
-                                    + float(refit.get("intercept") or 0.0))
-    return ds, preds
+    return ds, {"identified": np.asarray(model.predict(ds.columns()), float)}

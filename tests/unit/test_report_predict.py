@@ -2,14 +2,14 @@
 import json
 import math
 
-from droneid.use.predict import PredictionResult
 from droneid.report import predict as predict_report
+from droneid.use.score import Errors, HorizonErrors, Score, TargetScore
 
 
 def _result(**kw):
-    targets = {"vx_dot": {"equation": "vx_dot = -0.3·vx", "inputs": ["vx"], "sources": ["a"],
-                          "errors": {"all": {"n": 10, "rmse_identified": 0.25, "rmse_empirical": math.nan}}}}
-    return PredictionResult(0.05, "central", targets, **kw)
+    targets = {"vx_dot": TargetScore("vx_dot = -0.3·vx", ("vx",), ("a",),
+                                     {"all": Errors(10, 0.25, rmse_empirical=math.nan)})}
+    return Score(0.05, "central", targets, **kw)
 
 
 def test_the_json_document_holds_only_what_was_measured():
@@ -19,6 +19,42 @@ def test_the_json_document_holds_only_what_was_measured():
     json.dumps(d, allow_nan=False)
     d = _result(fitness={"ok": True}, warnings=("slow signal",)).to_dict()
     assert d["warnings"] == ["slow signal"] and "horizons" not in d
+
+
+def test_the_json_document_reads_back_into_the_same_score():
+    res = _result(fitness={"ok": True}, warnings=("w",), horizons={"identified": {1: HorizonErrors(vx=0.1)}},
+                  horizon_info={"dt_s": 0.01})
+    back = Score.from_dict(json.loads(json.dumps(res.to_dict())))
+    assert back.to_dict() == res.to_dict()
+    assert back.horizons["identified"][1].vx == 0.1 and back.horizons["identified"][1].position is None
+    e = back.targets["vx_dot"].errors["all"]
+    assert e.n == 10 and e.rmse_identified == 0.25 and math.isnan(e.rmse_empirical) and e.rmse_refit is None
+
+
+def test_the_open_loop_table_is_typed_and_reads_back():
+    per = {"1": {"position": 0.004, "velocity": 0.01, "attitude": 0.003, "rates": 0.1},
+           "simerr": {"position": 1.0, "velocity": 2.0, "attitude": 0.5, "rates": 9.0}}
+    res = _result(open_loop={"identified": per, "constant": per})
+    assert res.open_loop["identified"]["simerr"].rates == 9.0
+    back = Score.from_dict(json.loads(json.dumps(res.to_dict())))
+    assert back.open_loop == res.open_loop and back.to_dict() == res.to_dict()
+    assert res.to_dict()["open_loop"] == {"identified": per, "constant": per}
+
+
+def test_an_older_document_s_refit_error_reads_as_the_refit():
+    """Documents written before the final models named the refit's error rmse_empirical_refit."""
+    old = {"ts": 0.05, "method": "forward", "targets": {"vx_dot": {
+        "equation": None, "inputs": ["vx"], "sources": ["a"],
+        "errors": {"all": {"n": 3, "rmse_identified": 0.5, "rmse_empirical": 0.7, "rmse_empirical_refit": 0.6}}}}}
+    new = {**old, "targets": {"vx_dot": {**old["targets"]["vx_dot"], "errors": {"all": {
+        "n": 3, "rmse_identified": 0.5, "rmse_empirical": 0.7, "rmse_refit": 0.6}}}}}
+    assert Score.from_dict(old) == Score.from_dict(new)
+    assert Score.from_dict(old).targets["vx_dot"].errors["all"].rmse_refit == 0.6
+
+
+def test_a_score_s_repr_is_a_summary():
+    text = repr(_result())
+    assert len(text.splitlines()) <= 4 and "vx_dot: n=10, RMSE final 0.25" in text
 
 
 def test_the_text_report_has_a_table_per_target_and_the_warnings_first():
