@@ -116,7 +116,7 @@ def _outcome(gain: float, vgain: float, has_test: bool) -> str:
 
 
 _RUNG_WORDS = {"damping": "the rate decay", "attitude": "the attitude spring (the controller, opt-in)",
-               "torque": "the torque model"}
+               "spinup": "the rate decay with the rotors' spin-up reaction", "torque": "the torque model"}
 
 
 def axis_verdict(target: str, rung: str, val_held: float, val_model: float, test_held: float,

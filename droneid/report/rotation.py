@@ -49,6 +49,18 @@ def _decay_range(rot: RotationResult, k: int) -> str:
     return ""
 
 
+def _spinup_evidence(rot: RotationResult) -> str:
+    """The yaw spin-up rung's settings from the choice's spinup row: the motor-stream alignment
+    and lag chosen on the training flights and the gain's 95 % block-bootstrap interval."""
+    for row in rot.choice.get("table", ()):
+        if row.get("method") == "spinup":
+            lo, hi = row["gain_interval"]
+            lag = "no motor lag" if row.get("lowpass_tau_s") is None else f"motor lag {1000 * row['lowpass_tau_s']:.3g} ms"
+            return (f" [motor speeds {row['delay_steps']} step(s) earlier, {lag}; spin-up gain 95 % bootstrap "
+                    f"interval {lo:.3g}-{hi:.3g}]")
+    return ""
+
+
 def _ladder_rule(rot: RotationResult) -> str:
     """How the ladder decides, with the test's α, Holm family and minimum effect as the choice
     recorded them."""
@@ -98,7 +110,8 @@ def _model_line(rot: RotationResult) -> str:
         terms = [f"{c:+.4g}·{_TERM_TEXT.get(n, n)}" for n, c in zip(m.columns(k), m.coef[k]) if c != 0]
         if m.trim[k] != 0:
             terms.append(f"{m.trim[k]:+.4g}")
-        parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})" + (_decay_range(rot, k) if a.rung == "damping" else ""))
+        evidence = _decay_range(rot, k) if a.rung == "damping" else _spinup_evidence(rot) if a.rung == "spinup" else ""
+        parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})" + evidence)
     tail = unsteerable_sentence(unsteerable(m))
     return "rotational model (rad/s²): " + "; ".join(parts) + (f". {tail} (export --vehicle refuses it without "
                                                                  f"--allow-unsteerable)" if tail else "")

@@ -21,6 +21,7 @@ from droneid.rotation.model import (RotationModel, segment_bounds, body_velocity
 from droneid.rotation.decay import DAMPING_GRID, damping_folds, damping_interval, fit_damping, regime_of
 from droneid.rotation.folds import downdatable, rotation_folds, translation_folds
 from droneid.rotation.ladder import AXES as _AXES, climb
+from droneid.rotation.spinup import Spinup, fit_spinup, spinup_folds, spinup_interval
 
 __all__ = ["fit_rotation_multistep", "select_rotation", "RotationChoice", "RUNGS", "VEHICLE_RUNGS",
            "fit_attitude", "AttitudeSpring", "per_axis_model", "STIFFNESS_GRID", "DEFAULT_CANDIDATES",
@@ -140,14 +141,15 @@ def _fit_multistep_at(logs, shell, H, stride, damping_grid, spinup, rotor_drag=F
 #: delays 0 / 1 / 2: 37.5 / 38.0 / 39.6 without it, 36.7 / 37.1 / 38.5 with it, rad/s)
 DEFAULT_CANDIDATES = ({"terms": ("centre", "rotor_drag", "rotor_drag_thrust", "damping"), "delay_steps": 0,
                        "lowpass_tau_s": 0.05, "balance_weight_s": 1.0},)
-#: the rungs of each axis's ladder, simplest first (``attitude``: roll and pitch only)
-RUNGS = ("held", "damping", "attitude", "torque")
+#: the rungs of each axis's ladder, simplest first (``attitude``: roll and pitch only; ``spinup``:
+#: yaw only, the decay plus the rotors' reaction to their spin-up, :mod:`droneid.rotation.spinup`)
+RUNGS = ("held", "damping", "attitude", "spinup", "torque")
 #: the rungs :func:`select_rotation` climbs by default: the airframe's own physics only. The
 #: attitude spring is the onboard controller holding the vehicle level, not the vehicle: it
 #: assumes the flight's attitude setpoint is level (true of the squares between corners, false of
 #: any flight that holds a tilt) and, in a simulator that closes its own controller around the
 #: model, it would count the controller twice. Opt in with ``rungs=RUNGS``.
-VEHICLE_RUNGS = ("held", "damping", "torque")
+VEHICLE_RUNGS = ("held", "damping", "spinup", "torque")
 #: attitude stiffness values (1/s²) tried by :func:`fit_attitude`
 STIFFNESS_GRID = (0.0, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
 _CHUNK = 8192   # windows simulated at once
@@ -269,21 +271,29 @@ def _damping_model(layout: RotorLayout, c, rad_s_per_rpm: float) -> RotationMode
 
 
 def per_axis_model(rungs: Sequence[str], damping, torque: RotationModel | None, layout: RotorLayout,
-                   rad_s_per_rpm: float, attitude: AttitudeSpring | None = None) -> RotationModel | None:
+                   rad_s_per_rpm: float, attitude: AttitudeSpring | None = None,
+                   spinup: Spinup | None = None) -> RotationModel | None:
     """One :class:`RotationModel` whose axis ``k`` is held (ω̇_k = 0), damped (``−damping[k] ω_k``),
-    the attitude spring's (roll and pitch: ``attitude``) or the torque model's, as ``rungs[k]``
-    says; ``None`` when every axis is held. The torque model's conditioning (delay, low-pass,
-    balance) is kept; its terms gain ``damping`` (and ``attitude``) if needed."""
+    the attitude spring's (roll and pitch: ``attitude``), the spin-up rung's (yaw: ``spinup``) or
+    the torque model's, as ``rungs[k]`` says; ``None`` when every axis is held. The torque model's
+    conditioning (delay, low-pass, balance) is kept; its terms gain ``damping`` (and ``attitude``,
+    ``spinup``) if needed. Without a torque axis the conditioning is the spin-up rung's (its
+    alignment and motor lag); with one the spin-up gain reads the torque model's (one
+    conditioning per model: that combination is what the choice's per-axis row validates)."""
     if all(r == "held" for r in rungs):
         return None
-    for need, have in (("torque", torque), ("attitude", attitude)):
+    for need, have in (("torque", torque), ("attitude", attitude), ("spinup", spinup)):
         if need in rungs and have is None:
             raise DataError(f"per_axis_model: an axis takes the {need} rung but no {need} model is given")
     if any(r == "attitude" for r in rungs[2:]):
         raise DataError("per_axis_model: the attitude rung is for roll and pitch only")
-    extra = ("damping",) + (("attitude",) if "attitude" in rungs else ())
+    if any(r == "spinup" for r in rungs[:2]):
+        raise DataError("per_axis_model: the spin-up rung is for yaw only")
+    extra = ("damping",) + (("attitude",) if "attitude" in rungs else ()) + (("spinup",) if "spinup" in rungs else ())
     if torque is None:
         base = RotationModel(layout, extra, (np.zeros(0),) * 3, np.zeros(3), rad_s_per_rpm=float(rad_s_per_rpm))
+        if spinup is not None and "spinup" in rungs:
+            base = dataclasses.replace(base, delay_steps=int(spinup.delay_steps), lowpass_tau_s=spinup.lowpass_tau_s)
     else:
         base = dataclasses.replace(torque, terms=tuple(torque.terms) + tuple(t for t in extra if t not in torque.terms))
     if attitude is not None and "attitude" in rungs:
@@ -295,6 +305,8 @@ def per_axis_model(rungs: Sequence[str], damping, torque: RotationModel | None, 
             have = dict(zip(torque.columns(k), torque.coef[k]))
         elif rung == "attitude":
             have = {"damping": attitude.damping_per_s[k], "attitude": attitude.stiffness_per_s2[k]}
+        elif rung == "spinup":
+            have = {"damping": spinup.damping_per_s, "spinup": spinup.gain}
         else:
             have = {"damping": damping[k]} if rung == "damping" else {}
         coef.append(np.array([float(have.get(nm, 0.0)) for nm in names]))
@@ -326,7 +338,9 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     Each axis then climbs the ladder ``rungs`` (a subsequence of :data:`RUNGS` starting at
     ``held``; default :data:`VEHICLE_RUNGS`): ``held`` (ω̇_k = 0) → ``damping`` (−c_k ω_k) →
     [``attitude``, opt-in: roll and pitch only: −c_k ω_k − κ_k (θ_k − θ0_k), the controller
-    holding the vehicle level] → ``torque``, one rung at a time, each rung tested against the rung
+    holding the vehicle level] → [``spinup``, yaw only: the decay plus the rotors' reaction to
+    their spin-up, :mod:`droneid.rotation.spinup`, its alignment, motor lag and gain chosen per
+    fold on the other flights] → ``torque``, one rung at a time, each rung tested against the rung
     directly below it. The validation windows of an axis are split into ``regimes`` classes by how
     far the held rate drifts in them (quantiles of the held body-rate error of the axis, so calm
     stretches, ordinary flight and hard manoeuvres each count on their own); every (held-out
@@ -337,10 +351,11 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
 
     The decision is :mod:`droneid.fitting.decide`'s one calibrated rule (:func:`droneid.fitting.decide.decide_units`):
     ``d = ln(SimErr without / SimErr with)`` per cell, the one-sided sign-flip test over the cells,
-    Holm's step-down at ``alpha`` over every step of every axis (3 axes × 2 rungs by default), and
+    Holm's step-down at ``alpha`` over every step of every axis (7 by default: roll and pitch
+    decay and torque, yaw decay, spin-up and torque), and
     the pooled SimErr of the axis lower by at least ``min_effect_pct`` %. A rung is taken when its
     step is accepted and the axis took every rung below it. More training flights give more
-    cells, so more power: 2 flights (8 cells, p ≥ 2^−8) cannot pass α/6 = 0.0017; 3 can.
+    cells, so more power: 2 flights (8 cells, p ≥ 2^−8) cannot pass α/7 = 0.0014; 3 can.
 
     The chosen rungs are refitted on every training flight and combined by
     :func:`per_axis_model`; the per-axis model's own validation (its folds combined alike) is
@@ -361,13 +376,14 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
             or list(rungs) != sorted(set(rungs), key=RUNGS.index):
         raise ConfigError(f"The 'rungs' parameter of select_rotation must start at 'held' and follow the order of "
                           f"{', '.join(RUNGS)}. Got {rungs!r} instead.")
-    spring_rung = "attitude" in rungs
+    spring_rung, spin_rung = "attitude" in rungs, "spinup" in rungs
     layout = get_layout(layout) if isinstance(layout, str) else layout
     tkw = {"delay_steps": translation_delay_steps, "rad_s_per_rpm": rad_s_per_rpm}
     trows = [translation_rows(log, window_s=window_s, **tkw) for log in logs]   # once per log
     # the leave-one-flight-out fits from sums over the flights computed once (droneid.rotation.folds)
     trs = translation_folds(trows, [log.name for log in logs], **tkw)
     decays = damping_folds(logs, grid=damping_grid, regimes=regimes)
+    spins = spinup_folds(logs, layout, decays, rad_s_per_rpm=rad_s_per_rpm, regimes=regimes) if spin_rung else {}
     shared = [rotation_folds(logs, layout, cand, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm)
               if downdatable(cand) else None for cand in candidates]
     folds = []   # per held-out flight: name, test segments, translation, damping c, torque fits, errors
@@ -386,8 +402,12 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
             spring = fit_attitude(train, damping_grid=damping_grid, regimes=regimes)
             springs = per_axis_model(("attitude", "attitude", "damping"), c, None, layout, rad_s_per_rpm, spring)
             errs["attitude"] = _window_errors(IdentifiedVehicle(tr, springs), test, stride)
+        if spin_rung:
+            spun = per_axis_model(("damping", "damping", "spinup"), c, None, layout, rad_s_per_rpm, spinup=spins[name])
+            errs["spinup"] = _window_errors(IdentifiedVehicle(tr, spun), test, stride)
         errs.update({i: _window_errors(IdentifiedVehicle(tr, m), test, stride) for i, m in enumerate(torques)})
-        folds.append({"name": name, "test": test, "tr": tr, "c": c, "spring": spring, "torques": torques, "errs": errs})
+        folds.append({"name": name, "test": test, "tr": tr, "c": c, "spring": spring, "spin": spins.get(name),
+                      "torques": torques, "errs": errs})
     if not folds:
         raise DataError("select_rotation: no held-out flight has an in-flight stretch to validate on")
     held_row = _pooled(f["errs"]["held"] for f in folds)
@@ -405,6 +425,14 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
                  "damping_per_s": [float(v) for v in np.median([f["spring"].damping_per_s for f in folds], axis=0)],
                  "stiffness_per_s2": [float(v) for v in np.median([f["spring"].stiffness_per_s2 for f in folds], axis=0)],
                  **_pooled(f["errs"]["attitude"] for f in folds)},) if spring_rung else ()
+    final_c = fit_damping(logs, grid=damping_grid, regimes=regimes)
+    spin = fit_spinup(logs, layout, final_c[2], rad_s_per_rpm=rad_s_per_rpm, regimes=regimes) if spin_rung else None
+    spin_rows = ({"method": "spinup", **spin.to_dict(),
+                  # the settings of the leave-one-flight-out refits, and the gain's 95 % block-bootstrap interval
+                  "folds": [f["spin"].to_dict() for f in folds],
+                  "gain_interval": list(spinup_interval(logs, layout, spin, final_c[2], rad_s_per_rpm=rad_s_per_rpm,
+                                                        regimes=regimes)),
+                  **_pooled(f["errs"]["spinup"] for f in folds)},) if spin_rung else ()
     best = min(range(len(candidates)), key=lambda i: (cand_rows[i]["rates_simerr"], cand_rows[i]["attitude_simerr"]))
     for f in folds:
         f["errs"]["torque"] = f["errs"][best]
@@ -412,18 +440,17 @@ def select_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazy
     ladder = [{"axis": _AXES[k], "choice": rungs[k], "alpha": float(alpha), "family_size": family,
                "min_effect_pct": float(min_effect_pct), "regimes": int(regimes),
                "flights": [f["name"] for f in folds], "steps": steps[k]} for k in range(3)]
-    table = tuple(cand_rows) + (damp_row, *att_rows)
+    table = tuple(cand_rows) + (damp_row, *att_rows, *spin_rows)
     if all(r == "held" for r in rungs):
         return RotationChoice(None, table, held_row, None, tuple(rungs), tuple(ladder))
     sums = []
     for f in folds:
-        m = per_axis_model(rungs, f["c"], f["torques"][best], layout, rad_s_per_rpm, f["spring"])
+        m = per_axis_model(rungs, f["c"], f["torques"][best], layout, rad_s_per_rpm, f["spring"], f["spin"])
         sums.append(_window_errors(IdentifiedVehicle(f["tr"], m), f["test"], stride))
     mixed_row = {"method": "per-axis", "axes": list(rungs), "torque_candidate": best, **_pooled(sums)}
     torque = _fit_candidate(logs, layout, candidates[best], window_s, rad_s_per_rpm) if "torque" in rungs else None
     spring = fit_attitude(logs, damping_grid=damping_grid, regimes=regimes) if "attitude" in rungs else None
-    model = per_axis_model(rungs, fit_damping(logs, grid=damping_grid, regimes=regimes), torque, layout,
-                           rad_s_per_rpm, spring)
+    model = per_axis_model(rungs, final_c, torque, layout, rad_s_per_rpm, spring, spin)
     return RotationChoice(model, table + (mixed_row,), held_row, len(table), tuple(rungs), tuple(ladder))
 
 

@@ -79,7 +79,8 @@ def rotation_folds(logs: Sequence[StateLog], layout: RotorLayout, candidate: dic
     terms = tuple(c.pop("terms", ("centre", "damping", "gyro", "spinup")))
     weight = c.pop("balance_weight_s", None)
     shell = RotationModel(layout, terms, (np.zeros(0),) * 3, np.zeros(3), int(c.pop("delay_steps", 0)),
-                          float(rad_s_per_rpm), lowpass_tau_s=c.pop("lowpass_tau_s", None))
+                          float(rad_s_per_rpm), lowpass_tau_s=c.pop("lowpass_tau_s", None),
+                          centre_tau_s=c.pop("centre_tau_s", None))
     if c:
         raise DataError(f"rotation_folds: unknown keyword(s) {', '.join(c)}")
     names = [log.name for log in logs]

@@ -1,7 +1,8 @@
-"""The rotational ladder's decisions (issues 28, 37.2): each body axis climbs held → rate decay →
-[attitude spring] → torque model on :mod:`droneid.fitting.decide`'s one calibrated rule, with the
-(held-out training flight, regime) cells of :func:`droneid.rotation.choice.select_rotation`'s
-leave-one-flight-out open-loop validation as the units. Errors are body-rate SimErr of one axis
+"""The rotational ladder's decisions (issues 28, 37.2, 37.4): each body axis climbs held → rate
+decay → [attitude spring: roll, pitch] → [spin-up reaction: yaw] → torque model on
+:mod:`droneid.fitting.decide`'s one calibrated rule, with the (held-out training flight, regime) cells
+of :func:`droneid.rotation.choice.select_rotation`'s leave-one-flight-out open-loop validation as
+the units. Errors are body-rate SimErr of one axis
 (Σ_{h=1..50} |Δω_k|, rad/s) per validation window.
 """
 from __future__ import annotations
@@ -21,8 +22,9 @@ AXES = ("roll", "pitch", "yaw")
 
 def _ladder_steps(rungs: Sequence[str], k: int) -> list[tuple[str, str]]:
     """Axis ``k``'s steps, ``(rung, rung directly below it)``: each rung of ``rungs`` above
-    ``held`` (``attitude`` is skipped on yaw: no level to return to)."""
-    own = [r for r in rungs if not (r == "attitude" and k == 2)]
+    ``held`` (``attitude`` is skipped on yaw: no level to return to; ``spinup`` on roll and pitch:
+    the rotors' spin-up reaction is about z)."""
+    own = _own(rungs, k)
     return list(zip(own[1:], own[:-1]))
 
 
@@ -64,7 +66,7 @@ def climb(folds: list[dict], rungs: Sequence[str], regimes: int, alpha: float,
     :mod:`droneid.fitting.decide`. Each step, a rung against the rung the axis stands on below it, is
     decided by :func:`droneid.fitting.decide.decide_units` on its (flight, regime) cells (:func:`_cells`),
     with Holm's step-down over every step of every axis (:func:`droneid.fitting.decide.holm_step_down`;
-    family: 3 axes × the rungs above ``held``). An axis takes a rung when its step is accepted;
+    family: every axis's steps, :func:`_ladder_steps`). An axis takes a rung when its step is accepted;
     a rung not taken leaves the next one to be tested against the rung below it. Which rung an
     axis stands on depends on the decisions, so they are made again with the comparisons they
     imply until nothing changes (first round: each rung against the one directly below; at most
@@ -125,5 +127,11 @@ def climb(folds: list[dict], rungs: Sequence[str], regimes: int, alpha: float,
 
 def _ladder_from(rungs: Sequence[str], k: int, rung: str) -> tuple[str, ...]:
     """``rung`` and the rungs above it on axis ``k``'s ladder."""
-    own = [r for r in rungs if not (r == "attitude" and k == 2)]
+    own = _own(rungs, k)
     return tuple(own[own.index(rung):])
+
+
+def _own(rungs: Sequence[str], k: int) -> list[str]:
+    """The rungs of ``rungs`` on axis ``k``'s ladder: ``attitude`` on roll and pitch only,
+    ``spinup`` on yaw only."""
+    return [r for r in rungs if not ((r == "attitude" and k == 2) or (r == "spinup" and k < 2))]

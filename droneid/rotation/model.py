@@ -346,8 +346,8 @@ class RotationModel:
 def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyflie_x", *,
                  terms: tuple[str, ...] = ROTATION_TERMS, delay_steps: int = 0,
                  window_s: float = 0.05, rad_s_per_rpm: float = CRAZYFLIE_RAD_S_PER_ERPM,
-                 lowpass_tau_s: float | None = None, balance_weight_s: float | None = None
-                 ) -> RotationModel:
+                 lowpass_tau_s: float | None = None, balance_weight_s: float | None = None,
+                 centre_tau_s: float | None = None) -> RotationModel:
     """Fit ω̇ per axis on training flights by equation error (Huber IRLS), with one trim per
     flight (their mean is kept). Rows sit at the step midpoints (the input is held over the step)
     where every motor turns in flight. ``lowpass_tau_s``: causal low-pass of the rotor speeds;
@@ -357,7 +357,7 @@ def fit_rotation(logs: Sequence[StateLog], layout: RotorLayout | str = "crazyfli
     layout.check()
     P = layout.patterns()
     shell = RotationModel(layout, tuple(terms), (np.zeros(0),) * 3, np.zeros(3), int(delay_steps),
-                          float(rad_s_per_rpm), lowpass_tau_s=lowpass_tau_s)
+                          float(rad_s_per_rpm), lowpass_tau_s=lowpass_tau_s, centre_tau_s=centre_tau_s)
     if "attitude" in terms:
         flying = [tilt(log.state[flying_mask(log), 6:10]) for log in logs]
         if any(f.size for f in flying):

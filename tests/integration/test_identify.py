@@ -332,7 +332,7 @@ def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_d
     assert all(a.rung == "held" and a.verdict_kind == "no better" for a in rot.axes)
     assert all("with 2 held-out training flight(s) no rung can pass the test" in a.verdict for a in rot.axes)
     assert rot.model is None and rot.dt_s > 0
-    assert all(ax["family_size"] == 6 and ax["alpha"] == 0.01 for ax in rot.choice["ladder"])
+    assert all(ax["family_size"] == 7 and ax["alpha"] == 0.01 for ax in rot.choice["ladder"])
     assert all(st["cells"] <= 8 and not st["taken"] for ax in rot.choice["ladder"] for st in ax["steps"])
     back = type(res).from_dict(res.to_dict()).rotation
     assert back.to_dict() == rot.to_dict()

@@ -96,7 +96,7 @@ def _folds(new_by_regime, n_flights=5, n=400, seed=0, torque=2.0):
         new = held * factor[j][q]
         axis = lambda e: {"axis": np.column_stack([e, e, e])}   # noqa: E731 - same on every axis
         folds.append({"name": f"f{j}", "errs": {"held": axis(held), "damping": axis(new), "attitude": axis(held * 3.0),
-                                                 "torque": axis(held * torque)}})
+                                                 "spinup": axis(new), "torque": axis(held * torque)}})
     return folds
 
 
@@ -121,7 +121,7 @@ def test_a_rung_that_wins_pooled_but_loses_more_than_it_wins_cell_by_cell_is_not
 def test_a_rung_that_wins_everywhere_is_taken_under_holm_and_the_rung_above_is_tested_against_it():
     folds = _folds([0.9, 0.9, 0.8, 0.5])
     rung, steps, m = _climb(folds, RUNGS)
-    assert m == 8          # roll and pitch: decay, attitude, torque; yaw: decay, torque
+    assert m == 9          # roll and pitch: decay, attitude, torque; yaw: decay, spin-up, torque
     assert rung == "damping" and steps[0]["taken"] and steps[0]["cells"] == 20
     assert steps[0]["p_value"] < steps[0]["threshold"] <= 0.01
     assert [(st["rung"], st["against"], st["taken"]) for st in steps] == [

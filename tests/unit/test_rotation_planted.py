@@ -101,7 +101,7 @@ def test_a_new_flights_balance_point_is_found_from_its_own_motor_speeds(drag_fli
 @pytest.mark.slow   # shares a ~10 s simulated-flight fixture
 def test_selection_keeps_the_planted_structure(drag_flights):
     """Three training flights, 12 (flight, regime) cells per step: enough for the sign-flip test to
-    pass Holm's thresholds at α = 0.01 (p ≥ 2^-12 against 0.01/6 for the first); every axis
+    pass Holm's thresholds at α = 0.01 (p ≥ 2^-12 against 0.01/7 for the first); every axis
     climbs to the planted torque model, which beats the decay below it in every cell."""
     cands = [{"terms": ("damping",), "balance_weight_s": 1.0},
              {"terms": DRAG_TERMS, "balance_weight_s": 1.0}]
@@ -121,8 +121,8 @@ def test_selection_keeps_the_planted_structure(drag_flights):
     assert back["axis_choice"] == ["torque"] * 3 and back["chosen"] == choice.chosen
     top = back["ladder"][0]["steps"][-1]
     assert top["taken"] and len(top["ratio"]) == 4 and top["cells"] == 12
-    assert top["p_value"] < top["threshold"] and back["ladder"][0]["family_size"] == 6
-    # two of the flights: 8 cells cannot reach 0.01/6 (p ≥ 2^-8), so every rate is held
+    assert top["p_value"] < top["threshold"] and back["ladder"][0]["family_size"] == 7
+    # two of the flights: 8 cells cannot reach 0.01/7 (p ≥ 2^-8), so every rate is held
     two = select_rotation(drag_flights[:2], candidates=cands[1:], translation_delay_steps=0, stride=10)
     assert two.model is None and two.axis_choice == ("held", "held", "held")
     assert all(st["p_value"] >= 2.0 ** -8 and not st["taken"] for st in two.ladder[0]["steps"])

@@ -107,3 +107,20 @@ def test_the_report_section_draws_the_drift_without_a_warning():
     assert "open_loop_drift.png" in files and "ω̇x = 0 (rate held)" in files["report.md"]
     text = "\n".join(rotation_lines(rot))
     assert "50 steps" in text and "SimErr" in text and "wz_dot: held" in text
+
+
+def test_the_report_gives_a_taken_spinup_rung_its_settings_and_interval():
+    from droneid.report.rotation import rotation_lines
+    from droneid.rotation.choice import per_axis_model
+    from droneid.rotation.spinup import Spinup
+    from priors.torque import get_layout
+    spin = Spinup(3, 0.03, 0.05, 1.0)
+    model = per_axis_model(("damping", "damping", "spinup"), [4.0, 2.0, 1.0], None, get_layout("crazyflie_x"),
+                           0.0175, spinup=spin)
+    axes = tuple(AxisResult(t, r, 5.0, 4.0, 6.0, 5.0, f"{t}: {r}", "better")
+                 for t, r in zip(("wx_dot", "wy_dot", "wz_dot"), ("damping", "damping", "spinup")))
+    choice = {"table": [{"method": "spinup", **spin.to_dict(), "gain_interval": [0.02, 0.1]}]}
+    text = "\n".join(rotation_lines(RotationResult("crazyflie_x", "--frame", 0.0175, "erpm", model, choice, axes)))
+    assert "ω̇z = +1·(−ω) +0.05·(P ṡpin) (spinup)" in text
+    assert "3 step(s) earlier, motor lag 30 ms; spin-up gain 95 % bootstrap interval 0.02-0.1" in text
+    assert "NOT STEERABLE on roll, pitch:" in text     # yaw answers the motors through its spin-up
