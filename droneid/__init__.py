@@ -4,7 +4,7 @@ The Python API (docs/api.md), imported on first use so that ``droneid --version`
 
 - ``droneid.read_log(path, **options) -> Flight``;
 - ``droneid.Identifier(prior=…, differentiator=…, constraints=…, effects=…).fit(flights)`` ->
-  :class:`droneid.identify.pipeline.IdentificationResult`, with ``.predict(flight)`` (a
+  :class:`droneid.identify.result.IdentificationResult`, with ``.predict(flight)`` (a
   :class:`PredictionResult`: v̇ on the flight's grid), ``.score(flight)`` (a :class:`Score`: the
   error tables) and ``.export(lang)``.
 
@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_log", "Identifier", "IdentificationResult", "PredictionResult", "Score"]
 
-_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify.pipeline",
+_API = {"read_log": "droneid.api", "Identifier": "droneid.api", "IdentificationResult": "droneid.identify.result",
         "PredictionResult": "droneid.use.prediction", "Score": "droneid.use.score"}
 
 

@@ -1,6 +1,6 @@
 """Rendering an identification result: terminal text, report.md/report.html with PNG figures.
 
-Every function here takes the typed result (:class:`droneid.identify.pipeline.IdentificationResult`; a
+Every function here takes the typed result (:class:`droneid.identify.result.IdentificationResult`; a
 ``result.json`` dict is read with ``from_dict`` first, which refuses another schema) and renders
 it from its attributes; nothing is recomputed from logs, so a saved result can be re-rendered
 anywhere.
