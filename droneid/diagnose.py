@@ -81,7 +81,7 @@ __all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets",
            "block_ids", "NO_FURTHER", "fold_into_prior", "diagnose_plan", "plan_identification",
            "diagnose_blocks"]
 
-def diagnose(train_flights, test_flights=None, prior="auto", targets=None, *,
+def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, *,
              config: DiagnoseConfig | None = None, user_effects=None, progress=None) -> DiagnosisResult:
     """Diagnose on flights under the plan identify would make: :func:`diagnose_plan` (the prior,
     its thrust curve, the thrust inputs' offset), the datasets of that plan
