@@ -14,7 +14,7 @@ from droneid.diagnosis_result import folded_feature
 from droneid.expressions import symbol
 from droneid.identify import IdentifyConfig, prepare_target
 from droneid.ladder import final_rung
-from droneid.plan import plan_identification
+from droneid.diagnose import plan_identification
 from droneid.search import RunRecord
 from droneid.simulate import simulate
 from droneid.sngp.model import SymbolicModel

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from droneid.api import read_log
-from droneid.plan import dataset_builder, plan_identification
+from droneid.diagnose import plan_identification
+from droneid.plan import dataset_builder
 from droneid.problem import prepare_target
 from droneid.settings import IdentifyConfig
 from plugins.lifting_body import lifting_body

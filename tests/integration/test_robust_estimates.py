@@ -18,7 +18,7 @@ import pytest
 
 from droneid.flight import Signal
 from droneid.identify import IdentifyConfig, _horizons, prepare_target, summarise_target
-from droneid.plan import plan_identification
+from droneid.diagnose import plan_identification
 from droneid.simulate import simulate
 from priors.thrust import RPM_SCALE
 
