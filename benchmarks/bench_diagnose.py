@@ -29,7 +29,9 @@ same path, other seeds: other noise, gusts and start), diagnosed together. With 
 decision rests on N flights' (flight, time block) units: the power and the false positives
 of a multi-flight diagnosis (issue 37: more flights must not make a weaker or a looser rule).
 
-Scoring per effect id: a detection of a planted effect is a true positive; a detection of
+Scoring per effect id: a detection of a planted effect is a true positive (battery_sag on a
+command-driven vehicle: the battery compensation the plan's thrust curve keeps, the decision
+identify and diagnose share; :mod:`droneid.identify.plan`); a detection of
 anything else a false positive, except ``vertical_drag`` on a climbing flight with planted
 quadratic drag (the simulator's drag acts on the 3-D air velocity, so the vertical part is real)
 and ``thrust_direction`` on a high-tilt flight under the tilt-drag prior (the simulator flies the
@@ -165,7 +167,12 @@ def run_flight(spec: dict) -> dict:
         if best and not best["passed"]:
             rejected.append(best["text"])
     oe = [t for t, o in r.open_ended.items() if o and o.get("passed")]
-    return {**spec, "added": list(r.effects_added), "prior": r.prior.split(":")[0],
+    added = list(r.effects_added)
+    # a command-driven vehicle's battery compensation is the plan's thrust curve's decision (the
+    # one identify makes; the catalogue's battery_sag is then not tried): kept counts as found
+    if ((r.plan or {}).get("thrust_curve") or {}).get("voltage") and "battery_sag" not in added:
+        added.append("battery_sag")
+    return {**spec, "added": added, "prior": r.prior.split(":")[0],
             "steps": [s["evidence"].get("text", "") for s in r.steps], "rejected": rejected,
             "untestable": dict(r.untestable),
             "open_ended": oe, "secs": time.perf_counter() - t0}
@@ -223,8 +230,10 @@ def main(argv=None) -> int:
             print(f"{mark} #{r['i']:2d} {r['vehicle']:6s} {r['logs']:8s} {r['path']:9s} "
                   f"{'climb ' if r['climb'] else ''}{'tilt ' if r['tilt'] else ''}{'spin ' if r['spin'] else ''}"
                   f"planted {r['planted']} added {r['added']} ({r['prior']}, {r['secs']:.1f} s)")
+            for line in r["steps"]:      # every adoption's evidence: the effect sizes of TPs and FPs alike
+                print(f"       {line}")
             if mark == "ERR":
-                for line in r["steps"] + r["rejected"]:
+                for line in r["rejected"]:
                     print(f"       {line}")
                 for k, v in r["untestable"].items():
                     print(f"       untestable {k}: {v}")

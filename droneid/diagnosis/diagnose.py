@@ -1,6 +1,11 @@
 """Diagnosis: find what a prior model lacks, in physical terms, with out-of-sample evidence.
 
-Pipeline (:func:`diagnose` from flights, :func:`diagnose_datasets` from Datasets):
+From flights (:func:`diagnose`) the diagnosis runs under the plan identify makes
+(:mod:`droneid.identify.plan`: :func:`~droneid.identify.plan.plan_inputs` chooses the prior, the thrust curve of a
+command-driven vehicle and the thrust inputs' offset; :func:`~droneid.identify.plan.diagnosis_datasets`
+builds the datasets of that plan), so diagnose and identify take the same decisions on the same
+flights; identify's plan (:func:`plan_identification`) is that plan with the diagnosed effects
+folded in. Pipeline (:func:`diagnose_datasets` from Datasets):
 
 1. Fit the prior as given (every feature weight 1) and refit it by least squares WITHOUT an
    intercept (a free intercept would absorb wind and attitude biases), jointly for all targets;
@@ -55,15 +60,16 @@ from priors.effects import CATALOGUE, is_measured_derivative
 from priors.registry import resolve_prior
 
 from droneid.dataset.data import Dataset
-from droneid.dataset.builder import DatasetBuilder
 from droneid.fitting.decide import decide
 from droneid.diagnosis.result import (NO_FURTHER, DiagnoseConfig, DiagnosisResult, evidence_of,
-                               fold_into_prior, with_test_errors)
+                               fold_into_prior, folded_feature, with_test_errors)
 from droneid.diagnosis.effect_model import (EffectModel, diagnose_blocks, drop_stand_ins, fold_features,
                            linear_drag_of, make_part, physical_terms, prior_terms,
                            refine_contexts, score_candidates, strip_effect_id, uses_derivative)
 from droneid.errors import ConfigError, DataError, did_you_mean
-from droneid.dataset.suitability import check_prior_data, prior_for_flights
+from droneid.identify.plan import Effect, diagnosis_datasets, plan_inputs, resolve_plan_prior
+from droneid.identify.settings import IdentifyConfig
+from droneid.dataset.suitability import check_prior_data
 from droneid.dataset.validation import block_ids
 from droneid.core.numerics import rmse
 from droneid.diagnosis.residual_search import equation_signals, search_residuals
@@ -72,64 +78,98 @@ from droneid.core.targets import targets_for
 log = logging.getLogger(__name__)
 
 __all__ = ["DiagnoseConfig", "DiagnosisResult", "diagnose", "diagnose_datasets", "evidence_of",
-           "block_ids", "NO_FURTHER", "fold_into_prior", "choose_diagnose_prior", "build_datasets",
+           "block_ids", "NO_FURTHER", "fold_into_prior", "diagnose_plan", "plan_identification",
            "diagnose_blocks"]
 
 def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, *,
              config: DiagnoseConfig | None = None, user_effects=None, progress=None) -> DiagnosisResult:
-    """Diagnose ``prior`` on flights: build the datasets, then :func:`diagnose_datasets`.
+    """Diagnose on flights under the plan identify would make: :func:`diagnose_plan` (the prior,
+    its thrust curve, the thrust inputs' offset), the datasets of that plan
+    (:func:`droneid.identify.plan.diagnosis_datasets`), then :func:`diagnose_datasets`. The plan is in the
+    result (``plan``: its lines and record, as identify prints and records them).
 
-    ``prior``: a PriorModel, a name (``file.toml:name`` for user priors) or ``"auto"``
-    (:func:`priors.registry.choose_prior` on the signals every training flight has at a usable rate). ``targets``
-    None: the prior's targets among vx_dot, vy_dot, vz_dot.
+    ``prior``: a PriorModel, a name (``file.toml:name`` for user priors) or ``"auto"`` (the
+    prior identify chooses: :func:`droneid.dataset.suitability.prior_for_flights`). ``targets`` None:
+    the prior's targets among vx_dot, vy_dot, vz_dot.
     """
     cfg = (config or DiagnoseConfig()).validate()
+    _select_effects(user_effects, cfg.effects)      # an unknown effect id is refused before any work
     train_flights = list(train_flights)
-    pr, label = choose_diagnose_prior(prior, train_flights, cfg.ts)
-    if targets is None:
-        targets = targets_for(pr)
-    check_prior_data(train_flights, pr, targets, cfg.ts, "training")
+    icfg = _plan_config(prior, targets, cfg)
+    pr, _ = resolve_plan_prior(icfg, train_flights)
+    tg = targets_for(pr, icfg.targets)
+    check_prior_data(train_flights, pr, tg, cfg.ts, "training")
     if test_flights:
-        check_prior_data(test_flights, pr, targets, cfg.ts, "test")
-    train = build_datasets(train_flights, targets, pr, cfg)
-    test = build_datasets(test_flights, targets, pr, cfg) if test_flights else None
-    return diagnose_datasets(train, test, prior=pr, prior_label=label, config=cfg,
-                             user_effects=user_effects, progress=progress)
+        check_prior_data(test_flights, pr, tg, cfg.ts, "test")
+    plan = plan_inputs(train_flights, icfg, progress)
+    train, decided = diagnosis_datasets(plan, train_flights, icfg)
+    test = diagnosis_datasets(plan, test_flights, icfg)[0] if test_flights else None
+    res = diagnose_datasets(train, test, prior=plan.prior, prior_label=_prior_label(prior, plan), config=cfg,
+                            user_effects=user_effects, progress=progress, decided=decided)
+    return replace(res, plan={"lines": plan.lines(), **plan.record()})
 
 
-def choose_diagnose_prior(prior, flights, ts: float) -> tuple[object, str]:
-    """(PriorModel, label for the report) from ``prior`` (a PriorModel, a name or ``"auto"``,
-    which chooses among the signals every flight has at a usable rate for a grid of ``ts`` s,
-    as identify does: :func:`droneid.dataset.suitability.prior_for_flights`)."""
-    if not isinstance(prior, str):
-        return resolve_prior(prior), getattr(prior, "name", type(prior).__name__)
-    pr, why = prior_for_flights(prior, flights, ts)
-    if prior not in ("auto", "rotor-thrust"):
-        return pr, prior
+def diagnose_plan(train_flights, prior="auto", targets=None, config: DiagnoseConfig | None = None,
+                  progress=None):
+    """The :class:`~droneid.identify.plan.Plan` :func:`diagnose` works under: :func:`droneid.identify.plan.plan_inputs`
+    with identify's settings for this prior, these targets, this grid and differentiator (offset
+    chosen, effects left to the diagnosis): the same flights give identify's prior, thrust curve
+    and offset."""
+    cfg = (config or DiagnoseConfig()).validate()
+    return plan_inputs(list(train_flights), _plan_config(prior, targets, cfg), progress)
+
+
+def _plan_config(prior, targets, cfg: DiagnoseConfig) -> IdentifyConfig:
+    """The identify settings of the shared plan (:func:`droneid.identify.plan.plan_inputs`)."""
+    return replace(IdentifyConfig(), prior=prior, targets=tuple(targets) if targets else None,
+                   ts=cfg.ts, method=cfg.method, delays="auto", effects="auto").validated()
+
+
+def _prior_label(spec, plan) -> str:
+    """The prior as the report names it: its name, and for ``auto`` (or rotor-thrust) its thrust
+    source and why."""
+    pr = plan.prior
+    if not isinstance(spec, str):
+        return getattr(spec, "name", type(spec).__name__)
+    if spec not in ("auto", "rotor-thrust"):
+        return spec
     args = ", ".join(f"{k}={pr.params[k]}" for k in ("source", "motors") if k in pr.params)
-    return pr, f"{pr.name}" + (f" ({args})" if args else "") + f": {why}"
+    return f"{pr.name}" + (f" ({args})" if args else "") + f": {plan.prior_reason}"
 
 
-def build_datasets(flights, targets, prior, cfg: DiagnoseConfig) -> dict[str, Dataset]:
-    """One Dataset per target on the configured grid (all other signals in ``extra``, plus the
-    motor speeds ``rpm1..`` every flight has: the most direct thrust signal for the effects)."""
-    flights = list(flights)
-    builder = DatasetBuilder(ts=cfg.ts, method=cfg.method)
-    rpm = [f"rpm{i}" for i in range(1, 17)
-           if flights and all(f"rpm{i}" in getattr(fl, "signals", ()) for fl in flights)]
-    out = {}
-    for tgt in targets:
-        inputs = tuple(prior.inputs(tgt)) if hasattr(prior, "inputs") else None
-        ds = builder.build(flights, target=tgt, inputs=inputs)
-        more = [n for n in rpm if n not in ds.columns()]
-        if more:
-            ds = builder.build(flights, target=tgt, inputs=inputs, extras=[*ds.extra, *more])
-        out[tgt] = ds
-    return out
+def plan_identification(train_flights, cfg, progress: Callable | None = None, cuts: dict | None = None):
+    """Identify's :class:`~droneid.identify.plan.Plan`: :func:`droneid.identify.plan.plan_inputs` (prior, thrust
+    curve, offset) and, with ``cfg.effects`` ``"auto"``, the diagnosis on the datasets diagnose
+    judges (:func:`droneid.identify.plan.diagnosis_datasets`, its open-ended search off: identify's SNGP
+    runs are the open-ended search), every effect that passes folded into the prior features
+    (``cuts``: {flight index: time s} where a held-out test block starts, never seen here)."""
+    plan = plan_inputs(train_flights, cfg, progress, cuts)
+    if cfg.effects != "auto":
+        return plan
+    train, decided = diagnosis_datasets(plan, train_flights, cfg, cuts)
+    try:
+        res = diagnose_datasets(train, None, prior=plan.prior, decided=decided,
+                                config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0))
+    except (ConfigError, DataError, TypeError) as exc:
+        return replace(plan, notes=(*plan.notes, f"diagnosis skipped: {exc}"))
+    folded, notes = [], [f"diagnosis on the training flights: {res.conclusion}"]
+    for fe in res.final_effects:
+        feats = fe.get("features")
+        if fe.get("foldable") and feats:
+            folded.append(Effect(fe["effect"], fe.get("physical", ""),
+                                 {t: tuple(folded_feature(fe["effect"], d, fe.get("physical", ""))
+                                           for d in feats.get(t, ())) for t in plan.targets}))
+        else:
+            notes.append(f"effect {fe['effect']} ({fe.get('physical', '')}) not folded into the model: "
+                         f"{fe.get('reason') or 'not foldable into a model of states and inputs'}")
+    summary = {"effects_added": list(res.effects_added), "conclusion": res.conclusion,
+               "untestable": dict(res.untestable), "not_detected": list(res.not_detected)}
+    return replace(plan, effects=tuple(folded), diagnosis=summary, notes=(*plan.notes, *notes))
 
 
-def _select_effects(user_effects, only) -> dict:
-    """The catalogue plus user effects, restricted to ``only`` (ids) when given."""
+def _select_effects(user_effects, only, decided=()) -> dict:
+    """The catalogue plus user effects, restricted to ``only`` (ids) when given, without the
+    ``decided`` ones (another stage of the plan decided them)."""
     effects = dict(CATALOGUE)
     for e in (user_effects.values() if isinstance(user_effects, Mapping) else user_effects or ()):
         effects[e.id] = e
@@ -138,7 +178,7 @@ def _select_effects(user_effects, only) -> dict:
             if eid not in effects:
                 raise ConfigError(f"unknown effect '{eid}'{did_you_mean(eid, effects)}; known: {', '.join(effects)}")
         effects = {k: v for k, v in effects.items() if k in only}
-    return effects
+    return {k: v for k, v in effects.items() if k not in decided}
 
 
 def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, dict, dict]:
@@ -172,12 +212,15 @@ def _testability(effects, tr_parts, targets, allow_derivatives) -> tuple[list, d
 
 def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] | None = None, *,
                       prior="tilt-drag", config: DiagnoseConfig | None = None, user_effects=None,
-                      progress: Callable | None = None, prior_label: str | None = None) -> DiagnosisResult:
+                      progress: Callable | None = None, prior_label: str | None = None,
+                      decided: Mapping[str, str] | None = None) -> DiagnosisResult:
     """Diagnose ``prior`` on per-target Datasets (see the module docstring).
 
     ``train``: {target: Dataset} of the training flights (they alone decide); ``test``: the same
     targets on test flights (reported only, never used for a choice); ``prior``: a PriorModel or
-    a name. The result's ``final_effects[*]["features"]`` are ready to fold into the prior.
+    a name; ``decided``: {effect id: which stage of the plan decided it} (not tried here, listed
+    as not applicable with that reason). The result's ``final_effects[*]["features"]`` are ready
+    to fold into the prior.
     """
     cfg = (config or DiagnoseConfig()).validate()
     if not train:
@@ -186,12 +229,14 @@ def diagnose_datasets(train: Mapping[str, Dataset], test: Mapping[str, Dataset] 
     targets = list(train)
     if test is not None and set(test) != set(targets):
         raise DataError(f"test datasets cover {sorted(test)}, training datasets {sorted(targets)}")
-    effects = _select_effects(user_effects, cfg.effects)
+    decided = dict(decided or {})
+    effects = _select_effects(user_effects, cfg.effects, decided)
     if cfg.n_blocks is None:
         cfg = replace(cfg, n_blocks=diagnose_blocks(min(len(d) for d in train.values())))
     model = _effect_model(train, test, pr, cfg, targets)
     testable, untestable, not_applicable = _testability(effects, model.tr_parts, targets,
                                                         cfg.allow_measured_derivatives)
+    not_applicable.update({k: v for k, v in decided.items() if cfg.effects is None or k in cfg.effects})
     # effects whose signals exist but whose preconditions fail may become testable once another
     # effect refines the inputs (the wind's air speed for quadratic drag): re-checked every step
     pending = [effects[eid] for eid in untestable

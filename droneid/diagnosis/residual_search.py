@@ -18,7 +18,7 @@ from droneid.fitting.decide import decide
 from droneid.diagnosis.result import DiagnoseConfig, evidence_of, with_test_errors
 from droneid.diagnosis.effect_model import Part
 from droneid.core.numerics import rmse
-from droneid.fitting.physics_guard import POSITION_SIGNALS, term_problem
+from droneid.fitting.physics_guard import POSITION_SIGNALS, guard_terms
 from droneid.sngp import SNGPRegressor
 from droneid.dataset.validation import block_in_flight
 
@@ -36,7 +36,7 @@ def equation_signals(o: dict) -> list[str]:
 def search_residuals(model, cur, cfg, *, per_motor: bool = False, height: bool = False) -> dict:
     """{target: what the open-ended search found on its remaining training residual}. A term is
     a finding only when it passes the one rule AND the physics guard
-    (:func:`droneid.fitting.physics_guard.term_problem`; ``per_motor``: the per-motor thrust effect was
+    (:func:`droneid.fitting.physics_guard.guard_terms` on its terms; ``per_motor``: the per-motor thrust effect was
     found, ``height``: ground effect was testable on these flights)."""
     parts = model.tr_parts
     if cfg.generations <= 0:
@@ -66,16 +66,22 @@ def clock_like(v: np.ndarray, t: np.ndarray, flight: np.ndarray, limit: float = 
     return False
 
 
-def physics_refusal(expr, signals, **kw) -> str | None:
-    """Why the open-ended equation ``expr`` cannot be a finding about the vehicle (its first
-    addend that :func:`droneid.fitting.physics_guard.term_problem` refuses, named), or None."""
-    for term in sp.Add.make_args(sp.expand(expr)):
-        if term.is_Number:
-            continue
-        why = term_problem(term, signals, **kw)
-        if why:
-            return f"physics guard: its term {sp.sstr(term)} is refused: {why}"
-    return None
+def physics_refusal(terms, signals, **kw) -> str | None:
+    """Why the open-ended model cannot be a finding about the vehicle (its first term that
+    :func:`droneid.fitting.physics_guard.guard_terms` refuses, named), or None.
+
+    ``terms``: the SNGP model's own terms (``SymbolicModel.terms``, each one evolved feature as
+    the engine evaluated it), the units identify's ladder guards (:func:`droneid.identify.ladder.final_rung`),
+    never the expanded sum: expanding ``vx·(vx + z)`` into ``vx² + vx·z`` would hide that it adds a
+    velocity to a height. A sympy expression is taken as one term per addend."""
+    if isinstance(terms, sp.Basic):
+        terms = sp.Add.make_args(terms)
+    terms = [t for t in terms if not sp.sympify(t).is_Number]
+    _, refused = guard_terms(terms, [sp.sstr(t) for t in terms], signals, **kw)
+    if not refused:
+        return None
+    label, why = refused[0].removeprefix("dropped ").split(": ", 1)
+    return f"physics guard: its term {label} is refused: {why}"
 
 
 def _signal_matrix(part, names):
@@ -124,7 +130,7 @@ def _search_one(part: Part, resid: np.ndarray, test, cfg: DiagnoseConfig, family
     ev = with_test_errors(evidence_of(decide(resid, resid - pred, part.block, alpha=cfg.alpha,
                                        family_size=family, min_effect_pct=100 * cfg.min_rel_improvement,
                                        what=f"open-ended term for {part.target}")), tb, ta)
-    refused = physics_refusal(final.expr_, names, **(physics or {}))
+    refused = physics_refusal(final.model_.terms, names, **(physics or {}))
     if refused:
         ev = {**ev, "passed": False, "reasons": [*ev["reasons"], refused], "text": f"{ev['text']}; {refused}"}
     return {"ran": True, "signals": names, "equation": str(getattr(final, "equation_", final.expr_)),

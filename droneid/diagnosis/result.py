@@ -109,6 +109,10 @@ class DiagnosisResult:
     simulable: False when the added effects or a passing open-ended term use a measured
         derivative (only possible with ``allow_measured_derivatives``); notes: such warnings.
     series: per-target arrays for the plots (not in diagnosis.json unless asked for).
+    plan: the plan the diagnosis ran under, the one identify makes (:mod:`droneid.identify.plan`):
+        ``lines`` (:meth:`droneid.identify.plan.Plan.lines`: the prior and why, the thrust curve, the
+        thrust inputs' offset with its test) and :meth:`droneid.identify.plan.Plan.record` ({} when the
+        diagnosis was given datasets, not flights).
     """
     targets: dict
     steps: list
@@ -126,6 +130,7 @@ class DiagnosisResult:
     simulable: bool = True
     notes: list = field(default_factory=list)
     series: dict = field(default_factory=dict)
+    plan: dict = field(default_factory=dict)
 
     def to_dict(self, include_series: bool = False) -> dict:
         d = {"targets": self.targets, "effects_added": self.effects_added,
@@ -134,7 +139,7 @@ class DiagnosisResult:
              "steps": self.steps, "final_effects": [_final_effect_json(fe) for fe in self.final_effects],
              "open_ended": self.open_ended, "candidates": self.candidates,
              "not_applicable": self.not_applicable, "simulable": self.simulable,
-             "notes": self.notes,
+             "notes": self.notes, "plan": self.plan,
              "prior": self.prior, "config": self.config, "sources": self.sources}
         if include_series:
             d["series"] = self.series
@@ -158,7 +163,8 @@ class DiagnosisResult:
                    sources={"train": list(sources.get("train") or []), "test": list(sources.get("test") or [])},
                    candidates=list(d.get("candidates") or []), final_effects=list(d.get("final_effects") or []),
                    not_applicable=dict(d.get("not_applicable") or {}), simulable=bool(d.get("simulable", True)),
-                   notes=list(d.get("notes") or []), series=dict(d.get("series") or {}))
+                   notes=list(d.get("notes") or []), series=dict(d.get("series") or {}),
+                   plan=dict(d.get("plan") or {}))
 
 
 def _final_effect_json(fe: dict) -> dict:

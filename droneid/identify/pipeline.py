@@ -38,7 +38,8 @@ from droneid.fitting.closed_form import SCHEMA, IdentifiedModel
 from droneid.fitting.constancy import constancy_sentence, leads
 from droneid.identify.ladder import TERM_ALPHA, final_rung, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section
-from droneid.identify.plan import holdout_cuts, plan_identification, resolve_plan_prior
+from droneid.diagnosis.diagnose import plan_identification
+from droneid.identify.plan import holdout_cuts, resolve_plan_prior
 from droneid.identify.result import FeatureText, IdentificationResult, PlanRecord, TargetResult, flight_provenance, versions
 from droneid.identify.problem import TargetProblem, empirical_model, prepare_target
 from droneid.core.text import readable_equation, split_leading_number, undeclared_line
@@ -205,22 +206,12 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
             first = next(iter(errors.values()), "unknown error")
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         results[t] = summarise_target(problems[t], cfg, runs, errors)
-    notes = [f"prior: {plan.prior.name} ({plan.prior_reason})", *plan.notes, *_data_notes(fitness), *notes_early]
+    notes = [*plan.lines(), *_data_notes(fitness), *notes_early]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
     record = PlanRecord(
-        prior_used=plan.prior.name, prior_params=dict(plan.prior.params), prior_reason=plan.prior_reason,
-        validation=next(iter(problems.values())).validation, delays_s=dict(plan.delays_s),
-        delay_scores={f"{k:.2f}": v for k, v in plan.delay_scores.items()},
-        offset=({"offset_s": plan.offset.offset_s, "interval_s": list(plan.offset.interval_s),
-                 "evidence": plan.offset.decision.evidence if plan.offset.decision else "",
-                 "per_target": {t: list(v) for t, v in plan.offset.per_target.items()},
-                 "targets_agree": plan.offset.targets_agree,
-                 "per_flight": {f: list(v) for f, v in plan.offset.per_flight.items()},
-                 "flights_share": plan.offset.flights_share}
-                if plan.offset is not None else None),
-        thrust_curve=plan.thrust_curve.to_dict() if plan.thrust_curve is not None else None,
+        **plan.record(), validation=next(iter(problems.values())).validation,
         diagnosis=plan.diagnosis, fitness={role: f.to_dict() for role, f in fitness.items() if f is not None})
     rotation_notes: list = []       # why there is no rotational result, if there is none
     rotation = _rotation(outcome, jobs, rotation_notes)

@@ -1,10 +1,15 @@
-"""The plan of an identification: every choice made from the TRAINING flights before any SNGP run.
+"""The plan: every choice made from the TRAINING flights before any SNGP run, ONE for identify and diagnose.
 
-:func:`plan_identification` picks the prior (``auto``: the most physical one the logs' signals
+:func:`plan_inputs` picks the prior (``auto``: the most physical one the logs' signals
 support, :func:`droneid.dataset.suitability.prior_for_flights`), sets the rotor-thrust prior's nominal thrust scale by
-hover balance, chooses the offset of the thrust signals against the state in both directions by
-the calibrated block test of :mod:`droneid.fitting.decide` (:func:`choose_offset`) and runs the diagnosis (:mod:`droneid.diagnosis.diagnose`) to find the
-effects to fold into the prior features. Rows held out as test data (``cuts``) are never seen.
+hover balance, chooses the thrust curve of a command-driven vehicle and the offset of the thrust
+signals against the state in both directions by the calibrated block test of :mod:`droneid.fitting.decide`
+(:func:`choose_offset`). :func:`diagnosis_datasets` builds, from that plan, the datasets and the
+catalogue the diagnosis judges (the thrust inputs read at the chosen offset, the implausible
+samples screened as every dataset is). ``droneid diagnose`` (:func:`droneid.diagnosis.diagnose.diagnose`)
+and ``droneid identify`` (:func:`droneid.diagnosis.diagnose.plan_identification`, which folds the
+diagnosed effects in) both call these two functions, so the same flights give the same prior,
+offset, curve and effects. Rows held out as test data (``cuts``) are never seen.
 The result is a frozen :class:`Plan`; :mod:`droneid.identify.pipeline` builds the target problems from it.
 """
 from __future__ import annotations
@@ -15,7 +20,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from priors.effects import CATALOGUE
 from priors.registry import PriorFeature, resolve_prior
 from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO
 
@@ -23,9 +27,6 @@ from droneid.engine import runner
 from droneid.dataset.data import Dataset
 from droneid.dataset.builder import DatasetBuilder, _unique_names, reuse_datasets
 from droneid.fitting.decide import decide, decide_family
-from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
-from droneid.diagnosis.result import folded_feature
-from droneid.errors import ConfigError, DataError
 from droneid.dataset.suitability import prior_for_flights
 from droneid.fitting.terms import prior_terms
 from droneid.core.regression import blocked_cv, robust_fit
@@ -38,7 +39,7 @@ if TYPE_CHECKING:
     from droneid.fitting.terms import TermModel
 
 __all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "OFFSET_GRID_S",
-           "plan_identification", "holdout_cuts", "resolve_plan_prior", "train_rows",
+           "plan_inputs", "diagnosis_datasets", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
 #: the prior of the paper's protocol (``study``, and ``--prior auto`` without a plan)
@@ -76,6 +77,27 @@ class Plan:
     notes: tuple = ()
     offset: "OffsetDecision | None" = None
     thrust_curve: "ThrustCurve | None" = None
+
+    def lines(self) -> list[str]:
+        """The plan in words, one line per decision, as identify and diagnose print it: the prior
+        and why, the thrust curve, the thrust inputs' offset with its test, the diagnosis."""
+        return [f"prior: {self.prior.name} ({self.prior_reason})", *self.notes]
+
+    def record(self) -> dict:
+        """The plan's decisions as result.json (identify's ``config``) and diagnosis.json
+        (``plan``) record them: the prior used (its parameters and why), the input delays and the
+        offset with its evidence, the thrust curve (:meth:`ThrustCurve.to_dict`)."""
+        off = self.offset
+        return {"prior_used": self.prior.name, "prior_params": dict(self.prior.params),
+                "prior_reason": self.prior_reason, "delays_s": dict(self.delays_s),
+                "delay_scores": {f"{k:.2f}": v for k, v in self.delay_scores.items()},
+                "offset": ({"offset_s": off.offset_s, "interval_s": list(off.interval_s),
+                            "evidence": off.decision.evidence if off.decision else "",
+                            "per_target": {t: list(v) for t, v in off.per_target.items()},
+                            "targets_agree": off.targets_agree,
+                            "per_flight": {f: list(v) for f, v in off.per_flight.items()},
+                            "flights_share": off.flights_share} if off is not None else None),
+                "thrust_curve": self.thrust_curve.to_dict() if self.thrust_curve is not None else None}
 
 
 def _hover_calibrated(prior, flights, cfg, cuts=None):
@@ -325,11 +347,13 @@ def _per_flight_groups(shared: Mapping[str, tuple], names: Sequence[str], chosen
     return out
 
 
-def plan_identification(train_flights, cfg, progress: Callable | None = None,
-                        cuts: dict | None = None) -> Plan:
-    """Choose the prior, the thrust input delay and the effects from the training flights only
-    (``cuts``: {flight index: time s} where a held-out test block starts: rows from there on
-    are never seen here)."""
+def plan_inputs(train_flights, cfg, progress: Callable | None = None,
+                cuts: dict | None = None) -> Plan:
+    """Choose the prior, the thrust curve and the thrust inputs' offset from the training flights
+    only (``cuts``: {flight index: time s} where a held-out test block starts: rows from there
+    on are never seen here): the plan before the diagnosis, the one identify and diagnose share
+    (``cfg``: an :class:`~droneid.identify.settings.IdentifyConfig`; its ``prior``, ``targets``, ``ts``,
+    ``method``, ``delays`` and ``jobs`` are read)."""
     prior, reason = resolve_plan_prior(cfg, train_flights)
     prior = _hover_calibrated(prior, train_flights, cfg, cuts)
     notes = []
@@ -360,12 +384,35 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None,
         notes.insert(0, f"thrust curve of the commands NOT chosen from the data (too few v̇z rows on the "
                         f"training flights): written with e = {prior.params.get('expo', NOMINAL_EXPO):g} "
                         f"(ArduPilot's default MOT_THST_EXPO), a shape nobody measured here")
-    effects, diag = (), {}
-    if cfg.effects == "auto":
-        effects, diag, enotes = _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts,
-                                                   without=("battery_sag",) if curve is not None else ())
-        notes.extend(enotes)
-    return Plan(prior, reason, targets, delays, scores, effects, diag, tuple(notes), decision, curve)
+    return Plan(prior, reason, targets, delays, scores, (), {}, tuple(notes), decision, curve)
+
+
+def diagnosis_datasets(plan: Plan, flights, cfg, cuts: dict | None = None) -> tuple[dict, dict]:
+    """({target: Dataset}, {catalogue id: the stage that decided it}) the diagnosis judges under
+    ``plan`` on ``flights``: each
+    target's dataset with the plan's prior inputs, its thrust inputs read at the chosen offset
+    (``plan.delays_s``), every other signal in ``extra`` plus the motor speeds ``rpm1..`` every
+    flight has (the most direct thrust signal for the effects), the rows before ``cuts``. The
+    diagnosis leaves out what another stage of the plan decided: the battery compensation of a
+    command-driven vehicle is the thrust curve's (:mod:`droneid.fitting.thrust_curve`)."""
+    flights = list(flights)
+    builder = dataset_builder(cfg, plan.delays_s)
+    rpm = [f"rpm{i}" for i in range(1, 17)
+           if flights and all(f"rpm{i}" in getattr(fl, "signals", ()) for fl in flights)]
+    out = {}
+    for t in plan.targets:
+        inputs = tuple(plan.prior.inputs(t))
+        ds = builder.build(flights, target=t, inputs=inputs)
+        more = [n for n in rpm if n not in ds.columns()]
+        if more:
+            ds = builder.build(flights, target=t, inputs=inputs, extras=[*ds.extra, *more])
+        out[t] = train_rows(ds, cuts)
+    decided = {}
+    if plan.thrust_curve is not None:
+        kept = plan.thrust_curve.voltage
+        decided["battery_sag"] = ("decided by the plan's thrust curve: battery compensation u·V/V_ref "
+                                  + ("KEPT (the block test says it helps)" if kept else "not kept"))
+    return out, decided
 
 
 def _with_thrust_curve(prior, flights, cfg, cuts=None, delays=None):
@@ -397,34 +444,3 @@ def holdout_cuts(train_flights, cfg, target: str, prior) -> dict:
     ds = dataset_builder(cfg).build(list(train_flights), target=target, inputs=prior.inputs(target))
     _, test = split_time_block(ds, test_fraction=cfg.test_fraction)
     return {int(k): float(np.min(test.t[test.flight == k])) for k in np.unique(test.flight)}
-
-
-def _diagnosed_effects(train_flights, prior, targets, cfg, delays, cuts=None, without=()):
-    """Effects the diagnosis adds on the TRAINING flights, as prior features to fold in
-    (``without``: catalogue effects another stage decided: the battery compensation of a
-    command-driven vehicle is the thrust curve's, :mod:`droneid.fitting.thrust_curve`)."""
-    builder = dataset_builder(cfg, delays)
-    train = {t: train_rows(builder.build(list(train_flights), target=t, inputs=prior.inputs(t)), cuts)
-             for t in targets}
-    try:
-        res = diagnose_datasets(train, None, prior=prior,
-                                config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0,
-                                                      effects=tuple(e for e in CATALOGUE if e not in without)
-                                                      if without else None))
-    except (ConfigError, DataError, TypeError) as exc:
-        return (), {}, [f"diagnosis skipped: {exc}"]
-    folded, skipped = [], []
-    for fe in res.final_effects:
-        feats = fe.get("features")
-        if fe.get("foldable") and feats:
-            folded.append(Effect(fe["effect"], fe.get("physical", ""),
-                                 {t: tuple(folded_feature(fe["effect"], d, fe.get("physical", ""))
-                                           for d in feats.get(t, ())) for t in targets}))
-        else:
-            skipped.append({"effect": fe["effect"], "physical": fe.get("physical", ""),
-                            "reason": fe.get("reason") or "not foldable into a model of states and inputs"})
-    summary = {"effects_added": list(res.effects_added), "conclusion": res.conclusion,
-               "untestable": dict(res.untestable), "not_detected": list(res.not_detected)}
-    notes = [f"diagnosis on the training flights: {res.conclusion}"]
-    notes += [f"effect {s['effect']} ({s['physical']}) not folded into the model: {s['reason']}" for s in skipped]
-    return tuple(folded), summary, notes

@@ -75,6 +75,10 @@ def text(result) -> str:
     r = _result(result)
     lines = [f"diagnosis of prior '{r.prior}' on train {', '.join(r.sources['train']) or '—'}"
              + (f" / test {', '.join(r.sources['test'])}" if r.sources.get("test") else " (no test flight)")]
+    plan = (getattr(r, "plan", None) or {}).get("lines") or []
+    if plan:
+        lines.append("plan (the one identify makes on these flights, droneid.identify.plan):")
+        lines.extend(f"  NOTE: {line}" for line in plan)
     lines.append("residual before (prior refit by least squares, no intercept), RMSE m/s²:")
     for t, v in r.targets.items():
         lines.append(f"  {t:7s} train {_pair(v['rmse_before'])}  test {_pair(v['rmse_before'], 'test')}"
@@ -275,6 +279,9 @@ def document(result) -> Document:
     doc.paragraph(f"Prior: {r.prior}. Training flights: {', '.join(r.sources['train'])}. Test flights: "
                   f"{', '.join(r.sources.get('test') or []) or 'none (cross-validation only)'}.")
     doc.paragraph(r.conclusion)
+    plan = (getattr(r, "plan", None) or {}).get("lines") or []
+    if plan:
+        doc.paragraph("The plan (the one identify makes on these flights): " + "; ".join(plan) + ".")
     doc.paragraph("Effects are chosen on the training flights only (blocked cross-validation); "
                   "test-flight errors are reported, never used for a choice.")
     for note in getattr(r, "notes", []) or []:

@@ -14,7 +14,7 @@ from droneid.diagnosis.result import folded_feature
 from droneid.core.expressions import symbol
 from droneid.identify.pipeline import IdentifyConfig, prepare_target
 from droneid.identify.ladder import final_rung
-from droneid.identify.plan import plan_identification
+from droneid.diagnosis.diagnose import plan_identification
 from droneid.identify.search import RunRecord
 from droneid.simulation.simulator import simulate
 from droneid.sngp.model import SymbolicModel

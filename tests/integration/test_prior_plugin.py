@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from droneid.api import read_log
-from droneid.identify.plan import dataset_builder, plan_identification
+from droneid.diagnosis.diagnose import plan_identification
+from droneid.identify.plan import dataset_builder
 from droneid.identify.problem import prepare_target
 from droneid.identify.settings import IdentifyConfig
 from plugins.lifting_body import lifting_body

@@ -18,7 +18,7 @@ import pytest
 
 from droneid.logs.flight import Signal
 from droneid.identify.pipeline import IdentifyConfig, _horizons, prepare_target, summarise_target
-from droneid.identify.plan import plan_identification
+from droneid.diagnosis.diagnose import plan_identification
 from droneid.simulation.simulator import simulate
 from priors.thrust import RPM_SCALE
 

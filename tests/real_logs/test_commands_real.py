@@ -15,7 +15,7 @@ LOGS = ("ardupilot/copter33_quad_log171.bin", "px4/x500_sitl_events.ulg")
 
 def _ladders(path):
     from droneid.identify.pipeline import IdentifyConfig, prepare_target, summarise_target
-    from droneid.identify.plan import plan_identification
+    from droneid.diagnosis.diagnose import plan_identification
     from parsers import read_flight
     train = [read_flight(str(real_log(path)))]
     cfg = IdentifyConfig.make(quick=True)

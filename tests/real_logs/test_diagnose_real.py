@@ -53,3 +53,18 @@ def test_identify_call_with_the_rotor_thrust_prior_on_the_squares():
             for f in fs:
                 assert f["name"].startswith(fe["effect"] + "_") and hasattr(f["expr"], "free_symbols")
     assert decisions(r) == decisions(diagnose_datasets(train, test, prior=prior, config=CFG))
+
+
+def test_diagnose_and_identify_share_the_plan_on_square_run1():
+    """Issue 40.1: identify reads square_run1's motor speeds late by an offset the block test
+    accepts; diagnose ran without it ("effects added: none", v̇z residual twice identify's).
+    Now both make one plan: the same prior, the same offset, the same effects."""
+    from droneid.identify.pipeline import IdentifyConfig, plan_identification
+    train = _flights(["square_run1.csv"])
+    plan = plan_identification(train, IdentifyConfig.make(prior="auto"))
+    res = diagnose(train, None, prior="auto", config=CFG)
+    assert plan.offset is not None and plan.offset.offset_s > 0, plan.notes
+    assert res.plan["prior_used"] == plan.prior.name
+    assert res.plan["offset"]["offset_s"] == plan.offset.offset_s
+    assert res.plan["delays_s"] == plan.delays_s
+    assert res.effects_added == plan.diagnosis["effects_added"]

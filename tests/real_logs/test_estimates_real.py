@@ -15,7 +15,7 @@ CF = "mocap/crazyflie_nanodrone/"
 
 def _ladders(train, test=None, quick=True):
     from droneid.identify.pipeline import IdentifyConfig, prepare_target, summarise_target
-    from droneid.identify.plan import plan_identification
+    from droneid.diagnosis.diagnose import plan_identification
     from parsers import read_flight
     train = [read_flight(str(p)) for p in train]
     test = [read_flight(str(p)) for p in test] if test else None

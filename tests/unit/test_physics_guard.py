@@ -56,3 +56,18 @@ def test_the_open_ended_search_refuses_a_single_motor_equation():
     why = physics_refusal(E("0.3 + 2e-5*rpm2 - 0.1*vx"), MOTORS)
     assert why and "rpm2" in why and "physics guard" in why
     assert physics_refusal(E("0.3 - 0.1*vx*Abs(vx)"), MOTORS) is None
+
+
+def test_the_open_ended_search_judges_terms_unexpanded_as_identify_does():
+    """melon_run4 (issue 40.1): diagnose called ``0.2795*vx*(vx + z) − 0.1425*(vx + z)**2`` a
+    significant residual; expanded, every addend (vx², vx·z, z²) is unit-consistent on its own,
+    so the guard judged the expansion and missed that each term adds a velocity to a height.
+    Judged as the engine's terms (as identify's ladder does), both are refused."""
+    eq = E("0.2795*vx*(vx + z) - 0.1425*(vx + z)**2")
+    why = physics_refusal(eq, MOTORS, height=True)
+    assert why and "different units" in why and "vx + z" in why
+    # the SNGP model's own terms, as the search passes them
+    why = physics_refusal([E("vx*(vx + z)"), E("vx*Abs(vx)")], MOTORS, height=True)
+    assert why and "vx*(vx + z)" in why
+    assert physics_refusal([E("vx*Abs(vx)"), E("(rpm1**2 + rpm2**2 + rpm3**2 + rpm4**2)*sin(pitch)")],
+                           MOTORS) is None

@@ -87,7 +87,7 @@ def test_identified_model_round_trips_through_its_dict():
 
 def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_too_slow():
     """4 Hz ESC telemetry must not win over 100 Hz motor commands, in either pipeline."""
-    from droneid.diagnosis.diagnose import choose_diagnose_prior
+    from droneid.diagnosis.diagnose import diagnose_plan
     from droneid.logs.flight import Signal
     from droneid.identify.pipeline import IdentifyConfig
     from droneid.identify.plan import resolve_plan_prior
@@ -98,5 +98,5 @@ def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_
     f = f.with_signals(*slow)
     cfg = IdentifyConfig.make(prior="auto")
     plan_prior, _ = resolve_plan_prior(cfg, [f])
-    diag_prior, label = choose_diagnose_prior("auto", [f], cfg.ts)
-    assert plan_prior.params["source"] == diag_prior.params["source"] == "motor", label
+    diag = diagnose_plan([f], "auto")
+    assert plan_prior.params["source"] == diag.prior.params["source"] == "motor", diag.prior_reason

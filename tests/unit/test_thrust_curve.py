@@ -144,7 +144,7 @@ def test_a_motor_lag_is_found_and_the_shape_profiled_with_it():
 
 
 def test_a_curve_the_data_cannot_choose_is_said_to_be_unmeasured():
-    from droneid.identify.plan import plan_identification
+    from droneid.diagnosis.diagnose import plan_identification
     f = simulate(path="hover", duration_s=1.2, seed=0).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
     plan = plan_identification([f], IdentifyConfig(effects="none", delays="none"))
     assert plan.thrust_curve is None
