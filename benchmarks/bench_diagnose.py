@@ -31,7 +31,7 @@ of a multi-flight diagnosis (issue 37: more flights must not make a weaker or a 
 
 Scoring per effect id: a detection of a planted effect is a true positive (battery_sag on a
 command-driven vehicle: the battery compensation the plan's thrust curve keeps, the decision
-identify and diagnose share; :mod:`droneid.identify.plan`); a detection of
+identify and diagnose share; :mod:`droneid.planning.plan`); a detection of
 anything else a false positive, except ``vertical_drag`` on a climbing flight with planted
 quadratic drag (the simulator's drag acts on the 3-D air velocity, so the vertical part is real)
 and ``thrust_direction`` on a high-tilt flight under the tilt-drag prior (the simulator flies the

@@ -15,7 +15,7 @@ feature_library=…, optimizer=…)``: a prior (a name, ``FILE.toml:NAME`` or a
 :class:`priors.base.PriorModel` object), a differentiator (``central``, ``forward``, ``savgol``,
 ``spline``), a constraint set (``prior``: the prior's own, ``none`` or a TOML file), effects
 (``auto``: diagnosed and folded in, or ``none``) and every other setting of
-:class:`droneid.identify.settings.IdentifyConfig`. docs/api.md walks through it.
+:class:`droneid.planning.settings.IdentifyConfig`. docs/api.md walks through it.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from parsers import read_flight
 from droneid.errors import ConfigError, check_choice, did_you_mean
 from droneid.logs.flight import Flight
 from droneid.identify.pipeline import IdentificationResult, identify
-from droneid.identify.settings import METHODS, IdentifyConfig
+from droneid.planning.settings import METHODS, IdentifyConfig
 
 __all__ = ["read_log", "Identifier"]
 
@@ -76,7 +76,7 @@ class Identifier:
     quick : bool, default False
         The quick budget (3000 generations x population 200) instead of the paper's.
     **settings
-        Any other :class:`~droneid.identify.settings.IdentifyConfig` field, e.g. ``runs`` (SNGP runs per
+        Any other :class:`~droneid.planning.settings.IdentifyConfig` field, e.g. ``runs`` (SNGP runs per
         target), ``seed``, ``ts`` (sampling period, s), ``targets`` ("vx_dot,vz_dot" or a
         tuple), ``test_fraction`` (held-out last fraction of each flight), ``jobs``.
 

@@ -19,7 +19,7 @@ from droneid.errors import DataError
 from droneid.core.lazy import lazy_module
 from droneid.commands._common import ProgressBar, read_logs
 
-_settings = lazy_module("droneid.identify.settings")
+_settings = lazy_module("droneid.planning.settings")
 _identify = lazy_module("droneid.identify.pipeline")
 _report = lazy_module("droneid.report.identify")
 _diagnose = lazy_module("droneid.diagnosis.diagnose")

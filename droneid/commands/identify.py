@@ -8,7 +8,7 @@ from dataclasses import replace
 from droneid.core.lazy import lazy_module
 from droneid.commands._common import ProgressBar, add_log_options, log_options, print_json, read_logs
 
-_settings = lazy_module("droneid.identify.settings")      # the engine's parameters: numba
+_settings = lazy_module("droneid.planning.settings")      # the engine's parameters: numba
 _identify = lazy_module("droneid.identify.pipeline")
 _report = lazy_module("droneid.report.identify")
 

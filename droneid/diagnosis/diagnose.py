@@ -1,8 +1,8 @@
 """Diagnosis: find what a prior model lacks, in physical terms, with out-of-sample evidence.
 
 From flights (:func:`diagnose`) the diagnosis runs under the plan identify makes
-(:mod:`droneid.identify.plan`: :func:`~droneid.identify.plan.plan_inputs` chooses the prior, the thrust curve of a
-command-driven vehicle and the thrust inputs' offset; :func:`~droneid.identify.plan.diagnosis_datasets`
+(:mod:`droneid.planning.plan`: :func:`~droneid.planning.plan.plan_inputs` chooses the prior, the thrust curve of a
+command-driven vehicle and the thrust inputs' offset; :func:`~droneid.planning.plan.diagnosis_datasets`
 builds the datasets of that plan), so diagnose and identify take the same decisions on the same
 flights; identify's plan (:func:`plan_identification`) is that plan with the diagnosed effects
 folded in. Pipeline (:func:`diagnose_datasets` from Datasets):
@@ -67,8 +67,8 @@ from droneid.diagnosis.effect_model import (EffectModel, diagnose_blocks, drop_s
                            linear_drag_of, make_part, physical_terms, prior_terms,
                            refine_contexts, score_candidates, strip_effect_id, uses_derivative)
 from droneid.errors import ConfigError, DataError, did_you_mean
-from droneid.identify.plan import Effect, diagnosis_datasets, plan_inputs, resolve_plan_prior
-from droneid.identify.settings import IdentifyConfig
+from droneid.planning.plan import Effect, diagnosis_datasets, plan_inputs, resolve_plan_prior
+from droneid.planning.settings import IdentifyConfig
 from droneid.dataset.suitability import check_prior_data
 from droneid.dataset.validation import block_ids
 from droneid.core.numerics import rmse
@@ -85,7 +85,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
              config: DiagnoseConfig | None = None, user_effects=None, progress=None) -> DiagnosisResult:
     """Diagnose on flights under the plan identify would make: :func:`diagnose_plan` (the prior,
     its thrust curve, the thrust inputs' offset), the datasets of that plan
-    (:func:`droneid.identify.plan.diagnosis_datasets`), then :func:`diagnose_datasets`. The plan is in the
+    (:func:`droneid.planning.plan.diagnosis_datasets`), then :func:`diagnose_datasets`. The plan is in the
     result (``plan``: its lines and record, as identify prints and records them).
 
     ``prior``: a PriorModel, a name (``file.toml:name`` for user priors) or ``"auto"`` (the
@@ -111,7 +111,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
 
 def diagnose_plan(train_flights, prior="auto", targets=None, config: DiagnoseConfig | None = None,
                   progress=None):
-    """The :class:`~droneid.identify.plan.Plan` :func:`diagnose` works under: :func:`droneid.identify.plan.plan_inputs`
+    """The :class:`~droneid.planning.plan.Plan` :func:`diagnose` works under: :func:`droneid.planning.plan.plan_inputs`
     with identify's settings for this prior, these targets, this grid and differentiator (offset
     chosen, effects left to the diagnosis): the same flights give identify's prior, thrust curve
     and offset."""
@@ -120,7 +120,7 @@ def diagnose_plan(train_flights, prior="auto", targets=None, config: DiagnoseCon
 
 
 def _plan_config(prior, targets, cfg: DiagnoseConfig) -> IdentifyConfig:
-    """The identify settings of the shared plan (:func:`droneid.identify.plan.plan_inputs`)."""
+    """The identify settings of the shared plan (:func:`droneid.planning.plan.plan_inputs`)."""
     return replace(IdentifyConfig(), prior=prior, targets=tuple(targets) if targets else None,
                    ts=cfg.ts, method=cfg.method, delays="auto", effects="auto").validated()
 
@@ -138,9 +138,9 @@ def _prior_label(spec, plan) -> str:
 
 
 def plan_identification(train_flights, cfg, progress: Callable | None = None, cuts: dict | None = None):
-    """Identify's :class:`~droneid.identify.plan.Plan`: :func:`droneid.identify.plan.plan_inputs` (prior, thrust
+    """Identify's :class:`~droneid.planning.plan.Plan`: :func:`droneid.planning.plan.plan_inputs` (prior, thrust
     curve, offset) and, with ``cfg.effects`` ``"auto"``, the diagnosis on the datasets diagnose
-    judges (:func:`droneid.identify.plan.diagnosis_datasets`, its open-ended search off: identify's SNGP
+    judges (:func:`droneid.planning.plan.diagnosis_datasets`, its open-ended search off: identify's SNGP
     runs are the open-ended search), every effect that passes folded into the prior features
     (``cuts``: {flight index: time s} where a held-out test block starts, never seen here)."""
     plan = plan_inputs(train_flights, cfg, progress, cuts)

@@ -109,9 +109,9 @@ class DiagnosisResult:
     simulable: False when the added effects or a passing open-ended term use a measured
         derivative (only possible with ``allow_measured_derivatives``); notes: such warnings.
     series: per-target arrays for the plots (not in diagnosis.json unless asked for).
-    plan: the plan the diagnosis ran under, the one identify makes (:mod:`droneid.identify.plan`):
-        ``lines`` (:meth:`droneid.identify.plan.Plan.lines`: the prior and why, the thrust curve, the
-        thrust inputs' offset with its test) and :meth:`droneid.identify.plan.Plan.record` ({} when the
+    plan: the plan the diagnosis ran under, the one identify makes (:mod:`droneid.planning.plan`):
+        ``lines`` (:meth:`droneid.planning.plan.Plan.lines`: the prior and why, the thrust curve, the
+        thrust inputs' offset with its test) and :meth:`droneid.planning.plan.Plan.record` ({} when the
         diagnosis was given datasets, not flights).
     """
     targets: dict

@@ -210,7 +210,7 @@ LEADS = {"drag": ("wind", "quadratic_drag", "anisotropic_drag", "vertical_drag")
 def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -> str:
     """Where to look when vehicle constants are NOT constant, one sentence ("" when all hold):
     the flight conditions droneid saw differ between the flights (the clock offset, ``offset``:
-    the plan's :class:`~droneid.identify.plan.OffsetDecision`) and the catalogue effects that move such a
+    the plan's :class:`~droneid.planning.plan.OffsetDecision`) and the catalogue effects that move such a
     coefficient, with what the diagnosis (``diagnosis``: the plan's summary) said of each."""
     bad = [lab for lab, c in constancy.items() if c.constant is False]
     if not bad:

@@ -354,10 +354,10 @@ def over_offsets(curve: ThrustCurve, train_flights, prior, cfg, cuts, signals: S
                  offsets: Sequence[float], *, seed: int = 0) -> ThrustCurve:
     """``curve`` (chosen with the commands read at one offset) with its interval widened to the
     hull of the intervals at every offset of ``offsets`` (the offsets the chosen one does not
-    beat, :class:`droneid.identify.plan.OffsetDecision`): how the commands lead their thrust is itself
+    beat, :class:`droneid.planning.plan.OffsetDecision`): how the commands lead their thrust is itself
     uncertain (a motor lag is no pure offset), and the shape moves with it. ``prior``: the
     command prior with the curve's battery compensation."""
-    from droneid.identify.plan import dataset_builder, train_rows
+    from droneid.planning.plan import dataset_builder, train_rows
 
     lo, hi = curve.interval
     inputs = tuple(prior.inputs(_TARGET))
@@ -376,7 +376,7 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     :data:`priors.thrust.COMMAND_SOURCES`) from the training rows of v̇z (``cuts``: hold-out
     starts, ``delays``: {signal: s} the thrust inputs are read at), with the battery
     compensation decided by the block test; None for another prior or without v̇z rows."""
-    from droneid.identify.plan import dataset_builder, train_rows    # plan composes this stage
+    from droneid.planning.plan import dataset_builder, train_rows    # plan composes this stage
 
     source = prior.params.get("source")
     if source not in COMMAND_SOURCES or _TARGET not in prior.targets:

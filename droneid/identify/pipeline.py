@@ -2,7 +2,7 @@
 
 The one place where the stages are composed:
 
-    plan (:mod:`droneid.identify.plan`: prior, input offset, effects, from the training flights)
+    plan (:mod:`droneid.planning.plan`: prior, input offset, effects, from the training flights)
     -> problem (:mod:`droneid.identify.problem`: datasets, prior features, constraints, physical rungs)
     -> search (:mod:`droneid.identify.search`: independent SNGP runs in workers)
     -> ladder (:mod:`droneid.identify.ladder`: guards, the final rung)
@@ -39,7 +39,7 @@ from droneid.fitting.constancy import constancy_sentence, leads
 from droneid.identify.ladder import TERM_ALPHA, final_rung, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section
 from droneid.diagnosis.diagnose import plan_identification
-from droneid.identify.plan import holdout_cuts, resolve_plan_prior
+from droneid.planning.plan import holdout_cuts, resolve_plan_prior
 from droneid.identify.result import FeatureText, IdentificationResult, PlanRecord, TargetResult, flight_provenance, versions
 from droneid.identify.problem import TargetProblem, empirical_model, prepare_target
 from droneid.core.text import readable_equation, split_leading_number, undeclared_line
@@ -47,7 +47,7 @@ from droneid.fitting.verdict import verdict
 from droneid.simulation.rollout import horizon_section
 from droneid.rotation.stage import RotationJob, RotationResult, rotation_job, score_rotation
 from droneid.identify.search import RunRecord, compile_once, make_jobs, run_job, select_best
-from droneid.identify.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
+from droneid.planning.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
 from droneid.core.targets import targets_for
 
 __all__ = ["IdentifyConfig", "TargetResult", "IdentificationResult", "FeatureText", "identify",

@@ -1,5 +1,5 @@
 """The problem stage of identify: one target's datasets, prior features, constraint samples and
-physical rungs, built once from the plan (:mod:`droneid.identify.plan`) and shared by every SNGP run
+physical rungs, built once from the plan (:mod:`droneid.planning.plan`) and shared by every SNGP run
 (:mod:`droneid.identify.search`) and the guards (:mod:`droneid.identify.ladder`).
 
 - :func:`prepare_target` builds a :class:`TargetProblem`;
@@ -26,7 +26,7 @@ from droneid.dataset.data import Dataset
 from droneid.errors import ConfigError, DataError
 from droneid.fitting.closed_form import IdentifiedModel
 from droneid.identify.ladder import fitted_thrust, physical_rungs
-from droneid.identify.plan import Plan, dataset_builder, fixed_plan, holdout_cuts, train_rows
+from droneid.planning.plan import Plan, dataset_builder, fixed_plan, holdout_cuts, train_rows
 from droneid.identify.search import run_seeds
 from droneid.core.targets import HORIZONTAL, velocity_of
 from droneid.fitting.terms import defined_rows, defined_samples, split_terms
@@ -48,7 +48,7 @@ class TargetProblem:
     eval_constraint_set : the one e_c is measured against (the prior's own when runs are
     unconstrained); cs_test : its samples for e_c^test, common to every run
     empirical, empirical_refit, series : errors and test predictions of the first two rungs
-    plan : the :class:`~droneid.identify.plan.Plan` it was built from; ladder : its physical
+    plan : the :class:`~droneid.planning.plan.Plan` it was built from; ladder : its physical
     :class:`~droneid.identify.ladder.Rung` s (empirical, refit, offset, effects); blocks, validation : the
     training rows' validation blocks and how they were made; notes : sentences for the result
     """
@@ -121,7 +121,7 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                    cfg, plan: Plan | None = None, cuts: dict | None = None) -> TargetProblem:
     """Build the train/test datasets, priors, constraint samples and the physical rungs of one
     target (``cfg``: the identify config; ``cuts``: the hold-out starts of
-    :func:`droneid.identify.plan.holdout_cuts`, without test flights)."""
+    :func:`droneid.planning.plan.holdout_cuts`, without test flights)."""
     if plan is None:
         plan = fixed_plan(cfg, (target,))
     if not test_flights and cfg.test_fraction > 0 and cuts is None:

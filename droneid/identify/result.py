@@ -25,7 +25,7 @@ from droneid.fitting.verdict import verdict
 from droneid.rotation.stage import RotationResult
 from droneid.use.score import Score
 from droneid.identify.search import RunRecord
-from droneid.identify.settings import IdentifyConfig
+from droneid.planning.settings import IdentifyConfig
 
 log = logging.getLogger(__name__)
 

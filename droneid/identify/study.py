@@ -30,7 +30,7 @@ from droneid.identify.pipeline import (IdentifyConfig, RunRecord, make_jobs, pre
                        flight_provenance)
 from droneid.core.io_util import to_jsonable
 from droneid.core.numerics import finite_median
-from droneid.identify.plan import PAPER_PRIOR, fixed_plan
+from droneid.planning.plan import PAPER_PRIOR, fixed_plan
 
 __all__ = ["study", "StudyResult", "StudyTarget", "StudyVariant", "SCENARIOS", "PRIOR_VARIANTS",
            "STUDY_SCHEMA", "RUN_KEYS", "variant_key", "prior_label"]

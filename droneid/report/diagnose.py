@@ -70,20 +70,26 @@ def _result(result) -> DiagnosisResult:
     return result if isinstance(result, DiagnosisResult) else DiagnosisResult.from_dict(result)
 
 
-def text(result) -> str:
-    """The terminal summary of a diagnosis (a DiagnosisResult or its diagnosis.json)."""
-    r = _result(result)
+def _header_lines(r) -> list[str]:
+    """The flights, the plan the diagnosis ran under, and the residual before any effect."""
     lines = [f"diagnosis of prior '{r.prior}' on train {', '.join(r.sources['train']) or '—'}"
              + (f" / test {', '.join(r.sources['test'])}" if r.sources.get("test") else " (no test flight)")]
     plan = (getattr(r, "plan", None) or {}).get("lines") or []
     if plan:
-        lines.append("plan (the one identify makes on these flights, droneid.identify.plan):")
+        lines.append("plan (the one identify makes on these flights, droneid.planning.plan):")
         lines.extend(f"  NOTE: {line}" for line in plan)
     lines.append("residual before (prior refit by least squares, no intercept), RMSE m/s²:")
     for t, v in r.targets.items():
         lines.append(f"  {t:7s} train {_pair(v['rmse_before'])}  test {_pair(v['rmse_before'], 'test')}"
                      f"  cv {_pair(v['rmse_before'], 'cv')}   (prior as given: train "
                      f"{_pair(v['rmse_prior'])}, test {_pair(v['rmse_prior'], 'test')})")
+    return lines
+
+
+def text(result) -> str:
+    """The terminal summary of a diagnosis (a DiagnosisResult or its diagnosis.json)."""
+    r = _result(result)
+    lines = _header_lines(r)
     if r.steps:
         lines.append("effects added, in order:" if r.effects_added else
                      "effects added: none in the end (every step below was dropped at the end)")

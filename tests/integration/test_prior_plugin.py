@@ -8,9 +8,9 @@ import pytest
 
 from droneid.api import read_log
 from droneid.diagnosis.diagnose import plan_identification
-from droneid.identify.plan import dataset_builder
+from droneid.planning.plan import dataset_builder
 from droneid.identify.problem import prepare_target
-from droneid.identify.settings import IdentifyConfig
+from droneid.planning.settings import IdentifyConfig
 from plugins.lifting_body import lifting_body
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_logs" / "rotor_climb_eight.flat.csv"

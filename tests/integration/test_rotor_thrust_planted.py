@@ -169,7 +169,7 @@ def test_the_offset_search_chooses_the_same_on_one_worker_and_on_two():
     from dataclasses import replace
 
     from droneid.identify.pipeline import IdentifyConfig
-    from droneid.identify.plan import choose_offset, resolve_plan_prior
+    from droneid.planning.plan import choose_offset, resolve_plan_prior
     train, _ = _delay_flights(0.04, 0.0)
     cfg = IdentifyConfig.make(jobs=1, effects="none", delays="auto")
     prior, _ = resolve_plan_prior(cfg, train)
@@ -190,7 +190,7 @@ def test_each_flight_gets_its_own_offset_and_flights_with_other_clocks_are_not_s
     planted delay. One step of the profile: a flight's own offset is pulled toward the others'
     (the vehicle's terms are fitted with them), so it is not asked to hit its delay exactly."""
     from droneid.identify.pipeline import IdentifyConfig
-    from droneid.identify.plan import choose_offset, resolve_plan_prior
+    from droneid.planning.plan import choose_offset, resolve_plan_prior
     cfg = IdentifyConfig.make(jobs=1, effects="none", delays="auto")
     same, _ = _delay_flights(0.04, 0.0)
     prior, _ = resolve_plan_prior(cfg, same)

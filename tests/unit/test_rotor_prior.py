@@ -90,7 +90,7 @@ def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_
     from droneid.diagnosis.diagnose import diagnose_plan
     from droneid.logs.flight import Signal
     from droneid.identify.pipeline import IdentifyConfig
-    from droneid.identify.plan import resolve_plan_prior
+    from droneid.planning.plan import resolve_plan_prior
     from droneid.simulation.simulator import simulate
     f = simulate(path="eight", duration_s=10.0, rate_hz=100.0, seed=3).flight
     assert f.has("rpm1", "motor1")

@@ -31,11 +31,12 @@ ROOMS = (
     "droneid.fitting",      # robust fits, physical terms, the decision rule, constancy, verdicts
     "droneid.sngp",         # the SNGP engine (numba kernels, estimator, model)
     "droneid.engine",       # jobs on local workers or Dask, the CSV fit: light until the engine runs
+    "droneid.planning",     # the settings and the one plan identify and diagnose run under
     "droneid.diagnosis",    # residual -> the effect a prior lacks
     "droneid.simulation",   # the simulator, open-loop integration, multi-step rollouts
     "droneid.rotation",     # the rotational model and its ladder
     "droneid.use",          # predict, export, the exported vehicle
-    "droneid.identify",     # settings -> plan -> problem -> search -> ladder -> result; study
+    "droneid.identify",     # (the plan) -> problem -> search -> ladder -> result, composed by pipeline; study
     "droneid.report",       # reports for people
     "droneid.commands",     # one module per CLI command
     "droneid",              # the package, cli, api
@@ -216,7 +217,7 @@ def test_no_import_runs_back_up_a_room():
 
 
 def test_the_room_finder_sees_a_planted_upward_import():
-    assert _room("droneid.logs.flight") < _room("droneid.identify.plan")
+    assert _room("droneid.logs.flight") < _room("droneid.planning.plan")
     assert _room("droneid.cli") == len(ROOMS) - 1
     assert _room("priors.registry") < _room("droneid.dataset.suitability")
 

@@ -50,7 +50,7 @@ def test_the_core_modules_import_neither_parsers_nor_priors():
 def test_a_target_the_prior_does_not_model_is_refused_before_any_work(tmp_path):
     """`--prior tilt-drag --target vz_dot`: one line naming the prior and what it models."""
     from droneid.identify.pipeline import IdentifyConfig
-    from droneid.identify.plan import fixed_plan
+    from droneid.planning.plan import fixed_plan
     with pytest.raises(ConfigError, match="prior 'tilt-drag' has no model of vz_dot; it models vx_dot, vy_dot"):
         fixed_plan(IdentifyConfig.make(prior="tilt-drag", targets=("vz_dot",)))
     plan = fixed_plan(IdentifyConfig.make(prior="auto"))

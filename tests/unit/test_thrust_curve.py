@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from droneid.errors import ConfigError
-from droneid.identify.settings import IdentifyConfig
+from droneid.planning.settings import IdentifyConfig
 from droneid.simulation.simulator import simulate
 from droneid.fitting.thrust_curve import choose_thrust_curve, declared_parameters, profile_expo
 from priors.registry import get_prior

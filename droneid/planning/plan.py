@@ -34,7 +34,7 @@ from droneid.dataset.validation import split_time_block, time_blocks
 from droneid.core.targets import targets_for
 
 if TYPE_CHECKING:
-    from droneid.identify.settings import IdentifyConfig
+    from droneid.planning.settings import IdentifyConfig
     from droneid.fitting.thrust_curve import ThrustCurve
     from droneid.fitting.terms import TermModel
 
@@ -352,7 +352,7 @@ def plan_inputs(train_flights, cfg, progress: Callable | None = None,
     """Choose the prior, the thrust curve and the thrust inputs' offset from the training flights
     only (``cuts``: {flight index: time s} where a held-out test block starts: rows from there
     on are never seen here): the plan before the diagnosis, the one identify and diagnose share
-    (``cfg``: an :class:`~droneid.identify.settings.IdentifyConfig`; its ``prior``, ``targets``, ``ts``,
+    (``cfg``: an :class:`~droneid.planning.settings.IdentifyConfig`; its ``prior``, ``targets``, ``ts``,
     ``method``, ``delays`` and ``jobs`` are read)."""
     prior, reason = resolve_plan_prior(cfg, train_flights)
     prior = _hover_calibrated(prior, train_flights, cfg, cuts)
