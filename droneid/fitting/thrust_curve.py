@@ -229,14 +229,40 @@ _LO, _HI = np.zeros(2), np.full(2, np.inf)
 
 
 def _rss_profile(S: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(RSS at each e of ``grid``, (thrust scale, drag scale) at each) from the gram ``S``."""
-    rss, beta = np.empty(grid.size), np.empty((grid.size, 2))
-    for j, e in enumerate(grid):
-        R = _reduced(S, float(e))
-        b = gram_bounded_lstsq(R, _LO, _HI)
-        rss[j] = R[2, 2] - 2.0 * b @ R[:2, 2] + b @ R[:2, :2] @ b
-        beta[j] = b
-    return rss, beta
+    """(RSS at each e of ``grid``, (thrust scale, drag scale) at each) from the gram ``S``.
+
+    Both scales are >= 0: a two-column non-negative least squares per e, solved in closed form
+    for the whole grid at once (the optimum is the best feasible of the free solution, each column
+    alone and none: the KKT points of a convex problem on the quadrant), which is what
+    :func:`droneid.core.regression.gram_bounded_lstsq` finds one e at a time; an e where the two
+    columns are collinear (or one is empty) goes through that general solver."""
+    grid = np.asarray(grid, float)
+    e, f = grid, 1.0 - grid
+    # the reduced gram of [f_e column, drag, y]: f_e = (1 - e)·linear + e·quadratic
+    a = f * f * S[0, 0] + 2.0 * f * e * S[0, 1] + e * e * S[1, 1]
+    b = f * S[0, 2] + e * S[1, 2]
+    p = f * S[0, 3] + e * S[1, 3]
+    c, q, r = S[2, 2], S[2, 3], S[3, 3]
+    det = a * c - b * b
+    ok = (a > 0) & (c > 0) & (det > 1e-12 * a * c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cands = [np.column_stack([(c * p - b * q) / det, (a * q - b * p) / det]),   # both free
+                 np.column_stack([np.maximum(p / a, 0.0), np.zeros_like(a)]),     # drag at 0
+                 np.column_stack([np.zeros_like(a), np.full_like(a, max(q / c, 0.0) if c > 0 else 0.0)]),
+                 np.zeros((a.size, 2))]
+    best_rss, beta = np.full(a.size, np.inf), np.zeros((a.size, 2))
+    for B in cands:
+        feasible = np.all(B >= 0.0, axis=1) & np.all(np.isfinite(B), axis=1)
+        x, y_ = B[:, 0], B[:, 1]
+        rss = r - 2.0 * (x * p + y_ * q) + x * x * a + 2.0 * x * y_ * b + y_ * y_ * c
+        better = feasible & (rss < best_rss)
+        best_rss[better], beta[better] = rss[better], B[better]
+    for j in np.flatnonzero(~ok):
+        R = _reduced(S, float(grid[j]))
+        bj = gram_bounded_lstsq(R, _LO, _HI)
+        best_rss[j] = R[2, 2] - 2.0 * bj @ R[:2, 2] + bj @ R[:2, :2] @ bj
+        beta[j] = bj
+    return best_rss, beta
 
 
 #: first-order motor lags τ (s) profiled beside the shape (0: none)
