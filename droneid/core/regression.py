@@ -73,39 +73,49 @@ def gram(A: np.ndarray, y: np.ndarray, w: np.ndarray | None = None) -> np.ndarra
 def gram_bounded_lstsq(S: np.ndarray, lo=None, hi=None) -> np.ndarray:
     """:func:`weighted_bounded_lstsq` from the problem's sufficient statistics ``S`` (:func:`gram`):
     the solution depends on the rows only through them."""
+    return gram_bounded_lstsq_many(np.asarray(S, float)[None], lo, hi)[0]
+
+
+def gram_bounded_lstsq_many(S: np.ndarray, lo=None, hi=None) -> np.ndarray:
+    """(n, k): :func:`gram_bounded_lstsq` of each of ``n`` problems ``S`` (n, k + 1, k + 1) that
+    share their bounds (e.g. bootstrap replicates, cross-validation folds), solved together: one
+    stacked eigendecomposition; only problems whose free solution leaves the bounds get a
+    bounded solve of their own."""
     S = np.asarray(S, float)
-    k = S.shape[0] - 1
+    n, k = S.shape[0], S.shape[1] - 1
     lo, hi = _bounds(k, lo, hi)
-    beta = np.zeros(k)
-    if k == 0:
+    beta = np.zeros((n, k))
+    if k == 0 or n == 0:
         return beta
     fixed = lo == hi
-    beta[fixed] = lo[fixed]
+    beta[:, fixed] = lo[fixed]
     free = ~fixed
     if not free.any():
         return beta
-    fi = np.flatnonzero(free)
+    fi, fx = np.flatnonzero(free), np.flatnonzero(fixed)
     # Aᵀ W r of the free columns, r = y − A_fixed·β_fixed
-    g_raw = S[fi, k] - (S[np.ix_(fi, np.flatnonzero(fixed))] @ lo[fixed] if fixed.any() else 0.0)
+    g_raw = S[:, fi, k] - (S[:, fi][:, :, fx] @ lo[fx] if fx.size else 0.0)
     # normal equations on normalised columns (k x k: fast for thousands of rows); an
     # eigendecomposition gives the minimum-norm share to collinear columns
-    norms = np.sqrt(np.maximum(np.diag(S)[fi], 0.0))
+    norms = np.sqrt(np.maximum(S[:, fi, fi], 0.0))
     zero = norms == 0
     norms[zero] = 1.0
-    G = S[np.ix_(fi, fi)] / np.outer(norms, norms)
+    G = S[:, fi][:, :, fi] / (norms[:, :, None] * norms[:, None, :])
     g = g_raw / norms
     e, V = np.linalg.eigh(G)
-    keep = e > 1e-12 * max(float(e[-1]), 1e-300)
-    c = V.T @ g
-    b = V[:, keep] @ (c[keep] / e[keep])
+    keep = e > 1e-12 * np.maximum(e[:, -1:], 1e-300)
+    c = np.einsum("nji,nj->ni", V, g)
+    b = np.einsum("nij,nj->ni", V, np.where(keep, c / np.where(keep, e, 1.0), 0.0))
     b[zero] = 0.0
     flo, fhi = lo[free] * norms, hi[free] * norms
-    if np.any(b < flo - 1e-12 * np.abs(flo)) or np.any(b > fhi + 1e-12 * np.abs(fhi)):
+    out = np.any(b < flo - 1e-12 * np.abs(flo), axis=1) | np.any(b > fhi + 1e-12 * np.abs(fhi), axis=1)
+    for i in np.flatnonzero(out):
         # the same problem on M = diag(√e) Vᵀ (MᵀM = G): ||M b − diag(1/√e) Vᵀ g||² + const
-        se = np.sqrt(e[keep])
-        M = se[:, None] * V[:, keep].T
-        b = lsq_linear(M, c[keep] / se, bounds=(flo, fhi), method="bvls" if fi.size <= 20 else "trf").x
-    beta[free] = np.clip(b / norms, lo[free], hi[free])   # a zero column: 0, or its nearest bound
+        kk = keep[i]
+        se = np.sqrt(e[i, kk])
+        M = se[:, None] * V[i][:, kk].T
+        b[i] = lsq_linear(M, c[i, kk] / se, bounds=(flo[i], fhi[i]), method="bvls" if fi.size <= 20 else "trf").x
+    beta[:, free] = np.clip(b / norms, lo[free], hi[free])   # a zero column: 0, or its nearest bound
     return beta
 
 
@@ -249,9 +259,9 @@ def blocked_cv(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=Non
     pred = np.empty_like(y)
     w = robust_fit(A, y, lo, hi).weights
     ids, S, rows = unit_grams(A, y, w, np.asarray(blocks))
-    total = S.sum(axis=0)
-    for Sb, r in zip(S, rows):
-        pred[r] = A[r] @ gram_bounded_lstsq(total - Sb, lo, hi)
+    betas = gram_bounded_lstsq_many(S.sum(axis=0) - S, lo, hi)
+    for beta, r in zip(betas, rows):
+        pred[r] = A[r] @ beta
     return pred
 
 
@@ -264,12 +274,9 @@ def bootstrap_draws(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, fit: Robus
     A = np.asarray(A, float)
     ids, S, _ = unit_grams(A, np.asarray(y, float), fit.weights, np.asarray(blocks))
     rng = np.random.default_rng(seed)
-    draws = np.empty((n_boot, A.shape[1]))
-    flat = S.reshape(ids.size, -1)
-    for i in range(n_boot):
-        counts = np.bincount(rng.integers(0, ids.size, ids.size), minlength=ids.size).astype(float)
-        draws[i] = gram_bounded_lstsq((counts @ flat).reshape(S.shape[1:]), lo, hi)
-    return draws
+    draws = rng.integers(0, ids.size, (n_boot, ids.size))     # replicate by replicate, as drawn one at a time
+    counts = np.stack([np.bincount(d, minlength=ids.size) for d in draws]).astype(float)
+    return gram_bounded_lstsq_many((counts @ S.reshape(ids.size, -1)).reshape(n_boot, *S.shape[1:]), lo, hi)
 
 
 def block_bootstrap(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, fit: RobustFit, lo=None, hi=None,
