@@ -12,6 +12,17 @@ Stages (one object, one verb each): ``parsers.read_flight(path) -> Flight``, dat
 ``Flight -> Dataset``, the plan, the problem, the SNGP search, the ladder, and reports. See
 docs/signals.md for the frame and unit conventions.
 """
+import os as _os
+
+# droneid's linear algebra is least squares on thousands of rows by a few columns, and its parallel
+# work runs in forked processes: one BLAS thread each is fastest. A threaded BLAS made the same
+# small solves 2x slower idle and 20x slower on a loaded 2-core machine (docs/benchmarks.md), with
+# bit for bit the same results. Set before numpy loads; a value the user set is kept, and numpy
+# imported before droneid keeps its own threads.
+for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
+    _os.environ.setdefault(_var, "1")
+del _var
+
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_log", "Identifier", "IdentificationResult", "PredictionResult", "Score"]

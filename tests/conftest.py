@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+import droneid  # noqa: F401  (first: it keeps BLAS to one thread before numpy loads, as the CLI does)
+
 ROOT = Path(__file__).resolve().parents[1]
 REAL_LOGS = Path(os.environ.get("DRONEID_REAL_LOGS") or ROOT.parent / "shared" / "real_logs")
 SAMPLE_LOGS = ROOT / "sample_logs"
