@@ -221,8 +221,9 @@ def _offset_errors(job: "_OffsetSearch", offsets: Sequence[float]) -> dict:
         for d in offsets:
             per = {}
             for t, terms in job.terms.items():
+                # the prior's own inputs only (no extras: the rows do not depend on them)
                 ds = train_rows(dataset_builder(job.cfg, {s: d for s in job.signals}).build(
-                    list(job.flights), target=t, inputs=job.inputs[t]), job.cuts)
+                    list(job.flights), target=t, inputs=job.inputs[t], extras=()), job.cuts)
                 blocks = time_blocks(ds.t, ds.flight, family=job.family, alpha=OFFSET_ALPHA)
                 A, yy, lo, hi = terms._problem(ds.columns(), ds.y)
                 err = yy - blocked_cv(A, yy, blocks, lo, hi)
