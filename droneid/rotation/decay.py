@@ -105,13 +105,16 @@ def _decay_errors(logs: Sequence[StateLog], grid, horizon: int, stride: int):
 
 def _best_decay(err: np.ndarray, regimes: int) -> np.ndarray:
     """(3,) index into the grid of the decay with the lowest worst-regime error ratio to the held
-    rate (:func:`fit_damping`'s criterion) on the windows of ``err`` (G + 1, W, 3)."""
+    rate (:func:`fit_damping`'s criterion) on the windows of ``err`` (G + 1, W, 3). Each regime's
+    mean error is a per-class sum over the windows (every decay at once)."""
     out = np.zeros(3, dtype=int)
     for k in range(3):
         ref = err[0, :, k]
         cls = regime_of(ref, regimes)
-        worst = [max(err[i + 1, cls == q, k].mean() / max(ref[cls == q].mean(), 1e-300) for q in np.unique(cls))
-                 for i in range(err.shape[0] - 1)]
+        q, inv = np.unique(cls, return_inverse=True)
+        n = np.bincount(inv, minlength=q.size).astype(float)
+        means = (err[:, :, k] @ (inv[:, None] == np.arange(q.size)).astype(float)) / n   # (G + 1, Q)
+        worst = (means[1:] / np.maximum(means[0], 1e-300)).max(axis=1)
         out[k] = int(np.argmin(worst))
     return out
 
