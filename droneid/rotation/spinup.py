@@ -72,6 +72,7 @@ def _spinup_errors(logs: Sequence[StateLog], layout: RotorLayout, c_ref: float, 
     """(err (S + 1, W), t (W,), flight (W,), settings): each window's open-loop yaw SimErr with
     the decay ``c_ref`` alone (first) and with each setting (decay, delay, low-pass, gain) of
     :func:`_settings`, its start time (s) and its flight's index (logs of one name are one flight)."""
+    from scipy.signal import lfilter       # scipy.signal's import is heavy: only where it filters
     H = int(horizon)
     names = list(dict.fromkeys(log.name for log in logs))
     pattern = layout.patterns()[2]
@@ -97,11 +98,7 @@ def _spinup_errors(logs: Sequence[StateLog], layout: RotorLayout, c_ref: float, 
                 gam = log.dt_s if c == 0 else (1.0 - phi) / c
                 free[c] = w[idx + 1] - phi ** np.arange(1, H + 1)[None, :] * w[starts][:, None]   # (W, H)
                 for key, u in drive.items():     # the response to a unit gain: Σ_j φ^{h−1−j} γ u_{t+j}
-                    acc, x = np.zeros(starts.size), np.zeros((starts.size, H))
-                    for h in range(H):
-                        acc = phi * acc + gam * u[idx[:, h]]
-                        x[:, h] = acc
-                    resp[(c,) + key] = x
+                    resp[(c,) + key] = lfilter([gam], [1.0, -phi], u[idx], axis=1)   # x_h = φ x_{h−1} + γ u_h
             rows = [np.abs(free[float(c_ref)]).sum(axis=1)]
             rows += [np.abs(free[c] - g * resp[(c, d, lp)]).sum(axis=1) for c, d, lp, g in settings]
             errs.append(np.stack(rows))
