@@ -69,12 +69,15 @@ static void droneid_euler(const double *q, double *roll, double *pitch, double *
 '''
 
 
-def vehicle_python(parts, header, M: int, width: int, dt_s: float) -> str:
+def vehicle_python(parts, header, M: int, width: int, dt_s: float, arg: str = "rpm",
+                   what: str = "motor speeds") -> str:
+    """The Python file: ``M`` logged inputs per step (``arg``: the name of the conditioner's
+    argument, ``what`` they are), ``width`` columns of u, the step ``dt_s`` (s)."""
     imports = sorted({"math", *(i for p in parts for i in p.imports)})
     euler = any(p.euler for p in parts)
     code = [p.code["python"] for p in parts]
     return '\n'.join(['"""' + "\n".join(header).replace('"""', "'''").replace("\\", "\\\\") + "\n\nUsage: "
-                      "inputs = Inputs() (one per flight); per step: x = step(x, inputs.push(rpm)).\n"
+                      f"inputs = Inputs() (one per flight); per step: x = step(x, inputs.push({arg})).\n"
                       '"""', *(f"import {i}" for i in imports), f'''
 M = {M}
 DT = {num(dt_s)}
@@ -83,17 +86,17 @@ HIST = {max(p.history for p in parts) + 1}
 ''' + "".join("\n\n" + c["defs"].strip() + "\n" for c in code if c["defs"]) + f'''
 
 class Inputs:
-    """The logged motor speeds to the model's inputs u, one step at a time (causal)."""
+    """The logged {what} to the model's inputs u, one step at a time (causal)."""
 
     def __init__(self, dt=DT):
         self.dt = dt
         self.hist = None
 {"".join(c["state"] for c in code)}
-    def push(self, rpm):
-        """rpm: the M motor speeds of this step as logged -> u (list of U), held over the step."""
-        now = [float(r) for r in rpm]
+    def push(self, {arg}):
+        """{arg}: the M {what} of this step as logged -> u (list of U), held over the step."""
+        now = [float(r) for r in {arg}]
         if len(now) != M:
-            raise ValueError(f"push takes the {{M}} motor speeds of one step, got {{len(now)}}")
+            raise ValueError(f"push takes the {{M}} {what} of one step, got {{len(now)}}")
         if self.hist is None:
             self.hist = [now] * HIST
         self.hist = self.hist[1:] + [now]
@@ -137,12 +140,13 @@ def step(x, u, dt=DT):
 '''])
 
 
-def vehicle_c(parts, header, M: int, width: int, dt_s: float) -> str:
+def vehicle_c(parts, header, M: int, width: int, dt_s: float, arg: str = "rpm", what: str = "motor speeds") -> str:
+    """The C99 file, as :func:`vehicle_python`."""
     code = [p.code["c"] for p in parts]
     euler = any(p.euler for p in parts)
     lines = ["/*"] + [(" * " + h).rstrip() for h in header] + [
         " *", " * C99; compile with -lm. Usage: droneid_inputs c; droneid_inputs_init(&c, DRONEID_DT); per step:",
-        " * droneid_inputs_push(&c, rpm, u); droneid_step(x, u, DRONEID_DT); with double u[DRONEID_U].", " */"]
+        f" * droneid_inputs_push(&c, {arg}, u); droneid_step(x, u, DRONEID_DT); with double u[DRONEID_U].", " */"]
     lines.append(f'''#include <math.h>
 #include <string.h>
 
@@ -163,15 +167,15 @@ void droneid_inputs_init(droneid_inputs *c, double dt)
     c->dt = dt;
 }}
 
-/* rpm: this step's DRONEID_M motor speeds as logged -> u (DRONEID_U), held over the step */
-void droneid_inputs_push(droneid_inputs *c, const double rpm[DRONEID_M], double u[DRONEID_U])
+/* {arg}: this step's DRONEID_M {what} as logged -> u (DRONEID_U), held over the step */
+void droneid_inputs_push(droneid_inputs *c, const double {arg}[DRONEID_M], double u[DRONEID_U])
 {{
     int i, h;
     if (!c->started)
         for (h = 0; h < DRONEID_HIST; h++)
-            for (i = 0; i < DRONEID_M; i++) c->hist[h][i] = rpm[i];
+            for (i = 0; i < DRONEID_M; i++) c->hist[h][i] = {arg}[i];
     for (h = 0; h + 1 < DRONEID_HIST; h++) memcpy(c->hist[h], c->hist[h + 1], sizeof c->hist[h]);
-    for (i = 0; i < DRONEID_M; i++) c->hist[DRONEID_HIST - 1][i] = rpm[i];
+    for (i = 0; i < DRONEID_M; i++) c->hist[DRONEID_HIST - 1][i] = {arg}[i];
 {"".join(c["fill"] for c in code)}    c->started = 1;
     (void)u;
 }}

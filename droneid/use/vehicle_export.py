@@ -17,10 +17,12 @@ from collections.abc import Mapping
 import numpy as np
 
 from droneid import __version__
-from droneid.errors import ConfigError, check_choice
+from droneid.errors import ConfigError, DataError, check_choice
 from droneid.use.vehicle_code import Part, floats, num, vehicle_c, vehicle_python
 from droneid.use.export import CONVENTIONS, c_functions, checked_models, input_unit, model_header, python_functions
+from droneid.simulation.motor_model import is_command
 from droneid.simulation.openloop import IdentifiedTranslation, rad_s_per_rpm_text
+from droneid.use.vehicle_commands import lag_code, lag_header
 from droneid.rotation.model import SPEED_UNIT, RotationModel, TranslationModel, unsteerable, unsteerable_sentence
 
 __all__ = ["VEHICLE_FORMATS", "export_vehicle"]
@@ -253,18 +255,29 @@ def _rpm_index(name: str) -> int:
     return int(name[3:]) - 1
 
 
-def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str) -> tuple[Part, int]:
+def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str,
+                     motor=None) -> tuple[Part, int]:
     """identify's final v̇ models (:class:`droneid.simulation.openloop.IdentifiedTranslation`), fed the simulated
-    velocity and Euler angles and their motor speeds at ``t − delay`` in whole steps of ``dt_s``,
-    as :meth:`IdentifiedTranslation.inputs` reads them; columns model by model, motor by motor.
-    Returns the part and the highest motor number the models read."""
+    velocity and Euler angles and their logged inputs at ``t − delay`` in whole steps of ``dt_s``,
+    as :meth:`IdentifiedTranslation.inputs` reads them; columns model by model, input by input. A
+    command-driven vehicle (``motor``: its :class:`droneid.simulation.motor_model.MotorModel`) is fed
+    its commands and battery voltage in the order of :meth:`IdentifiedTranslation.input_names`,
+    through the motor lag where one was kept (:func:`droneid.use.vehicle_commands.lag_code`).
+    Returns the part and the number of logged inputs (motor speeds: the highest motor number read)."""
     missing = [t for t in _TRANSLATION_TARGETS if t not in models]
     if missing:
         raise ConfigError(f"the whole vehicle needs final models of vx_dot, vy_dot and vz_dot; "
                           f"missing: {', '.join(missing)}")
-    tr = IdentifiedTranslation({t: models[t] for t in _TRANSLATION_TARGETS})   # refuses other signals
+    try:
+        tr = IdentifiedTranslation({t: models[t] for t in _TRANSLATION_TARGETS}, motor)   # refuses other signals
+    except DataError as exc:
+        raise ConfigError(f"cannot export the vehicle: {exc}") from None
     ordered = checked_models([tr.models[t] for t in _TRANSLATION_TARGETS])
-    names = tr._rpm_names()
+    names = tr.input_names()
+    commands = bool(tr.signals())
+    if commands and any(n.startswith("rpm") for n in names):
+        raise ConfigError("cannot export the vehicle: its v̇ models read both motor speeds and commands")
+    index = {n: i for i, n in enumerate(names)} if commands else {n: _rpm_index(n) for n in names}
     steps, notes = {}, []
     for m in ordered:
         for s, d in sorted(m.delays_s.items()):
@@ -273,48 +286,59 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
                              "read at t (as droneid.simulation.openloop does)")
         for name in names:
             d = float(m.delays_s.get(name, 0.0))
-            k = int(round(d / dt_s))
+            k = tr.delay_steps(m.target, name, dt_s)
             if k < 0:
                 raise ConfigError(f"cannot export the vehicle: the {m.target} model reads {name} {-d:g} s ahead "
                                   f"(a negative delay); a step function fed one step at a time cannot read ahead")
-            if abs(d / dt_s - k) > 1e-6:
+            if k and abs(d / dt_s - k) > 1e-6:
                 notes.append(f"  {m.target}: the delay of {name} ({d:g} s) is rounded to {k} step(s) of {dt_s:g} s "
                              "(as droneid.simulation.openloop does)")
             steps[m.target, name] = k
     K = len(names)
     col = {(a, name): a * K + i for a in range(3) for i, name in enumerate(names)}
     equations = model_header(ordered, source, to, sources)[3:]     # in the syntax of the file's language
+    lagged = commands and motor.lagged
+    what = "logged motor commands and battery voltage" if commands else "logged motor speeds"
     header = ("Translation (m/s^2, world ENU): identify's final models, fed the simulated velocity vx, vy, vz "
               "and the Z-Y-X Euler angles",
               "  roll, pitch, yaw of the simulated quaternion (pitch clipped to [-pi/2, pi/2]):",
               *("  " + line for line in equations), *notes,
-              f"  u[0:{3 * K}]: the logged motor speeds each model reads, at their delays in whole steps:",
+              *(lag_header(motor) if commands else ()),
+              f"  u[0:{3 * K}]: the {what} each model reads, at their delays in whole steps"
+              + (" (the commands as the lagged rotors deliver them):" if lagged else ":"),
               *(f"    u[{a * K}:{(a + 1) * K}] ({m.target}): "
                 + ", ".join(f"{n} of {steps[m.target, n]} step(s) earlier" for n in names)
                 for a, m in enumerate(ordered) if names))
-    langs = {"python": lambda m, n: f"h[-1 - {steps[m.target, n]}][{_rpm_index(n)}]",
-             "c": lambda m, n: f"c->hist[DRONEID_HIST - 1 - {steps[m.target, n]}][{_rpm_index(n)}]"}
-    py_fill = "        u += [" + ", ".join(langs["python"](m, n) for m in ordered for n in names) + "]\n"
+    eff = {n: i for i, n in enumerate(tr.input_names()) if is_command(n)} if lagged else {}
+    langs = {"python": lambda m, n: f"eff[{eff[n]}]" if n in eff else f"h[-1 - {steps[m.target, n]}][{index[n]}]",
+             "c": lambda m, n: (f"eff[{eff[n]}]" if n in eff else
+                                f"c->hist[DRONEID_HIST - 1 - {steps[m.target, n]}][{index[n]}]")}
+    lag = lag_code(motor, [index[n] for n in eff], index.get("battery_voltage")) if lagged else None
+    py_fill = ((lag["python"]["fill"] if lag else "")
+               + "        u += [" + ", ".join(langs["python"](m, n) for m in ordered for n in names) + "]\n")
     c_fill = "".join(f"    u[{col[a, n]}] = {langs['c'](m, n)};\n" for a, m in enumerate(ordered) for n in names)
+    if lag:
+        c_fill = "    {\n" + lag["c"]["fill"] + "".join("    " + line + "\n" for line in c_fill.splitlines()) + "    }\n"
 
     def args(a, m, to):
         vals = [_STATE_ARGS[s] if s in _STATE_ARGS else f"u[{col[a, s]}]" for s in m.signals]
         return ", ".join(f"{s}={v}" for s, v in zip(m.signals, vals)) if to == "python" else ", ".join(vals)
 
-    py_defs = "\n".join(python_functions(ordered, sources)).strip() + "\n"
+    py_defs = (lag["python"]["defs"] if lag else "") + "\n".join(python_functions(ordered, sources)).strip() + "\n"
     py_deriv = ("    dv = ["
                 + ",\n          ".join(f"float({m.target}({args(a, m, 'python')}))" for a, m in enumerate(ordered))
                 + "]\n")
-    c_text = "\n".join(c_functions(ordered))
+    c_text = (lag["c"]["defs"] if lag else "") + "\n".join(c_functions(ordered))
     c_deriv = "".join(f"    dx[{3 + a}] = {m.target}({args(a, m, 'c')});\n" for a, m in enumerate(ordered))
     part = Part(header, 3 * K, max(steps.values(), default=0), {
-        "python": {"defs": py_defs, "state": "", "fill": py_fill, "deriv": py_deriv},
-        "c": {"defs": c_text, "state": "", "fill": c_fill, "deriv": c_deriv}}, imports=("numpy",), euler=True)
-    return part, max((_rpm_index(n) + 1 for n in names), default=0)
+        "python": {"defs": py_defs, "state": lag["python"]["state"] if lag else "", "fill": py_fill, "deriv": py_deriv},
+        "c": {"defs": c_text, "state": lag["c"]["state"] if lag else "", "fill": c_fill, "deriv": c_deriv}},
+        imports=("numpy",), euler=True)
+    return part, (K if commands else max((_rpm_index(n) + 1 for n in names), default=0))
 
 
 def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float = 0.01, *,
-                   inputs: dict | None = None, dt_note: str = "") -> str:
+                   inputs: dict | None = None, dt_note: str = "", motor=None) -> str:
     """The text of one file with the full 6-DOF model in ``to`` (``"python"`` or ``"c"``).
 
     ``translation``: a :class:`droneid.rotation.model.TranslationModel`, or identify's final v̇ models
@@ -324,7 +348,10 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
     ``dt_s``: the step (s) the motor speeds are fed at: the delays and the rotational model's
     conditioning are in steps of it, so it must be the grid the models were identified on;
     ``dt_note`` says in the header where it came from; ``inputs``: :func:`input_sources` for the
-    header.
+    header; ``motor``: the :class:`droneid.simulation.motor_model.MotorModel` of a command-driven
+    vehicle (the result's thrust curve and motor lag; default: that of ``translation`` if it is an
+    IdentifiedTranslation): its file is fed the logged commands and battery voltage (``push(inputs)``,
+    in the order its header lists) and holds the rotors' speeds as the lag's state.
 
     The file holds an input conditioner (the logged motor speeds -> the model's inputs ``u``,
     causal, one step at a time: delays, and for the rotation low-pass, rotor speed rates,
@@ -348,11 +375,16 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         if translation.rad_s_per_rpm != rotation.rad_s_per_rpm:
             raise ConfigError("export_vehicle: the translation and the rotation read the motor speeds in "
                               "different units (rad_s_per_rpm)")
-        motors = rotation.layout.motors
+        motors, logged = rotation.layout.motors, []
         tpart = _linear_part(translation, motors)
     elif isinstance(translation, Mapping) or hasattr(translation, "models"):
         models = translation if isinstance(translation, Mapping) else translation.models
-        tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to)
+        motor = motor if motor is not None else getattr(translation, "motor", None)
+        tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to, motor)
+        logged = IdentifiedTranslation(models, motor).signals()
+        if logged and rotation is not None:
+            raise ConfigError("export_vehicle: the rotational model reads rotor speeds; these v̇ models read "
+                              "motor commands (export the translation with the body rates held: rotation None)")
         motors = rotation.layout.motors if rotation is not None else max(read, 1)
         if read > motors:
             raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")
@@ -362,19 +394,23 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
     rpart = _held_rates_part() if rotation is None else _rotation_part(rotation, tpart.width, float(dt_s))
     unit = input_unit("rpm1", inputs or {})
     width = tpart.width + rpart.width
+    fed = (f"the {motors} logged motor speeds rpm[{motors}] ({unit})" if not logged else
+           f"the {motors} logged inputs inputs[{motors}]: "
+           + ", ".join(f"{n} ({input_unit(n, inputs or {})})" for n in logged))
     header = [
-        f"droneid {__version__}: the whole vehicle (6-DOF), stepped open loop from motor speeds.",
+        f"droneid {__version__}: the whole vehicle (6-DOF), stepped open loop from "
+        f"{'motor commands' if logged else 'motor speeds'}.",
         f"Source: {source or 'droneid models'}.",
         "Conventions: " + CONVENTIONS + ".",
         "State x[13]: p (m, world ENU) 0:3, v (m/s, world ENU) 3:6, q (qw, qx, qy, qz; Hamilton, FLU body",
         "to ENU world, unit norm) 6:10, w (rad/s, body FLU) 10:13.",
         f"Step: dt = {num(dt_s)} s{f' ({dt_note})' if dt_note else ''}; every delay below is in steps of dt.",
-        f"Inputs: the {motors} logged motor speeds rpm[{motors}] ({unit}) of each step, fed in order from the "
-        "start of the flight",
+        f"Inputs: {fed} of each step, fed in order from the start of the flight",
         f"to the input conditioner, which returns u[{width}], held over that step:",
         *tpart.header, *rpart.header,
         *filter(None, [unsteerable_sentence(unsteerable(rotation))]),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.simulation.openloop.simulate)."]
     build = vehicle_python if to == "python" else vehicle_c
-    return build([tpart, rpart], header, motors, width, float(dt_s))
+    words = ("logged", "logged inputs (motor commands, battery voltage)") if logged else ("rpm", "motor speeds")
+    return build([tpart, rpart], header, motors, width, float(dt_s), *words)
