@@ -108,7 +108,8 @@ class StateLog:
         bad = [k for k, v in self.signals.items() if np.shape(v) != (n,)]
         if bad:
             raise DataError(f"{self.name}: state log signals {', '.join(bad)} are not on the grid of {n} samples")
-        object.__setattr__(self, "signals", MappingProxyType({k: np.asarray(v, float) for k, v in self.signals.items()}))
+        # a plain dict (a mappingproxy cannot be pickled to the workers that score the logs)
+        object.__setattr__(self, "signals", {k: np.asarray(v, float) for k, v in self.signals.items()})
 
     def column(self, name: str) -> np.ndarray:
         """The logged input ``name`` on the grid: ``rpm<i>`` or one of :attr:`signals`."""
