@@ -119,11 +119,6 @@ class StateLog:
             return self.rpm[:, int(name[3:]) - 1]
         raise DataError(f"{self.name}: the open-loop simulation reads {name}, which the log lacks")
 
-    def between(self, a: int, b: int, name: str | None = None) -> "StateLog":
-        """Samples ``a:b`` as a StateLog (named ``name``, default its own)."""
-        return StateLog(self.name if name is None else name, self.t_s[a:b], self.state[a:b], self.rpm[a:b],
-                        self.dt_s, {k: v[a:b] for k, v in self.signals.items()})
-
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
 
@@ -194,7 +189,9 @@ def state_log(flight, dt_s: float | None = None, motors: int | None = None, sign
 
     Every signal is linearly interpolated onto one uniform grid over the span they all cover
     (step ``dt_s``, default the median step of ``x``); the quaternion is made sign-continuous,
-    interpolated and renormalised. ``motors`` defaults to every consecutive ``rpmN`` present;
+    interpolated and renormalised (a log with Euler angles and no quaternion, as ArduCopter 3.3's
+    ATT, gets the quaternion of its angles, made sign-continuous before it is interpolated).
+    ``motors`` defaults to every consecutive ``rpmN`` present;
     ``signals``: other inputs to carry (:attr:`StateLog.signals`), interpolated alike.
     """
     need, rpm_names = _signals(flight, motors, signals)
@@ -508,9 +505,6 @@ class IdentifiedTranslation:
             digits = re.sub(r"\D", "", n)
             return ("rpm" not in n, n == "battery_voltage", re.sub(r"\d", "", n), int(digits or 0))
         return sorted(names, key=key)
-
-    def _rpm_names(self) -> list[str]:     # the rotor-speed export's name for input_names
-        return self.input_names()
 
     def signals(self) -> list[str]:
         """The inputs a :class:`StateLog` must carry beside the motor speeds (commands, voltage)."""
