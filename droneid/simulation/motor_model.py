@@ -44,6 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO
+
 from droneid.core.frames import quat_to_matrix
 from droneid.errors import DataError
 
@@ -96,13 +98,13 @@ class MotorModel:
         ``prior_params``: expo, spin_min/max, v_ref as the models were written with; its
         ``thrust_curve``: the lag kept), or None for another prior."""
         params = dict(config.get("prior_params") or {})
-        if params.get("source") not in ("motor", "throttle"):
+        if params.get("source") not in COMMAND_SOURCES:
             return None
         curve = dict(config.get("thrust_curve") or {})
         try:
             spin = (float(params.get("spin_min", 0.0)), float(params.get("spin_max", 1.0)))
             v_ref = params.get("v_ref")
-            return cls(float(params.get("expo", curve.get("expo", 0.65))), spin,
+            return cls(float(params.get("expo", curve.get("expo", NOMINAL_EXPO))), spin,
                        float(v_ref) if v_ref else None, float(curve.get("lag_s") or 0.0))
         except (TypeError, ValueError):
             raise DataError(f"the result's thrust curve cannot be read: prior_params {params}") from None
