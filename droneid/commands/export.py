@@ -16,6 +16,7 @@ _export = lazy_module("droneid.use.export")
 _predict = lazy_module("droneid.use.predict")
 _vehicle_export = lazy_module("droneid.use.vehicle_export")
 _rotation = lazy_module("droneid.rotation.model")
+_motor = lazy_module("droneid.simulation.motor_model")
 
 
 def register(sub) -> None:
@@ -36,7 +37,9 @@ def register(sub) -> None:
                         "result's rotational model (rotation.model; null: the body rates held), stepped by RK4 "
                         "from the state and the logged motor speeds, as predict --open-loop simulates it. "
                         "The motor speeds drive the thrust; a body axis answers them only where its "
-                        "rotational model has a torque term (the header says which axes do not)")
+                        "rotational model has a torque term (the header says which axes do not). A "
+                        "command-driven vehicle is fed its logged motor commands and battery voltage through "
+                        "the identified motor model (thrust curve, battery compensation, motor lag), rates held")
     p.add_argument("--allow-unsteerable", action="store_true",
                    help="with --vehicle: export even when a body axis does not answer the motors (its "
                         "rotational model is decay-only or held: differential thrust does not roll, pitch or "
@@ -44,7 +47,8 @@ def register(sub) -> None:
                         "that cannot be steered is a trap")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
                    help="with --vehicle: the step the motor speeds are fed at; the delays are whole steps "
-                        "of it (default: the training logs' step the rotational model was fitted at, rotation.dt_s)")
+                        "of it (default: the training logs' step the rotational model was fitted at, rotation.dt_s; "
+                        "without a rotational stage, the grid the v̇ models were identified on, config.ts)")
     p.set_defaults(func=run)
 
 
@@ -93,7 +97,8 @@ def _vehicle(args) -> str:
         raise ConfigError("--vehicle exports vx_dot, vy_dot and vz_dot together: drop --target")
     models = _predict.load_models(args.result)
     doc = json.loads(Path(args.result).read_text(encoding="utf-8"))
-    if not isinstance(doc.get("rotation"), dict):
+    motor = _motor.MotorModel.from_record(models.get("_config") or {})
+    if not isinstance(doc.get("rotation"), dict) and motor is None:
         raise DataError(f"{args.result}: no rotational stage in the result ('rotation' is absent or null: "
                         "identified with --rotation none, by an older droneid, or from logs without body rates "
                         "and motor speeds); re-run droneid identify on such logs")
@@ -105,6 +110,11 @@ def _vehicle(args) -> str:
                         f"the result has none of {', '.join(missing)}")
     stuck = _rotation.unsteerable(models.get("_rotation"))
     if stuck and not args.allow_unsteerable:
+        if motor is not None and models.get("_rotation") is None:
+            raise DataError(f"{args.result}: a command-driven vehicle has no rotational model (the rotational "
+                            f"stage needs rotor speeds), so the exported vehicle holds its body rates: its "
+                            f"commands drive the thrust only and cannot steer it; --allow-unsteerable exports "
+                            f"it anyway (for open-loop replay of logged commands, not for controller design)")
         raise DataError(f"{args.result}: the identified rotational model does not answer the motors on "
                         f"{', '.join(stuck)} (decay-only or held: differential thrust does not turn it), so "
                         f"the exported vehicle cannot be steered; --allow-unsteerable exports it anyway "
@@ -113,7 +123,7 @@ def _vehicle(args) -> str:
     try:
         return _vehicle_export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),
                                       dt_s=dt, inputs=_export.input_sources(doc.get("provenance")),
-                                      dt_note=note)
+                                      dt_note=note, motor=motor)
     except ConfigError as exc:
         raise ConfigError(f"{args.result}: {exc}") from None
 
@@ -128,5 +138,8 @@ def _step(args, doc) -> tuple[float, str]:
     dt = sec.get("dt_s") if isinstance(sec, dict) else None
     if isinstance(dt, (int, float)) and dt > 0:
         return float(f"{dt:.6g}"), "the training logs' step the rotational model was fitted at (rotation.dt_s); --dt to change it"
+    ts = (doc.get("config") or {}).get("ts")
+    if not isinstance(sec, dict) and isinstance(ts, (int, float)) and ts > 0:   # no rotational stage
+        return float(f"{ts:.6g}"), "the grid the translational models were identified on (config.ts); --dt to change it"
     raise ConfigError(f"{args.result}: the result records no step for its rotational model (rotation.dt_s): "
                       "pass --dt SECONDS, the step of the logs the models were identified on")

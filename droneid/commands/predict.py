@@ -41,8 +41,9 @@ def register(sub) -> None:
                         "log's rate from every in-flight sample (e.g. 1,10,50) and report the RMSE")
     p.add_argument("--open-loop", action="store_true",
                    help="the nanodrone benchmark's metric: simulate the full state open loop from the motor "
-                        "speeds 50 steps from every start and report MAE at the --horizons (default 1,10,50) "
-                        "and SimErr for the final model, nominal physics and the state held")
+                        "speeds (a command-driven vehicle: from its motor commands and battery voltage through "
+                        "the identified motor model) 50 steps from every start and report MAE at the --horizons "
+                        "(default 1,10,50) and SimErr for the final model, nominal physics and the state held")
     p.add_argument("--plot", default=None, metavar="DIR",
                    help="with --horizons: write error-vs-horizon and predicted-trace PNGs into DIR")
     p.add_argument("--json", action="store_true", help="print the errors as one JSON line")

@@ -52,19 +52,24 @@ def text(res) -> str:
                    + ", ".join(f"{h} steps: {n}" for h, n in info["skipped"].items()) + ")")
         out.append(ONE_STEP_POSITION[0].upper() + ONE_STEP_POSITION[1:] + "\n")
     if res.open_loop is not None:
-        out += open_loop_lines(res.open_loop_table(), res.open_loop_rotation)
+        out += open_loop_lines(res.open_loop_table(), res.open_loop_rotation, res.open_loop_inputs)
     return "\n".join(out)
 
 
-def open_loop_lines(ol: dict, rotation: bool = False) -> list[str]:
+def open_loop_lines(ol: dict, rotation: bool = False, motor: str = "") -> list[str]:
     """The open-loop table: per model, MAE at each horizon and SimErr, for position (m), velocity
     (m/s), attitude (rad) and body rates (rad/s). ``rotation``: whether the identified row has a
-    rotational model (else its body rates are held)."""
+    rotational model (else its body rates are held); ``motor``: the motor model a command-driven
+    vehicle's rows are driven through (:meth:`droneid.simulation.motor_model.MotorModel.text`), ""
+    for motor speeds."""
     qs = ("position", "velocity", "attitude", "rates")
     header = ["model", "horizon"] + [f"{q} ({u})" for q, u in zip(qs, ("m", "m/s", "rad", "rad/s"))]
     rows = [[m, "SimErr" if h == "simerr" else f"{h} steps"] + [fmt(e[q]) for q in qs]
             for m, per in ol.items() for h, e in per.items()]
-    return ["== open loop (the nanodrone benchmark's metric): full state simulated from the motor speeds, "
+    inputs = "the logged motor commands" if motor else "the motor speeds"
+    return [f"== open loop (the nanodrone benchmark's metric): full state simulated from {inputs}, "
             "MAE over every start; SimErr = sum of MAE over 1..50 steps",
             text_table(header, rows),
-            open_loop_legend(rotation) + "\n"]
+            *([f"motor model (identified; the identified row reads the commands through it, nominal physics "
+               f"through its curve without lag): {motor}"] if motor else []),
+            open_loop_legend(rotation, bool(motor)) + "\n"]

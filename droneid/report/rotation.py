@@ -130,14 +130,16 @@ def _has_rotation(rot: RotationResult) -> bool:
     return rot.model is not None and any(a.rung != "held" for a in rot.axes)
 
 
-def open_loop_legend(rotation: bool = True) -> str:
+def open_loop_legend(rotation: bool = True, commands: bool = False) -> str:
     """What the rows of the open-loop table are (one home: identify's text and report, predict),
     and why their 1-step position errors agree. ``rotation``: whether the identified row has a
-    rotational model (else its body rates are held)."""
+    rotational model (else its body rates are held); ``commands``: the vehicle is driven by its
+    logged motor commands (through the identified motor model), not by motor speeds."""
     return ("identified: the final v̇ models, attitude from the simulated quaternion, "
             + ("body rates from the identified rotational model" if rotation else
                "body rates held (no rotational model beat holding them, or none was identified)")
-            + "; nominal physics: thrust from the motor speeds at the prior's nominal scale, no drag, "
+            + f"; nominal physics: thrust from the {'motor commands' if commands else 'motor speeds'} "
+            "at the prior's nominal scale, no drag, "
             f"rates held; constant: the state held; {ONE_STEP_POSITION}")
 
 

@@ -32,16 +32,18 @@ a translational and a rotational model (:class:`droneid.rotation.model.RotationM
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 import numpy as np
 
 from droneid.errors import ConfigError, DataError
-from droneid.core.frames import qmul, quat_to_euler, quat_to_matrix
+from droneid.core.frames import euler_to_quat, qmul, quat_to_euler, quat_to_matrix
 from droneid.logs.in_flight import in_flight_intervals, signal_gaps, subtract_intervals
 from droneid.logs.screening import screen_signal
+from droneid.simulation.motor_model import is_command, is_input_signal
 from droneid.simulation.rk4 import rk4_step
 
 __all__ = [
@@ -76,29 +78,46 @@ def rad_s_per_rpm_text(factor: float) -> str:
     return f"{factor!r} rad/s per logged unit"
 
 _P, _V, _Q, _W = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13)
+_QUAT, _EULER = ("qw", "qx", "qy", "qz"), ("roll", "pitch", "yaw")
 _CHUNK = 8192  # windows simulated at once (memory: chunk x H x 13 float64)
 
 
 # -- one flight on a uniform grid ---------------------------------------------------------------
 @dataclass(frozen=True)
 class StateLog:
-    """One flight resampled on a uniform grid: the full state and the motor speeds.
+    """One flight resampled on a uniform grid: the full state and the logged inputs.
 
     ``t_s`` (N,) seconds from the log start; ``state`` (N, 13) as described in the module
     docstring; ``rpm`` (N, M) motor speeds as logged (rpm, electrical where the log says erpm),
-    in the vehicle's motor order; ``dt_s`` the grid step.
+    in the vehicle's motor order ((N, 0) for a vehicle that logs commands only); ``dt_s`` the grid
+    step; ``signals`` {name: (N,)} the other inputs asked for (motor commands ``motor1..`` or
+    ``throttle`` in 0..1, ``battery_voltage`` in V; :mod:`droneid.simulation.motor_model`).
     """
     name: str
     t_s: np.ndarray
     state: np.ndarray
     rpm: np.ndarray
     dt_s: float
+    signals: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         n = self.t_s.shape[0]
         if self.state.shape != (n, STATE_SIZE) or self.rpm.ndim != 2 or self.rpm.shape[0] != n:
             raise DataError(f"{self.name}: state log arrays disagree: t {self.t_s.shape}, "
                             f"state {self.state.shape}, rpm {self.rpm.shape}")
+        bad = [k for k, v in self.signals.items() if np.shape(v) != (n,)]
+        if bad:
+            raise DataError(f"{self.name}: state log signals {', '.join(bad)} are not on the grid of {n} samples")
+        # a plain dict (a mappingproxy cannot be pickled to the workers that score the logs)
+        object.__setattr__(self, "signals", {k: np.asarray(v, float) for k, v in self.signals.items()})
+
+    def column(self, name: str) -> np.ndarray:
+        """The logged input ``name`` on the grid: ``rpm<i>`` or one of :attr:`signals`."""
+        if name in self.signals:
+            return self.signals[name]
+        if re.fullmatch(r"rpm\d+", name) and int(name[3:]) <= self.rpm.shape[1]:
+            return self.rpm[:, int(name[3:]) - 1]
+        raise DataError(f"{self.name}: the open-loop simulation reads {name}, which the log lacks")
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
@@ -112,24 +131,27 @@ def _continuous_quat(q: np.ndarray) -> np.ndarray:
     return q * sign[:, None]
 
 
-def _signals(flight, motors: int | None = None) -> tuple[list[str], list[str]]:
+def _signals(flight, motors: int | None = None, signals=()) -> tuple[list[str], list[str]]:
     """(state signals, motor-speed signals rpm1..M) a :class:`StateLog` reads; DataError naming
-    what the flight lacks."""
+    what the flight lacks. With ``signals`` (other inputs: commands, battery voltage) the motor
+    speeds may be absent (a command-driven vehicle)."""
     need = ("x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz")
+    if not any(q in flight for q in _QUAT) and all(a in flight for a in _EULER):
+        need = tuple(n for n in need if n not in _QUAT) + _EULER   # the attitude as Euler angles
     missing = [n for n in need if n not in flight]
     if motors is None:
         motors = 0
         while f"rpm{motors + 1}" in flight:
             motors += 1
     rpm_names = [f"rpm{i}" for i in range(1, motors + 1)]
-    missing += [n for n in rpm_names if n not in flight]
-    if missing or not rpm_names:
+    missing += [n for n in (*rpm_names, *signals) if n not in flight]
+    if missing or not (rpm_names or signals):
         raise DataError(f"{flight.name}: open-loop simulation needs "
                         f"{', '.join(missing) or 'per-motor speeds rpm1..rpmN'}, which the log lacks")
     return list(need), rpm_names
 
 
-def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
+def flight_state_logs(flights, *, min_s: float = 0.6, signals=()) -> list[StateLog]:
     """The stretches of ``flights`` the open-loop metric may use, as :class:`StateLog` each named
     by its flight (so that a flight's stretches form one validation block; flights that share a
     name get their position in ``flights`` too): airborne and before
@@ -138,7 +160,9 @@ def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
     screened implausible sample (:mod:`droneid.logs.screening`, the rule of the datasets and of the
     multi-step prediction) of the signals it reads cut out, so that no window interpolates across
     one. Stretches shorter than ``min_s`` seconds (no 50-step window at 100 Hz) are left out. Every
-    stretch is on one grid step: the median step of ``x`` over all the flights."""
+    stretch is on one grid step: the median step of ``x`` over all the flights. ``signals``: other
+    inputs to carry (:attr:`StateLog.signals`; then the motor speeds are carried where the flights
+    log them, and not needed), screened and cut like the rest."""
     flights = list(flights)
     names = [f.name for f in flights]
     # one grid step for every stretch (each stretch's own median step would differ on jittery
@@ -149,26 +173,29 @@ def flight_state_logs(flights, *, min_s: float = 0.6) -> list[StateLog]:
     for i, f in enumerate(flights):
         # two flights with one name (the same file stem from two folders) are two blocks
         name = f.name if names.count(f.name) == 1 else f"{f.name} ({i + 1})"
-        need, rpm_names = _signals(f)
-        screened = [n for n in (*need, *rpm_names, "roll", "pitch", "yaw") if f.has(n)]
+        need, rpm_names = _signals(f, signals=signals)
+        screened = [n for n in (*need, *rpm_names, *signals, "roll", "pitch", "yaw") if f.has(n)]
         holes = [h for n in screened for h in (*signal_gaps(f[n], 0.0), *screen_signal(f[n]).holes)]
         for a, b in subtract_intervals(in_flight_intervals(f)[0], sorted(holes)):
             if b - a > min_s:
-                log = state_log(f.between(a, b), dt_s)
-                out.append(log if name == log.name else StateLog(name, log.t_s, log.state, log.rpm, log.dt_s))
+                log = state_log(f.between(a, b), dt_s, signals=signals)
+                out.append(log if name == log.name else replace(log, name=name))
     return out
 
 
-def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> StateLog:
+def state_log(flight, dt_s: float | None = None, motors: int | None = None, signals=()) -> StateLog:
     """A :class:`StateLog` from a :class:`~droneid.logs.flight.Flight` with position, velocity,
     attitude quaternion, body rates and per-motor speeds (``rpm1..M``).
 
     Every signal is linearly interpolated onto one uniform grid over the span they all cover
     (step ``dt_s``, default the median step of ``x``); the quaternion is made sign-continuous,
-    interpolated and renormalised. ``motors`` defaults to every consecutive ``rpmN`` present.
+    interpolated and renormalised (a log with Euler angles and no quaternion, as ArduCopter 3.3's
+    ATT, gets the quaternion of its angles, made sign-continuous before it is interpolated).
+    ``motors`` defaults to every consecutive ``rpmN`` present;
+    ``signals``: other inputs to carry (:attr:`StateLog.signals`), interpolated alike.
     """
-    need, rpm_names = _signals(flight, motors)
-    names = need + rpm_names
+    need, rpm_names = _signals(flight, motors, signals)
+    names = need + rpm_names + list(signals)
     t0 = max(flight[n].t[0] for n in names)
     t1 = min(flight[n].t[-1] for n in names)
     if dt_s is None:
@@ -184,17 +211,22 @@ def state_log(flight, dt_s: float | None = None, motors: int | None = None) -> S
         s = flight[name]
         return np.interp(t, s.t, s.values)
 
-    qs = [flight[c] for c in ("qw", "qx", "qy", "qz")]
-    if all(s.t.shape == qs[0].t.shape and np.array_equal(s.t, qs[0].t) for s in qs):
+    qs = [flight[c] for c in (_QUAT if _QUAT[0] in need else _EULER)]
+    same = all(s.t.shape == qs[0].t.shape and np.array_equal(s.t, qs[0].t) for s in qs)
+    if _QUAT[0] not in need:      # a log with Euler angles only (old ArduPilot ATT): their quaternion
+        angles = [s.values if same else np.interp(qs[0].t, s.t, np.unwrap(s.values)) for s in qs]
+        qc = _continuous_quat(euler_to_quat(*angles))
+        q = np.column_stack([np.interp(t, qs[0].t, qc[:, k]) for k in range(4)])
+    elif same:
         qc = _continuous_quat(np.column_stack([s.values for s in qs]))
         q = np.column_stack([np.interp(t, qs[0].t, qc[:, k]) for k in range(4)])
     else:
-        q = np.column_stack([interp(c) for c in ("qw", "qx", "qy", "qz")])
+        q = np.column_stack([interp(c) for c in _QUAT])
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     state = np.column_stack([interp(c) for c in ("x", "y", "z", "vx", "vy", "vz")]
                             + [q] + [interp(c) for c in ("wx", "wy", "wz")])
-    rpm = np.column_stack([interp(c) for c in rpm_names])
-    return StateLog(flight.name, t, state, rpm, float(dt_s))
+    rpm = np.column_stack([interp(c) for c in rpm_names]) if rpm_names else np.zeros((n, 0))
+    return StateLog(flight.name, t, state, rpm, float(dt_s), {c: interp(c) for c in signals})
 
 
 # -- quaternions ---------------------------------------------------------------------------------
@@ -438,11 +470,17 @@ class Constant:
 class IdentifiedTranslation:
     """identify's final v̇ models driven open loop: ``models`` {"vx_dot"|"vy_dot"|"vz_dot":
     :class:`~droneid.fitting.closed_form.IdentifiedModel`} give v̇ (world ENU) from the simulated state
-    (velocity, and roll, pitch, yaw from the simulated quaternion) and the logged motor speeds,
-    each read at ``t − delay`` as identified (shifted by whole grid steps; a negative delay reads
-    later samples). Alone it holds the body rates (ω̇ = 0), as the benchmark's Physics row; with a
-    rotational model it is the translation of :class:`IdentifiedVehicle`. A model reading another signal cannot be driven open loop."""
+    (velocity, and roll, pitch, yaw from the simulated quaternion) and the logged inputs: motor
+    speeds ``rpm<i>``, or on a command-driven vehicle the commands ``motor<i>`` / ``throttle`` and
+    ``battery_voltage``, each read at ``t − delay`` as identified (shifted by whole grid steps; a
+    negative delay reads later samples). ``motor``: the identified motor model of a command-driven
+    vehicle (:class:`droneid.simulation.motor_model.MotorModel`): with a motor lag the commands and
+    the voltage are read at t and the models fed the effective commands the lagged rotors deliver
+    (its docstring says why not also at the offset). Alone it holds the body rates (ω̇ = 0), as
+    the benchmark's Physics row; with a rotational model it is the translation of
+    :class:`IdentifiedVehicle`. A model reading another signal cannot be driven open loop."""
     models: Mapping[str, object]
+    motor: object | None = None
 
     def __post_init__(self):
         missing = [t for t in ("vx_dot", "vy_dot", "vz_dot") if t not in self.models]
@@ -451,34 +489,57 @@ class IdentifiedTranslation:
                             f"missing: {', '.join(missing)}")
         known = {"vx", "vy", "vz", "roll", "pitch", "yaw"}
         for t, m in self.models.items():
-            other = [s for s in m.signals if s not in known and not s.startswith("rpm")]
+            other = [s for s in m.signals if s not in known and not is_input_signal(s)]
             if other:
-                raise DataError(f"the {t} model reads {', '.join(other)}: open-loop simulation drives "
-                                f"a model by the state and the motor speeds only")
+                raise DataError(f"the {t} model reads {', '.join(other)}: open-loop simulation drives a model "
+                                f"by the state and the logged motor speeds, commands and battery voltage only")
+        if any(is_command(n) for n in self.input_names()) and self.motor is None:
+            raise DataError("the v̇ models read motor commands: open-loop simulation needs the result's "
+                            "motor model (its thrust curve) to drive them")
 
-    def _rpm_names(self) -> list[str]:
-        return sorted({s for m in self.models.values() for s in m.signals if s.startswith("rpm")},
-                      key=lambda n: int(n[3:]))
+    def input_names(self) -> list[str]:
+        """The logged inputs the models read: motor speeds, then commands, then the voltage."""
+        names = {s for m in self.models.values() for s in m.signals if is_input_signal(s)}
+
+        def key(n):
+            digits = re.sub(r"\D", "", n)
+            return ("rpm" not in n, n == "battery_voltage", re.sub(r"\d", "", n), int(digits or 0))
+        return sorted(names, key=key)
+
+    def signals(self) -> list[str]:
+        """The inputs a :class:`StateLog` must carry beside the motor speeds (commands, voltage)."""
+        return [n for n in self.input_names() if not n.startswith("rpm")]
+
+    def delay_steps(self, target: str, name: str, dt_s: float) -> int:
+        """Whole grid steps of ``dt_s`` the ``target`` model reads input ``name`` back: its delay,
+        or 0 for a command or the voltage through a motor lag."""
+        if self.motor is not None and self.motor.lagged and not name.startswith("rpm"):
+            return 0
+        return int(round(float(self.models[target].delays_s.get(name, 0.0)) / dt_s))
 
     def inputs(self, log: StateLog) -> np.ndarray:
-        """(N, K): each model's motor speeds at ``t − delay`` (model by model, rpm by rpm)."""
+        """(N, K): each model's inputs at ``t − delay`` (model by model, input by input), the
+        commands through the motor model's lag where it has one."""
+        names = self.input_names()
+        cmds = [n for n in names if is_command(n)]
         cols = []
         for t in ("vx_dot", "vy_dot", "vz_dot"):
-            m = self.models[t]
-            for name in self._rpm_names():
-                k = int(round(float(m.delays_s.get(name, 0.0)) / log.dt_s))
-                j = int(name[3:]) - 1
-                if j >= log.rpm.shape[1]:
-                    raise DataError(f"{log.name}: the {t} model reads {name}; the log has "
-                                    f"{log.rpm.shape[1]} motor speeds")
+            read = {}
+            for name in names:
+                k = self.delay_steps(t, name, log.dt_s)
                 idx = np.clip(np.arange(len(log)) - k, 0, len(log) - 1)
-                cols.append(log.rpm[idx, j])
-        return np.column_stack(cols)
+                read[name] = log.column(name)[idx]
+            if cmds and self.motor.lagged:
+                u = np.column_stack([read[n] for n in cmds])
+                eff = self.motor.effective(u, read.get("battery_voltage"), log.dt_s)
+                read.update({n: eff[:, i] for i, n in enumerate(cmds)})
+            cols += [read[n] for n in names]
+        return np.column_stack(cols) if cols else np.zeros((len(log), 0))
 
     def accel(self, state, u) -> np.ndarray:
         roll, pitch, yaw = quat_to_euler(state[:, _Q])
         base = {"vx": state[:, 3], "vy": state[:, 4], "vz": state[:, 5], "roll": roll, "pitch": pitch, "yaw": yaw}
-        names = self._rpm_names()
+        names = self.input_names()
         out = np.empty((state.shape[0], 3))
         for a, t in enumerate(("vx_dot", "vy_dot", "vz_dot")):
             cols = dict(base)

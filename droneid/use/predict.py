@@ -33,6 +33,7 @@ from droneid.core.numerics import rmse
 from droneid.simulation.openloop import (Constant, IdentifiedTranslation, IdentifiedVehicle, NominalPhysics, flight_state_logs,
                        open_loop)
 from droneid.rotation.model import RotationModel
+from droneid.simulation.motor_model import MotorModel, NominalCommandPhysics, is_command
 from droneid.rotation.stage import speed_scale
 from droneid.simulation.rollout import rollout_errors, sample_inputs
 from droneid.use.score import Errors, HorizonErrors, Score, TargetScore
@@ -171,10 +172,13 @@ def model_sets(models: dict) -> dict:
 
 def _nominal_physics(cfg: dict):
     """The benchmark's Physics row for the prior the result used (its parameters as recorded:
-    hover-calibrated on the TRAINING flights): thrust k Σ ω_i² from the motor speeds along the
-    body z axis, no drag, rates held. The prior says what its thrust is (the magnitude of its v̇z
-    thrust term, :attr:`priors.base.PriorFeature.magnitude`); None unless that is one quadratic
-    law in the rotor speeds (rpm1..), or the prior cannot be rebuilt from the record."""
+    hover-calibrated on the TRAINING flights): thrust from the logged inputs along the body z
+    axis, no drag, rates held. The prior says what its thrust is (the magnitude of its v̇z
+    thrust term, :attr:`priors.base.PriorFeature.magnitude`): one quadratic law in the rotor
+    speeds (rpm1..) gives :class:`NominalPhysics`; a law in the commands (``motor<i>`` or
+    ``throttle``, with ``battery_voltage`` where the curve compensates it) gives
+    :class:`~droneid.simulation.motor_model.NominalCommandPhysics`. None for any other law, or where
+    the prior cannot be rebuilt from the record."""
     try:
         prior = get_prior(str(cfg["prior_used"]), **dict(cfg["prior_params"]))
         feats = [f for f in prior.features("vz_dot") if f.role == "thrust" and f.magnitude is not None]
@@ -183,9 +187,11 @@ def _nominal_physics(cfg: dict):
     if len(feats) != 1:
         return None
     names = sorted(s.name for s in feats[0].magnitude.free_symbols)
+    law = compile_expression(feats[0].magnitude, names) if names else None
+    if names and any(is_command(n) for n in names) and all(is_command(n) or n == "battery_voltage" for n in names):
+        return NominalCommandPhysics(law, tuple(names), float(cfg["prior_params"].get("g", 9.81)))
     if not names or not all(re.fullmatch(r"rpm\d+", n) for n in names):
         return None
-    law = compile_expression(feats[0].magnitude, names)
     one, two = (float(law({n: np.full(1, u) for n in names})[0]) for u in (1.0, 2.0))
     if not (one > 0 and math.isclose(two, 4 * one, rel_tol=1e-9)):
         return None
@@ -196,15 +202,18 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     """The nanodrone benchmark's open-loop metric (:mod:`droneid.simulation.openloop`) on ``flights``:
     ``{"identified" | "nominal physics" | "constant": {"1": {"position", "velocity", "attitude",
     "rates"}, ..., "simerr": {...}}}`` over 50 steps at the log's rate from every start.
-    "identified" drives the final v̇ models by the simulated state and the logged motor speeds,
-    with the result's rotational model (``_rotation``: :mod:`droneid.rotation.stage`) or, without
-    one, the body rates held; "nominal physics" is thrust from the motor
-    speeds with the prior's nominal (hover-calibrated on the TRAINING flights) thrust scale, no
-    drag, rates held; "constant" holds the state."""
+    "identified" drives the final v̇ models by the simulated state and the logged motor speeds
+    (a command-driven vehicle: the logged commands and battery voltage through the result's motor
+    model, :class:`~droneid.simulation.motor_model.MotorModel`: its thrust curve, compensation and
+    lag), with the result's rotational model (``_rotation``: :mod:`droneid.rotation.stage`) or,
+    without one, the body rates held; "nominal physics" is thrust from the same inputs with the
+    prior's nominal (hover-calibrated on the TRAINING flights) thrust law, no drag, rates held;
+    "constant" holds the state."""
     sets = model_sets(models)
     if "identified" not in sets:
         raise ConfigError("--open-loop needs the final models of vx_dot, vy_dot and vz_dot (targets.<t>.final)")
-    translation = IdentifiedTranslation(sets["identified"])
+    cfg = models.get("_config") or {}
+    translation = IdentifiedTranslation(sets["identified"], MotorModel.from_record(cfg))
     rotation = models.get("_rotation")
     if rotation is not None:
         for f in flights:   # the rotational model reads rotor speeds in the unit it was fitted on
@@ -213,11 +222,13 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
                 raise DataError(f"{f.name}: the rotational model was identified on motor speeds at "
                                 f"{rotation.rad_s_per_rpm:.6g} rad/s per logged unit; this log's are not ({why})")
     chosen = {"identified": translation if rotation is None else IdentifiedVehicle(translation, rotation)}
-    nominal = _nominal_physics(models.get("_config") or {})
+    nominal = _nominal_physics(cfg)
     if nominal is not None:
         chosen["nominal physics"] = nominal
     chosen["constant"] = Constant()
-    return open_loop(chosen, flight_state_logs(flights), max_horizon=50, horizons=tuple(h for h in horizons if h <= 50)).to_dict()
+    signals = tuple(dict.fromkeys([*translation.signals(), *(nominal.signals() if hasattr(nominal, "signals") else ())]))
+    return open_loop(chosen, flight_state_logs(flights, signals=signals), max_horizon=50,
+                     horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 
 
 def flight_list(flights) -> list:
@@ -280,6 +291,7 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
                                       _screened(flights, ds, [*ds.input_names, state_of(target)]),
                                       _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes))
     roll, table, info = None, None, None
+    motor = MotorModel.from_record(models.get("_config") or {}) if open_loop else None
     stages = (("horizons",) if horizons else ()) + (("open loop",) if open_loop else ())
     # the multi-step prediction and the open-loop table are independent: side by side on the cores
     done = dict(zip(stages, runner.fork_map(_scoring_stage, (models, sets, tuple(flights), horizons), stages,
@@ -291,7 +303,7 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         table = {m: {h: HorizonErrors(**e) for h, e in per.items()} for m, per in roll.rmse.items()}
     return Score(ts, method, results, fit.to_dict() if fit is not None else None,
                  tuple(fit.warnings) if fit is not None else (), table, info, roll, done.get("open loop"),
-                 open_loop_rotation=models.get("_rotation") is not None)
+                 open_loop_rotation=models.get("_rotation") is not None, open_loop_inputs=motor.text() if motor else "")
 
 
 def _scoring_stage(shared: tuple, stage: str):

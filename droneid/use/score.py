@@ -142,7 +142,9 @@ class Score:
     traces (for figures; not part of :meth:`to_dict`); open_loop : the open-loop table
     ({model: {"1" | "10" | … steps | "simerr": :class:`OpenLoopErrors`}}, None without it; a
     plain document given here is typed) and open_loop_rotation whether its "identified" row has a
-    rotational model (else the rates are held); reader_options : {"recorded": the options the
+    rotational model (else the rates are held), and open_loop_inputs the motor model its
+    command-driven rows are driven through (:meth:`droneid.simulation.motor_model.MotorModel.text`;
+    "" for the logged motor speeds); reader_options : {"recorded": the options the
     result was identified with, "given": the options given} (None when neither; set by the CLI).
     """
     ts: float
@@ -156,6 +158,7 @@ class Score:
     open_loop: Mapping | None = None
     reader_options: Mapping | None = None
     open_loop_rotation: bool = False
+    open_loop_inputs: str = ""
 
     def __post_init__(self):
         object.__setattr__(self, "open_loop", _open_loop(self.open_loop))
@@ -191,6 +194,8 @@ class Score:
         if self.open_loop is not None:
             out["open_loop"] = self.open_loop_table()
             out["open_loop_rotation"] = self.open_loop_rotation
+            if self.open_loop_inputs:
+                out["open_loop_inputs"] = self.open_loop_inputs
         if self.reader_options is not None:
             out["reader_options"] = self.reader_options
         return to_jsonable(out)
@@ -204,4 +209,4 @@ class Score:
                    None if horizons is None else {m: {int(h): HorizonErrors.from_dict(e) for h, e in per.items()}
                                                   for m, per in horizons.items()},
                    d.get("horizon_info"), None, d.get("open_loop"), d.get("reader_options"),
-                   bool(d.get("open_loop_rotation", False)))
+                   bool(d.get("open_loop_rotation", False)), str(d.get("open_loop_inputs", "")))

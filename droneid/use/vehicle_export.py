@@ -13,14 +13,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 
 from droneid import __version__
-from droneid.errors import ConfigError, check_choice
+from droneid.errors import ConfigError, DataError, check_choice
+from droneid.use.vehicle_code import Part, floats, num, vehicle_c, vehicle_python
 from droneid.use.export import CONVENTIONS, c_functions, checked_models, input_unit, model_header, python_functions
+from droneid.simulation.motor_model import is_command
 from droneid.simulation.openloop import IdentifiedTranslation, rad_s_per_rpm_text
+from droneid.use.vehicle_commands import lag_code, lag_header
 from droneid.rotation.model import SPEED_UNIT, RotationModel, TranslationModel, unsteerable, unsteerable_sentence
 
 __all__ = ["VEHICLE_FORMATS", "export_vehicle"]
@@ -31,36 +33,6 @@ VEHICLE_FORMATS = ("python", "c")
 _TRANSLATION_TARGETS = ("vx_dot", "vy_dot", "vz_dot")
 #: the state the v̇ models read, as an expression of the generated derivative (Python and C alike)
 _STATE_ARGS = {"vx": "x[3]", "vy": "x[4]", "vz": "x[5]", "roll": "roll", "pitch": "pitch", "yaw": "yaw"}
-
-
-def _f(x) -> str:
-    return repr(float(x))
-
-
-def _floats(values, to: str) -> str:
-    """Floats as a Python list or a C initializer."""
-    body = ", ".join(_f(v) for v in values)
-    return f"[{body}]" if to == "python" else f"{{{body}}}"
-
-
-@dataclass(frozen=True)
-class _Part:
-    """One half of a generated vehicle (translation or rotation).
-
-    ``header``: its lines of the file header; ``width``: the input columns it reads from ``u``
-    (after those of the parts before it); ``history``: how many steps back it reads the motor
-    speeds (its largest delay); ``code[to]``: source snippets in language ``to``: ``defs``
-    (module level), ``state`` (Python: lines of ``Inputs.__init__``; C: members of the
-    ``droneid_inputs`` struct), ``fill`` (in the conditioner, after the motor speeds of this step
-    joined the history ``h``, oldest first: its columns of ``u``) and ``deriv`` (in the
-    derivative: v̇ or ω̇ from ``x``, ``R``, ``vb`` and its columns of ``u``); ``euler``: it reads
-    ``roll``, ``pitch``, ``yaw`` of the simulated quaternion (the derivative then computes them)."""
-    header: tuple
-    width: int
-    history: int
-    code: Mapping
-    imports: tuple = ()
-    euler: bool = False
 
 
 def _rotation_spec(rotation: RotationModel) -> dict:
@@ -103,22 +75,22 @@ def _column_code(name: str, k: int) -> str:
 
 def _axis_expr(spec: dict, k: int) -> str:
     """ω̇_k as an expression of the generated derivative (C and Python alike)."""
-    return " + ".join([f"({_f(ci)})*{col}" for ci, col in zip(spec["coef"][k], spec["cols"][k])]
-                      + [f"({_f(spec['trim'][k])})"])
+    return " + ".join([f"({num(ci)})*{col}" for ci, col in zip(spec["coef"][k], spec["cols"][k])]
+                      + [f"({num(spec['trim'][k])})"])
 
 
 def _alpha(tau, dt_s: float) -> str:
-    return "None" if tau is None else _f(min(1.0, dt_s / float(tau)))
+    return "None" if tau is None else num(min(1.0, dt_s / float(tau)))
 
 
-def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> _Part:
+def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> Part:
     """The rotational model: its input conditioning (delay, low-pass, rotor speed rates, centring,
     running balance) and ω̇ per axis; its columns ``u[offset:offset + 2M]`` are ``s_r`` then the
     rotor speed rates."""
     spec = _rotation_spec(rotation)
     M, P, o = spec["M"], spec["P"], offset
     lp, ce = _alpha(spec["lp"], dt_s), _alpha(spec["centre"], dt_s)
-    bw = "None" if spec["bw"] is None else _f(spec["bw"])
+    bw = "None" if spec["bw"] is None else num(spec["bw"])
     steps = [f"the motor speeds of {spec['d_r']} step(s) earlier as rotor speeds (logged speed times "
              f"{rad_s_per_rpm_text(rotation.rad_s_per_rpm)})"]
     if spec["lp"] is not None:
@@ -135,16 +107,16 @@ def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> _Part:
         "  w'_k = coefficients . columns + trim; mix = P s_r (roll, pitch, yaw patterns of the layout),",
         "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r"
         + (f", roll and pitch (rad, Z-Y-X, of the simulated quaternion) about the level LEVEL = "
-           f"{', '.join(_f(v) for v in spec['level'])} rad:" if spec["euler"] else ":"),
+           f"{', '.join(num(v) for v in spec['level'])} rad:" if spec["euler"] else ":"),
         *[f"  w'_{k} = {_axis_expr(spec, k)}" for k in range(3)])
-    py_defs = f'''SCALE_R = {_f(spec["scale"])}          # (rotor speed / 1000 rad/s) per logged rpm
+    py_defs = f'''SCALE_R = {num(spec["scale"])}          # (rotor speed / 1000 rad/s) per logged rpm
 DELAY_R = {spec["d_r"]}
 LOWPASS_A = {lp}
 CENTRE_A = {ce}
 BALANCE_W = {bw}
-PRIOR = {_floats(spec["prior"], "python")}
-P = [{", ".join(_floats(P[k], "python") for k in range(3))}]
-LEVEL = {_floats(spec["level"], "python")}          # level roll, pitch (rad) of the term attitude
+PRIOR = {floats(spec["prior"], "python")}
+P = [{", ".join(floats(P[k], "python") for k in range(3))}]
+LEVEL = {floats(spec["level"], "python")}          # level roll, pitch (rad) of the term attitude
 '''
     py_state = '''        self.lp = self.ema = self.prev = None
         self.sum = [0.0] * M
@@ -174,14 +146,14 @@ LEVEL = {_floats(spec["level"], "python")}          # level roll, pitch (rad) of
           {_axis_expr(spec, 1)},
           {_axis_expr(spec, 2)}]
 '''
-    c_defs = f'''static const double SCALE_R = {_f(spec["scale"])};
+    c_defs = f'''static const double SCALE_R = {num(spec["scale"])};
 static const int DELAY_R = {spec["d_r"]};
 static const int HAS_LOWPASS = {0 if spec["lp"] is None else 1}, HAS_CENTRE = {0 if spec["centre"] is None else 1}, HAS_BALANCE = {0 if spec["bw"] is None else 1};
 static const double LOWPASS_A = {"0.0" if lp == "None" else lp}, CENTRE_A = {"0.0" if ce == "None" else ce};
-static const double BALANCE_W = {"0.0" if spec["bw"] is None else _f(spec["bw"])};
-static const double PRIOR[DRONEID_M] = {_floats(spec["prior"], "c")};
-static const double P[3][DRONEID_M] = {{{", ".join(_floats(P[k], "c") for k in range(3))}}};
-static const double LEVEL[2] = {_floats(spec["level"], "c")};
+static const double BALANCE_W = {"0.0" if spec["bw"] is None else num(spec["bw"])};
+static const double PRIOR[DRONEID_M] = {floats(spec["prior"], "c")};
+static const double P[3][DRONEID_M] = {{{", ".join(floats(P[k], "c") for k in range(3))}}};
+static const double LEVEL[2] = {floats(spec["level"], "c")};
 '''
     c_state = "    double lp[DRONEID_M], ema[DRONEID_M], prev[DRONEID_M], sum[DRONEID_M], t;\n"
     c_fill = f'''    {{
@@ -221,42 +193,42 @@ static const double LEVEL[2] = {_floats(spec["level"], "c")};
         (void)S; (void)spin; (void)LEVEL;
     }}
 '''
-    return _Part(header, 2 * M, spec["d_r"], {
+    return Part(header, 2 * M, spec["d_r"], {
         "python": {"defs": py_defs, "state": py_state, "fill": py_fill, "deriv": py_deriv},
         "c": {"defs": c_defs, "state": c_state, "fill": c_fill, "deriv": c_deriv}}, euler=spec["euler"])
 
 
-def _held_rates_part() -> _Part:
+def _held_rates_part() -> Part:
     """No rotational model: every body rate held (ω̇ = 0), no input columns."""
-    return _Part(("Rotation: none identified (the result's rotation.model is null): every body rate is held, "
+    return Part(("Rotation: none identified (the result's rotation.model is null): every body rate is held, "
                   "w' = 0.",), 0, 0, {
         "python": {"defs": "", "state": "", "fill": "", "deriv": "    dw = [0.0, 0.0, 0.0]\n"},
         "c": {"defs": "", "state": "", "fill": "", "deriv": "    dx[10] = dx[11] = dx[12] = 0.0;\n"}})
 
 
-def _linear_part(tr: TranslationModel, motors: int) -> _Part:
+def _linear_part(tr: TranslationModel, motors: int) -> Part:
     """:class:`droneid.rotation.model.TranslationModel`: thrust along body z, body drag, gravity;
     columns ``u[0:M]`` are ``s_t``."""
     scale, d = tr.rad_s_per_rpm / SPEED_UNIT, int(tr.delay_steps)
     header = (
         "Translation (m/s^2, world ENU): v' = R e_z k_T sum(s_t) - R diag(drag) R^T v - g e_z;",
-        f"  k_T = {_f(tr.k_thrust)} m/s^2, drag = {', '.join(_f(v) for v in tr.drag)} 1/s, g = {_f(tr.g)};",
-        f"  u[0:{motors}] = s_t: (rpm * {_f(scale)})^2, i.e. (rotor speed / 1000 rad/s)^2, of the motor speeds "
+        f"  k_T = {num(tr.k_thrust)} m/s^2, drag = {', '.join(num(v) for v in tr.drag)} 1/s, g = {num(tr.g)};",
+        f"  u[0:{motors}] = s_t: (rpm * {num(scale)})^2, i.e. (rotor speed / 1000 rad/s)^2, of the motor speeds "
         f"{d} step(s) earlier.")
-    py_defs = f'''SCALE_T = {_f(scale)}          # (rotor speed / 1000 rad/s) per logged rpm
+    py_defs = f'''SCALE_T = {num(scale)}          # (rotor speed / 1000 rad/s) per logged rpm
 DELAY_T = {d}
-K_T, G = {_f(tr.k_thrust)}, {_f(tr.g)}
-DRAG = {_floats(tr.drag, "python")}
+K_T, G = {num(tr.k_thrust)}, {num(tr.g)}
+DRAG = {floats(tr.drag, "python")}
 '''
     py_fill = "        u += [o * o for o in (r * SCALE_T for r in h[-1 - DELAY_T])]\n"
     py_deriv = f'''    thrust = K_T * sum(u[0:{motors}])
     dv = [R[i][2] * thrust - sum(R[i][j] * DRAG[j] * vb[j] for j in range(3)) for i in range(3)]
     dv[2] -= G
 '''
-    c_defs = f'''static const double SCALE_T = {_f(scale)};
+    c_defs = f'''static const double SCALE_T = {num(scale)};
 static const int DELAY_T = {d};
-static const double K_T = {_f(tr.k_thrust)}, G = {_f(tr.g)};
-static const double DRAG[3] = {_floats(tr.drag, "c")};
+static const double K_T = {num(tr.k_thrust)}, G = {num(tr.g)};
+static const double DRAG[3] = {floats(tr.drag, "c")};
 '''
     c_fill = '''    for (i = 0; i < DRONEID_M; i++) {
         double o = c->hist[DRONEID_HIST - 1 - DELAY_T][i] * SCALE_T;
@@ -274,7 +246,7 @@ static const double DRAG[3] = {_floats(tr.drag, "c")};
         dx[5] -= G;
     }
 '''
-    return _Part(header, motors, d, {
+    return Part(header, motors, d, {
         "python": {"defs": py_defs, "state": "", "fill": py_fill, "deriv": py_deriv},
         "c": {"defs": c_defs, "state": "", "fill": c_fill, "deriv": c_deriv}})
 
@@ -283,18 +255,29 @@ def _rpm_index(name: str) -> int:
     return int(name[3:]) - 1
 
 
-def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str) -> tuple[_Part, int]:
+def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str,
+                     motor=None) -> tuple[Part, int]:
     """identify's final v̇ models (:class:`droneid.simulation.openloop.IdentifiedTranslation`), fed the simulated
-    velocity and Euler angles and their motor speeds at ``t − delay`` in whole steps of ``dt_s``,
-    as :meth:`IdentifiedTranslation.inputs` reads them; columns model by model, motor by motor.
-    Returns the part and the highest motor number the models read."""
+    velocity and Euler angles and their logged inputs at ``t − delay`` in whole steps of ``dt_s``,
+    as :meth:`IdentifiedTranslation.inputs` reads them; columns model by model, input by input. A
+    command-driven vehicle (``motor``: its :class:`droneid.simulation.motor_model.MotorModel`) is fed
+    its commands and battery voltage in the order of :meth:`IdentifiedTranslation.input_names`,
+    through the motor lag where one was kept (:func:`droneid.use.vehicle_commands.lag_code`).
+    Returns the part and the number of logged inputs (motor speeds: the highest motor number read)."""
     missing = [t for t in _TRANSLATION_TARGETS if t not in models]
     if missing:
         raise ConfigError(f"the whole vehicle needs final models of vx_dot, vy_dot and vz_dot; "
                           f"missing: {', '.join(missing)}")
-    tr = IdentifiedTranslation({t: models[t] for t in _TRANSLATION_TARGETS})   # refuses other signals
+    try:
+        tr = IdentifiedTranslation({t: models[t] for t in _TRANSLATION_TARGETS}, motor)   # refuses other signals
+    except DataError as exc:
+        raise ConfigError(f"cannot export the vehicle: {exc}") from None
     ordered = checked_models([tr.models[t] for t in _TRANSLATION_TARGETS])
-    names = tr._rpm_names()
+    names = tr.input_names()
+    commands = bool(tr.signals())
+    if commands and any(n.startswith("rpm") for n in names):
+        raise ConfigError("cannot export the vehicle: its v̇ models read both motor speeds and commands")
+    index = {n: i for i, n in enumerate(names)} if commands else {n: _rpm_index(n) for n in names}
     steps, notes = {}, []
     for m in ordered:
         for s, d in sorted(m.delays_s.items()):
@@ -303,48 +286,59 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
                              "read at t (as droneid.simulation.openloop does)")
         for name in names:
             d = float(m.delays_s.get(name, 0.0))
-            k = int(round(d / dt_s))
+            k = tr.delay_steps(m.target, name, dt_s)
             if k < 0:
                 raise ConfigError(f"cannot export the vehicle: the {m.target} model reads {name} {-d:g} s ahead "
                                   f"(a negative delay); a step function fed one step at a time cannot read ahead")
-            if abs(d / dt_s - k) > 1e-6:
+            if k and abs(d / dt_s - k) > 1e-6:
                 notes.append(f"  {m.target}: the delay of {name} ({d:g} s) is rounded to {k} step(s) of {dt_s:g} s "
                              "(as droneid.simulation.openloop does)")
             steps[m.target, name] = k
     K = len(names)
     col = {(a, name): a * K + i for a in range(3) for i, name in enumerate(names)}
     equations = model_header(ordered, source, to, sources)[3:]     # in the syntax of the file's language
+    lagged = commands and motor.lagged
+    what = "logged motor commands and battery voltage" if commands else "logged motor speeds"
     header = ("Translation (m/s^2, world ENU): identify's final models, fed the simulated velocity vx, vy, vz "
               "and the Z-Y-X Euler angles",
               "  roll, pitch, yaw of the simulated quaternion (pitch clipped to [-pi/2, pi/2]):",
               *("  " + line for line in equations), *notes,
-              f"  u[0:{3 * K}]: the logged motor speeds each model reads, at their delays in whole steps:",
+              *(lag_header(motor) if commands else ()),
+              f"  u[0:{3 * K}]: the {what} each model reads, at their delays in whole steps"
+              + (" (the commands as the lagged rotors deliver them):" if lagged else ":"),
               *(f"    u[{a * K}:{(a + 1) * K}] ({m.target}): "
                 + ", ".join(f"{n} of {steps[m.target, n]} step(s) earlier" for n in names)
                 for a, m in enumerate(ordered) if names))
-    langs = {"python": lambda m, n: f"h[-1 - {steps[m.target, n]}][{_rpm_index(n)}]",
-             "c": lambda m, n: f"c->hist[DRONEID_HIST - 1 - {steps[m.target, n]}][{_rpm_index(n)}]"}
-    py_fill = "        u += [" + ", ".join(langs["python"](m, n) for m in ordered for n in names) + "]\n"
+    eff = {n: i for i, n in enumerate(tr.input_names()) if is_command(n)} if lagged else {}
+    langs = {"python": lambda m, n: f"eff[{eff[n]}]" if n in eff else f"h[-1 - {steps[m.target, n]}][{index[n]}]",
+             "c": lambda m, n: (f"eff[{eff[n]}]" if n in eff else
+                                f"c->hist[DRONEID_HIST - 1 - {steps[m.target, n]}][{index[n]}]")}
+    lag = lag_code(motor, [index[n] for n in eff], index.get("battery_voltage")) if lagged else None
+    py_fill = ((lag["python"]["fill"] if lag else "")
+               + "        u += [" + ", ".join(langs["python"](m, n) for m in ordered for n in names) + "]\n")
     c_fill = "".join(f"    u[{col[a, n]}] = {langs['c'](m, n)};\n" for a, m in enumerate(ordered) for n in names)
+    if lag:
+        c_fill = "    {\n" + lag["c"]["fill"] + "".join("    " + line + "\n" for line in c_fill.splitlines()) + "    }\n"
 
     def args(a, m, to):
         vals = [_STATE_ARGS[s] if s in _STATE_ARGS else f"u[{col[a, s]}]" for s in m.signals]
         return ", ".join(f"{s}={v}" for s, v in zip(m.signals, vals)) if to == "python" else ", ".join(vals)
 
-    py_defs = "\n".join(python_functions(ordered, sources)).strip() + "\n"
+    py_defs = (lag["python"]["defs"] if lag else "") + "\n".join(python_functions(ordered, sources)).strip() + "\n"
     py_deriv = ("    dv = ["
                 + ",\n          ".join(f"float({m.target}({args(a, m, 'python')}))" for a, m in enumerate(ordered))
                 + "]\n")
-    c_text = "\n".join(c_functions(ordered))
+    c_text = (lag["c"]["defs"] if lag else "") + "\n".join(c_functions(ordered))
     c_deriv = "".join(f"    dx[{3 + a}] = {m.target}({args(a, m, 'c')});\n" for a, m in enumerate(ordered))
-    part = _Part(header, 3 * K, max(steps.values(), default=0), {
-        "python": {"defs": py_defs, "state": "", "fill": py_fill, "deriv": py_deriv},
-        "c": {"defs": c_text, "state": "", "fill": c_fill, "deriv": c_deriv}}, imports=("numpy",), euler=True)
-    return part, max((_rpm_index(n) + 1 for n in names), default=0)
+    part = Part(header, 3 * K, max(steps.values(), default=0), {
+        "python": {"defs": py_defs, "state": lag["python"]["state"] if lag else "", "fill": py_fill, "deriv": py_deriv},
+        "c": {"defs": c_text, "state": lag["c"]["state"] if lag else "", "fill": c_fill, "deriv": c_deriv}},
+        imports=("numpy",), euler=True)
+    return part, (K if commands else max((_rpm_index(n) + 1 for n in names), default=0))
 
 
 def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float = 0.01, *,
-                   inputs: dict | None = None, dt_note: str = "") -> str:
+                   inputs: dict | None = None, dt_note: str = "", motor=None) -> str:
     """The text of one file with the full 6-DOF model in ``to`` (``"python"`` or ``"c"``).
 
     ``translation``: a :class:`droneid.rotation.model.TranslationModel`, or identify's final v̇ models
@@ -354,7 +348,10 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
     ``dt_s``: the step (s) the motor speeds are fed at: the delays and the rotational model's
     conditioning are in steps of it, so it must be the grid the models were identified on;
     ``dt_note`` says in the header where it came from; ``inputs``: :func:`input_sources` for the
-    header.
+    header; ``motor``: the :class:`droneid.simulation.motor_model.MotorModel` of a command-driven
+    vehicle (the result's thrust curve and motor lag; default: that of ``translation`` if it is an
+    IdentifiedTranslation): its file is fed the logged commands and battery voltage (``push(inputs)``,
+    in the order its header lists) and holds the rotors' speeds as the lag's state.
 
     The file holds an input conditioner (the logged motor speeds -> the model's inputs ``u``,
     causal, one step at a time: delays, and for the rotation low-pass, rotor speed rates,
@@ -378,11 +375,16 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         if translation.rad_s_per_rpm != rotation.rad_s_per_rpm:
             raise ConfigError("export_vehicle: the translation and the rotation read the motor speeds in "
                               "different units (rad_s_per_rpm)")
-        motors = rotation.layout.motors
+        motors, logged = rotation.layout.motors, []
         tpart = _linear_part(translation, motors)
     elif isinstance(translation, Mapping) or hasattr(translation, "models"):
         models = translation if isinstance(translation, Mapping) else translation.models
-        tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to)
+        motor = motor if motor is not None else getattr(translation, "motor", None)
+        tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to, motor)
+        logged = IdentifiedTranslation(models, motor).signals()
+        if logged and rotation is not None:
+            raise ConfigError("export_vehicle: the rotational model reads rotor speeds; these v̇ models read "
+                              "motor commands (export the translation with the body rates held: rotation None)")
         motors = rotation.layout.motors if rotation is not None else max(read, 1)
         if read > motors:
             raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")
@@ -392,207 +394,23 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
     rpart = _held_rates_part() if rotation is None else _rotation_part(rotation, tpart.width, float(dt_s))
     unit = input_unit("rpm1", inputs or {})
     width = tpart.width + rpart.width
+    fed = (f"the {motors} logged motor speeds rpm[{motors}] ({unit})" if not logged else
+           f"the {motors} logged inputs inputs[{motors}]: "
+           + ", ".join(f"{n} ({input_unit(n, inputs or {})})" for n in logged))
     header = [
-        f"droneid {__version__}: the whole vehicle (6-DOF), stepped open loop from motor speeds.",
+        f"droneid {__version__}: the whole vehicle (6-DOF), stepped open loop from "
+        f"{'motor commands' if logged else 'motor speeds'}.",
         f"Source: {source or 'droneid models'}.",
         "Conventions: " + CONVENTIONS + ".",
         "State x[13]: p (m, world ENU) 0:3, v (m/s, world ENU) 3:6, q (qw, qx, qy, qz; Hamilton, FLU body",
         "to ENU world, unit norm) 6:10, w (rad/s, body FLU) 10:13.",
-        f"Step: dt = {_f(dt_s)} s{f' ({dt_note})' if dt_note else ''}; every delay below is in steps of dt.",
-        f"Inputs: the {motors} logged motor speeds rpm[{motors}] ({unit}) of each step, fed in order from the "
-        "start of the flight",
+        f"Step: dt = {num(dt_s)} s{f' ({dt_note})' if dt_note else ''}; every delay below is in steps of dt.",
+        f"Inputs: {fed} of each step, fed in order from the start of the flight",
         f"to the input conditioner, which returns u[{width}], held over that step:",
         *tpart.header, *rpart.header,
         *filter(None, [unsteerable_sentence(unsteerable(rotation))]),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.simulation.openloop.simulate)."]
-    build = _vehicle_python if to == "python" else _vehicle_c
-    return build([tpart, rpart], header, motors, width, float(dt_s))
-
-
-_PY_EULER = '''def _euler(q):
-    """Z-Y-X (roll, pitch, yaw) in rad of the quaternion q (normalised first; pitch clipped at gimbal
-    lock), as droneid.core.frames.quat_to_euler."""
-    n = math.sqrt(sum(c * c for c in q))
-    w, x, y, z = (c / n for c in q)
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(min(1.0, max(-1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
-
-
-'''
-
-_C_EULER = '''/* Z-Y-X roll, pitch, yaw (rad) of the quaternion q (normalised first; pitch clipped at gimbal lock) */
-static void droneid_euler(const double *q, double *roll, double *pitch, double *yaw)
-{
-    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-    double sp = 2.0 * (w * y - z * x);
-    *roll = atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y));
-    *pitch = asin(sp < -1.0 ? -1.0 : (sp > 1.0 ? 1.0 : sp));
-    *yaw = atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
-}
-
-'''
-
-
-def _vehicle_python(parts, header, M: int, width: int, dt_s: float) -> str:
-    imports = sorted({"math", *(i for p in parts for i in p.imports)})
-    euler = any(p.euler for p in parts)
-    code = [p.code["python"] for p in parts]
-    return '\n'.join(['"""' + "\n".join(header).replace('"""', "'''").replace("\\", "\\\\") + "\n\nUsage: "
-                      "inputs = Inputs() (one per flight); per step: x = step(x, inputs.push(rpm)).\n"
-                      '"""', *(f"import {i}" for i in imports), f'''
-M = {M}
-DT = {_f(dt_s)}
-U = {width}
-HIST = {max(p.history for p in parts) + 1}
-''' + "".join("\n\n" + c["defs"].strip() + "\n" for c in code if c["defs"]) + f'''
-
-class Inputs:
-    """The logged motor speeds to the model's inputs u, one step at a time (causal)."""
-
-    def __init__(self, dt=DT):
-        self.dt = dt
-        self.hist = None
-{"".join(c["state"] for c in code)}
-    def push(self, rpm):
-        """rpm: the M motor speeds of this step as logged -> u (list of U), held over the step."""
-        now = [float(r) for r in rpm]
-        if len(now) != M:
-            raise ValueError(f"push takes the {{M}} motor speeds of one step, got {{len(now)}}")
-        if self.hist is None:
-            self.hist = [now] * HIST
-        self.hist = self.hist[1:] + [now]
-        h = self.hist
-        u = []
-{"".join(c["fill"] for c in code)}        return u
-
-
-{_PY_EULER if euler else ""}def _rot(q):
-    n = math.sqrt(sum(c * c for c in q))
-    w, x, y, z = (c / n for c in q)
-    return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
-
-
-def derivative(x, u):
-    """dx/dt (list of 13) of the state x (13) with the inputs u (U) of this step."""
-    R = _rot(x[6:10])
-    v, w = x[3:6], x[10:13]
-    vb = [sum(R[i][j] * v[i] for i in range(3)) for j in range(3)]
-{"    roll, pitch, yaw = _euler(x[6:10])" + chr(10) if euler else ""}{"".join(c["deriv"] for c in code)}    qw, qx, qy, qz = x[6:10]
-    dq = [0.5 * (-qx * w[0] - qy * w[1] - qz * w[2]), 0.5 * (qw * w[0] + qy * w[2] - qz * w[1]),
-          0.5 * (qw * w[1] - qx * w[2] + qz * w[0]), 0.5 * (qw * w[2] + qx * w[1] - qy * w[0])]
-    return list(v) + dv + dq + dw
-
-
-def _unit_q(x):
-    n = math.sqrt(sum(c * c for c in x[6:10]))
-    return x[:6] + [c / n for c in x[6:10]] + x[10:]
-
-
-def step(x, u, dt=DT):
-    """The state after one step of dt seconds (RK4, the inputs u held over the step)."""
-    x = _unit_q(list(map(float, x)))
-    k1 = derivative(x, u)
-    k2 = derivative(_unit_q([a + 0.5 * dt * b for a, b in zip(x, k1)]), u)
-    k3 = derivative(_unit_q([a + 0.5 * dt * b for a, b in zip(x, k2)]), u)
-    k4 = derivative(_unit_q([a + dt * b for a, b in zip(x, k3)]), u)
-    return _unit_q([a + dt / 6.0 * (b + 2.0 * c + 2.0 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4)])
-'''])
-
-
-def _vehicle_c(parts, header, M: int, width: int, dt_s: float) -> str:
-    code = [p.code["c"] for p in parts]
-    euler = any(p.euler for p in parts)
-    lines = ["/*"] + [(" * " + h).rstrip() for h in header] + [
-        " *", " * C99; compile with -lm. Usage: droneid_inputs c; droneid_inputs_init(&c, DRONEID_DT); per step:",
-        " * droneid_inputs_push(&c, rpm, u); droneid_step(x, u, DRONEID_DT); with double u[DRONEID_U].", " */"]
-    lines.append(f'''#include <math.h>
-#include <string.h>
-
-#define DRONEID_M {M}
-#define DRONEID_U {max(width, 1)}
-#define DRONEID_DT {_f(dt_s)}
-#define DRONEID_HIST {max(p.history for p in parts) + 1}
-
-''' + "".join(c["defs"] + "\n" for c in code if c["defs"]) + f'''typedef struct {{
-    int started;
-    double hist[DRONEID_HIST][DRONEID_M];
-{"".join(c["state"] for c in code)}    double dt;
-}} droneid_inputs;
-
-void droneid_inputs_init(droneid_inputs *c, double dt)
-{{
-    memset(c, 0, sizeof *c);
-    c->dt = dt;
-}}
-
-/* rpm: this step's DRONEID_M motor speeds as logged -> u (DRONEID_U), held over the step */
-void droneid_inputs_push(droneid_inputs *c, const double rpm[DRONEID_M], double u[DRONEID_U])
-{{
-    int i, h;
-    if (!c->started)
-        for (h = 0; h < DRONEID_HIST; h++)
-            for (i = 0; i < DRONEID_M; i++) c->hist[h][i] = rpm[i];
-    for (h = 0; h + 1 < DRONEID_HIST; h++) memcpy(c->hist[h], c->hist[h + 1], sizeof c->hist[h]);
-    for (i = 0; i < DRONEID_M; i++) c->hist[DRONEID_HIST - 1][i] = rpm[i];
-{"".join(c["fill"] for c in code)}    c->started = 1;
-    (void)u;
-}}
-
-{_C_EULER if euler else ""}static void rotation_matrix(const double *q, double R[3][3])
-{{
-    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-    R[0][0] = 1 - 2 * (y * y + z * z); R[0][1] = 2 * (x * y - w * z); R[0][2] = 2 * (x * z + w * y);
-    R[1][0] = 2 * (x * y + w * z); R[1][1] = 1 - 2 * (x * x + z * z); R[1][2] = 2 * (y * z - w * x);
-    R[2][0] = 2 * (x * z - w * y); R[2][1] = 2 * (y * z + w * x); R[2][2] = 1 - 2 * (x * x + y * y);
-}}
-
-void droneid_derivative(const double x[13], const double u[DRONEID_U], double dx[13])
-{{
-    double R[3][3], vb[3];
-    const double *v = x + 3, *w = x + 10;
-    int i, j;
-    rotation_matrix(x + 6, R);
-    for (j = 0; j < 3; j++) {{ vb[j] = 0.0; for (i = 0; i < 3; i++) vb[j] += R[i][j] * v[i]; }}
-    for (i = 0; i < 3; i++) dx[i] = v[i];
-{"    double roll, pitch, yaw;" + chr(10) + "    droneid_euler(x + 6, &roll, &pitch, &yaw);" + chr(10) if euler else ""}{"".join(c["deriv"] for c in code)}    dx[6] = 0.5 * (-x[7] * w[0] - x[8] * w[1] - x[9] * w[2]);
-    dx[7] = 0.5 * (x[6] * w[0] + x[8] * w[2] - x[9] * w[1]);
-    dx[8] = 0.5 * (x[6] * w[1] - x[7] * w[2] + x[9] * w[0]);
-    dx[9] = 0.5 * (x[6] * w[2] + x[7] * w[1] - x[8] * w[0]);
-    (void)u; (void)vb;{" (void)roll; (void)pitch; (void)yaw;" if euler else ""}
-}}
-
-static void unit_q(double *x)
-{{
-    double n = sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9]);
-    int i;
-    for (i = 6; i < 10; i++) x[i] /= n;
-}}
-
-/* x (13) advanced by one RK4 step of dt seconds, the inputs u held over the step */
-void droneid_step(double x[13], const double u[DRONEID_U], double dt)
-{{
-    double k1[13], k2[13], k3[13], k4[13], y[13];
-    int i;
-    unit_q(x);
-    droneid_derivative(x, u, k1);
-    for (i = 0; i < 13; i++) y[i] = x[i] + 0.5 * dt * k1[i];
-    unit_q(y);
-    droneid_derivative(y, u, k2);
-    for (i = 0; i < 13; i++) y[i] = x[i] + 0.5 * dt * k2[i];
-    unit_q(y);
-    droneid_derivative(y, u, k3);
-    for (i = 0; i < 13; i++) y[i] = x[i] + dt * k3[i];
-    unit_q(y);
-    droneid_derivative(y, u, k4);
-    for (i = 0; i < 13; i++) x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-    unit_q(x);
-}}
-''')
-    return "\n".join(lines)
+    build = vehicle_python if to == "python" else vehicle_c
+    words = ("logged", "logged inputs (motor commands, battery voltage)") if logged else ("rpm", "motor speeds")
+    return build([tpart, rpart], header, motors, width, float(dt_s), *words)

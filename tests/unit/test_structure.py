@@ -60,7 +60,7 @@ LONG_FUNCTIONS = {
     "droneid/sngp/estimator.py:fit": "the SNGP run's phases in order (the paper's algorithm)",
     "droneid/sngp/search.py:run_search": "the evolution loop (the paper's algorithm) with its stopping rules",
     "droneid/use/vehicle_export.py:_rotation_part": "the generated code of the rotational model, a line per emitted line",
-    "droneid/use/vehicle_export.py:_vehicle_c": "the generated C vehicle, a line per emitted line",
+    "droneid/use/vehicle_code.py:vehicle_c": "the generated C vehicle, a line per emitted line",
     "priors/user.py:_one": "one user prior's TOML fields, each validated with its own message",
     "parsers/dataflash_log.py:read_dataflash": "one pass over the log's messages, a branch per message type",
     "parsers/mcap_log.py:_convert": "one branch per ROS 2 message type",
