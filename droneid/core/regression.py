@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 __all__ = ["RobustFit", "robust_fit", "robust_fit_grouped", "weighted_bounded_lstsq", "gram", "gram_bounded_lstsq",
            "unit_grams", "group_grams", "within_gram", "group_intercepts", "blocked_cv", "bootstrap_draws", "block_bootstrap",
@@ -109,6 +108,8 @@ def gram_bounded_lstsq_many(S: np.ndarray, lo=None, hi=None) -> np.ndarray:
     b[zero] = 0.0
     flo, fhi = lo[free] * norms, hi[free] * norms
     out = np.any(b < flo - 1e-12 * np.abs(flo), axis=1) | np.any(b > fhi + 1e-12 * np.abs(fhi), axis=1)
+    if out.any():
+        from scipy.optimize import lsq_linear    # 0.5 s to import: only where a bound binds
     for i in np.flatnonzero(out):
         # the same problem on M = diag(√e) Vᵀ (MᵀM = G): ||M b − diag(1/√e) Vᵀ g||² + const
         kk = keep[i]
