@@ -96,17 +96,25 @@ def run_case(spec: dict) -> dict:
             "hover": curve["hover"], "secs": time.perf_counter() - t0}
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def run_cases(name: str, description: str, run, argv=None) -> list:
+    """The results of ``run`` on every vehicle's :func:`case_spec`: ``--seeds`` vehicles
+    on ``--jobs`` worker processes, and the benchmark's ``name`` line with the wall time (the
+    command-line frame this benchmark and bench_commands_open_loop.py share)."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--seeds", type=int, default=10, help="vehicles (default 10)")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     args = ap.parse_args(argv)
     specs = [case_spec(s) for s in range(args.seeds)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as ex:
-        results = list(ex.map(run_case, specs))
-    print(f"bench_commands: {args.seeds} command-driven vehicles, 3 training + 1 test flight each, wall "
+        results = list(ex.map(run, specs))
+    print(f"{name}: {args.seeds} command-driven vehicles, 3 training + 1 test flight each, wall "
           f"{time.perf_counter() - t0:.0f} s (CPU load {os.getloadavg()[0]:.1f})")
+    return results
+
+
+def main(argv=None) -> int:
+    results = run_cases("bench_commands", __doc__.splitlines()[0], run_case, argv)
     print(f"{'seed':>4s} {'expo':>5s} {'lag':>6s} {'sag':>3s} {'e':>6s} {'interval':>15s} {'covers':>6s} "
           f"{'offset':>7s} {'battery':>7s} {'right':>5s} {'vz test':>7s} {'true':>7s} {'ratio':>6s} {'no lag':>7s}")
     cov = batt = close = 0

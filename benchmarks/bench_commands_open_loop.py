@@ -20,12 +20,9 @@ physics row's on every vehicle. Exit 0 when met, 1 otherwise.
 """
 from __future__ import annotations
 
-import argparse
-import os
 import sys
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,7 +30,7 @@ for p in (ROOT, ROOT / "benchmarks"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-from bench_commands import case_spec  # noqa: E402
+from bench_commands import run_cases  # noqa: E402
 
 
 def run_case(spec: dict) -> dict:
@@ -64,16 +61,7 @@ def run_case(spec: dict) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=10, help="vehicles (default 10)")
-    ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    args = ap.parse_args(argv)
-    specs = [case_spec(s) for s in range(args.seeds)]
-    t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as ex:
-        results = list(ex.map(run_case, specs))
-    print(f"bench_commands_open_loop: {args.seeds} command-driven vehicles, 3 training + 1 test flight each, "
-          f"wall {time.perf_counter() - t0:.0f} s (CPU load {os.getloadavg()[0]:.1f})")
+    results = run_cases("bench_commands_open_loop", __doc__.splitlines()[0], run_case, argv)
     print(f"{'seed':>4s} {'expo':>5s} {'lag':>6s} {'sag':>3s} {'kept':>6s} {'offset':>7s} "
           f"{'v ident':>8s} {'v nominal':>9s} {'v held':>8s} {'p ident':>8s} {'p nominal':>9s} {'p held':>8s} "
           f"{'ratio':>6s} {'below':>5s} {'v no lag':>8s}")
