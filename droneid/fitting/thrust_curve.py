@@ -38,7 +38,7 @@ from priors.thrust import COMMAND_SOURCES
 
 from droneid.fitting.decide import decide
 from droneid.errors import ConfigError
-from droneid.core.regression import blocked_cv, gram_bounded_lstsq, robust_fit, unit_grams
+from droneid.core.regression import blocked_cv, gram_bounded_lstsq, gram_bounded_lstsq_many, robust_fit, unit_grams
 from droneid.fitting.terms import prior_terms, split_terms
 from droneid.dataset.validation import time_blocks
 
@@ -211,18 +211,32 @@ def _best_expo(S: np.ndarray, grid: np.ndarray) -> float:
     quadratic, drag, y]: the free fit b1·linear + b2·quadratic + d·drag is the same model with
     e = b2 / (b1 + b2), exact where that lies in [0, 1] with positive thrust; otherwise the
     best of the profiled ``grid`` (an end of the range)."""
-    b = gram_bounded_lstsq(S, np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf))
-    total = b[0] + b[1]
-    if total > 0 and 0.0 <= b[1] / total <= 1.0:
-        return float(b[1] / total)
-    rss, _ = _rss_profile(S, grid)
-    return float(grid[int(np.argmin(rss))])
+    return float(_best_expos(np.asarray(S, float)[None], grid)[0])
+
+
+def _best_expos(S: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """:func:`_best_expo` of each gram of ``S`` (n, 4, 4), the free fits solved together."""
+    b = gram_bounded_lstsq_many(S, np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf))
+    total = b[:, 0] + b[:, 1]
+    e = np.full(S.shape[0], np.nan)
+    inside = total > 0
+    e[inside] = b[inside, 1] / total[inside]
+    for i in np.flatnonzero(~(inside & (e >= 0.0) & (e <= 1.0))):
+        rss, _ = _rss_profile(S[i], grid)
+        e[i] = grid[int(np.argmin(rss))]
+    return e
 
 
 def _reduced(S: np.ndarray, e: float) -> np.ndarray:
     """The gram of [f_e column, drag, y] from the gram of [linear, quadratic, drag, y]."""
-    T = np.array([[1.0 - e, e, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
-    return T @ S @ T.T
+    return _reduced_many(np.asarray(S, float)[None], np.array([e], float))[0]
+
+
+def _reduced_many(S: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """:func:`_reduced` of each gram of ``S`` (n, 4, 4) at its own ``e`` (n,)."""
+    T = np.zeros((e.size, 3, 4))
+    T[:, 0, 0], T[:, 0, 1], T[:, 1, 2], T[:, 2, 3] = 1.0 - e, e, 1.0, 1.0
+    return T @ S @ T.transpose(0, 2, 1)
 
 
 _LO, _HI = np.zeros(2), np.full(2, np.inf)
@@ -292,10 +306,17 @@ def lagged(x: np.ndarray, t: np.ndarray, flight: np.ndarray, tau_s: float) -> np
 
 def _min_rss(S: np.ndarray, grid: np.ndarray) -> tuple[float, float]:
     """(smallest residual sum of squares over e in [0, 1], its e) of the gram ``S``."""
-    e = _best_expo(S, grid)
-    R = _reduced(S, e)
-    b = gram_bounded_lstsq(R, _LO, _HI)
-    return float(R[2, 2] - 2.0 * b @ R[:2, 2] + b @ R[:2, :2] @ b), e
+    r, e = _min_rss_many(np.asarray(S, float)[None], grid)
+    return float(r[0]), float(e[0])
+
+
+def _min_rss_many(S: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_min_rss` of each gram of ``S`` (n, 4, 4): (rss (n,), e (n,)), solved together."""
+    e = _best_expos(S, grid)
+    R = _reduced_many(S, e)
+    b = gram_bounded_lstsq_many(R, _LO, _HI)
+    bR = np.einsum("ni,nij->nj", b, R[:, :2, :2])
+    return R[:, 2, 2] - 2.0 * np.einsum("ni,ni->n", b, R[:, :2, 2]) + np.einsum("nj,nj->n", bR, b), e
 
 
 def profile_expo(linear: np.ndarray, quadratic: np.ndarray, drag: np.ndarray, y: np.ndarray,
@@ -335,19 +356,18 @@ def profile_expo(linear: np.ndarray, quadratic: np.ndarray, drag: np.ndarray, y:
     e = fits[tau_hat][1]
     rss, _ = _rss_profile(S, grid)
     a = float(gram_bounded_lstsq(_reduced(S, e), _LO, _HI)[0])
+    # every replicate at every lag solved together: replicate i's unit counts (drawn replicate by
+    # replicate, as one at a time would), its lag the first of the least RSS
     rng = np.random.default_rng(seed)
-    flat = {tau: Su.reshape(ids.size, -1) for tau, Su in grams.items()}
-    es, scales, lags = np.empty(n_boot), np.empty(n_boot), np.empty(n_boot)
-    for i in range(n_boot):
-        counts = np.bincount(rng.integers(0, ids.size, ids.size), minlength=ids.size).astype(float)
-        best = None
-        for tau in taus:
-            Sb = (counts @ flat[tau]).reshape(S.shape)
-            r, eb = _min_rss(Sb, grid)
-            if best is None or r < best[0]:
-                best = (r, eb, tau, Sb)
-        _, es[i], lags[i], Sb = best
-        scales[i] = gram_bounded_lstsq(_reduced(Sb, es[i]), _LO, _HI)[0]
+    draws = rng.integers(0, ids.size, (n_boot, ids.size))
+    counts = np.stack([np.bincount(d, minlength=ids.size) for d in draws]).astype(float)
+    Sb = np.stack([(counts @ grams[tau].reshape(ids.size, -1)).reshape(n_boot, *S.shape) for tau in taus])
+    r, eb = _min_rss_many(Sb.reshape(-1, *S.shape), grid)
+    k = np.argmin(np.where(np.isnan(r), np.inf, r).reshape(len(taus), n_boot), axis=0)
+    pick = np.arange(n_boot)
+    es = eb.reshape(len(taus), n_boot)[k, pick]
+    lags = np.asarray(taus, float)[k]
+    scales = gram_bounded_lstsq_many(_reduced_many(Sb[k, pick], es), _LO, _HI)[:, 0]
     lo, hi = np.percentile(es, [2.5, 97.5])
     slo, shi = np.percentile(scales, [2.5, 97.5])
     best_rss = float(np.min(rss)) if np.min(rss) > 0 else 1.0
