@@ -213,7 +213,7 @@ def _vif(A: np.ndarray, j: int, with_intercept: bool) -> float:
 
 
 def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physical: int | None = None,
-                 flight=None, t=None, sources: Sequence[str] = ()) -> PhysicalFit:
+                 flight=None, t=None, sources: Sequence[str] = (), alternatives: Sequence[tuple] = ()) -> PhysicalFit:
     """Fit ``model`` (robust, bounded), give every coefficient its 95 % block-bootstrap interval
     (``blocks``: time blocks of the training flights), and hold at its nominal value 1 each of the
     first ``n_physical`` terms (default: every term with a physical bound) that the data cannot pin
@@ -225,7 +225,12 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
     With the rows' ``flight`` ids and times ``t`` (``sources``: the flights' names), every
     vehicle constant left free (a term with a physical bound: thrust, tilt, drag) also gets its
     constancy across flights or stretches of one flight (:func:`constancy_of`), and with several
-    flights its interval becomes the hull of the bootstrap's and the between-flight one."""
+    flights its interval becomes the hull of the bootstrap's and the between-flight one.
+
+    ``alternatives``: ((label, columns, y), ...), the same rows' inputs as another admitted choice
+    of the data reads them (e.g. the thrust inputs at every offset the data do not reject): each
+    coefficient's interval also spans its value refit on each (the choice's own uncertainty, which
+    no bootstrap at one choice can see)."""
     model, n_physical, notes = _tie_collinear(model, columns, y.size, n_physical)
     lo, hi = model.bounds()
     k = len(model.terms)
@@ -272,7 +277,27 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
             if c is not None and c.between is not None:   # the hull, within the physical range
                 a, b = iv[lab]
                 iv[lab] = (max(min(a, c.between[0]), lo[i]), min(max(b, c.between[1]), hi[i]))
+    if alternatives:
+        iv = _spanning(model, iv, alternatives)
+        notes.append("the 95 % intervals also span each coefficient refit with the thrust inputs read at "
+                     + ", ".join(str(lab) for lab, _, _ in alternatives)
+                     + " (every other offset the data do not reject: the offset's own uncertainty)")
     return PhysicalFit(fitted, iv, held, at_bound, tuple(notes), constancy)
+
+
+def _spanning(model: TermModel, iv: dict, alternatives: Sequence[tuple]) -> dict:
+    """``iv`` with each coefficient's interval widened to the values of ``model`` (its holds
+    kept) refit on each alternative ``(label, columns, y)``."""
+    out = dict(iv)
+    for _, cols, yy in alternatives:
+        if len(yy) <= len(model.terms):
+            continue
+        alt = model.fit(cols, yy)
+        for lab, c in zip(model.labels, alt.coefs):
+            if lab in out and np.isfinite(c):
+                a, b = out[lab]
+                out[lab] = (min(a, float(c)), max(b, float(c)))
+    return out
 
 
 def _physical_indices(model: TermModel, n_physical: int | None) -> list[int]:

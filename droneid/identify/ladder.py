@@ -188,17 +188,21 @@ def bootstrap_blocks(ds: Dataset, **need) -> np.ndarray:
 
 
 def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, *,
-         blocks=None, fitted: bool = True, terms: dict | None = None, delays=None) -> Rung:
+         blocks=None, fitted: bool = True, terms: dict | None = None, delays=None,
+         alternatives: Sequence[tuple] = ()) -> Rung:
     """One rung of the ladder: a model (IdentifiedModel, or a TermModel: fitted here, robust and
     bounded, with 95 % block-bootstrap intervals and unidentifiable physical coefficients held at
     their nominal value, :func:`droneid.fitting.terms.physical_fit`) measured on the training rows
     (train; validation = blocked CV of the same terms refit without each block, or the training
-    error for a model with nothing fitted), the test rows and the constraints."""
+    error for a model with nothing fitted), the test rows and the constraints. ``alternatives``:
+    ((offset s, training Dataset), ...) the training rows with the thrust inputs read at each other
+    offset the data admit (:attr:`TargetProblem.train_at`): the intervals span the refits there."""
     tr_cols, te_cols = train.columns(), test.columns()
     evidence = None
     if isinstance(model, TermModel):
+        alts = tuple((f"{1000 * d:+.0f} ms", ds.columns(), ds.y) for d, ds in alternatives)
         evidence = physical_fit(model, tr_cols, train.y, bootstrap_blocks(train), flight=train.flight,
-                                t=train.t, sources=train.sources)
+                                t=train.t, sources=train.sources, alternatives=alts)
         model = evidence.model
         p_tr, p_te = model.predict(tr_cols, len(train)), model.predict(te_cols, len(test))
         val = model.cv_rmse(tr_cols, train.y, blocks) if fitted and blocks is not None else rmse(p_tr, train.y)
@@ -245,10 +249,11 @@ def physical_rungs(p: TargetProblem, empirical: IdentifiedModel, undelayed: tupl
         d = next(iter(plan.delays_s.values()))
         what = (f"+ thrust inputs delayed by {1000 * d:.0f} ms" if d > 0 else
                 f"+ thrust stream clock corrected (read {1000 * -d:.0f} ms later)")
-        ladder.append(rung("delay", what, tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
+        ladder.append(rung("delay", what, tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s,
+                           alternatives=p.train_at))
     else:
-        ladder.append(rung("refit", f"{prior_name} prior refit",
-                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s if plan else None))
+        ladder.append(rung("refit", f"{prior_name} prior refit", tm, p.train, p.test, cs, blocks=p.blocks,
+                           delays=plan.delays_s if plan else None, alternatives=p.train_at))
     for e in (plan.effects if plan else ()):
         feats = e.features.get(p.target, ())
         if not feats:
@@ -256,7 +261,7 @@ def physical_rungs(p: TargetProblem, empirical: IdentifiedModel, undelayed: tupl
         base = base + tuple(feats)
         tm = _physical_model(p, base)
         ladder.append(rung(f"effect:{e.effect}", f"+ {e.effect} ({e.physical})",
-                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s))
+                           tm, p.train, p.test, cs, blocks=p.blocks, delays=plan.delays_s, alternatives=p.train_at))
     return tuple(ladder)
 
 
@@ -419,7 +424,7 @@ def final_rung(p: TargetProblem, cfg, done: Sequence[RunRecord]) -> tuple[Rung, 
         cv, i, tm = best
         n_ev = len(tm.terms) - len(base)
         final = rung("final", f"+ {n_ev} evolved term{'s' * (n_ev > 1)} (run {i + 1})", tm, p.train, p.test,
-                     p.cs_test, blocks=p.blocks, delays=delays)
+                     p.cs_test, blocks=p.blocks, delays=delays, alternatives=p.train_at)
         g["chosen_run"] = i
     else:
         final = replace(phys, name="final", description=f"= the rung above (no evolved term passed the block "

@@ -51,6 +51,9 @@ class TargetProblem:
     plan : the :class:`~droneid.planning.plan.Plan` it was built from; ladder : its physical
     :class:`~droneid.identify.ladder.Rung` s (empirical, refit, offset, effects); blocks, validation : the
     training rows' validation blocks and how they were made; notes : sentences for the result
+    train_at : ((offset s, Dataset), ...) the training rows with the thrust inputs read at each
+        other offset the data admit (:meth:`~droneid.planning.plan.Plan.admitted_offsets`): the
+        vehicle constants' intervals span their refits there
     """
     target: str
     train: Dataset
@@ -71,6 +74,7 @@ class TargetProblem:
     ladder: list = field(default_factory=list)
     blocks: np.ndarray | None = None
     validation: str = ""
+    train_at: tuple = ()
 
 
 def constraint_sets(cfg, target: str, prior=None, train: Dataset | None = None):
@@ -188,8 +192,23 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
                                   else tr0.subset(np.zeros(len(tr0), bool)))
         # every rung is measured on the same rows: those the delayed inputs exist for
         undelayed = tuple(_same_rows(u, d) for u, d in zip(undelayed, (train, test)))
+    p.train_at = _train_at(plan, cfg, train_flights, target, inputs, extras, cuts, holdout, train, base + effect_feats)
     _ladder(p, cfg, undelayed)
     return p
+
+
+def _train_at(plan: Plan, cfg, train_flights, target, inputs, extras, cuts, holdout, train, feats) -> tuple:
+    """((offset s, training Dataset), ...) at each offset of :meth:`Plan.admitted_offsets` other
+    than the chosen one, on the rows ``train`` has (the same rows, another reading)."""
+    out = []
+    for d in plan.admitted_offsets():
+        ds = dataset_builder(cfg, {s: d for s in plan.thrust_signals}).build(
+            list(train_flights), target=target, inputs=inputs, extras=extras)
+        ds = train_rows(ds, cuts) if holdout else ds
+        ds = _same_rows(_finite_rows(ds, feats, "training", []), train)
+        if len(ds) > 10:
+            out.append((d, ds))
+    return tuple(out)
 
 
 def _ladder(p: TargetProblem, cfg, undelayed: tuple | None) -> None:

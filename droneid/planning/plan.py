@@ -83,6 +83,23 @@ class Plan:
         and why, the thrust curve, the thrust inputs' offset with its test, the diagnosis."""
         return [f"prior: {self.prior.name} ({self.prior_reason})", *self.notes]
 
+    @property
+    def thrust_signals(self) -> list[str]:
+        """The prior's thrust inputs over the plan's targets (the signals the offset reads)."""
+        return sorted({s for t in self.targets for s in self.prior.thrust_signals(t)})
+
+    def admitted_offsets(self) -> list[float]:
+        """The offsets of the grid the data do not reject besides the chosen one (s): those in the
+        chosen offset's 95 % interval and, when the targets disagree on it, in the span of every
+        target's own interval (a clock offset is one for the log: what each target admits, the
+        vehicle constants must be reported over). Empty without an offset decision."""
+        off = self.offset
+        if off is None or off.decision is None or not self.thrust_signals:
+            return []
+        spans = [off.interval_s, *([v[1:] for v in off.per_target.values()] if not off.targets_agree else [])]
+        lo, hi = min(a for a, _ in spans), max(b for _, b in spans)
+        return [d for d in OFFSET_GRID_S if lo <= d <= hi and d != off.offset_s]
+
     def aligned(self, flights) -> list:
         """The training ``flights`` (in the order the plan was made from) with each flight whose
         clock the plan corrects (:attr:`OffsetDecision.clock`) moved in time on its thrust inputs,
@@ -92,8 +109,7 @@ class Plan:
         clock = self.offset.clock if self.offset is not None else {}
         if not clock:
             return list(flights)
-        signals = sorted({s for t in self.targets for s in self.prior.thrust_signals(t)})
-        return _clock_corrected(flights, signals, {n: d for n, (d, _) in clock.items()})
+        return _clock_corrected(flights, self.thrust_signals, {n: d for n, (d, _) in clock.items()})
 
     def record(self) -> dict:
         """The plan's decisions as result.json (identify's ``config``) and diagnosis.json
