@@ -10,11 +10,13 @@ model. Reduced to what the data identify: ONE shape parameter e and one linear t
 :func:`choose_thrust_curve` profiles e over [0, 1] on v̇z (where the thrust's magnitude shows):
 at every e the linear scale and the vertical drag are refit (robust weights of a Huber fit,
 bounded >= 0, no free constant: free fall at zero thrust), e is the minimum of the residual sum
-of squares (exactly: the free fit b1·Σu + b2·Σu² is the same model with e = b2/(b1 + b2)), and
-its 95 % interval is the
-2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, time block) units
-(:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile gives a
-wide interval: the output says so and never pretends a shape.
+of squares (between grid points: the parabola through the grid minimum), and its 95 % interval
+is the 2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, time block) units
+(:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile
+gives a wide interval: the output says so and never pretends a shape. The thrust is the rotors'
+(:mod:`droneid.fitting.command_thrust`): each rotor's speed through a first-order motor lag τ
+profiled beside e (kept by the block test), thrust ∝ Σ speed², compared with the target as the
+mean over the differentiator's window.
 
 Battery compensation: the motors see the battery's voltage, so the thrust of a command falls as
 it sags; ArduPilot scales its commands by V/V_ref to make up for it. The candidate reads every
