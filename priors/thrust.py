@@ -58,7 +58,9 @@ def thrust_curve(u, expo: float):
     """ArduPilot's thrust curve (MOT_THST_EXPO): the thrust of a normalised command ``u`` (0..1)
     relative to full thrust, ``f_e(u) = (1 − e) u + e u²`` (1 at u = 1, 0 at u = 0); ``expo`` e
     in [0, 1]: 0 linear, 1 quadratic (rotor momentum theory with speed ∝ command). Works on
-    numbers, numpy arrays and sympy expressions."""
+    numbers, numpy arrays (``expo`` too, broadcast) and sympy expressions."""
+    if getattr(expo, "ndim", 0):      # an array of shapes: broadcast against ``u`` (numpy)
+        return (1.0 - expo) * u + expo * u * u
     e = float(expo)
     return (1.0 - e) * u + e * u * u if e != 1.0 else u * u
 
@@ -84,7 +86,7 @@ def rotor_speed(q, expo: float):
     law of :mod:`droneid.fitting.command_thrust` and :mod:`droneid.simulation.motor_model`)."""
     import numpy as np
 
-    return np.sqrt(np.maximum(thrust_curve(np.asarray(q, float), expo), 0.0))
+    return np.sqrt(np.maximum(thrust_curve(np.asarray(q, float), expo if np.ndim(expo) == 0 else np.asarray(expo, float)), 0.0))
 
 
 def thrust_columns(source: str, motors: int = 4, expo: float = NOMINAL_EXPO,

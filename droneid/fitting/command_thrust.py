@@ -131,9 +131,12 @@ class CommandThrust:
     def fine(self, expos, tau_s: float) -> np.ndarray:
         """(n, E) the thrust per unit mass (m/s²) on the fine rows at each shape of ``expos``."""
         e = np.atleast_1d(np.asarray(expos, float))
-        w = np.stack([rotor_speed(self.q, float(x)) for x in e], axis=1)        # (n, E, M)
+        if tau_s <= 0 and np.all(self.q >= 0):   # no lag: Σ w² = Σ f_e(q), linear in e
+            lin, quad = np.sum(self.q, axis=1), np.sum(self.q * self.q, axis=1)
+            return self.k[:, None] * (np.outer(lin, 1.0 - e) + np.outer(quad, e))
+        w = rotor_speed(self.q[:, None, :], e[None, :, None])                  # (n, E, M)
         w = lagged(w, self.t, self.flight, tau_s)
-        return self.k[:, None] * np.sum(w * w, axis=2)
+        return self.k[:, None] * np.einsum("nem,nem->ne", w, w)
 
     def __call__(self, expos, tau_s: float = 0.0) -> np.ndarray:
         """(rows, E): the window mean of :meth:`fine` at each dataset row (m/s²)."""

@@ -50,7 +50,7 @@ __all__ = ["ThrustCurve", "choose_thrust_curve", "normalised", "over_offsets", "
            "declared_parameters", "N_BOOT_EXPO"]
 
 #: the shapes e profiled (ArduPilot allows MOT_THST_EXPO in [-1, 1]; a propeller's is 0.3-0.8)
-EXPO_GRID = tuple(round(0.01 * k, 2) for k in range(101))
+EXPO_GRID = tuple(round(0.02 * k, 2) for k in range(51))
 #: family-wise level of the battery-compensation decision
 VOLTAGE_ALPHA = 0.01
 #: family-wise level of the motor-lag decision
@@ -213,7 +213,7 @@ def normalised(prior, flights):
 _LO, _HI = np.zeros(2), np.full(2, np.inf)
 
 #: first-order motor lags τ (s) profiled beside the shape (0: none)
-LAG_GRID_S = tuple(round(0.005 * k, 3) for k in range(21))
+LAG_GRID_S = tuple(round(0.01 * k, 3) for k in range(11))
 
 
 def _nnls2(a, b, p, c, q, r):
