@@ -86,7 +86,8 @@ def rotor_speed(q, expo: float):
     law of :mod:`droneid.fitting.command_thrust` and :mod:`droneid.simulation.motor_model`)."""
     import numpy as np
 
-    return np.sqrt(np.maximum(thrust_curve(np.asarray(q, float), expo if np.ndim(expo) == 0 else np.asarray(expo, float)), 0.0))
+    e = expo if np.ndim(expo) == 0 else np.asarray(expo, float)
+    return np.sqrt(np.maximum(thrust_curve(np.asarray(q, float), e), 0.0))
 
 
 def thrust_columns(source: str, motors: int = 4, expo: float = NOMINAL_EXPO,

@@ -293,7 +293,8 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     "n_units", "lag_s", "lag_interval", "thrust" (the thrust column at the chosen (τ, e))}: (τ, e)
     from the least residual sum of squares (:func:`_surface_min`: between grid points where the
     profile curves), the intervals the 2.5-97.5 % percentiles of the minima of ``n_boot``
-    block-bootstrap replicates of the units (each re-profiled over the whole grid)."""
+    block-bootstrap replicates of the units (each re-profiled over the whole grid; a replicate's
+    scale is the one at its grid minimum)."""
     grid, taus = np.asarray(grid, float), np.asarray(lags, float)
     drag, y, units = np.asarray(drag, float), np.asarray(y, float), np.asarray(units)
     cols = [np.asarray(thrust(grid, float(tau)), float) for tau in taus]     # T x (rows, E)
