@@ -11,12 +11,14 @@ climbing and descending 0.5 m) and one test flight (square). identify's pipeline
 flights (prior auto -> rotor-thrust on the commands, v̇z, no effects folded, a token SNGP budget:
 only the physical model is scored).
 
-Per vehicle: the identified e with its 95 % interval (covers the planted e?), whether the battery
+Per vehicle: the identified e with its 95 % interval (covers the planted e?), the motor lag fitted
+with its 95 % interval (kept by the block test and covering the planted lag?), whether the battery
 compensation was kept (it should be exactly when the battery sags), and the v̇z test RMSE of the
 final model against the TRUE model's: the simulator's own vertical acceleration (motor lag and
 all: what is left is the target's differentiation noise). "no lag" is the planted curve, battery
 scaling, thrust per command and drag on the logged commands without the lag. Targets: e covered,
-battery decided right, and the test RMSE within 10 % of the true model's, each on every vehicle.
+the lag kept and covered, battery decided right, and the test RMSE within 10 % of the true model's,
+each on every vehicle.
 Exit 0 when all are met, 1 otherwise.
 """
 from __future__ import annotations
@@ -93,7 +95,8 @@ def run_case(spec: dict) -> dict:
     return {**{k: spec[k] for k in ("seed", "expo", "lag_s", "sag")}, "e": curve["expo"],
             "low": curve["interval"][0], "high": curve["interval"][1], "voltage": curve["voltage"],
             "rmse_test": final.rmse_test, "rmse_true": true, "rmse_no_lag": no_lag, "offset_s": offset,
-            "hover": curve["hover"], "secs": time.perf_counter() - t0}
+            "hover": curve["hover"], "lag_fit": curve["lag_s"] or curve["lag_tried_s"], "lag_kept": curve["lag_s"] > 0,
+            "lag_low": curve["lag_interval"][0], "lag_high": curve["lag_interval"][1], "secs": time.perf_counter() - t0}
 
 
 def run_cases(name: str, description: str, run, argv=None) -> list:
@@ -116,21 +119,26 @@ def run_cases(name: str, description: str, run, argv=None) -> list:
 def main(argv=None) -> int:
     results = run_cases("bench_commands", __doc__.splitlines()[0], run_case, argv)
     print(f"{'seed':>4s} {'expo':>5s} {'lag':>6s} {'sag':>3s} {'e':>6s} {'interval':>15s} {'covers':>6s} "
-          f"{'offset':>7s} {'battery':>7s} {'right':>5s} {'vz test':>7s} {'true':>7s} {'ratio':>6s} {'no lag':>7s}")
-    cov = batt = close = 0
+          f"{'offset':>7s} {'battery':>7s} {'right':>5s} {'vz test':>7s} {'true':>7s} {'ratio':>6s} {'no lag':>7s} "
+          f"{'lag fit':>7s} {'lag interval':>13s} {'covers':>6s}")
+    cov = batt = close = lag_cov = 0
     for r in results:
         c = r["low"] <= r["expo"] <= r["high"]
         b = r["voltage"] is r["sag"]
         ratio = r["rmse_test"] / r["rmse_true"] if r["rmse_true"] > 0 else math.inf
-        cov, batt, close = cov + c, batt + b, close + (ratio <= 1.10)
+        lc = r["lag_kept"] and r["lag_low"] <= r["lag_s"] <= r["lag_high"]
+        cov, batt, close, lag_cov = cov + c, batt + b, close + (ratio <= 1.10), lag_cov + lc
         print(f"{r['seed']:4d} {r['expo']:5.3f} {1000 * r['lag_s']:4.0f}ms {'yes' if r['sag'] else 'no':>3s} "
               f"{r['e']:6.3f} [{r['low']:5.3f}, {r['high']:5.3f}] {'yes' if c else 'NO':>6s} "
               f"{1000 * r['offset_s']:+5.0f}ms {'kept' if r['voltage'] else 'no':>7s} {'yes' if b else 'NO':>5s} "
-              f"{r['rmse_test']:7.4f} {r['rmse_true']:7.4f} {ratio:6.3f} {r['rmse_no_lag']:7.4f}")
+              f"{r['rmse_test']:7.4f} {r['rmse_true']:7.4f} {ratio:6.3f} {r['rmse_no_lag']:7.4f} "
+              f"{1000 * r['lag_fit']:5.1f}ms [{1000 * r['lag_low']:4.1f}, {1000 * r['lag_high']:4.1f}] "
+              f"{'yes' if lc else 'NO':>6s}")
     n = len(results)
     print(f"e covered by its interval: {cov}/{n}; battery compensation decided right: {batt}/{n}; "
-          f"v̇z test RMSE within 10 % of the true model's: {close}/{n}")
-    met = cov == batt == close == n
+          f"v̇z test RMSE within 10 % of the true model's: {close}/{n}; motor lag kept and covered by its "
+          f"interval: {lag_cov}/{n}")
+    met = cov == batt == close == lag_cov == n
     print("targets " + ("met" if met else "NOT met"))
     return 0 if met else 1
 

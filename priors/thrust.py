@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 # the simulator imports this module for RPM_SCALE, and `droneid simulate` needs no sympy
 
 __all__ = ["THRUST_SOURCES", "RPM_SCALE", "COMMAND_SOURCES", "NOMINAL_EXPO", "body_z_world",
-           "thrust_curve", "inverse_thrust_curve", "thrust_columns", "motor_count", "in_rpm_unit"]
+           "thrust_curve", "inverse_thrust_curve", "rotor_speed", "thrust_columns", "motor_count", "in_rpm_unit"]
 
 
 #: Where the rotor-thrust prior takes the thrust from, most physically direct first:
@@ -58,7 +58,9 @@ def thrust_curve(u, expo: float):
     """ArduPilot's thrust curve (MOT_THST_EXPO): the thrust of a normalised command ``u`` (0..1)
     relative to full thrust, ``f_e(u) = (1 − e) u + e u²`` (1 at u = 1, 0 at u = 0); ``expo`` e
     in [0, 1]: 0 linear, 1 quadratic (rotor momentum theory with speed ∝ command). Works on
-    numbers, numpy arrays and sympy expressions."""
+    numbers, numpy arrays (``expo`` too, broadcast) and sympy expressions."""
+    if getattr(expo, "ndim", 0):      # an array of shapes: broadcast against ``u`` (numpy)
+        return (1.0 - expo) * u + expo * u * u
     e = float(expo)
     return (1.0 - e) * u + e * u * u if e != 1.0 else u * u
 
@@ -74,6 +76,18 @@ def inverse_thrust_curve(f, expo: float):
     if e == 0.0:
         return f
     return (-(1.0 - e) + np.sqrt((1.0 - e) ** 2 + 4.0 * e * f)) / (2.0 * e)
+
+
+def rotor_speed(q, expo: float):
+    """The normalised rotor speed ``w = ω/ω_max`` (0..1) a normalised command ``q`` settles to:
+    the speed whose thrust (∝ ω²) is the curve's, ``w = sqrt(f_e(q))``; a command below the
+    curve's start asks for 0 (numpy). A rotor's speed is the state with inertia: a motor lag is
+    a first-order lag of ``w``, and the rotor then delivers the thrust fraction ``w²`` (the one
+    law of :mod:`droneid.fitting.command_thrust` and :mod:`droneid.simulation.motor_model`)."""
+    import numpy as np
+
+    e = expo if np.ndim(expo) == 0 else np.asarray(expo, float)
+    return np.sqrt(np.maximum(thrust_curve(np.asarray(q, float), e), 0.0))
 
 
 def thrust_columns(source: str, motors: int = 4, expo: float = NOMINAL_EXPO,

@@ -32,7 +32,7 @@ import numpy as np
 from droneid.errors import ConfigError, DataError, check_choice
 
 __all__ = ["Differentiator", "ForwardDifference", "CentralDifference", "SavitzkyGolay",
-           "SmoothingSpline", "DIFFERENTIATORS", "get_differentiator"]
+           "SmoothingSpline", "DIFFERENTIATORS", "get_differentiator", "averaging_window"]
 
 
 class Differentiator:
@@ -165,6 +165,16 @@ DIFFERENTIATORS = {
     "savgol": SavitzkyGolay,
     "spline": SmoothingSpline,
 }
+
+
+def averaging_window(method: str, ts: float) -> tuple[float, float]:
+    """(before, after) in s: on a grid of period ``ts`` s a difference of the differentiator
+    ``method`` is exactly the mean of the true derivative over ``[t − before, t + after]``
+    (``central``: ``(x[k+1] − x[k−1]) / 2Ts``, the mean over ±Ts; ``forward``: over the next step).
+    A model compared with such a target without this window is compared with another quantity (a
+    second-order error ``window²/6 · x⃛`` that can bias a nonlinear parameter). The smoothing
+    methods work at the native rate with a data-dependent kernel: (0, 0), the point value."""
+    return {"central": (float(ts), float(ts)), "forward": (0.0, float(ts))}.get(method, (0.0, 0.0))
 
 
 def get_differentiator(name: str, **params) -> Differentiator:

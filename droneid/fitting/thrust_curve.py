@@ -10,11 +10,13 @@ model. Reduced to what the data identify: ONE shape parameter e and one linear t
 :func:`choose_thrust_curve` profiles e over [0, 1] on v̇z (where the thrust's magnitude shows):
 at every e the linear scale and the vertical drag are refit (robust weights of a Huber fit,
 bounded >= 0, no free constant: free fall at zero thrust), e is the minimum of the residual sum
-of squares (exactly: the free fit b1·Σu + b2·Σu² is the same model with e = b2/(b1 + b2)), and
-its 95 % interval is the
-2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, time block) units
-(:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile gives a
-wide interval: the output says so and never pretends a shape.
+of squares (between grid points: the parabola through the grid minimum), and its 95 % interval
+is the 2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, time block) units
+(:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile
+gives a wide interval: the output says so and never pretends a shape. The thrust is the rotors'
+(:mod:`droneid.fitting.command_thrust`): each rotor's speed through a first-order motor lag τ
+profiled beside e (kept by the block test), thrust ∝ Σ speed², compared with the target as the
+mean over the differentiator's window.
 
 Battery compensation: the motors see the battery's voltage, so the thrust of a command falls as
 it sags; ArduPilot scales its commands by V/V_ref to make up for it. The candidate reads every
@@ -38,7 +40,9 @@ from priors.thrust import COMMAND_SOURCES
 
 from droneid.fitting.decide import decide
 from droneid.errors import ConfigError
-from droneid.core.regression import blocked_cv, gram_bounded_lstsq, gram_bounded_lstsq_many, robust_fit, unit_grams
+from droneid.core.differentiation import averaging_window
+from droneid.core.regression import blocked_cv, gram, gram_bounded_lstsq, robust_fit
+from droneid.fitting.command_thrust import FINE_STEPS, CommandThrust, LinearThrust, lagged
 from droneid.fitting.terms import prior_terms, split_terms
 from droneid.dataset.validation import time_blocks
 
@@ -135,7 +139,7 @@ class ThrustCurve:
             shape += "; the flights hardly constrain the shape (a flat profile): e is a best guess"
         if self.lag_decision is not None:
             lo_l, hi_l = self.lag_interval
-            shape += (f"; motor lag (first order on the thrust) {1000 * self.lag_tried_s:.0f} ms "
+            shape += (f"; motor lag (first order on each rotor's speed) {1000 * self.lag_tried_s:.0f} ms "
                       + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it)" if self.lag_s else
                          "not kept") + f": {self.lag_decision.evidence}")
         hv = (f"; hover thrust fraction {self.hover:.3f} [{self.hover_interval[0]:.3f}, "
@@ -206,194 +210,180 @@ def normalised(prior, flights):
     return prior.with_params(spin_min=float(lo), spin_max=float(hi))
 
 
-def _best_expo(S: np.ndarray, grid: np.ndarray) -> float:
-    """The e in [0, 1] that minimises the residual sum of squares of the gram ``S`` of [linear,
-    quadratic, drag, y]: the free fit b1·linear + b2·quadratic + d·drag is the same model with
-    e = b2 / (b1 + b2), exact where that lies in [0, 1] with positive thrust; otherwise the
-    best of the profiled ``grid`` (an end of the range)."""
-    return float(_best_expos(np.asarray(S, float)[None], grid)[0])
-
-
-def _best_expos(S: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """:func:`_best_expo` of each gram of ``S`` (n, 4, 4), the free fits solved together."""
-    b = gram_bounded_lstsq_many(S, np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf))
-    total = b[:, 0] + b[:, 1]
-    e = np.full(S.shape[0], np.nan)
-    inside = total > 0
-    e[inside] = b[inside, 1] / total[inside]
-    for i in np.flatnonzero(~(inside & (e >= 0.0) & (e <= 1.0))):
-        rss, _ = _rss_profile(S[i], grid)
-        e[i] = grid[int(np.argmin(rss))]
-    return e
-
-
-def _reduced(S: np.ndarray, e: float) -> np.ndarray:
-    """The gram of [f_e column, drag, y] from the gram of [linear, quadratic, drag, y]."""
-    return _reduced_many(np.asarray(S, float)[None], np.array([e], float))[0]
-
-
-def _reduced_many(S: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """:func:`_reduced` of each gram of ``S`` (n, 4, 4) at its own ``e`` (n,)."""
-    T = np.zeros((e.size, 3, 4))
-    T[:, 0, 0], T[:, 0, 1], T[:, 1, 2], T[:, 2, 3] = 1.0 - e, e, 1.0, 1.0
-    return T @ S @ T.transpose(0, 2, 1)
-
-
 _LO, _HI = np.zeros(2), np.full(2, np.inf)
 
-
-def _rss_profile(S: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(RSS at each e of ``grid``, (thrust scale, drag scale) at each) from the gram ``S``.
-
-    Both scales are >= 0: a two-column non-negative least squares per e, solved in closed form
-    for the whole grid at once (the optimum is the best feasible of the free solution, each column
-    alone and none: the KKT points of a convex problem on the quadrant), which is what
-    :func:`droneid.core.regression.gram_bounded_lstsq` finds one e at a time; an e where the two
-    columns are collinear (or one is empty) goes through that general solver."""
-    grid = np.asarray(grid, float)
-    e, f = grid, 1.0 - grid
-    # the reduced gram of [f_e column, drag, y]: f_e = (1 - e)·linear + e·quadratic
-    a = f * f * S[0, 0] + 2.0 * f * e * S[0, 1] + e * e * S[1, 1]
-    b = f * S[0, 2] + e * S[1, 2]
-    p = f * S[0, 3] + e * S[1, 3]
-    c, q, r = S[2, 2], S[2, 3], S[3, 3]
-    det = a * c - b * b
-    ok = (a > 0) & (c > 0) & (det > 1e-12 * a * c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cands = [np.column_stack([(c * p - b * q) / det, (a * q - b * p) / det]),   # both free
-                 np.column_stack([np.maximum(p / a, 0.0), np.zeros_like(a)]),     # drag at 0
-                 np.column_stack([np.zeros_like(a), np.full_like(a, max(q / c, 0.0) if c > 0 else 0.0)]),
-                 np.zeros((a.size, 2))]
-    best_rss, beta = np.full(a.size, np.inf), np.zeros((a.size, 2))
-    for B in cands:
-        feasible = np.all(B >= 0.0, axis=1) & np.all(np.isfinite(B), axis=1)
-        x, y_ = B[:, 0], B[:, 1]
-        rss = r - 2.0 * (x * p + y_ * q) + x * x * a + 2.0 * x * y_ * b + y_ * y_ * c
-        better = feasible & (rss < best_rss)
-        best_rss[better], beta[better] = rss[better], B[better]
-    for j in np.flatnonzero(~ok):
-        R = _reduced(S, float(grid[j]))
-        bj = gram_bounded_lstsq(R, _LO, _HI)
-        best_rss[j] = R[2, 2] - 2.0 * bj @ R[:2, 2] + bj @ R[:2, :2] @ bj
-        beta[j] = bj
-    return best_rss, beta
-
-
 #: first-order motor lags τ (s) profiled beside the shape (0: none)
-LAG_GRID_S = tuple(round(0.005 * k, 3) for k in range(21))
+LAG_GRID_S = tuple(round(0.01 * k, 3) for k in range(11))
 
 
-def lagged(x: np.ndarray, t: np.ndarray, flight: np.ndarray, tau_s: float) -> np.ndarray:
-    """``x`` (rows ordered by flight, then time ``t`` s) through a first-order lag of time constant
-    ``tau_s``: dy/dt = (x − y)/τ, discretised exactly for x linear between rows (first-order
-    hold: the rows are coarser than the lag). It restarts at y = x after a gap (a step over 1.5
-    median steps) and at each flight's start. τ = 0: ``x`` itself."""
-    x = np.asarray(x, float)
-    if tau_s <= 0 or x.size < 2:
-        return x.copy()
-    t = np.asarray(t, float)
-    dt = np.diff(t)
-    step = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
-    restart = np.concatenate([[True], (np.asarray(flight)[1:] != np.asarray(flight)[:-1]) | (dt > 1.5 * step) | (dt <= 0)])
-    h = np.concatenate([[step], np.where(dt > 0, dt, step)])
-    a = np.exp(-h / tau_s)
-    c = tau_s / h * (1.0 - a)
-    y = np.empty_like(x)
-    for i in range(x.size):
-        y[i] = x[i] if restart[i] else a[i] * y[i - 1] + x[i] - a[i] * x[i - 1] - c[i] * (x[i] - x[i - 1])
-    return y
+def _nnls2(a, b, p, c, q, r):
+    """(RSS, x, z) of the least squares ``y ≈ x·F + z·D`` with x, z >= 0 from its sufficient
+    statistics (a = F'F, b = F'D, p = F'y, c = D'D, q = D'y, r = y'y, broadcast arrays): the
+    best feasible of the free solution, each column alone and none (the KKT points of a convex
+    problem on the quadrant), solved in closed form for every entry at once."""
+    a, b, p, c, q, r = np.broadcast_arrays(*(np.asarray(v, float) for v in (a, b, p, c, q, r)))
+    det = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        free_ok = (a > 0) & (c > 0) & (det > 1e-12 * a * c)
+        cands = [(np.where(free_ok, (c * p - b * q) / det, np.nan), np.where(free_ok, (a * q - b * p) / det, np.nan)),
+                 (np.where(a > 0, np.maximum(p / a, 0.0), 0.0), np.zeros_like(a)),
+                 (np.zeros_like(a), np.where(c > 0, np.maximum(q / c, 0.0), 0.0)),
+                 (np.zeros_like(a), np.zeros_like(a))]
+    best, bx, bz = np.full(a.shape, np.inf), np.zeros(a.shape), np.zeros(a.shape)
+    for x, z in cands:
+        rss = r - 2.0 * (x * p + z * q) + x * x * a + 2.0 * x * z * b + z * z * c
+        better = (x >= 0) & (z >= 0) & np.isfinite(rss) & (rss < best)
+        best, bx, bz = np.where(better, rss, best), np.where(better, x, bx), np.where(better, z, bz)
+    return best, bx, bz
 
 
-def _min_rss(S: np.ndarray, grid: np.ndarray) -> tuple[float, float]:
-    """(smallest residual sum of squares over e in [0, 1], its e) of the gram ``S``."""
-    r, e = _min_rss_many(np.asarray(S, float)[None], grid)
-    return float(r[0]), float(e[0])
+def _vertex(x: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x at the minimum, the minimum, index of the grid minimum) of each profile ``Y`` (..., n)
+    on the grid ``x`` (n,): the parabola through the grid minimum and its two neighbours (the
+    grid point itself at an end of the grid or where the parabola does not curve up)."""
+    Y = np.where(np.isfinite(Y), Y, np.inf)
+    i = np.argmin(Y, axis=-1)
+    n = x.size
+    xm, ym = x[i], np.take_along_axis(Y, i[..., None], -1)[..., 0]
+    if n < 3:
+        return xm, ym, i
+    j = np.clip(i, 1, n - 2)
+    x0, x1, x2 = x[j - 1], x[j], x[j + 1]
+    y0, y1, y2 = (np.take_along_axis(Y, (j + d)[..., None], -1)[..., 0] for d in (-1, 0, 1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d01, d12 = (y1 - y0) / (x1 - x0), (y2 - y1) / (x2 - x1)
+        curv = (d12 - d01) / (x2 - x0)                       # half the second derivative
+        xv = 0.5 * (x0 + x1) - d01 / (2.0 * curv)
+        yv = y0 + d01 * (xv - x0) + curv * (xv - x0) * (xv - x1)
+    inner = (i == j) & np.isfinite(xv) & (curv > 0) & np.all(np.isfinite([y0, y1, y2]), axis=0)
+    xv = np.clip(xv, x0, x2)
+    return np.where(inner, xv, xm), np.where(inner, np.minimum(yv, ym), ym), i
 
 
-def _min_rss_many(S: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_min_rss` of each gram of ``S`` (n, 4, 4): (rss (n,), e (n,)), solved together."""
-    e = _best_expos(S, grid)
-    R = _reduced_many(S, e)
-    b = gram_bounded_lstsq_many(R, _LO, _HI)
-    bR = np.einsum("ni,nij->nj", b, R[:, :2, :2])
-    return R[:, 2, 2] - 2.0 * np.einsum("ni,ni->n", b, R[:, :2, 2]) + np.einsum("nj,nj->n", bR, b), e
+def _surface_min(taus: np.ndarray, grid: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(τ, e) at the minimum of each RSS surface ``R`` (..., T, E) over the lag grid ``taus`` and
+    the shape grid ``grid``: e's minimum at every τ (:func:`_vertex`), τ's over those minima, and e
+    interpolated at τ between its neighbouring lags (e moves with τ)."""
+    e_at, r_at, _ = _vertex(grid, R)                          # (..., T)
+    tau, _, k = _vertex(taus, r_at)
+    if taus.size < 2:
+        return tau, e_at[..., 0]
+    lo = np.clip(np.searchsorted(taus, tau, side="right") - 1, 0, taus.size - 2)
+    w = np.clip((tau - taus[lo]) / (taus[lo + 1] - taus[lo]), 0.0, 1.0)
+    e_lo = np.take_along_axis(e_at, lo[..., None], -1)[..., 0]
+    e_hi = np.take_along_axis(e_at, (lo + 1)[..., None], -1)[..., 0]
+    return tau, e_lo + w * (e_hi - e_lo)
 
 
-def profile_expo(linear: np.ndarray, quadratic: np.ndarray, drag: np.ndarray, y: np.ndarray,
-                 units: np.ndarray, *, grid: Sequence[float] = EXPO_GRID, n_boot: int = N_BOOT_EXPO,
-                 seed: int = 0, lag: tuple | None = None) -> dict:
-    """The profile of the shape e of ``y ≈ a·((1 − e)·linear + e·quadratic) + d·drag`` (a, d >= 0
-    refit at every e; ``y`` the target less its known physics, m/s²; the columns the thrust
-    term at e = 0 and e = 1 and the drag term, on the same rows), with the robust (Huber) weights
-    of the free fit of both columns. ``units``: (flight, block) ids of the rows. ``lag``: (t,
-    flight) of the rows: the thrust terms also pass a first-order motor lag τ profiled over
-    :data:`LAG_GRID_S` (:func:`lagged`; the lag is linear, so the shape stays linear in e).
+def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
+                 grid: Sequence[float] = EXPO_GRID, n_boot: int = N_BOOT_EXPO, seed: int = 0,
+                 lags: Sequence[float] = (0.0,)) -> dict:
+    """The profile of the shape e (and the motor lag τ) of ``y ≈ a·thrust(e, τ) + d·drag`` (a, d
+    >= 0 refit at every grid point; ``y`` the target less its known physics, m/s²; ``thrust`` a
+    callable of (shapes, τ) giving the thrust column of each shape on the rows, m/s²:
+    :class:`~droneid.fitting.command_thrust.CommandThrust` or
+    :class:`~droneid.fitting.command_thrust.LinearThrust`; ``drag`` the drag term on the rows), with
+    the robust (Huber) weights of the fit at the least-squares best (τ, e): weights from a wrong
+    shape or lag would depend on the noise where it misfits. ``units``: (flight, block) ids of
+    the rows; ``lags``: the τ (s) profiled (:data:`LAG_GRID_S`; (0,): none).
 
-    Returns {"expo", "free_expo" (the shape of the free fit, outside [0, 1] when the data pull e
-    out of its range), "interval" (95 %), "scale" (a at e), "scale_interval", "profile" {e: RSS /
-    min RSS}, "n_units", "lag_s", "lag_interval", "thrust" (the (linear, quadratic) columns at the
-    chosen lag)}: e (and τ) from the least residual sum of squares (:func:`_best_expo`), the
-    intervals from the minima of ``n_boot`` block-bootstrap replicates (each re-profiled)."""
-    grid = np.asarray(grid, float)
-    taus = LAG_GRID_S if lag is not None else (0.0,)
-    cols = {tau: (lagged(linear, *lag, tau), lagged(quadratic, *lag, tau)) if tau else (linear, quadratic)
-            for tau in taus}
-    free_lo, free_hi = np.array([-np.inf, -np.inf, 0.0]), np.full(3, np.inf)
-    # the robust weights of the free fit (the same model, e = b2 / (b1 + b2)) at the lag least
-    # squares prefers: weights from a wrong shape or lag would depend on the noise where it
-    # misfits and pull the estimate towards it
-    plain = {tau: _min_rss(np.column_stack([*c, drag, y]).T @ np.column_stack([*c, drag, y]), grid)[0]
-             for tau, c in cols.items()}
-    tau0 = min(plain, key=plain.get)
-    free = robust_fit(np.column_stack([*cols[tau0], drag]), y, free_lo, free_hi)
-    grams = {}
-    for tau, c in cols.items():
-        ids, S_units, _ = unit_grams(np.column_stack([*c, drag]), y, free.weights, np.asarray(units))
-        grams[tau] = S_units
-    fits = {tau: _min_rss(Su.sum(axis=0), grid) for tau, Su in grams.items()}
-    tau_hat = min(fits, key=lambda k: fits[k][0])
-    S = grams[tau_hat].sum(axis=0)
-    e = fits[tau_hat][1]
-    rss, _ = _rss_profile(S, grid)
-    a = float(gram_bounded_lstsq(_reduced(S, e), _LO, _HI)[0])
-    # every replicate at every lag solved together: replicate i's unit counts (drawn replicate by
-    # replicate, as one at a time would), its lag the first of the least RSS
+    Returns {"expo", "free_expo" (the shape of the free fit of the thrust at e = 0 and e = 1 at the
+    chosen lag, e = b2/(b1 + b2); outside [0, 1] when the data pull e out of its range), "interval"
+    (95 %), "scale" (a at e), "scale_interval", "profile" {e: RSS / min RSS at the chosen lag},
+    "n_units", "lag_s", "lag_interval", "thrust" (the thrust column at the chosen (τ, e))}: (τ, e)
+    from the least residual sum of squares (:func:`_surface_min`: between grid points where the
+    profile curves), the intervals the 2.5-97.5 % percentiles of the minima of ``n_boot``
+    block-bootstrap replicates of the units (each re-profiled over the whole grid; a replicate's
+    scale is the one at its grid minimum)."""
+    grid, taus = np.asarray(grid, float), np.asarray(lags, float)
+    drag, y, units = np.asarray(drag, float), np.asarray(y, float), np.asarray(units)
+    cols = [np.asarray(thrust(grid, float(tau)), float) for tau in taus]     # T x (rows, E)
+    ok = np.isfinite(y) & np.isfinite(drag) & np.all([np.all(np.isfinite(F), axis=1) for F in cols], axis=0)
+    ids, inv = np.unique(units, return_inverse=True)
+    M = np.zeros((ids.size, y.size))
+    M[inv, np.arange(y.size)] = 1.0
+
+    def stats(w):
+        """Per-unit sufficient statistics (U, T, E) and (U, 1, 1) with row weights ``w``."""
+        w = np.where(ok, w, 0.0)
+        Fw = [np.where(ok[:, None], F, 0.0) for F in cols]
+        dz, yz = np.where(ok, drag, 0.0), np.where(ok, y, 0.0)
+        a = np.stack([M @ (w[:, None] * F * F) for F in Fw], axis=1)
+        b = np.stack([M @ (w[:, None] * F * dz[:, None]) for F in Fw], axis=1)
+        p = np.stack([M @ (w[:, None] * F * yz[:, None]) for F in Fw], axis=1)
+        c, q, r = ((M @ (w * v))[:, None, None] for v in (dz * dz, dz * yz, yz * yz))
+        return a, b, p, c, q, r
+
+    plain = [s.sum(axis=0) for s in stats(np.ones(y.size))]
+    tau0, e0 = (float(v) for v in _surface_min(taus, grid, _nnls2(*plain)[0]))
+    F0 = np.asarray(thrust(np.array([e0]), tau0), float)[:, 0]
+    A0 = np.column_stack([F0, drag])
+    good = ok & np.isfinite(F0)
+    weights = np.zeros(y.size)
+    weights[good] = robust_fit(A0[good], y[good], _LO, _HI).weights
+    unit_stats = stats(weights)
+    R, _, _ = _nnls2(*(s.sum(axis=0) for s in unit_stats))
+    tau_hat, e = (float(v) for v in _surface_min(taus, grid, R))
+    F = np.asarray(thrust(np.array([0.0, 1.0, e]), tau_hat), float)
+    Fe = F[:, 2]
+    fin = ok & np.all(np.isfinite(F), axis=1)
+    wsq = np.sqrt(weights[fin])
+    a_hat = float(gram_bounded_lstsq(gram(np.column_stack([Fe, drag])[fin], y[fin], weights[fin]), _LO, _HI)[0])
+    bf = np.linalg.lstsq(np.column_stack([F[fin, 0], F[fin, 1], drag[fin]]) * wsq[:, None], y[fin] * wsq, rcond=None)[0]
+    free_e = float(bf[1] / (bf[0] + bf[1])) if bf[0] + bf[1] > 0 else math.nan
+    # every replicate at every (τ, e) solved together: replicate i's unit counts drawn replicate
+    # by replicate, as one at a time would
     rng = np.random.default_rng(seed)
     draws = rng.integers(0, ids.size, (n_boot, ids.size))
     counts = np.stack([np.bincount(d, minlength=ids.size) for d in draws]).astype(float)
-    Sb = np.stack([(counts @ grams[tau].reshape(ids.size, -1)).reshape(n_boot, *S.shape) for tau in taus])
-    r, eb = _min_rss_many(Sb.reshape(-1, *S.shape), grid)
-    k = np.argmin(np.where(np.isnan(r), np.inf, r).reshape(len(taus), n_boot), axis=0)
-    pick = np.arange(n_boot)
-    es = eb.reshape(len(taus), n_boot)[k, pick]
-    lags = np.asarray(taus, float)[k]
-    scales = gram_bounded_lstsq_many(_reduced_many(Sb[k, pick], es), _LO, _HI)[:, 0]
+    boot = [np.tensordot(counts, s, axes=(1, 0)) for s in unit_stats]     # (B, T, E) / (B, 1, 1)
+    Rb, xb, _ = _nnls2(*boot)
+    lags_b, es = _surface_min(taus, grid, Rb)
+    kb = np.argmin(np.where(np.isfinite(Rb), Rb, np.inf).reshape(n_boot, -1), axis=1)
+    scales = xb.reshape(n_boot, -1)[np.arange(n_boot), kb]
     lo, hi = np.percentile(es, [2.5, 97.5])
     slo, shi = np.percentile(scales, [2.5, 97.5])
-    best_rss = float(np.min(rss)) if np.min(rss) > 0 else 1.0
-    b = gram_bounded_lstsq(S, free_lo, free_hi)
-    free_e = float(b[1] / (b[0] + b[1])) if b[0] + b[1] > 0 else math.nan
-    return {"expo": e, "free_expo": free_e, "interval": (float(lo), float(hi)), "scale": a,
+    k = int(np.argmin(np.abs(taus - tau_hat)))
+    best = float(np.min(R[k])) if np.min(R[k]) > 0 else 1.0
+    return {"expo": e, "free_expo": free_e, "interval": (float(lo), float(hi)), "scale": a_hat,
             "scale_interval": (float(slo), float(shi)),
-            "profile": {float(g): float(r / best_rss) for g, r in zip(grid, rss)}, "n_units": int(ids.size),
-            "lag_s": float(tau_hat), "lag_interval": tuple(float(v) for v in np.percentile(lags, [2.5, 97.5])),
-            "thrust": cols[tau_hat]}
+            "profile": {float(g): float(v / best) for g, v in zip(grid, R[k])}, "n_units": int(ids.size),
+            "lag_s": tau_hat, "lag_interval": tuple(float(v) for v in np.percentile(lags_b, [2.5, 97.5])),
+            "thrust": Fe}
 
 
-def _columns(prior, ds):
-    """(linear thrust column, quadratic one, drag column, y less the known physics) of v̇z on
-    the dataset ``ds`` for the command prior ``prior`` (its v_ref as given)."""
-    cols = ds.columns()
-    out = []
-    for e in (0.0, 1.0):
-        p = prior.with_params(expo=e)
-        m = prior_terms(p, _TARGET)
-        A, yy, _, _ = m._problem(cols, ds.y)
-        feats = split_terms(p, _TARGET)
-        thrust = [i for i, f in enumerate(feats) if f.role == "thrust"]
-        drag = [i for i, f in enumerate(feats) if f.role == "drag"]
-        out.append(A[:, thrust].sum(axis=1))
-    return out[0], out[1], A[:, drag].sum(axis=1), yy
+def _rows(flights, cfg, delays, inputs, cuts):
+    """(the v̇z dataset on the grid of Ts, the same inputs on a grid :data:`FINE_STEPS` times finer):
+    the training rows before ``cuts``, the thrust inputs read at ``delays``."""
+    from droneid.planning.plan import dataset_builder, train_rows
+    from droneid.dataset.builder import DatasetBuilder
+
+    ds = train_rows(dataset_builder(cfg, delays).build(list(flights), target=_TARGET, inputs=inputs), cuts)
+    fine = DatasetBuilder(ts=cfg.ts / FINE_STEPS, method=cfg.method, delays_s=dict(delays or {}))
+    return ds, train_rows(fine.build(list(flights), target=_TARGET, inputs=inputs), cuts)
+
+
+def _columns(prior, ds, fine, cfg):
+    """(thrust: :class:`CommandThrust` of the command prior ``prior`` (its normalisation and v_ref
+    as given) on the rows of ``ds`` from the finer rows ``fine``, the drag column, y less the
+    known physics) of v̇z."""
+    feats = split_terms(prior, _TARGET)
+    role = lambda r: [i for i, f in enumerate(feats) if f.role == r]    # noqa: E731
+    A, yy, _, _ = prior_terms(prior, _TARGET)._problem(ds.columns(), ds.y)
+    p = prior.params
+    names = ([f"motor{i}" for i in range(1, int(p.get("motors", 1)) + 1)] if p.get("source") == "motor"
+             else ["throttle"])
+    lo, hi = float(p.get("spin_min", 0.0)), float(p.get("spin_max", 1.0))
+    fc = fine.columns()
+    scale = (np.asarray(fc["battery_voltage"], float) / p["v_ref"])[:, None] if p.get("v_ref") else 1.0
+    q = np.column_stack([(np.asarray(fc[n], float) - lo) / (hi - lo) for n in names]) * scale
+    full = dict(fc, **{n: np.full(len(fine), hi) for n in names})   # one rotor's full thrust: k_T·b_z
+    if p.get("v_ref"):
+        full["battery_voltage"] = np.full(len(fine), float(p["v_ref"]))
+    Af, _, _, _ = prior_terms(prior.with_params(expo=1.0), _TARGET)._problem(full, fine.y)
+    k = Af[:, role("thrust")].sum(axis=1) / len(names)
+    thrust = CommandThrust.build(q, k, fine.t, fine.flight, ds.t, ds.flight, averaging_window(cfg.method, cfg.ts))
+    return thrust, A[:, role("drag")].sum(axis=1), yy
 
 
 def over_offsets(curve: ThrustCurve, train_flights, prior, cfg, cuts, signals: Sequence[str],
@@ -403,16 +393,14 @@ def over_offsets(curve: ThrustCurve, train_flights, prior, cfg, cuts, signals: S
     beat, :class:`droneid.planning.plan.OffsetDecision`): how the commands lead their thrust is itself
     uncertain (a motor lag is no pure offset), and the shape moves with it. ``prior``: the
     command prior with the curve's battery compensation."""
-    from droneid.planning.plan import dataset_builder, train_rows
-
     lo, hi = curve.interval
     inputs = tuple(prior.inputs(_TARGET))
     for d in offsets:
-        ds = train_rows(dataset_builder(cfg, {s: float(d) for s in signals}).build(
-            list(train_flights), target=_TARGET, inputs=inputs), cuts)
+        ds, fine = _rows(train_flights, cfg, {s: float(d) for s in signals}, inputs, cuts)
         if len(ds) < 30:
             continue
-        prof = profile_expo(*_columns(prior, ds), time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA), seed=seed)
+        prof = profile_expo(*_columns(prior, ds, fine, cfg), time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA),
+                            seed=seed)
         lo, hi = min(lo, prof["interval"][0]), max(hi, prof["interval"][1])
     return replace(curve, interval=(lo, hi), offsets_s=(min(offsets), max(offsets)) if len(offsets) else ())
 
@@ -422,8 +410,6 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     :data:`priors.thrust.COMMAND_SOURCES`) from the training rows of v̇z (``cuts``: hold-out
     starts, ``delays``: {signal: s} the thrust inputs are read at), with the battery
     compensation decided by the block test; None for another prior or without v̇z rows."""
-    from droneid.planning.plan import dataset_builder, train_rows    # plan composes this stage
-
     source = prior.params.get("source")
     if source not in COMMAND_SOURCES or _TARGET not in prior.targets:
         return None
@@ -434,7 +420,7 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     inputs = tuple(base.inputs(_TARGET))
     if have_v:
         inputs = tuple(dict.fromkeys(inputs + ("battery_voltage",)))
-    ds = train_rows(dataset_builder(cfg, delays).build(list(train_flights), target=_TARGET, inputs=inputs), cuts)
+    ds, fine = _rows(train_flights, cfg, delays, inputs, cuts)
     if len(ds) < 30:
         return None
     blocks = time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA)
@@ -448,11 +434,11 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
             why_not = "no positive battery voltage on the training rows"
     else:
         why_not = "the training flights do not all log a battery voltage"
-    prof = profile_expo(*_columns(base, ds), blocks, seed=seed)
+    prof = profile_expo(*_columns(base, ds, fine, cfg), blocks, seed=seed)
     decision, keep = None, False
     if v_ref is not None:
         cand = prior.with_params(v_ref=v_ref)
-        prof_v = profile_expo(*_columns(cand, ds), blocks, seed=seed)
+        prof_v = profile_expo(*_columns(cand, ds, fine, cfg), blocks, seed=seed)
         cols = ds.columns()
         err0 = ds.y - prior_terms(base.with_params(expo=prof["expo"]), _TARGET).cv_predictions(cols, ds.y, blocks)
         err1 = ds.y - prior_terms(cand.with_params(expo=prof_v["expo"]), _TARGET).cv_predictions(cols, ds.y, blocks)
@@ -464,14 +450,12 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
         if keep:
             prof = prof_v
     # a first-order motor lag beside the shape: kept only when the block test says it helps
-    L, Q, D, yy = _columns(prior.with_params(v_ref=v_ref if keep else None), ds)
-    prof_lag = profile_expo(L, Q, D, yy, blocks, seed=seed, lag=(ds.t, ds.flight))
+    thrust, D, yy = _columns(prior.with_params(v_ref=v_ref if keep else None), ds, fine, cfg)
+    prof_lag = profile_expo(thrust, D, yy, blocks, seed=seed, lags=LAG_GRID_S)
     lag_decision = None
     if prof_lag["lag_s"] > 0:
         def held_out(p):
-            e = p["expo"]
-            lin, quad = p["thrust"]
-            return yy - blocked_cv(np.column_stack([(1 - e) * lin + e * quad, D]), yy, blocks, _LO, _HI)
+            return yy - blocked_cv(np.column_stack([p["thrust"], D]), yy, blocks, _LO, _HI)
         try:
             lag_decision = decide(held_out(prof), held_out(prof_lag), blocks, alpha=LAG_ALPHA,
                                   what=f"motor lag {1000 * prof_lag['lag_s']:.0f} ms")

@@ -17,8 +17,8 @@ the speed the command asks for, ``w* = sqrt(f_e(q))`` (the speed whose thrust is
 thrust ∝ w²): ``dw/dt = (w* − w)/τ``. The rotor then delivers the thrust fraction ``w²``, and the
 v̇ models are fed the EFFECTIVE command ``ũ`` whose curve gives that thrust (``f_e(n(ũ)·s) = w²``),
 so every term that reads a command (the thrust term, any evolved term) sees what the rotor
-delivers. To first order about any operating point a lag of the speed and a lag of the thrust
-are the same lag τ (δT ∝ 2ω δω); identify's profile lags the thrust (:func:`lagged`), the same τ.
+delivers. identify's profile fits the same law (:mod:`droneid.fitting.command_thrust`: each
+rotor's speed :func:`priors.thrust.rotor_speed` lagged, thrust ∝ Σ w²), so τ here is the τ fitted.
 
 The logged commands are the inputs, so the lag is a causal filter of them: the rotor speeds at a
 start time are the filter's state from the commands before it (the only information there is
@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO
+from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO, rotor_speed
 
 from droneid.core.frames import quat_to_matrix
 from droneid.errors import DataError
@@ -65,10 +65,6 @@ def is_input_signal(name: str) -> bool:
     """Whether ``name`` is an input the open-loop simulation takes from the log (motor speeds
     ``rpm<i>``, commands ``motor<i>`` / ``throttle``, ``battery_voltage``), not from its state."""
     return _INPUT_SIGNAL.fullmatch(name) is not None
-
-
-def _curve(q, e: float):
-    return (1.0 - e) * q + e * q * q
 
 
 def _inverse(f, e: float):
@@ -130,7 +126,7 @@ class MotorModel:
         lo, hi = self.spin
         s = self._scale(volts)
         s = np.broadcast_to(s, (u.shape[0],))[:, None] if s.ndim else np.full((u.shape[0], 1), float(s))
-        target = np.sqrt(np.maximum(_curve((u - lo) / (hi - lo) * s, self.expo), 0.0))
+        target = rotor_speed((u - lo) / (hi - lo) * s, self.expo)
         a = math.exp(-dt_s / self.lag_s)
         c = self.lag_s / dt_s * (1.0 - a)
         w = target[0].copy()

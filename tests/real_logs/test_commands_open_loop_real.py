@@ -1,10 +1,12 @@
 """Command-driven vehicles open loop and exported on the shared real logs (issue 36 item 5):
-ArduCopter 3.3 log171 (Euler angles only, RCOU commands, a motor lag kept) and PX4 x500 SITL
-(actuator_motors commands, no lag). identify (a token SNGP budget: the physical model) on the log,
-then ``droneid predict --open-loop`` and ``droneid export --vehicle`` from the CLI: both run with
-every Python warning an error, the identified row beats nominal physics on velocity and position
-SimErr (measured on the log identify trained on: each log is one flight), and the exported Python
-steps as droneid's own open-loop simulation does on the log."""
+ArduCopter 3.3 log171 (Euler angles only, RCOU commands) and PX4 x500 SITL (actuator_motors
+commands); neither keeps a motor lag since the thrust is compared as the target's window mean
+(log171 kept 65 ms before; the lagged path runs in tests/integration/test_commands_open_loop.py).
+identify (a token SNGP budget: the physical model) on the log, then ``droneid predict --open-loop``
+and ``droneid export --vehicle`` from the CLI: both run with every Python warning an error, the
+identified row beats nominal physics on velocity and position SimErr (measured on the log identify
+trained on: each log is one flight), and the exported Python steps as droneid's own open-loop
+simulation does on the log."""
 from __future__ import annotations
 
 import json

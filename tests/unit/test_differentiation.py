@@ -92,3 +92,19 @@ def test_registry_and_errors():
         d(np.zeros(2), np.arange(2.0))
     with pytest.raises(DataError, match="uniformly spaced"):
         get_differentiator("savgol")(np.zeros(30), np.cumsum(np.r_[0, np.linspace(0.01, 0.02, 29)]))
+
+
+@pytest.mark.parametrize("method", ["central", "forward"])
+def test_a_grid_difference_is_the_mean_of_the_derivative_over_its_window(method):
+    """What the thrust-curve stage compares its thrust as (droneid.fitting.command_thrust)."""
+    from droneid.core.differentiation import averaging_window, get_differentiator
+    ts = 0.05
+    t = np.arange(0.0, 2.0, ts)
+    x = np.sin(3.0 * t) + t ** 3
+    d = get_differentiator(method)(x, t)
+    before, after = averaging_window(method, ts)
+    k = np.arange(2, t.size - 2)
+    mean = (np.sin(3.0 * (t[k] + after)) + (t[k] + after) ** 3 - np.sin(3.0 * (t[k] - before))
+            - (t[k] - before) ** 3) / (before + after)
+    np.testing.assert_allclose(d[k], mean, rtol=1e-12, atol=1e-12)
+    assert averaging_window("savgol", ts) == (0.0, 0.0)

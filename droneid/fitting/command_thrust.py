@@ -1,0 +1,161 @@
+"""The thrust of a command-driven vehicle's logged commands, as the thrust-curve stage fits it.
+
+Per rotor i, the normalised command ``q_i`` (the prior's normalisation, times V/V_ref where the
+battery compensation is tried) asks for the normalised speed ``w*_i = sqrt(f_e(q_i))``
+(:func:`priors.thrust.rotor_speed`); the rotor's speed is the state with inertia, so it follows
+through a first-order lag of time constant τ (:func:`lagged`), and the rotor delivers the thrust
+fraction ``w_i²``. The vertical thrust per unit mass is then ``k_T·b_z·Σ w_i²`` (m/s²; ``b_z``
+the world-z component of the body z axis, ``k_T`` the prior's nominal scale), the same law the
+open-loop motor model runs (:class:`droneid.simulation.motor_model.MotorModel`). Nonlinear in e
+wherever τ > 0, so the stage evaluates it per (τ, e) grid point.
+
+The target is a difference of the logged velocity: on the dataset's grid of period Ts a central
+difference is exactly the MEAN of the acceleration over [t − Ts, t + Ts]
+(:func:`droneid.core.differentiation.averaging_window`). Compared with the thrust AT t, a shape
+that curves the thrust (e) is biased by the window (measured on the bench_commands vehicles, noise
+off, the true lag: e 0.0025 low with point values, exact with window means). So the thrust is
+computed on a grid :data:`FINE_STEPS` times finer than Ts (the commands interpolated as every
+input is) and its window mean taken at each dataset row; the drag column (linear in the velocity)
+stays at t.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from priors.thrust import rotor_speed
+
+__all__ = ["CommandThrust", "LinearThrust", "lagged", "FINE_STEPS"]
+
+#: fine-grid steps per dataset step Ts on which the thrust is computed before its window mean
+FINE_STEPS = 5
+
+
+def _segments(t: np.ndarray, flight: np.ndarray) -> np.ndarray:
+    """Segment id of each row (rows ordered by flight, then time): a new segment at each flight's
+    start and after a step over 1.5 median steps (a gap) or a non-positive one."""
+    t = np.asarray(t, float)
+    if t.size < 2:
+        return np.zeros(t.size, int)
+    dt = np.diff(t)
+    step = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    new = np.concatenate([[True], (np.asarray(flight)[1:] != np.asarray(flight)[:-1]) | (dt > 1.5 * step) | (dt <= 0)])
+    return np.cumsum(new) - 1
+
+
+def lagged(x: np.ndarray, t: np.ndarray, flight: np.ndarray, tau_s: float) -> np.ndarray:
+    """``x`` (rows ordered by flight, then time ``t`` s; 1-D, or 2-D with one series per column)
+    through a first-order lag of time constant ``tau_s``: dy/dt = (x − y)/τ, discretised exactly
+    for x linear between rows (first-order hold: the rows are coarser than the lag). It restarts
+    at y = x after a gap (a step over 1.5 median steps) and at each flight's start. τ = 0: ``x``."""
+    x = np.asarray(x, float)
+    if tau_s <= 0 or x.shape[0] < 2:
+        return x.copy()
+    from scipy.signal import lfilter
+
+    t = np.asarray(t, float)
+    seg = _segments(t, flight)
+    X = x.reshape(x.shape[0], -1)
+    y = np.empty_like(X)
+    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
+    for s0, s1 in zip(starts, [*starts[1:], x.shape[0]]):
+        if s1 - s0 == 1:
+            y[s0] = X[s0]
+            continue
+        h = np.diff(t[s0:s1])
+        if np.ptp(h) <= 1e-9 * np.mean(h):    # a uniform segment: one linear filter
+            a = np.exp(-h[0] / tau_s)
+            c = tau_s / h[0] * (1.0 - a)
+            # y_k = a y_{k-1} + (1 − c) x_k + (c − a) x_{k-1}, starting at y_0 = x_0
+            y[s0:s1] = lfilter([1.0 - c, c - a], [1.0, -a], X[s0:s1], axis=0, zi=(c * X[s0])[None])[0]
+            continue
+        a = np.exp(-h / tau_s)
+        c = tau_s / h * (1.0 - a)
+        y[s0] = X[s0]
+        for k in range(1, s1 - s0):
+            i = s0 + k
+            y[i] = a[k - 1] * y[i - 1] + X[i] - a[k - 1] * X[i - 1] - c[k - 1] * (X[i] - X[i - 1])
+    return y.reshape(x.shape)
+
+
+@dataclass(frozen=True)
+class LinearThrust:
+    """A thrust column linear in the shape, ``(1 − e)·linear + e·quadratic`` (no lag): the
+    thrust term at e = 0 and e = 1 on the rows, m/s² (for data given as columns)."""
+    linear: np.ndarray
+    quadratic: np.ndarray
+
+    def __call__(self, expos, tau_s: float = 0.0) -> np.ndarray:
+        e = np.atleast_1d(np.asarray(expos, float))
+        if tau_s > 0:
+            raise ValueError("a LinearThrust has no motor lag")
+        return np.outer(self.linear, 1.0 - e) + np.outer(self.quadratic, e)
+
+
+@dataclass(frozen=True)
+class CommandThrust:
+    """The vertical thrust per unit mass of the commands on a fine grid, as window means at the
+    dataset's rows (see the module docstring); call it with shapes e and a lag τ.
+
+    q : (n, M) normalised commands on the fine grid (voltage-scaled where tried)
+    k : (n,) m/s² of one rotor at full thrust along world z, ``k_T·b_z``
+    t, flight : (n,) the fine rows' times (s) and flights
+    at : (rows, 2) the window [t − before, t + after] of each dataset row on the fine time axis,
+        clamped to the fine segment holding the row (its ends as fine-row positions, fractional)
+    """
+    q: np.ndarray
+    k: np.ndarray
+    t: np.ndarray
+    flight: np.ndarray
+    at: np.ndarray
+
+    @classmethod
+    def build(cls, q, k, t, flight, rows_t, rows_flight, window: tuple[float, float]) -> "CommandThrust":
+        """From the fine rows (``q`` (n, M), ``k``, ``t`` s, ``flight``), the dataset rows' times
+        and flights and the differentiator's ``window`` (before, after) s."""
+        t, flight = np.asarray(t, float), np.asarray(flight)
+        seg = _segments(t, flight)
+        span = 2.0 * (float(np.max(t)) - float(np.min(t)) + 1.0) if t.size else 1.0
+        key = flight * span + t                              # one increasing axis over flights
+        seg_lo = key[np.concatenate([[True], seg[1:] != seg[:-1]])]
+        seg_hi = key[np.concatenate([seg[1:] != seg[:-1], [True]])]
+        rkey = np.asarray(rows_flight) * span + np.asarray(rows_t, float)
+        j = np.clip(np.searchsorted(key, rkey + 1e-9, side="right") - 1, 0, max(key.size - 1, 0))
+        s = seg[j]
+        lo = np.maximum(rkey - window[0], seg_lo[s])
+        hi = np.minimum(rkey + window[1], seg_hi[s])
+        pos = [np.interp(x, key, np.arange(key.size, dtype=float)) for x in (lo, hi)]
+        return cls(np.asarray(q, float), np.asarray(k, float), t, flight, np.column_stack(pos))
+
+    def fine(self, expos, tau_s: float) -> np.ndarray:
+        """(n, E) the thrust per unit mass (m/s²) on the fine rows at each shape of ``expos``."""
+        e = np.atleast_1d(np.asarray(expos, float))
+        if tau_s <= 0 and np.all(self.q >= 0):   # no lag: Σ w² = Σ f_e(q), linear in e
+            lin, quad = np.sum(self.q, axis=1), np.sum(self.q * self.q, axis=1)
+            return self.k[:, None] * (np.outer(lin, 1.0 - e) + np.outer(quad, e))
+        w = rotor_speed(self.q[:, None, :], e[None, :, None])                  # (n, E, M)
+        w = lagged(w, self.t, self.flight, tau_s)
+        return self.k[:, None] * np.einsum("nem,nem->ne", w, w)
+
+    def __call__(self, expos, tau_s: float = 0.0) -> np.ndarray:
+        """(rows, E): the window mean of :meth:`fine` at each dataset row (m/s²)."""
+        F = self.fine(expos, tau_s)
+        seg = _segments(self.t, self.flight)
+        inc = np.zeros_like(F)
+        same = seg[1:] == seg[:-1]
+        inc[1:] = np.where(same[:, None], 0.5 * (F[1:] + F[:-1]) * np.diff(self.t)[:, None], 0.0)
+        C = np.cumsum(inc, axis=0)
+
+        def at(A, pos):
+            i = np.clip(np.floor(pos).astype(int), 0, A.shape[0] - 1)
+            i1 = np.minimum(i + 1, A.shape[0] - 1)
+            f = (pos - i)[:, None]
+            return A[i] + f * (A[i1] - A[i])
+
+        lo, hi = self.at[:, 0], self.at[:, 1]
+        tl, th = np.interp(lo, np.arange(self.t.size), self.t), np.interp(hi, np.arange(self.t.size), self.t)
+        width = (th - tl)[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mean = (at(C, hi) - at(C, lo)) / width
+        return np.where(width > 1e-9, mean, at(F, lo))
