@@ -45,6 +45,7 @@ from droneid.identify.problem import TargetProblem, empirical_model, prepare_tar
 from droneid.core.text import readable_equation, split_leading_number, undeclared_line
 from droneid.fitting.verdict import verdict
 from droneid.simulation.rollout import horizon_section
+from droneid.rotation.commands import CommandSpeeds
 from droneid.rotation.stage import RotationJob, RotationResult, rotation_job, score_rotation
 from droneid.identify.search import RunRecord, compile_once, make_jobs, run_job, select_best
 from droneid.planning.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
@@ -191,7 +192,8 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     notes_early = []
     if cfg.rotation != "none":   # the rotational choice needs no SNGP result: a job beside the runs, first
         try:
-            jobs.insert(0, rotation_job(train_flights, cfg.frame))
+            # a command-driven vehicle: the rotors' speeds from their commands through the plan's motor model
+            jobs.insert(0, rotation_job(train_flights, cfg.frame, CommandSpeeds.from_record(plan.record())))
         except DataError as exc:
             notes_early.append(f"rotation not modelled: {exc}")
     compile_once(progress)
