@@ -579,6 +579,14 @@ def unsteerable(rotation: "RotationModel | None") -> tuple[str, ...]:
     return rotation.unsteerable_axes() if rotation is not None else AXIS_NAMES
 
 
+def steering_line(rotation: "RotationModel | None") -> str:
+    """Which body axes answer the motors and which do not, in one line (the export's header)."""
+    stuck = unsteerable(rotation)
+    answer = [a for a in AXIS_NAMES if a not in stuck]
+    return (f"Body axes that answer the motors (a torque term): {', '.join(answer) or 'none'}"
+            + (f"; {', '.join(stuck)}: {NO_RESPONSE}." if stuck else "."))
+
+
 def unsteerable_sentence(axes: Sequence[str]) -> str:
     """What a user of the model must know when ``axes`` do not answer the motors ("" for none)."""
     if not axes:
