@@ -95,6 +95,8 @@ class RotationResult:
     notes : sentences
     dt_s : the grid step (s) of the training flights' state logs: the step the model's delays and
         time constants were fitted at (the exported step function's default step)
+    from_commands : the rotors' speeds came from the logged motor commands through the plan's motor
+        model (:mod:`droneid.rotation.commands`: ``s`` in units of full thrust), not logged speeds
     """
     layout: str
     layout_source: str
@@ -106,6 +108,7 @@ class RotationResult:
     open_loop_test: Mapping[str, object] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     dt_s: float = math.nan
+    from_commands: bool = False
 
     def to_dict(self) -> dict:
         return to_jsonable({"targets": list(ROTATION_TARGETS), "layout": self.layout,
@@ -114,7 +117,7 @@ class RotationResult:
                             "model": None if self.model is None else self.model.to_dict(),
                             "choice": dict(self.choice), "axes": [a.to_dict() for a in self.axes],
                             "open_loop_test": dict(self.open_loop_test), "notes": list(self.notes),
-                            "dt_s": self.dt_s})
+                            "dt_s": self.dt_s, "from_commands": self.from_commands})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "RotationResult":
@@ -124,7 +127,8 @@ class RotationResult:
             return cls(str(d["layout"]), str(d["layout_source"]), float(d["rad_s_per_rpm"]),
                        str(d.get("speed_note") or ""), model, dict(d["choice"]),
                        tuple(AxisResult.from_dict(a) for a in d["axes"]), dict(d.get("open_loop_test") or {}),
-                       tuple(d.get("notes") or ()), math.nan if d.get("dt_s") is None else float(d["dt_s"]))
+                       tuple(d.get("notes") or ()), math.nan if d.get("dt_s") is None else float(d["dt_s"]),
+                       bool(d.get("from_commands", False)))
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(f"the result's rotation section is damaged: {exc}") from None
 
@@ -241,7 +245,8 @@ class RotationJob:
             choice.held["rates_axis_simerr"]
         return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, record,
                               _axes(record, val_model, [math.nan] * 3, [math.nan] * 3, choice.model),
-                              dt_s=float(np.median([log.dt_s for log in train])))
+                              dt_s=float(np.median([log.dt_s for log in train])),
+                              from_commands=self.commands is not None)
 
 
 def _axes(record: Mapping, val_model: Sequence[float], test_held: Sequence[float],
