@@ -226,3 +226,52 @@ def test_exported_command_vehicle_with_rotation_reproduces_the_open_loop_rollout
         c = vehicle_c_rollout(tmp_path, export_vehicle(_models(delays), rot, "c", dt_s=DT, motor=motor),
                               _logged(log), log.state[START], START, H)
         np.testing.assert_allclose(c, ref, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_simulated_command_vehicle_rotation_from_the_cli(tmp_path, capsys):
+    """identify on three simulated command-driven flights (no rotor speeds) reaches the rotational
+    stage through the motor model; ``predict --open-loop`` flies the identified rotational model
+    from the commands (its body-rate error is not the rates-held one when an axis left ``held``);
+    ``export --vehicle`` refuses an axis that does not answer the motors unless
+    ``--allow-unsteerable``, and its header says which axes answer them."""
+    from droneid import Identifier
+    from droneid.cli import main
+    from droneid.simulation.simulator import simulate as fly
+    from droneid.use.predict import models_from_document, open_loop_section
+    from parsers.csv_writer import write_flat_csv
+
+    def flight(path, seed):
+        return fly(path=path, duration_s=20.0, seed=seed, thrust_expo=0.5, motor_tau_s=0.04,
+                   effects={"thrust_variation": {"amp_m": 0.5, "period_s": 3.0 + seed % 3}}
+                   ).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        train = [flight(p, s) for s, p in enumerate(("random", "eight", "lissajous"))]
+        res = Identifier(effects="none", frame="quad_x", runs=1, generations=50, population_size=40,
+                         jobs=1).fit(train)
+        rot = res.rotation
+        assert rot is not None and rot.from_commands, res.notes
+        doc = res.to_dict()
+        result = tmp_path / "result.json"
+        result.write_text(json.dumps(doc))
+        test = flight("square", 7)
+        log = write_flat_csv(test, tmp_path / "square.csv")
+        capsys.readouterr()
+        assert main(["predict", str(result), str(log), "--open-loop", "--json"]) == 0
+        ol = json.loads(capsys.readouterr().out)["open_loop"]
+        models = models_from_document(doc)
+        held = open_loop_section({**models, "_rotation": None}, [test])["identified"]["simerr"]["rates"]
+        moved = [a.target for a in rot.axes if a.rung != "held"]
+        if moved:
+            assert ol["identified"]["simerr"]["rates"] != pytest.approx(held, rel=1e-6)
+        else:
+            assert ol["identified"]["simerr"]["rates"] == pytest.approx(held, rel=1e-9)
+        out = tmp_path / "vehicle.py"
+        stuck = [a for a in rot.axes if "does not respond to the motors" in a.verdict]
+        code = main(["export", str(result), "--vehicle", "--to", "python", "-o", str(out)])
+        assert code == (2 if stuck else 0)
+        assert main(["export", str(result), "--vehicle", "--to", "python", "--allow-unsteerable", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "Body axes that answer the motors" in text
+    assert ("thrust as a fraction of full thrust" in text) == (rot.model is not None)
