@@ -364,6 +364,21 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
     return part, (K if commands else max((_rpm_index(n) + 1 for n in names), default=0))
 
 
+def _logged_width(rotation: RotationModel | None, logged: list, read: int) -> int:
+    """The number of logged inputs fed per step beside identify's v̇ models (``logged``: the
+    commands and voltage they read, empty on motor speeds; ``read``: their count, or the highest
+    motor speed read), checked against the rotational model: both read speeds or both commands."""
+    if rotation is not None and bool(logged) != (rotation.commands is not None):
+        raise ConfigError("export_vehicle: the rotational model reads "
+                          + ("motor commands; these v̇ models read rotor speeds" if rotation.commands is not None
+                             else "rotor speeds; these v̇ models read motor commands (export the translation "
+                                  "with the body rates held: rotation None)"))
+    motors = (read if logged else rotation.layout.motors) if rotation is not None else max(read, 1)
+    if read > motors:
+        raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")
+    return motors
+
+
 def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float = 0.01, *,
                    inputs: dict | None = None, dt_note: str = "", motor=None) -> str:
     """The text of one file with the full 6-DOF model in ``to`` (``"python"`` or ``"c"``).
@@ -409,14 +424,7 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         motor = motor if motor is not None else getattr(translation, "motor", None)
         tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to, motor)
         logged = IdentifiedTranslation(models, motor).signals()
-        if rotation is not None and bool(logged) != (rotation.commands is not None):
-            raise ConfigError("export_vehicle: the rotational model reads "
-                              + ("motor commands; these v̇ models read rotor speeds" if rotation.commands is not None
-                                 else "rotor speeds; these v̇ models read motor commands (export the translation "
-                                      "with the body rates held: rotation None)"))
-        motors = (read if logged else rotation.layout.motors) if rotation is not None else max(read, 1)
-        if read > motors:
-            raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")
+        motors = _logged_width(rotation, logged, read)
     else:
         raise ConfigError("export_vehicle needs a droneid.rotation.model.TranslationModel or identify's final v̇ "
                           f"models; got {type(translation).__name__}")
