@@ -112,7 +112,7 @@ def _model_line(rot: RotationResult) -> str:
             terms.append(f"{m.trim[k]:+.4g}")
         evidence = _decay_range(rot, k) if a.rung == "damping" else _spinup_evidence(rot) if a.rung == "spinup" else ""
         parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})" + evidence)
-    tail = unsteerable_sentence(unsteerable(m))
+    tail = unsteerable_sentence(unsteerable(m), "motor commands" if rot.from_commands else "motor speeds")
     return "rotational model (rad/s²): " + "; ".join(parts) + (f". {tail} (export --vehicle refuses it without "
                                                                  f"--allow-unsteerable)" if tail else "")
 

@@ -587,10 +587,11 @@ def steering_line(rotation: "RotationModel | None") -> str:
             + (f"; {', '.join(stuck)}: {NO_RESPONSE}." if stuck else "."))
 
 
-def unsteerable_sentence(axes: Sequence[str]) -> str:
-    """What a user of the model must know when ``axes`` do not answer the motors ("" for none)."""
+def unsteerable_sentence(axes: Sequence[str], inputs: str = "motor speeds") -> str:
+    """What a user of the model must know when ``axes`` do not answer the motors ("" for none);
+    ``inputs``: what the model is fed (motor speeds, or motor commands)."""
     if not axes:
         return ""
     return (f"NOT STEERABLE on {', '.join(axes)}: no torque term (decay-only or held), so differential "
-            f"thrust does not turn the model there: replay logged motor speeds with it, do not design a "
+            f"thrust does not turn the model there: replay logged {inputs} with it, do not design a "
             f"controller on it")

@@ -447,7 +447,7 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         f"to the input conditioner, which returns u[{width}], held over that step:",
         *tpart.header, *rpart.header,
         steering_line(rotation),
-        *filter(None, [unsteerable_sentence(unsteerable(rotation))]),
+        *filter(None, [unsteerable_sentence(unsteerable(rotation), "motor commands" if logged else "motor speeds")]),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.simulation.openloop.simulate)."]
     build = vehicle_python if to == "python" else vehicle_c
