@@ -46,6 +46,7 @@ from droneid.core.text import readable_equation, split_leading_number, undeclare
 from droneid.fitting.verdict import verdict
 from droneid.simulation.rollout import horizon_section
 from droneid.rotation.commands import CommandSpeeds
+from droneid.simulation.motor_model import MotorModel
 from droneid.rotation.stage import RotationJob, RotationResult, rotation_job, score_rotation
 from droneid.identify.search import RunRecord, compile_once, make_jobs, run_job, select_best
 from droneid.planning.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
@@ -255,7 +256,8 @@ def _scored_rotation(res: "IdentificationResult", flights, notes: list) -> Rotat
     if not all(t in res.targets for t in ("vx_dot", "vy_dot", "vz_dot")):
         return res.rotation
     models = {t: IdentifiedModel.from_dict(res.targets[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
-    return score_rotation(res.rotation, flights, models)
+    motor = MotorModel.from_record({"prior_params": res.plan.prior_params, "thrust_curve": res.plan.thrust_curve})
+    return score_rotation(res.rotation, flights, models, motor)
 
 
 def run_stage_job(job):

@@ -39,6 +39,7 @@ from droneid.core.io_util import to_jsonable
 from droneid.simulation.openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedTranslation, IdentifiedVehicle, StateLog, flight_state_logs
 from droneid.fitting.verdict import Verdict, axis_verdict
 from droneid.rotation.commands import COMMAND_SPEED_NOTE, CommandSpeeds
+from droneid.simulation.motor_model import MotorModel
 from droneid.rotation.model import (AXIS_NAMES, NO_RESPONSE, SPEED_UNIT, RotationModel, identify_layout,
                                     unsteerable)
 from droneid.rotation.choice import HeldRates, select_rotation, validation_sums
@@ -197,13 +198,15 @@ def rotation_job(train_flights: Sequence, frame: str = "auto", commands: Command
     return RotationJob(train, scale, why, frame, commands=commands)
 
 
-def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Mapping) -> RotationResult:
+def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Mapping,
+                   motor: MotorModel | None = None) -> RotationResult:
     """``rot`` with each axis's test figures and verdict: the body-rate SimErr per axis on the
     test flights, open loop with identify's final v̇ models {"vx_dot", "vy_dot", "vz_dot":
-    IdentifiedModel} as the translation, against the rates held (a note when they cannot be scored)."""
+    IdentifiedModel} as the translation (``motor``: the motor model of a command-driven vehicle's
+    models), against the rates held (a note when they cannot be scored)."""
     commands = None if rot.model is None else rot.model.commands
     try:
-        tr = IdentifiedTranslation(translation, None if commands is None else commands.motor)
+        tr = IdentifiedTranslation(translation, motor if motor is not None or commands is None else commands.motor)
         signals = tuple(dict.fromkeys([*tr.signals(), *(commands.signals() if commands is not None else ())]))
         test = flight_state_logs(test_flights, signals=signals)
         held = _axis_simerr(IdentifiedVehicle(tr, HeldRates()), test)

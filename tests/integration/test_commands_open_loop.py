@@ -248,14 +248,17 @@ def test_simulated_command_vehicle_rotation_from_the_cli(tmp_path, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         train = [flight(p, s) for s, p in enumerate(("random", "eight", "lissajous"))]
+        test = flight("square", 7)
         res = Identifier(effects="none", frame="quad_x", runs=1, generations=50, population_size=40,
-                         jobs=1).fit(train)
+                         jobs=1).fit(train, test=[test])
         rot = res.rotation
         assert rot is not None and rot.from_commands, res.notes
+        # scored on the test flight, held axes included (through the plan's motor model)
+        assert all(math.isfinite(a.test_held) and math.isfinite(a.test_model) for a in rot.axes), rot.notes
+        assert not any("not scored" in n for n in rot.notes)
         doc = res.to_dict()
         result = tmp_path / "result.json"
         result.write_text(json.dumps(doc))
-        test = flight("square", 7)
         log = write_flat_csv(test, tmp_path / "square.csv")
         capsys.readouterr()
         assert main(["predict", str(result), str(log), "--open-loop", "--json"]) == 0
