@@ -102,7 +102,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     if test_flights:
         check_prior_data(test_flights, pr, tg, cfg.ts, "test")
     plan = plan_inputs(train_flights, icfg, progress)
-    train, decided = diagnosis_datasets(plan, train_flights, icfg)
+    train, decided = diagnosis_datasets(plan, plan.aligned(train_flights), icfg)
     test = diagnosis_datasets(plan, test_flights, icfg)[0] if test_flights else None
     res = diagnose_datasets(train, test, prior=plan.prior, prior_label=_prior_label(prior, plan), config=cfg,
                             user_effects=user_effects, progress=progress, decided=decided)
@@ -146,7 +146,7 @@ def plan_identification(train_flights, cfg, progress: Callable | None = None, cu
     plan = plan_inputs(train_flights, cfg, progress, cuts)
     if cfg.effects != "auto":
         return plan
-    train, decided = diagnosis_datasets(plan, train_flights, cfg, cuts)
+    train, decided = diagnosis_datasets(plan, plan.aligned(train_flights), cfg, cuts)
     try:
         res = diagnose_datasets(train, None, prior=plan.prior, decided=decided,
                                 config=DiagnoseConfig(ts=cfg.ts, method=cfg.method, generations=0))

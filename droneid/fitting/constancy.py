@@ -207,6 +207,11 @@ LEADS = {"drag": ("wind", "quadratic_drag", "anisotropic_drag", "vertical_drag")
          "tilt": ("attitude_bias", "attitude_delay", "thrust_direction")}
 
 
+#: flight conditions droneid does not estimate per flight that move a coefficient of this role
+CONDITION_LEADS = {"thrust": "a payload or a battery that differs between flights (the thrust per unit mass moves)",
+                   "drag": "a wind that differs between flights, or headings that differ with a drag along the body axes"}
+
+
 def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -> str:
     """Where to look when vehicle constants are NOT constant, one sentence ("" when all hold):
     the flight conditions droneid saw differ between the flights (the clock offset, ``offset``:
@@ -223,10 +228,12 @@ def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -
     out = []
     if offset is not None and getattr(offset, "per_flight", None) and not offset.flights_share:
         out.append("the flights' thrust clock offsets differ (" + ", ".join(
-            f"{1000 * b:+.0f} ms" for b, _, _ in offset.per_flight.values()) + "), one offset serves them all")
+            f"{n} {1000 * d:+.0f} ms" for n, d in offset.applied.items()) + " read at their own offsets, the "
+            f"others at {1000 * offset.offset_s:+.0f} ms)")
     for role in roles:
         cands = [f"{e} ({said.get(e, 'not tried')})" for e in LEADS[role]]
-        out.append(f"effects that move a {role} scale between flights: " + ", ".join(cands))
+        out.append(f"effects that move a {role} scale between flights: " + ", ".join(cands)
+                   + (f"; or a condition of each flight: {CONDITION_LEADS[role]}" if role in CONDITION_LEADS else ""))
     return "leads for the constants that move: " + "; ".join(out)
 
 

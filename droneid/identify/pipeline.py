@@ -188,7 +188,8 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
         cuts = holdout_cuts(train_flights, cfg, targets[0], prior)
     plan = plan_identification(train_flights, cfg, progress, cuts)
     cfg = replace(cfg, targets=plan.targets)
-    problems = {t: prepare_target(train_flights, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
+    aligned = plan.aligned(train_flights)      # each training flight's thrust inputs at its own clock offset
+    problems = {t: prepare_target(aligned, test_flights, t, cfg, plan, cuts) for t in cfg.targets}
     jobs = [j for t in cfg.targets for j in make_jobs(problems[t], cfg)]
     notes_early = []
     if cfg.rotation != "none":   # the rotational choice needs no SNGP result: a job beside the runs, first

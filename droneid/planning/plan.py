@@ -15,7 +15,7 @@ The result is a frozen :class:`Plan`; :mod:`droneid.identify.pipeline` builds th
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,7 +26,7 @@ from priors.thrust import COMMAND_SOURCES, NOMINAL_EXPO
 from droneid.engine import runner
 from droneid.dataset.data import Dataset
 from droneid.dataset.builder import DatasetBuilder, _unique_names, reuse_datasets
-from droneid.fitting.decide import decide, decide_family
+from droneid.fitting.decide import decide, decide_family, holm_step_down
 from droneid.dataset.suitability import prior_for_flights
 from droneid.fitting.terms import prior_terms
 from droneid.core.regression import blocked_cv, robust_fit
@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from droneid.fitting.thrust_curve import ThrustCurve
     from droneid.fitting.terms import TermModel
 
-__all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "OFFSET_GRID_S",
+__all__ = ["Plan", "Effect", "OffsetDecision", "choose_offset", "choose_offsets", "OFFSET_GRID_S",
            "plan_inputs", "diagnosis_datasets", "holdout_cuts", "resolve_plan_prior", "train_rows",
            "dataset_builder", "fixed_plan", "PAPER_PRIOR"]
 
@@ -83,6 +83,18 @@ class Plan:
         and why, the thrust curve, the thrust inputs' offset with its test, the diagnosis."""
         return [f"prior: {self.prior.name} ({self.prior_reason})", *self.notes]
 
+    def aligned(self, flights) -> list:
+        """The training ``flights`` (in the order the plan was made from) with each flight whose
+        clock the plan corrects (:attr:`OffsetDecision.clock`) moved in time on its thrust inputs,
+        so that reading them at the chosen offset (``delays_s``) reads that flight's at its own: a
+        clock offset of one flight's streams corrected where every stage reads it. Other flights
+        (and flights not trained on) are returned as they are."""
+        clock = self.offset.clock if self.offset is not None else {}
+        if not clock:
+            return list(flights)
+        signals = sorted({s for t in self.targets for s in self.prior.thrust_signals(t)})
+        return _clock_corrected(flights, signals, {n: d for n, (d, _) in clock.items()})
+
     def record(self) -> dict:
         """The plan's decisions as result.json (identify's ``config``) and diagnosis.json
         (``plan``) record them: the prior used (its parameters and why), the input delays and the
@@ -96,7 +108,11 @@ class Plan:
                             "per_target": {t: list(v) for t, v in off.per_target.items()},
                             "targets_agree": off.targets_agree,
                             "per_flight": {f: list(v) for f, v in off.per_flight.items()},
-                            "flights_share": off.flights_share} if off is not None else None),
+                            "flights_share": off.flights_share,
+                            "own": {f: {"offset_s": d, "accepted": dec.accepted, "evidence": dec.evidence}
+                                    for f, (d, dec) in off.own.items()},
+                            "clock_s": {f: {"shift_s": d, "evidence": ev} for f, (d, ev) in off.clock.items()},
+                            "applied_s": off.applied} if off is not None else None),
                 "thrust_curve": self.thrust_curve.to_dict() if self.thrust_curve is not None else None}
 
 
@@ -153,9 +169,18 @@ class OffsetDecision:
         log, so targets whose intervals do not overlap (:attr:`targets_agree` False) say the
         model lacks something in how thrust follows its signals (a motor lag, say) and the
         thrust and drag scales absorb it
-    per_flight : {flight: (best, low, high) s}, the same for each training flight's own rows: when
-        the chosen offset is outside a flight's interval (:attr:`flights_share` False), the
-        flights' clocks differ and the one offset is a compromise the scales absorb
+    per_flight : {flight: (best, low, high) s}, the same for each training flight's own rows
+        (the vehicle's terms fitted on the other flights: :func:`_per_flight_groups`)
+    own : {flight: (its own best offset s, Decision)}: each training flight whose own best offset
+        is not the chosen one, tested against it on that flight's (target, block) units by the rule
+        of :mod:`droneid.fitting.decide` (Holm over every flight and every other offset of the grid,
+        at :data:`OFFSET_ALPHA`), on the flights as :func:`choose_offsets` last moved them (none
+        accepted there, or its rounds ran out)
+    clock : {flight: (shift s, evidence)}: the flights whose clock differs from the others' (their
+        own offset was accepted in a round of :func:`choose_offsets`): their thrust inputs are
+        moved by ``shift`` and so read at ``offset_s + shift`` (:attr:`applied`,
+        :meth:`Plan.aligned`), a condition of that flight like its wind; the flights share the
+        chosen offset (:attr:`flights_share`) when there is none
     """
     offset_s: float
     interval_s: tuple
@@ -163,12 +188,19 @@ class OffsetDecision:
     decision: object | None
     per_target: Mapping[str, tuple] = field(default_factory=dict)
     per_flight: Mapping[str, tuple] = field(default_factory=dict)
+    own: Mapping[str, tuple] = field(default_factory=dict)
+    clock: Mapping[str, tuple] = field(default_factory=dict)
+
+    @property
+    def applied(self) -> dict:
+        """{flight: offset s} of the training flights read at their own offset (:attr:`clock`; a
+        clock offset between two log streams is a condition of one flight)."""
+        return {n: round(self.offset_s + d, 3) for n, (d, _) in self.clock.items()}
 
     @property
     def flights_share(self) -> bool:
-        """Whether the chosen offset lies in every training flight's own interval (a clock offset
-        between two log streams is a condition of one flight: the flights may differ)."""
-        return all(lo <= self.offset_s <= hi for _, lo, hi in self.per_flight.values())
+        """Whether every training flight is read at the chosen offset (no flight's own beats it)."""
+        return not self.applied
 
     @property
     def targets_agree(self) -> bool:
@@ -187,6 +219,17 @@ class OffsetDecision:
                 f"all of them, so the model lacks something in how thrust follows these signals (a motor "
                 f"lag, say) and the thrust and drag scales absorb it")
 
+    def sharing(self) -> str:
+        """Whether the flights share the chosen offset, in words, with the per-flight tests."""
+        tested = f"{len(self.own)} flight(s) whose own offset differs tested against it" if self.own else \
+            "every flight's own best is the chosen offset"
+        if self.flights_share:
+            return f"the flights share it ({tested}; none beats it by the block test)"
+        each = "; ".join(f"{n} at {1000 * (self.offset_s + d):+.0f} ms ({ev})" for n, (d, ev) in self.clock.items())
+        return (f"NOT SHARED: these flights' clocks differ, and each is read at its own offset (a condition "
+                f"of the flight): {each}; flights not used in training are read at the chosen "
+                f"{1000 * self.offset_s:+.0f} ms")
+
     def text(self, signals) -> str:
         names = ", ".join(signals)
         ev = self.decision.evidence if self.decision is not None else "no testable candidate"
@@ -203,10 +246,7 @@ class OffsetDecision:
         text = f"thrust inputs ({names}) {what}; 95 % interval [{1000 * lo:.0f}, {1000 * hi:.0f}] ms; {ev}"
         if self.per_flight:
             own = ", ".join(f"{n} {1000 * b:+.0f} [{1000 * a:+.0f}, {1000 * c:+.0f}]" for n, (b, a, c) in self.per_flight.items())
-            text += (f". Each flight's own offset (ms): {own}: "
-                     + ("the flights share it" if self.flights_share else
-                        "NOT SHARED: the chosen offset is outside some flights' own interval, so their clocks "
-                        "differ and the thrust and drag scales absorb the difference"))
+            text += f". Each flight's own offset (ms): {own}: " + self.sharing()
         return text + (f". NOT ONE OFFSET: {self.disagreement()}" if not self.targets_agree else "")
 
 
@@ -290,8 +330,71 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     best = by_name[best_name] if accepted else 0.0
     same = [d for d in errs if d == best or not decide(errs[d], errs[best], blocks, alpha=OFFSET_INTERVAL_ALPHA,
                                                          min_effect_pct=0.0).accepted]
-    per_flight = _own_offsets(_per_flight_groups(shared, names, best))
-    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name], per_target, per_flight)
+    groups = _per_flight_groups(shared, names, best)
+    per_flight = _own_offsets(groups)
+    own = _flight_tests(groups, per_flight, best, len(grid) - 1)
+    return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name], per_target, per_flight, own)
+
+
+#: rounds of :func:`choose_offsets` (each moves the flights whose own offset passed, then chooses again)
+CLOCK_ROUNDS = 4
+
+
+def choose_offsets(train_flights, prior, targets, signals, cfg, cuts=None,
+                   grid: Sequence[float] = OFFSET_GRID_S) -> OffsetDecision:
+    """:func:`choose_offset` with each training flight's own clock: a flight whose own offset
+    beats the chosen one by the block test (:attr:`OffsetDecision.own`) has its thrust inputs
+    moved by the difference, and the offset is chosen again on the moved flights (the vehicle's
+    terms of the others' profiles then fitted on flights whose clocks agree), until no flight's
+    own passes or :data:`CLOCK_ROUNDS` rounds are done. The decision of the last round, with the
+    shifts it was made on (:attr:`OffsetDecision.clock`)."""
+    names = _unique_names([f.name for f in train_flights])
+    clock: dict = {}
+    for k in range(CLOCK_ROUNDS):
+        moved = _clock_corrected(train_flights, signals, {n: d for n, (d, _) in clock.items()}, names)
+        dec = choose_offset(moved, prior, targets, signals, cfg, cuts, grid)
+        new = {n: (own - dec.offset_s, d.evidence) for n, (own, d) in dec.own.items() if d.accepted}
+        if not new or k == CLOCK_ROUNDS - 1:
+            break
+        for n, (dd, ev) in new.items():
+            clock[n] = (round(clock.get(n, (0.0, ""))[0] + dd, 3), ev)
+    return replace(dec, clock={n: v for n, v in clock.items() if v[0]})
+
+
+def _clock_corrected(flights, signals: Sequence[str], shifts: Mapping[str, float], names=None) -> list:
+    """``flights`` with the ``signals`` of each flight named in ``shifts`` ({flight: s}, names as
+    :func:`droneid.dataset.builder._unique_names` gives them) moved later by its shift: read at an
+    offset d, they give that flight's samples at d + shift."""
+    flights = list(flights)
+    if not shifts:
+        return flights
+    names = names or _unique_names([f.name for f in flights])
+    out = []
+    for name, f in zip(names, flights):
+        dt = shifts.get(name, 0.0)
+        moved = [f[s].shifted(dt) for s in signals if s in f]
+        out.append(f.with_signals(*moved, note=f"thrust inputs moved by {1000 * dt:+.0f} ms: this flight's "
+                                               f"clock offset against the others'") if dt and moved else f)
+    return out
+
+
+def _flight_tests(groups: Mapping[str, tuple], per_flight: Mapping[str, tuple], chosen: float,
+                  n_other: int) -> dict:
+    """{flight: (its own best offset s, Decision)} for the flights of ``per_flight`` whose own
+    best is not ``chosen``: the own offset against the chosen one on the flight's units
+    (``groups``: :func:`_per_flight_groups`), Holm's step-down over the flights, the family every
+    flight times the ``n_other`` offsets of the grid besides the chosen (each flight's own was
+    picked among them), at :data:`OFFSET_ALPHA`."""
+    cand = {n: b for n, (b, _, _) in per_flight.items() if b != chosen}
+    if not cand:
+        return {}
+    family = len(per_flight) * max(n_other, 1)
+
+    def at(name, rank):
+        errs, units = groups[name]
+        return decide(errs[chosen], errs[cand[name]], units, alpha=OFFSET_ALPHA, family_size=family, rank=rank,
+                      what=f"{name} at {1000 * cand[name]:+.0f} ms vs {1000 * chosen:+.0f} ms")
+    return {n: (cand[n], dec) for n, dec in holm_step_down(at, list(cand)).items()}
 
 
 def _common_rows(res: dict, target: str) -> tuple[dict, np.ndarray, np.ndarray, dict]:
@@ -365,18 +468,20 @@ def plan_inputs(train_flights, cfg, progress: Callable | None = None,
     if cfg.delays == "auto" and thrust:
         if progress:
             progress(0, 1, "choosing the thrust input offset")
-        decision = choose_offset(train_flights, prior, targets, thrust, cfg, cuts)
+        decision = choose_offsets(train_flights, prior, targets, thrust, cfg, cuts)
         scores = dict(decision.scores)
-        if decision.offset_s:
-            delays = {s: decision.offset_s for s in thrust}
+        # each flight's thrust inputs at its own clock (the flights that have one)
+        aligned = _clock_corrected(train_flights, thrust, {n: d for n, (d, _) in decision.clock.items()})
+        if decision.offset_s or decision.clock:
+            delays = {s: decision.offset_s for s in thrust} if decision.offset_s else {}
             if curve is not None and not curve.lag_s:   # the curve again, from the commands read at the offset
-                prior, curve = _with_thrust_curve(prior, train_flights, cfg, cuts, delays)
+                prior, curve = _with_thrust_curve(prior, aligned, cfg, cuts, delays)
         if curve is not None and not curve.lag_s:       # its interval over every offset the data admit
             # (a kept motor lag is the curve stage's own model of how the commands lead their thrust)
             from droneid.fitting.thrust_curve import over_offsets
             lo, hi = decision.interval_s
             admitted = [d for d in OFFSET_GRID_S if lo <= d <= hi and d != decision.offset_s]
-            curve = over_offsets(curve, train_flights, prior, cfg, cuts, thrust,
+            curve = over_offsets(curve, aligned, prior, cfg, cuts, thrust,
                                  [decision.offset_s, *admitted])
         notes.append(decision.text(thrust))
     if curve is not None:

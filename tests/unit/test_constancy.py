@@ -143,6 +143,9 @@ def test_leads_point_to_what_moves_a_constant_and_what_the_diagnosis_said():
     diag = {"not_detected": ["wind"], "untestable": {"anisotropic_drag": "why"}, "effects_added": []}
     text = leads(bad, diag)
     assert "wind (not detected)" in text and "anisotropic_drag (untestable)" in text and "thrust" not in text
+    assert "a wind that differs between flights" in text and "payload" not in text
+    thrust = {"sum_rpm_sq_z": Constancy("flight", {"a": (0.9, 0.89, 0.91), "b": (1.2, 1.19, 1.21)}, 1e-9, False)}
+    assert "payload" in leads(thrust, diag)
     assert leads(good, diag) == ""
 
 
