@@ -194,8 +194,10 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     notes_early = []
     if cfg.rotation != "none":   # the rotational choice needs no SNGP result: a job beside the runs, first
         try:
-            # a command-driven vehicle: the rotors' speeds from their commands through the plan's motor model
-            jobs.insert(0, rotation_job(train_flights, cfg.frame, CommandSpeeds.from_record(plan.record())))
+            # a command-driven vehicle: the rotors' speeds from their commands through the plan's motor
+            # model, each flight's commands at its own clock (the plan's offset is theirs)
+            commands = CommandSpeeds.from_record(plan.record())
+            jobs.insert(0, rotation_job(train_flights if commands is None else aligned, cfg.frame, commands))
         except DataError as exc:
             notes_early.append(f"rotation not modelled: {exc}")
     compile_once(progress)
