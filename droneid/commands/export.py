@@ -39,7 +39,8 @@ def register(sub) -> None:
                         "The motor speeds drive the thrust; a body axis answers them only where its "
                         "rotational model has a torque term (the header says which axes do not). A "
                         "command-driven vehicle is fed its logged motor commands and battery voltage through "
-                        "the identified motor model (thrust curve, battery compensation, motor lag), rates held")
+                        "the identified motor model (thrust curve, battery compensation, motor lag), which also "
+                        "gives its rotational model each rotor's thrust (as a fraction of full thrust)")
     p.add_argument("--allow-unsteerable", action="store_true",
                    help="with --vehicle: export even when a body axis does not answer the motors (its "
                         "rotational model is decay-only or held: differential thrust does not roll, pitch or "
@@ -111,10 +112,12 @@ def _vehicle(args) -> str:
     stuck = _rotation.unsteerable(models.get("_rotation"))
     if stuck and not args.allow_unsteerable:
         if motor is not None and models.get("_rotation") is None:
-            raise DataError(f"{args.result}: a command-driven vehicle has no rotational model (the rotational "
-                            f"stage needs rotor speeds), so the exported vehicle holds its body rates: its "
-                            f"commands drive the thrust only and cannot steer it; --allow-unsteerable exports "
-                            f"it anyway (for open-loop replay of logged commands, not for controller design)")
+            why = next((n for n in doc.get("notes") or () if str(n).startswith("rotation not modelled")),
+                       "the rotational stage kept no model: every body rate is held")
+            raise DataError(f"{args.result}: a command-driven vehicle without a rotational model ({why}), so the "
+                            f"exported vehicle holds its body rates: its commands drive the thrust only and cannot "
+                            f"steer it; --allow-unsteerable exports it anyway (for open-loop replay of logged "
+                            f"commands, not for controller design)")
         raise DataError(f"{args.result}: the identified rotational model does not answer the motors on "
                         f"{', '.join(stuck)} (decay-only or held: differential thrust does not turn it), so "
                         f"the exported vehicle cannot be steered; --allow-unsteerable exports it anyway "

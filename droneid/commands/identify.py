@@ -84,8 +84,10 @@ def register(sub) -> None:
                    help="the empirical model's drag constant k_D, when it has one (default 0.28 1/s)")
     p.add_argument("--rotation", default="auto", choices=("auto", "none"),
                    help="auto (default): where the logs have the attitude quaternion, body rates and per-motor "
-                        "speeds, also model the body rates (ω̇x, ω̇y, ω̇z), chosen by holding each training flight "
-                        "out in turn, and score the whole vehicle open loop on the test flights; none: v̇ only")
+                        "speeds (or per-motor commands: each rotor's speed from its command through the identified "
+                        "motor model, torque inputs in units of full thrust), also model the body rates (ω̇x, ω̇y, "
+                        "ω̇z), chosen by holding each training flight out in turn (at least two), and score the "
+                        "whole vehicle open loop on the test flights; none: v̇ only")
     p.add_argument("--frame", default="auto", metavar="LAYOUT",
                    help="rotor layout of the rotational model: auto (default: identified from the training "
                         "flights' torque signs) or a layout of priors/torque.py, e.g. crazyflie_x, quad_x")

@@ -45,6 +45,8 @@ from droneid.identify.problem import TargetProblem, empirical_model, prepare_tar
 from droneid.core.text import readable_equation, split_leading_number, undeclared_line
 from droneid.fitting.verdict import verdict
 from droneid.simulation.rollout import horizon_section
+from droneid.rotation.commands import CommandSpeeds
+from droneid.simulation.motor_model import MotorModel
 from droneid.rotation.stage import RotationJob, RotationResult, rotation_job, score_rotation
 from droneid.identify.search import RunRecord, compile_once, make_jobs, run_job, select_best
 from droneid.planning.settings import PAPER_BUDGET, QUICK_BUDGET, IdentifyConfig
@@ -192,7 +194,10 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     notes_early = []
     if cfg.rotation != "none":   # the rotational choice needs no SNGP result: a job beside the runs, first
         try:
-            jobs.insert(0, rotation_job(train_flights, cfg.frame))
+            # a command-driven vehicle: the rotors' speeds from their commands through the plan's motor
+            # model, each flight's commands at its own clock (the plan's offset is theirs)
+            commands = CommandSpeeds.from_record(plan.record())
+            jobs.insert(0, rotation_job(train_flights if commands is None else aligned, cfg.frame, commands))
         except DataError as exc:
             notes_early.append(f"rotation not modelled: {exc}")
     compile_once(progress)
@@ -254,7 +259,8 @@ def _scored_rotation(res: "IdentificationResult", flights, notes: list) -> Rotat
     if not all(t in res.targets for t in ("vx_dot", "vy_dot", "vz_dot")):
         return res.rotation
     models = {t: IdentifiedModel.from_dict(res.targets[t].final.to_dict()) for t in ("vx_dot", "vy_dot", "vz_dot")}
-    return score_rotation(res.rotation, flights, models)
+    motor = MotorModel.from_record({"prior_params": res.plan.prior_params, "thrust_curve": res.plan.thrust_curve})
+    return score_rotation(res.rotation, flights, models, motor)
 
 
 def run_stage_job(job):

@@ -112,7 +112,7 @@ def _model_line(rot: RotationResult) -> str:
             terms.append(f"{m.trim[k]:+.4g}")
         evidence = _decay_range(rot, k) if a.rung == "damping" else _spinup_evidence(rot) if a.rung == "spinup" else ""
         parts.append(f"{ax} = {' '.join(terms) or '0'} ({a.rung})" + evidence)
-    tail = unsteerable_sentence(unsteerable(m))
+    tail = unsteerable_sentence(unsteerable(m), "motor commands" if rot.from_commands else "motor speeds")
     return "rotational model (rad/s²): " + "; ".join(parts) + (f". {tail} (export --vehicle refuses it without "
                                                                  f"--allow-unsteerable)" if tail else "")
 
@@ -162,7 +162,7 @@ def rotation_lines(rot: RotationResult | None) -> list[str]:
         header, rows = open_loop_table(rot.open_loop_test)
         out += ["", "== the whole vehicle open loop on the test flights (the nanodrone benchmark's metric: MAE over "
                     "every start, SimErr = Σ over 1..50 steps)", text_table(header, rows),
-                open_loop_legend(_has_rotation(rot))]
+                open_loop_legend(_has_rotation(rot), rot.from_commands)]
     return out
 
 
@@ -196,7 +196,8 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
     header, rows = _axes_table(rot)
     doc.table(header, rows)
     doc.paragraph("Body-rate SimErr per axis: Σ over 1..50 steps of the mean |Δω| (rad/s), simulated open loop "
-                  "from the motor speeds. Validation holds each training flight out in turn (this is what "
+                  f"from the {'motor commands through the motor model' if rot.from_commands else 'motor speeds'}. "
+                  "Validation holds each training flight out in turn (this is what "
                   "chooses); the test flights are scored after the choice. The baseline is the nominal rigid "
                   "body with the body rates held (ω̇ = 0).")
     header, rows = ladder_rows(rot)
@@ -210,7 +211,7 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
         doc.heading("The whole vehicle open loop on the test flights", level=3)
         header, rows = open_loop_table(rot.open_loop_test)
         doc.table(header, rows)
-        doc.paragraph(open_loop_legend(_has_rotation(rot)))
+        doc.paragraph(open_loop_legend(_has_rotation(rot), rot.from_commands))
         fig = fig_open_loop_drift(rot.open_loop_test)
         if fig is not None:
             doc.figure(fig, "open_loop_drift", "position and attitude error against the horizon, open loop "

@@ -71,11 +71,13 @@ from droneid.errors import DataError
 from droneid.core.frames import quat_to_euler, quat_to_matrix
 from droneid.simulation.openloop import CRAZYFLIE_RAD_S_PER_ERPM, G, IdentifiedVehicle, StateLog
 from droneid.core.regression import robust_fit, robust_fit_grouped
+from droneid.rotation.commands import CommandSpeeds
 
 __all__ = ["RotationModel", "TranslationModel", "VehicleModel", "fit_rotation", "fit_translation",
            "fit_vehicle", "identify_layout", "flying_mask", "flying_segments", "centred", "smoothed",
            "derivative", "spin_rate", "ROTATION_TERMS", "KNOWN_TERMS", "CLOSED_LOOP_TERMS", "balanced",
-           "body_velocity", "tilt", "translation_rows", "fit_translation_rows", "segment_bounds", "SPEED_UNIT"]
+           "body_velocity", "tilt", "translation_rows", "fit_translation_rows", "segment_bounds", "SPEED_UNIT",
+           "AXIS_NAMES", "NO_RESPONSE"]
 
 #: optional rotational terms (besides the torque pattern and the trim)
 ROTATION_TERMS = ("centre", "damping", "gyro", "spinup")
@@ -244,6 +246,10 @@ class RotationModel:
     balance_prior: np.ndarray | None = None
     #: the level attitude (roll, pitch) in rad of the term ``attitude`` (None: (0, 0))
     level_rad: np.ndarray | None = None
+    #: a command-driven vehicle: its rotor speeds are the normalised speeds of its logged commands
+    #: (:class:`droneid.rotation.commands.CommandSpeeds`; ``rad_s_per_rpm`` is then SPEED_UNIT and
+    #: ``s`` the rotors' thrust as a fraction of full thrust); None: logged rotor speeds
+    commands: CommandSpeeds | None = None
 
     def to_dict(self) -> dict:
         """JSON-able: the layout by name with its geometry, and every field as plain lists."""
@@ -258,7 +264,8 @@ class RotationModel:
                 "centre_tau_s": self.centre_tau_s, "lowpass_tau_s": self.lowpass_tau_s,
                 "balance_weight_s": self.balance_weight_s,
                 "balance_prior": None if self.balance_prior is None else np.asarray(self.balance_prior, float).tolist(),
-                "level_rad": None if self.level_rad is None else np.asarray(self.level_rad, float).tolist()}
+                "level_rad": None if self.level_rad is None else np.asarray(self.level_rad, float).tolist(),
+                "commands": None if self.commands is None else self.commands.to_dict()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "RotationModel":
@@ -272,7 +279,8 @@ class RotationModel:
                        np.asarray(d.get("flight_trims") or np.zeros((0, 3)), float).reshape(-1, 3),
                        d.get("centre_tau_s"), d.get("lowpass_tau_s"), d.get("balance_weight_s"),
                        None if prior is None else np.asarray(prior, float),
-                       None if level is None else np.asarray(level, float))
+                       None if level is None else np.asarray(level, float),
+                       None if d.get("commands") is None else CommandSpeeds.from_dict(d["commands"]))
         except (KeyError, TypeError, ValueError) as e:
             raise DataError(f"a rotation model record is damaged: {e}") from None
 
@@ -313,11 +321,17 @@ class RotationModel:
         return s, spin_rate(om, dt_s)
 
     def inputs(self, log: StateLog) -> np.ndarray:
-        """(N, 2M) for :func:`droneid.simulation.openloop.simulate`: :meth:`conditioned` side by side."""
-        if log.rpm.shape[1] != self.layout.motors:
+        """(N, 2M) for :func:`droneid.simulation.openloop.simulate`: :meth:`conditioned` side by side
+        (of the logged rotor speeds, or of the commands' normalised speeds: :attr:`commands`)."""
+        rpm = log.rpm if self.commands is None else self.commands.speeds(log)
+        if rpm.shape[1] != self.layout.motors:
             raise DataError(f"{log.name}: the rotation model has {self.layout.motors} rotors, the log "
-                            f"{log.rpm.shape[1]} motor speeds")
-        return np.hstack(self.conditioned(log.rpm, log.dt_s))
+                            f"{rpm.shape[1]} motor speeds")
+        return np.hstack(self.conditioned(rpm, log.dt_s))
+
+    def signals(self) -> tuple[str, ...]:
+        """The logged inputs besides the rotor speeds a state log must carry for :meth:`inputs`."""
+        return () if self.commands is None else self.commands.signals()
 
     def ang_accel(self, state: np.ndarray, u: np.ndarray) -> np.ndarray:
         """ω̇ (W, 3) from the state (W, 13) and a row of :meth:`inputs` (W, 2M)."""
@@ -553,16 +567,31 @@ def identify_layout(logs: Sequence[StateLog], *, window_s: float = 0.05,
     return np.sign(coefs), coefs
 
 
+#: the body axes in the order of the rotational targets
+AXIS_NAMES = ("roll", "pitch", "yaw")
+#: an axis whose ω̇ has no motor term (issue 37 item 5), in the report's and the export's words
+NO_RESPONSE = "this axis does not respond to the motors (decay-only or held: no torque term)"
+
+
 def unsteerable(rotation: "RotationModel | None") -> tuple[str, ...]:
     """The body axes that do not answer the motors: :meth:`RotationModel.unsteerable_axes`, all
     three without a rotational model (every rate held)."""
-    return rotation.unsteerable_axes() if rotation is not None else ("roll", "pitch", "yaw")
+    return rotation.unsteerable_axes() if rotation is not None else AXIS_NAMES
 
 
-def unsteerable_sentence(axes: Sequence[str]) -> str:
-    """What a user of the model must know when ``axes`` do not answer the motors ("" for none)."""
+def steering_line(rotation: "RotationModel | None") -> str:
+    """Which body axes answer the motors and which do not, in one line (the export's header)."""
+    stuck = unsteerable(rotation)
+    answer = [a for a in AXIS_NAMES if a not in stuck]
+    return (f"Body axes that answer the motors (a torque term): {', '.join(answer) or 'none'}"
+            + (f"; {', '.join(stuck)}: {NO_RESPONSE}." if stuck else "."))
+
+
+def unsteerable_sentence(axes: Sequence[str], inputs: str = "motor speeds") -> str:
+    """What a user of the model must know when ``axes`` do not answer the motors ("" for none);
+    ``inputs``: what the model is fed (motor speeds, or motor commands)."""
     if not axes:
         return ""
     return (f"NOT STEERABLE on {', '.join(axes)}: no torque term (decay-only or held), so differential "
-            f"thrust does not turn the model there: replay logged motor speeds with it, do not design a "
+            f"thrust does not turn the model there: replay logged {inputs} with it, do not design a "
             f"controller on it")

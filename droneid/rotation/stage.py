@@ -19,7 +19,10 @@ From the training flights only, :func:`choose_rotation` (as identify's :class:`R
 The test flights never take part in a choice: they are scored after it. Rates in rad/s, angular
 accelerations in rad/s², motor speeds converted to rad/s by their recorded unit (``rpm``: 2π/60;
 ``erpm``: the Crazyflie 2.1 Brushless's 6 electrical rpm per mechanical revolution, said in the
-result: the model's coefficients scale with it, its predictions do not).
+result: the model's coefficients scale with it, its predictions do not). A command-driven vehicle
+(no rotor speeds; issue 36) runs the same stage on each rotor's normalised speed from its command
+through the plan's motor model (:mod:`droneid.rotation.commands`): its torque inputs are then the
+rotors' thrusts as fractions of full thrust, not rad/s, as the result's ``speed_note`` says.
 """
 from __future__ import annotations
 
@@ -35,7 +38,10 @@ from droneid.errors import DataError, DroneIdError
 from droneid.core.io_util import to_jsonable
 from droneid.simulation.openloop import CRAZYFLIE_RAD_S_PER_ERPM, IdentifiedTranslation, IdentifiedVehicle, StateLog, flight_state_logs
 from droneid.fitting.verdict import Verdict, axis_verdict
-from droneid.rotation.model import RotationModel, identify_layout
+from droneid.rotation.commands import COMMAND_SPEED_NOTE, CommandSpeeds
+from droneid.simulation.motor_model import MotorModel
+from droneid.rotation.model import (AXIS_NAMES, NO_RESPONSE, SPEED_UNIT, RotationModel, identify_layout,
+                                    unsteerable)
 from droneid.rotation.choice import HeldRates, select_rotation, validation_sums
 
 __all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "RotationJob", "rotation_job", "choose_rotation",
@@ -90,6 +96,8 @@ class RotationResult:
     notes : sentences
     dt_s : the grid step (s) of the training flights' state logs: the step the model's delays and
         time constants were fitted at (the exported step function's default step)
+    from_commands : the rotors' speeds came from the logged motor commands through the plan's motor
+        model (:mod:`droneid.rotation.commands`: ``s`` in units of full thrust), not logged speeds
     """
     layout: str
     layout_source: str
@@ -101,6 +109,7 @@ class RotationResult:
     open_loop_test: Mapping[str, object] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     dt_s: float = math.nan
+    from_commands: bool = False
 
     def to_dict(self) -> dict:
         return to_jsonable({"targets": list(ROTATION_TARGETS), "layout": self.layout,
@@ -109,7 +118,7 @@ class RotationResult:
                             "model": None if self.model is None else self.model.to_dict(),
                             "choice": dict(self.choice), "axes": [a.to_dict() for a in self.axes],
                             "open_loop_test": dict(self.open_loop_test), "notes": list(self.notes),
-                            "dt_s": self.dt_s})
+                            "dt_s": self.dt_s, "from_commands": self.from_commands})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "RotationResult":
@@ -119,7 +128,8 @@ class RotationResult:
             return cls(str(d["layout"]), str(d["layout_source"]), float(d["rad_s_per_rpm"]),
                        str(d.get("speed_note") or ""), model, dict(d["choice"]),
                        tuple(AxisResult.from_dict(a) for a in d["axes"]), dict(d.get("open_loop_test") or {}),
-                       tuple(d.get("notes") or ()), math.nan if d.get("dt_s") is None else float(d["dt_s"]))
+                       tuple(d.get("notes") or ()), math.nan if d.get("dt_s") is None else float(d["dt_s"]),
+                       bool(d.get("from_commands", False)))
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(f"the result's rotation section is damaged: {exc}") from None
 
@@ -156,42 +166,54 @@ def _layout(logs: Sequence[StateLog], frame: str, rad_s_per_rpm: float) -> tuple
                     f"({', '.join(LAYOUTS)}); name it with --frame")
 
 
-def choose_rotation(train_flights: Sequence, frame: str = "auto") -> RotationResult:
+def choose_rotation(train_flights: Sequence, frame: str = "auto", commands: CommandSpeeds | None = None
+                    ) -> RotationResult:
     """The choice, from the training flights only (see the module docstring): the layout, the
     rotational model and each axis's validation verdict (its test figures NaN). DataError when
     the flights cannot give a rotational model (missing signals, fewer than two training flights,
     a layout that matches none)."""
-    return rotation_job(train_flights, frame)._choose()
+    return rotation_job(train_flights, frame, commands)._choose()
 
 
-def rotation_job(train_flights: Sequence, frame: str = "auto") -> "RotationJob":
+def rotation_job(train_flights: Sequence, frame: str = "auto", commands: CommandSpeeds | None = None) -> "RotationJob":
     """The rotational choice as a job (:class:`RotationJob`): the training flights' state logs and
     their motor-speed unit, checked here (DataError: missing signals, fewer than two training
-    flights with an in-flight stretch)."""
-    scales = {speed_scale(f) for f in train_flights}
-    if len(scales) > 1:
-        raise DataError("the training flights log their motor speeds in different units ("
-                        + "; ".join(sorted(w for _, w in scales)) + "): one rotational model cannot read both")
-    scale, why = scales.pop()
-    train = tuple(flight_state_logs(train_flights))
+    flights with an in-flight stretch). ``commands``: a command-driven vehicle's rotor speeds from
+    its commands through the plan's motor model (:mod:`droneid.rotation.commands`; the rotational
+    model then reads ``s`` in units of full thrust, not rad/s)."""
+    if commands is not None:
+        logs = flight_state_logs(train_flights, signals=commands.signals())
+        train, scale, why = tuple(commands.speed_log(log) for log in logs), SPEED_UNIT, \
+            f"{COMMAND_SPEED_NOTE}; {commands.text()}"
+    else:
+        scales = {speed_scale(f) for f in train_flights}
+        if len(scales) > 1:
+            raise DataError("the training flights log their motor speeds in different units ("
+                            + "; ".join(sorted(w for _, w in scales)) + "): one rotational model cannot read both")
+        scale, why = scales.pop()
+        train = tuple(flight_state_logs(train_flights))
     if len({log.name for log in train}) < 2:
         raise DataError("the rotational model is chosen by holding each training flight out in turn: "
                         "it needs at least two training flights with an in-flight stretch")
-    return RotationJob(train, scale, why, frame)
+    return RotationJob(train, scale, why, frame, commands=commands)
 
 
-def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Mapping) -> RotationResult:
+def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Mapping,
+                   motor: MotorModel | None = None) -> RotationResult:
     """``rot`` with each axis's test figures and verdict: the body-rate SimErr per axis on the
     test flights, open loop with identify's final v̇ models {"vx_dot", "vy_dot", "vz_dot":
-    IdentifiedModel} as the translation, against the rates held (a note when they cannot be scored)."""
+    IdentifiedModel} as the translation (``motor``: the motor model of a command-driven vehicle's
+    models), against the rates held (a note when they cannot be scored)."""
+    commands = None if rot.model is None else rot.model.commands
     try:
-        test = flight_state_logs(test_flights)
-        tr = IdentifiedTranslation(translation)
+        tr = IdentifiedTranslation(translation, motor if motor is not None or commands is None else commands.motor)
+        signals = tuple(dict.fromkeys([*tr.signals(), *(commands.signals() if commands is not None else ())]))
+        test = flight_state_logs(test_flights, signals=signals)
         held = _axis_simerr(IdentifiedVehicle(tr, HeldRates()), test)
         model = _axis_simerr(IdentifiedVehicle(tr, rot.model), test) if rot.model is not None else held
     except DroneIdError as exc:
         return replace(rot, notes=(*rot.notes, f"rotation not scored on the test flights: {exc}"))
-    return replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model))
+    return replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model, rot.model))
 
 
 @dataclass(frozen=True)
@@ -205,6 +227,7 @@ class RotationJob:
     speed_note: str
     frame: str = "auto"
     target: str = "rotation"
+    commands: CommandSpeeds | None = None
 
     def run(self) -> RotationResult | str:
         """The :class:`RotationResult`, or the one-line reason the flights cannot give one (a
@@ -218,25 +241,31 @@ class RotationJob:
         train = list(self.train)
         layout, source = _layout(train, self.frame, self.rad_s_per_rpm)
         choice = select_rotation(train, layout, rad_s_per_rpm=self.rad_s_per_rpm)
+        if choice.model is not None and self.commands is not None:    # it reads the commands' speeds
+            choice = replace(choice, model=replace(choice.model, commands=self.commands))
         record = {k: v for k, v in choice.to_dict().items() if k != "model"}   # the model is kept once
         val_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
             choice.held["rates_axis_simerr"]
         return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, record,
-                              _axes(record, val_model, [math.nan] * 3, [math.nan] * 3),
-                              dt_s=float(np.median([log.dt_s for log in train])))
+                              _axes(record, val_model, [math.nan] * 3, [math.nan] * 3, choice.model),
+                              dt_s=float(np.median([log.dt_s for log in train])),
+                              from_commands=self.commands is not None)
 
 
 def _axes(record: Mapping, val_model: Sequence[float], test_held: Sequence[float],
-          test_model: Sequence[float]) -> tuple[AxisResult, ...]:
+          test_model: Sequence[float], model: RotationModel | None) -> tuple[AxisResult, ...]:
     """Each rotational target's :class:`AxisResult` and verdict from the choice's record (its
     rungs, the held rates' validation SimErr per axis, its ladders) and the chosen model's
-    validation and test SimErr per axis (rad/s; NaN: not scored)."""
+    validation and test SimErr per axis (rad/s; NaN: not scored); the verdict of an axis of
+    ``model`` that does not answer the motors (decay-only or held) says so."""
     out = []
+    stuck = unsteerable(model)
     for k, target in enumerate(ROTATION_TARGETS):
         rung, val_held = record["axis_choice"][k], record["held"]["rates_axis_simerr"][k]
         v: Verdict = axis_verdict(target, rung, val_held, val_model[k], test_held[k], test_model[k],
                                   why_held=_why_held(record["ladder"][k]))
-        out.append(AxisResult(target, rung, val_held, val_model[k], test_held[k], test_model[k], v.text, v.kind))
+        text = v.text + (f"; {NO_RESPONSE}" if AXIS_NAMES[k] in stuck else "")
+        out.append(AxisResult(target, rung, val_held, val_model[k], test_held[k], test_model[k], text, v.kind))
     return tuple(out)
 
 

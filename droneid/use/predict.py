@@ -215,7 +215,7 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     cfg = models.get("_config") or {}
     translation = IdentifiedTranslation(sets["identified"], MotorModel.from_record(cfg))
     rotation = models.get("_rotation")
-    if rotation is not None:
+    if rotation is not None and rotation.commands is None:
         for f in flights:   # the rotational model reads rotor speeds in the unit it was fitted on
             scale, why = speed_scale(f)
             if not math.isclose(scale, rotation.rad_s_per_rpm, rel_tol=1e-9):
@@ -226,7 +226,8 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
     if nominal is not None:
         chosen["nominal physics"] = nominal
     chosen["constant"] = Constant()
-    signals = tuple(dict.fromkeys([*translation.signals(), *(nominal.signals() if hasattr(nominal, "signals") else ())]))
+    signals = tuple(dict.fromkeys([*translation.signals(), *(nominal.signals() if hasattr(nominal, "signals") else ()),
+                                   *(rotation.signals() if rotation is not None else ())]))
     return open_loop(chosen, flight_state_logs(flights, signals=signals), max_horizon=50,
                      horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 

@@ -22,8 +22,9 @@ from droneid.use.vehicle_code import Part, floats, num, vehicle_c, vehicle_pytho
 from droneid.use.export import CONVENTIONS, c_functions, checked_models, input_unit, model_header, python_functions
 from droneid.simulation.motor_model import is_command
 from droneid.simulation.openloop import IdentifiedTranslation, rad_s_per_rpm_text
-from droneid.use.vehicle_commands import lag_code, lag_header
-from droneid.rotation.model import SPEED_UNIT, RotationModel, TranslationModel, unsteerable, unsteerable_sentence
+from droneid.use.vehicle_commands import lag_code, lag_header, speed_code, speed_header
+from droneid.rotation.model import (SPEED_UNIT, RotationModel, TranslationModel, steering_line, unsteerable,
+                                    unsteerable_sentence)
 
 __all__ = ["VEHICLE_FORMATS", "export_vehicle"]
 
@@ -83,19 +84,24 @@ def _alpha(tau, dt_s: float) -> str:
     return "None" if tau is None else num(min(1.0, dt_s / float(tau)))
 
 
-def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> Part:
+def _rotation_part(rotation: RotationModel, offset: int, dt_s: float, index: Mapping | None = None) -> Part:
     """The rotational model: its input conditioning (delay, low-pass, rotor speed rates, centring,
     running balance) and ω̇ per axis; its columns ``u[offset:offset + 2M]`` are ``s_r`` then the
-    rotor speed rates."""
+    rotor speed rates. A command-driven one (``rotation.commands``) reads the rotors' normalised
+    speeds from the commands (:func:`droneid.use.vehicle_commands.speed_code`; ``index``: the
+    logged inputs' positions by name)."""
     spec = _rotation_spec(rotation)
     M, P, o = spec["M"], spec["P"], offset
     lp, ce = _alpha(spec["lp"], dt_s), _alpha(spec["centre"], dt_s)
     bw = "None" if spec["bw"] is None else num(spec["bw"])
+    cmd = rotation.commands
     steps = [f"the motor speeds of {spec['d_r']} step(s) earlier as rotor speeds (logged speed times "
-             f"{rad_s_per_rpm_text(rotation.rad_s_per_rpm)})"]
+             f"{rad_s_per_rpm_text(rotation.rad_s_per_rpm)})" if cmd is None else
+             f"the rotors' normalised speeds w of {spec['d_r']} step(s) earlier (below)"]
     if spec["lp"] is not None:
         steps.append(f"low-passed (first order, time constant {spec['lp']:g} s)")
-    steps.append("squared as (rotor speed / 1000 rad/s)^2")
+    steps.append("squared as (rotor speed / 1000 rad/s)^2" if cmd is None else "squared (w^2: each rotor's thrust "
+                 "as a fraction of full thrust)")
     if spec["centre"] is not None:
         steps.append(f"taken about their moving average (time constant {spec['centre']:g} s)")
     if spec["bw"] is not None:
@@ -104,12 +110,14 @@ def _rotation_part(rotation: RotationModel, offset: int, dt_s: float) -> Part:
         f"Rotation (rad/s^2, body FLU), rotor layout {spec['layout']}: u[{o}:{o + M}] = s_r, u[{o + M}:{o + 2 * M}] = rate_r:",
         *(f"  {'s_r: ' if i == 0 else '  then '}{t}" for i, t in enumerate(steps)),
         "  rate_r: the rate of the (low-passed) rotor speeds, (rad/s)/s, backward difference over one step.",
+        *(speed_header(cmd, cmd.offset_steps(dt_s)) if cmd is not None else ()),
         "  w'_k = coefficients . columns + trim; mix = P s_r (roll, pitch, yaw patterns of the layout),",
         "  S = sum(s_r), vb = R^T v (body velocity, m/s), spin = yaw pattern . rate_r"
         + (f", roll and pitch (rad, Z-Y-X, of the simulated quaternion) about the level LEVEL = "
            f"{', '.join(num(v) for v in spec['level'])} rad:" if spec["euler"] else ":"),
         *[f"  w'_{k} = {_axis_expr(spec, k)}" for k in range(3)])
-    py_defs = f'''SCALE_R = {num(spec["scale"])}          # (rotor speed / 1000 rad/s) per logged rpm
+    py_defs = f'''NR = {M}          # rotors
+SCALE_R = {num(spec["scale"])}          # (rotor speed / 1000 rad/s) per logged rpm (commands: 1, w as is)
 DELAY_R = {spec["d_r"]}
 LOWPASS_A = {lp}
 CENTRE_A = {ce}
@@ -119,14 +127,15 @@ P = [{", ".join(floats(P[k], "python") for k in range(3))}]
 LEVEL = {floats(spec["level"], "python")}          # level roll, pitch (rad) of the term attitude
 '''
     py_state = '''        self.lp = self.ema = self.prev = None
-        self.sum = [0.0] * M
+        self.sum = [0.0] * NR
         self.t = 0.0
 '''
-    py_fill = '''        om = [r * SCALE_R for r in h[-1 - DELAY_R]]
+    src = "h" if cmd is None else "self.rw_hist"
+    py_fill = f'''        om = [r * SCALE_R for r in {src}[-1 - DELAY_R]]
         if LOWPASS_A is not None:
             self.lp = om if self.lp is None else [LOWPASS_A * o + (1.0 - LOWPASS_A) * y for o, y in zip(om, self.lp)]
             om = self.lp
-        rate = [0.0] * M if self.prev is None else [(o - p) / self.dt for o, p in zip(om, self.prev)]
+        rate = [0.0] * NR if self.prev is None else [(o - p) / self.dt for o, p in zip(om, self.prev)]
         self.prev = om
         s = [o * o for o in om]
         if CENTRE_A is not None:
@@ -139,27 +148,28 @@ LEVEL = {floats(spec["level"], "python")}          # level roll, pitch (rad) of 
         u += s + rate
 '''
     py_deriv = f'''    s_r, rate_r = u[{o}:{o + M}], u[{o + M}:{o + 2 * M}]
-    mix = [sum(P[k][i] * s_r[i] for i in range(M)) for k in range(3)]
+    mix = [sum(P[k][i] * s_r[i] for i in range(NR)) for k in range(3)]
     S = sum(s_r)
-    spin = sum(P[2][i] * rate_r[i] for i in range(M))
+    spin = sum(P[2][i] * rate_r[i] for i in range(NR))
     dw = [{_axis_expr(spec, 0)},
           {_axis_expr(spec, 1)},
           {_axis_expr(spec, 2)}]
 '''
-    c_defs = f'''static const double SCALE_R = {num(spec["scale"])};
+    c_defs = ("" if cmd is not None else f"#define DRONEID_NR {M}\n") + f'''static const double SCALE_R = {num(spec["scale"])};
 static const int DELAY_R = {spec["d_r"]};
 static const int HAS_LOWPASS = {0 if spec["lp"] is None else 1}, HAS_CENTRE = {0 if spec["centre"] is None else 1}, HAS_BALANCE = {0 if spec["bw"] is None else 1};
 static const double LOWPASS_A = {"0.0" if lp == "None" else lp}, CENTRE_A = {"0.0" if ce == "None" else ce};
 static const double BALANCE_W = {"0.0" if spec["bw"] is None else num(spec["bw"])};
-static const double PRIOR[DRONEID_M] = {floats(spec["prior"], "c")};
-static const double P[3][DRONEID_M] = {{{", ".join(floats(P[k], "c") for k in range(3))}}};
+static const double PRIOR[DRONEID_NR] = {floats(spec["prior"], "c")};
+static const double P[3][DRONEID_NR] = {{{", ".join(floats(P[k], "c") for k in range(3))}}};
 static const double LEVEL[2] = {floats(spec["level"], "c")};
 '''
-    c_state = "    double lp[DRONEID_M], ema[DRONEID_M], prev[DRONEID_M], sum[DRONEID_M], t;\n"
+    c_state = "    double lp[DRONEID_NR], ema[DRONEID_NR], prev[DRONEID_NR], sum[DRONEID_NR], t;\n"
+    csrc = "c->hist[DRONEID_HIST - 1 - DELAY_R][i]" if cmd is None else "c->rw_hist[DRONEID_RWH - 1 - DELAY_R][i]"
     c_fill = f'''    {{
         double *s_r = u + {o}, *rate_r = u + {o + M}, om;
-        for (i = 0; i < DRONEID_M; i++) {{
-            om = c->hist[DRONEID_HIST - 1 - DELAY_R][i] * SCALE_R;
+        for (i = 0; i < DRONEID_NR; i++) {{
+            om = {csrc} * SCALE_R;
             if (HAS_LOWPASS) {{
                 c->lp[i] = c->started ? LOWPASS_A * om + (1.0 - LOWPASS_A) * c->lp[i] : om;
                 om = c->lp[i];
@@ -174,7 +184,7 @@ static const double LEVEL[2] = {floats(spec["level"], "c")};
         }}
         if (HAS_BALANCE) {{
             c->t += c->dt;
-            for (i = 0; i < DRONEID_M; i++) {{
+            for (i = 0; i < DRONEID_NR; i++) {{
                 c->sum[i] += s_r[i] * c->dt;
                 s_r[i] -= (c->sum[i] + BALANCE_W * PRIOR[i]) / (c->t + BALANCE_W);
             }}
@@ -185,15 +195,32 @@ static const double LEVEL[2] = {floats(spec["level"], "c")};
         const double *s_r = u + {o}, *rate_r = u + {o + M};
         double mix[3], S = 0.0, spin = 0.0;
         int k;
-        for (i = 0; i < DRONEID_M; i++) {{ S += s_r[i]; spin += P[2][i] * rate_r[i]; }}
-        for (k = 0; k < 3; k++) {{ mix[k] = 0.0; for (i = 0; i < DRONEID_M; i++) mix[k] += P[k][i] * s_r[i]; }}
+        for (i = 0; i < DRONEID_NR; i++) {{ S += s_r[i]; spin += P[2][i] * rate_r[i]; }}
+        for (k = 0; k < 3; k++) {{ mix[k] = 0.0; for (i = 0; i < DRONEID_NR; i++) mix[k] += P[k][i] * s_r[i]; }}
         dx[10] = {_axis_expr(spec, 0)};
         dx[11] = {_axis_expr(spec, 1)};
         dx[12] = {_axis_expr(spec, 2)};
         (void)S; (void)spin; (void)LEVEL;
     }}
 '''
-    return Part(header, 2 * M, spec["d_r"], {
+    history = spec["d_r"]
+    if cmd is not None:     # the rotors' speeds from the commands, ahead of the conditioning that reads them
+        k = cmd.offset_steps(dt_s)
+        if k < 0:
+            raise ConfigError(f"cannot export the vehicle: the rotational model reads the commands {-cmd.offset_s:g} s "
+                              f"ahead (a negative offset); a step function fed one step at a time cannot read ahead")
+        names = cmd.signals()
+        missing = [n for n in names if n not in (index or {})]
+        if missing:
+            raise ConfigError(f"cannot export the vehicle: the rotational model reads {', '.join(missing)}, which "
+                              f"the v̇ models do not")
+        sc = speed_code(cmd, [index[n] for n in names if n != "battery_voltage"], index.get("battery_voltage"), k,
+                        spec["d_r"])
+        py_defs, py_state, py_fill = (sc["python"][p] + v for p, v in
+                                      (("defs", py_defs), ("state", py_state), ("fill", py_fill)))
+        c_defs, c_state, c_fill = (sc["c"][p] + v for p, v in (("defs", c_defs), ("state", c_state), ("fill", c_fill)))
+        history = k
+    return Part(header, 2 * M, history, {
         "python": {"defs": py_defs, "state": py_state, "fill": py_fill, "deriv": py_deriv},
         "c": {"defs": c_defs, "state": c_state, "fill": c_fill, "deriv": c_deriv}}, euler=spec["euler"])
 
@@ -337,6 +364,21 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
     return part, (K if commands else max((_rpm_index(n) + 1 for n in names), default=0))
 
 
+def _logged_width(rotation: RotationModel | None, logged: list, read: int) -> int:
+    """The number of logged inputs fed per step beside identify's v̇ models (``logged``: the
+    commands and voltage they read, empty on motor speeds; ``read``: their count, or the highest
+    motor speed read), checked against the rotational model: both read speeds or both commands."""
+    if rotation is not None and bool(logged) != (rotation.commands is not None):
+        raise ConfigError("export_vehicle: the rotational model reads "
+                          + ("motor commands; these v̇ models read rotor speeds" if rotation.commands is not None
+                             else "rotor speeds; these v̇ models read motor commands (export the translation "
+                                  "with the body rates held: rotation None)"))
+    motors = (read if logged else rotation.layout.motors) if rotation is not None else max(read, 1)
+    if read > motors:
+        raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")
+    return motors
+
+
 def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float = 0.01, *,
                    inputs: dict | None = None, dt_note: str = "", motor=None) -> str:
     """The text of one file with the full 6-DOF model in ``to`` (``"python"`` or ``"c"``).
@@ -382,16 +424,12 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         motor = motor if motor is not None else getattr(translation, "motor", None)
         tpart, read = _identified_part(models, float(dt_s), source, inputs or {}, to, motor)
         logged = IdentifiedTranslation(models, motor).signals()
-        if logged and rotation is not None:
-            raise ConfigError("export_vehicle: the rotational model reads rotor speeds; these v̇ models read "
-                              "motor commands (export the translation with the body rates held: rotation None)")
-        motors = rotation.layout.motors if rotation is not None else max(read, 1)
-        if read > motors:
-            raise ConfigError(f"export_vehicle: the v̇ models read rpm{read}; the rotor layout has {motors} rotors")
+        motors = _logged_width(rotation, logged, read)
     else:
         raise ConfigError("export_vehicle needs a droneid.rotation.model.TranslationModel or identify's final v̇ "
                           f"models; got {type(translation).__name__}")
-    rpart = _held_rates_part() if rotation is None else _rotation_part(rotation, tpart.width, float(dt_s))
+    rpart = _held_rates_part() if rotation is None else _rotation_part(
+        rotation, tpart.width, float(dt_s), {n: i for i, n in enumerate(logged)})
     unit = input_unit("rpm1", inputs or {})
     width = tpart.width + rpart.width
     fed = (f"the {motors} logged motor speeds rpm[{motors}] ({unit})" if not logged else
@@ -408,7 +446,8 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         f"Inputs: {fed} of each step, fed in order from the start of the flight",
         f"to the input conditioner, which returns u[{width}], held over that step:",
         *tpart.header, *rpart.header,
-        *filter(None, [unsteerable_sentence(unsteerable(rotation))]),
+        steering_line(rotation),
+        *filter(None, [unsteerable_sentence(unsteerable(rotation), "motor commands" if logged else "motor speeds")]),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.simulation.openloop.simulate)."]
     build = vehicle_python if to == "python" else vehicle_c

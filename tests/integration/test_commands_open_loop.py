@@ -163,3 +163,118 @@ def test_simulated_command_vehicle_beats_nominal_physics_from_the_cli(tmp_path, 
         assert ol["identified"]["simerr"][q] < ol["nominal physics"]["simerr"][q] < ol["constant"]["simerr"][q], q
     assert "lags" in doc["open_loop_inputs"]
     assert "inputs.push(logged)" in (tmp_path / "vehicle.py").read_text()
+
+
+# -- the rotational model on commands (issue 36 item 5) ---------------------------------------------
+def _command_rotation(case: str):
+    """A planted command-driven rotational model: torque from the rotors' normalised thrust
+    differences, centre, decay and yaw spin-up, with the conditioning identify may choose (rotor
+    delay, low-pass, running balance), its rotor speeds from the commands through the motor model
+    (the lag, or the offset without one)."""
+    from priors.torque import get_layout
+    from droneid.rotation.commands import CommandSpeeds
+    from droneid.rotation.model import SPEED_UNIT, RotationModel
+    delays, tau = CASES[case]
+    speeds = CommandSpeeds(MotorModel(0.45, SPIN, V_REF, tau), 4, 0.0 if tau else delays["motor1"])
+    coef = (np.array([40.0, 1.5, 3.0]), np.array([35.0, -2.0, 4.0]), np.array([6.0, 0.5, 1.0, 0.02]))
+    return RotationModel(get_layout("quad_x"), ("centre", "damping", "spinup"), coef, np.array([0.1, -0.2, 0.05]),
+                         delay_steps=2, rad_s_per_rpm=SPEED_UNIT, lowpass_tau_s=0.03, balance_weight_s=1.0,
+                         balance_prior=np.full(4, 0.3), commands=speeds)
+
+
+def test_command_rotation_reads_the_rotors_thrust_fractions():
+    """The rotational model's s_i are f_e(q_i) of the commands (at rest: no lag transient), in units of
+    full thrust, and a command held constant gives a constant speed through the lag."""
+    rot = _command_rotation("offset")
+    log = _log()
+    w = rot.commands.speeds(log)
+    k = rot.commands.offset_steps(DT)
+    assert k == 3
+    q = (log.signals["motor2"][100 - k] - SPIN[0]) / (SPIN[1] - SPIN[0]) * log.signals["battery_voltage"][100 - k] / V_REF
+    assert w[100, 1] ** 2 == pytest.approx(thrust_curve(q, 0.45), rel=1e-12)
+    lagged = _command_rotation("lag").commands
+    held = replace_signals(log, {f"motor{i}": np.full(N, 0.6) for i in range(1, 5)} | {"battery_voltage": np.full(N, V_REF)})
+    np.testing.assert_allclose(lagged.speeds(held), math.sqrt(thrust_curve((0.6 - SPIN[0]) / (SPIN[1] - SPIN[0]), 0.45)),
+                               rtol=1e-12)
+
+
+def replace_signals(log: StateLog, signals: dict) -> StateLog:
+    from dataclasses import replace
+    return replace(log, signals=signals)
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_exported_command_vehicle_with_rotation_reproduces_the_open_loop_rollout(tmp_path, case):
+    """export --vehicle of a command-driven vehicle WITH a rotational model: the file (Python, C)
+    steps the body rates from the commands as droneid's own open loop (IdentifiedVehicle) does,
+    to 1e-9, and its header says which axes answer the motors."""
+    from droneid.simulation.openloop import IdentifiedVehicle
+    delays, tau = CASES[case]
+    motor = MotorModel(0.45, SPIN, V_REF, tau)
+    rot = _command_rotation(case)
+    vehicle = IdentifiedVehicle(IdentifiedTranslation(_models(delays), motor), rot)
+    log = _log()
+    u = vehicle.inputs(log)
+    ref = simulate(vehicle, log.state[START][None], u[None, START:START + H], DT)[0]
+    assert np.ptp(ref[:, 10:13], axis=0).min() > 0.05          # every body rate moved
+    text = export_vehicle(_models(delays), rot, "python", dt_s=DT, motor=motor)
+    got = vehicle_python_rollout(text, _logged(log), log.state[START], START, H, u)
+    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
+    assert "Body axes that answer the motors (a torque term): roll, pitch, yaw." in text
+    assert "thrust as a fraction of full thrust" in text
+    if CC is not None:
+        c = vehicle_c_rollout(tmp_path, export_vehicle(_models(delays), rot, "c", dt_s=DT, motor=motor),
+                              _logged(log), log.state[START], START, H)
+        np.testing.assert_allclose(c, ref, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_simulated_command_vehicle_rotation_from_the_cli(tmp_path, capsys):
+    """identify on three simulated command-driven flights (no rotor speeds) reaches the rotational
+    stage through the motor model; ``predict --open-loop`` flies the identified rotational model
+    from the commands (its body-rate error is not the rates-held one when an axis left ``held``);
+    ``export --vehicle`` refuses an axis that does not answer the motors unless
+    ``--allow-unsteerable``, and its header says which axes answer them."""
+    from droneid import Identifier
+    from droneid.cli import main
+    from droneid.simulation.simulator import simulate as fly
+    from droneid.use.predict import models_from_document, open_loop_section
+    from parsers.csv_writer import write_flat_csv
+
+    def flight(path, seed):
+        return fly(path=path, duration_s=20.0, seed=seed, thrust_expo=0.5, motor_tau_s=0.04,
+                   effects={"thrust_variation": {"amp_m": 0.5, "period_s": 3.0 + seed % 3}}
+                   ).flight.without("rpm1", "rpm2", "rpm3", "rpm4")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        train = [flight(p, s) for s, p in enumerate(("random", "eight", "lissajous"))]
+        test = flight("square", 7)
+        res = Identifier(effects="none", frame="quad_x", runs=1, generations=50, population_size=40,
+                         jobs=1).fit(train, test=[test])
+        rot = res.rotation
+        assert rot is not None and rot.from_commands, res.notes
+        # scored on the test flight, held axes included (through the plan's motor model)
+        assert all(math.isfinite(a.test_held) and math.isfinite(a.test_model) for a in rot.axes), rot.notes
+        assert not any("not scored" in n for n in rot.notes)
+        doc = res.to_dict()
+        result = tmp_path / "result.json"
+        result.write_text(json.dumps(doc))
+        log = write_flat_csv(test, tmp_path / "square.csv")
+        capsys.readouterr()
+        assert main(["predict", str(result), str(log), "--open-loop", "--json"]) == 0
+        ol = json.loads(capsys.readouterr().out)["open_loop"]
+        models = models_from_document(doc)
+        held = open_loop_section({**models, "_rotation": None}, [test])["identified"]["simerr"]["rates"]
+        moved = [a.target for a in rot.axes if a.rung != "held"]
+        if moved:
+            assert ol["identified"]["simerr"]["rates"] != pytest.approx(held, rel=1e-6)
+        else:
+            assert ol["identified"]["simerr"]["rates"] == pytest.approx(held, rel=1e-9)
+        out = tmp_path / "vehicle.py"
+        stuck = [a for a in rot.axes if "does not respond to the motors" in a.verdict]
+        code = main(["export", str(result), "--vehicle", "--to", "python", "-o", str(out)])
+        assert code == (2 if stuck else 0)
+        assert main(["export", str(result), "--vehicle", "--to", "python", "--allow-unsteerable", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "Body axes that answer the motors" in text
+    assert ("thrust as a fraction of full thrust" in text) == (rot.model is not None)

@@ -336,7 +336,9 @@ def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_d
     assert all(st["cells"] <= 8 and not st["taken"] for ax in rot.choice["ladder"] for st in ax["steps"])
     back = type(res).from_dict(res.to_dict()).rotation
     assert back.to_dict() == rot.to_dict()
-    no_rpm = [f.without("rpm1", "rpm2", "rpm3", "rpm4") for f in train]
+    # neither rotor speeds nor per-motor commands (those reach the stage through the motor model:
+    # tests/unit/test_rotation_commands.py): no rotational model, and the note says why
+    no_rpm = [f.without("rpm1", "rpm2", "rpm3", "rpm4", "motor1", "motor2", "motor3", "motor4") for f in train]
     res = identify(no_rpm, None, replace(cfg, targets=("vx_dot",)))
     assert res.rotation is None
     assert any(n.startswith("rotation not modelled:") and "rotor speeds" in n for n in res.notes)
