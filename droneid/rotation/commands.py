@@ -23,8 +23,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from priors.thrust import thrust_curve
-
 from droneid.errors import DataError
 from droneid.simulation.motor_model import MotorModel
 from droneid.simulation.openloop import StateLog
@@ -93,14 +91,10 @@ class CommandSpeeds:
         """(N, motors) normalised rotor speeds w (0..1) of ``log``'s commands (see the module docstring)."""
         u = np.column_stack([log.column(f"motor{i}") for i in range(1, self.motors + 1)])
         volts = log.column("battery_voltage") if self.motor.v_ref is not None else None
-        if self.motor.lagged:
-            u = self.motor.effective(u, volts, log.dt_s)
-        else:
+        if not self.motor.lagged:
             idx = np.clip(np.arange(len(log)) - self.offset_steps(log.dt_s), 0, len(log) - 1)
             u, volts = u[idx], None if volts is None else volts[idx]
-        lo, hi = self.motor.spin
-        s = np.ones(len(log)) if volts is None else np.where(volts > 0, volts / self.motor.v_ref, 1.0)
-        return np.sqrt(np.maximum(thrust_curve((u - lo) / (hi - lo) * s[:, None], self.motor.expo), 0.0))
+        return self.motor.speeds(u, volts, log.dt_s)
 
     def speed_log(self, log: StateLog) -> StateLog:
         """``log`` with its rotor speeds (``rpm``) the normalised speeds :meth:`speeds`."""

@@ -116,17 +116,19 @@ class MotorModel:
         v = np.asarray(volts, float)
         return np.where(v > 0, v / self.v_ref, 1.0)
 
-    def effective(self, commands: np.ndarray, volts: np.ndarray | None, dt_s: float) -> np.ndarray:
-        """The effective commands (N, M) over each step of ``dt_s`` s of the logged ``commands``
-        (N, M, held over each step) with the battery voltage ``volts`` (N,) V: what the rotors
-        deliver through the lag, as commands through the identified curve. No lag: the commands."""
+    def speeds(self, commands: np.ndarray, volts: np.ndarray | None, dt_s: float) -> np.ndarray:
+        """The rotors' normalised speeds w = ω/ω_max (N, M, 0..1) over each step of ``dt_s`` s of
+        the logged ``commands`` (N, M, held over each step) with the battery voltage ``volts``
+        (N,) V: :func:`priors.thrust.rotor_speed` of each normalised (and compensated) command,
+        through the first-order lag where one was kept (then the mean speed over each step; the
+        speed is a state driven by the commands). The rotor delivers the thrust fraction w²."""
         u = np.asarray(commands, float)
-        if not self.lagged or u.shape[0] == 0:
-            return u.copy()
         lo, hi = self.spin
         s = self._scale(volts)
         s = np.broadcast_to(s, (u.shape[0],))[:, None] if s.ndim else np.full((u.shape[0], 1), float(s))
         target = rotor_speed((u - lo) / (hi - lo) * s, self.expo)
+        if not self.lagged or u.shape[0] == 0:
+            return target
         a = math.exp(-dt_s / self.lag_s)
         c = self.lag_s / dt_s * (1.0 - a)
         w = target[0].copy()
@@ -134,7 +136,21 @@ class MotorModel:
         for k in range(target.shape[0]):      # the rotor speeds: a state driven by the commands
             mean[k] = target[k] + (w - target[k]) * c
             w = target[k] + (w - target[k]) * a
-        return lo + (hi - lo) * _inverse(mean * mean, self.expo) / s
+        return mean
+
+    def effective(self, commands: np.ndarray, volts: np.ndarray | None, dt_s: float) -> np.ndarray:
+        """The effective commands (N, M) over each step of ``dt_s`` s of the logged ``commands``
+        (N, M, held over each step) with the battery voltage ``volts`` (N,) V: what the rotors
+        deliver through the lag (:meth:`speeds`), as commands through the identified curve. No
+        lag: the commands."""
+        u = np.asarray(commands, float)
+        if not self.lagged or u.shape[0] == 0:
+            return u.copy()
+        lo, hi = self.spin
+        s = self._scale(volts)
+        s = np.broadcast_to(s, (u.shape[0],))[:, None] if s.ndim else np.full((u.shape[0], 1), float(s))
+        w = self.speeds(u, volts, dt_s)
+        return lo + (hi - lo) * _inverse(w * w, self.expo) / s
 
     def text(self) -> str:
         """The motor model in words, for reports and the exported file's header."""
