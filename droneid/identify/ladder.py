@@ -35,7 +35,7 @@ from droneid.core.text import display_term
 from droneid.identify.search import run_seeds
 from droneid.sngp.model import SymbolicModel
 from droneid.core.targets import velocity_of
-from droneid.fitting.terms import (TermModel, defined_samples, drag_slope, drop_negligible, evaluate_expr, physical_fit,
+from droneid.fitting.terms import (TermModel, constancy_of, defined_samples, drag_slope, drop_negligible, evaluate_expr, physical_fit,
                     plausible, prior_terms, trim_terms)
 from droneid.dataset.validation import time_blocks, validation_blocks
 
@@ -222,6 +222,32 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
                 {k: Interval.of(v) for k, v in evidence.intervals.items()} if evidence else {},
                 dict(evidence.held) if evidence else {}, dict(evidence.at_bound) if evidence else {},
                 tuple(evidence.notes) if evidence else (), p_te, dict(evidence.constancy) if evidence else {})
+
+
+def per_flight_offset_lead(p: TargetProblem, final: Rung) -> str:
+    """One sentence testing the simplest flight condition behind vehicle constants that move
+    between flights ("" when none moves, or with one training flight): the final physical model
+    (its held coefficients kept) with a constant acceleration of its own on each flight (what a
+    wind that differs between flights does to a drag term, ``k_D·w``): each flight fitted alone
+    with its own intercept, the same constancy test (:func:`droneid.fitting.terms.constancy_of`).
+    A constant that holds then is moved by something per flight, not by the vehicle."""
+    bad = [lab for lab, c in final.constancy.items() if c.constant is False and c.unit == "flight"]
+    if not bad or p.plan is None:
+        return ""
+    tm = _physical_model(p, p.priors3)
+    lo, hi = list(tm.lo), list(tm.hi)
+    for i, lab in enumerate(tm.labels):
+        if lab in final.held:
+            lo[i] = hi[i] = final.held[lab]
+    free = replace(tm, lo=tuple(lo), hi=tuple(hi), intercept_bounds=(-math.inf, math.inf))
+    which = [tm.labels.index(lab) for lab in bad if lab in tm.labels]
+    if not which:
+        return ""
+    again = constancy_of(free, p.train.columns(), p.train.y, which, p.train.flight, p.train.t, p.train.sources)
+    parts = [f"{lab} p = {c.p:.2g}: {'constant' if c.constant else 'still NOT constant'}"
+             for lab, c in again.items()]
+    return ("with a constant acceleration of its own on each training flight (what a wind that differs "
+            "between flights does to a drag term, k_D·w), " + "; ".join(parts))
 
 
 def _physical_model(p: TargetProblem, features) -> TermModel:

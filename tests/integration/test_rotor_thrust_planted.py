@@ -261,3 +261,34 @@ def test_vehicle_constants_span_every_offset_the_data_admit():
     assert vz.final_rung.terms["⟨minus_kD_vz⟩"] > 2.0          # the chosen offset's value, far off
     assert drag.low <= 1.05 and drag.high >= 2.0, drag       # ... and an interval that says so
     assert any("also span" in n and "+40 ms" in n for n in vz.notes)
+
+
+@pytest.mark.slow
+def test_a_wind_per_flight_is_told_apart_from_a_payload_per_flight():
+    """Issue 35.2's lead: vehicle constants that move between flights are refit with a constant
+    acceleration of each flight's own (what a wind that differs per flight does to the drag term,
+    k_D·w). Four flights in four winds: the constants that moved then hold. Four flights with
+    four payloads: they still move (a payload scales the thrust, no offset can absorb it)."""
+    from droneid import Identifier
+    paths = ("eight", "square", "lissajous", "random")
+
+    def notes(kind):
+        flights = []
+        for j, path in enumerate(paths):
+            effects = {"thrust_variation": {"amp_m": 0.3, "period_s": 3.0 + j % 3}}
+            mass = 0.5
+            if kind == "wind":
+                a = 1.3 + 1.7 * j
+                effects["wind"] = {"wx": 2.0 * np.cos(a), "wy": 2.0 * np.sin(a)}
+            else:
+                mass = 0.5 * (1.0 + 0.1 * j)
+            flights.append(simulate(path=path, duration_s=30.0, rate_hz=100.0, seed=700 + j, effects=effects,
+                                    mass_kg=mass, yaw0_rad=1.1 * j).flight)
+        res = Identifier(prior="rotor-thrust", effects="none", targets="vx_dot,vy_dot", rotation="none", runs=1,
+                         generations=50, population_size=40, jobs=1).fit(flights)
+        return [n for tr in res.targets.values() for n in tr.notes if "of its own on each training flight" in n]
+
+    wind = notes("wind")
+    assert wind and all("still NOT constant" not in n and ": constant" in n for n in wind), wind
+    payload = notes("payload")
+    assert payload and all("still NOT constant" in n for n in payload), payload
