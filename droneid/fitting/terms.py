@@ -227,10 +227,11 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
     constancy across flights or stretches of one flight (:func:`constancy_of`), and with several
     flights its interval becomes the hull of the bootstrap's and the between-flight one.
 
-    ``alternatives``: ((label, columns, y), ...), the same rows' inputs as another admitted choice
-    of the data reads them (e.g. the thrust inputs at every offset the data do not reject): each
-    coefficient's interval also spans its value refit on each (the choice's own uncertainty, which
-    no bootstrap at one choice can see)."""
+    ``alternatives``: ((label, columns, y, columns_same, y_same), ...), rows read as another
+    admitted choice of the data reads them (e.g. the thrust inputs at every offset the data do not
+    reject) and the same rows as read here: each coefficient's interval also spans its value moved
+    by the difference of the two refits (the choice's own uncertainty, which no bootstrap at one
+    choice can see)."""
     model, n_physical, notes = _tie_collinear(model, columns, y.size, n_physical)
     lo, hi = model.bounds()
     k = len(model.terms)
@@ -278,25 +279,29 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
                 a, b = iv[lab]
                 iv[lab] = (max(min(a, c.between[0]), lo[i]), min(max(b, c.between[1]), hi[i]))
     if alternatives:
-        iv = _spanning(model, iv, alternatives)
+        iv = _spanning(fitted, iv, alternatives)
         notes.append("the 95 % intervals also span each coefficient refit with the thrust inputs read at "
-                     + ", ".join(str(lab) for lab, _, _ in alternatives)
+                     + ", ".join(str(a[0]) for a in alternatives)
                      + " (every other offset the data do not reject: the offset's own uncertainty)")
     return PhysicalFit(fitted, iv, held, at_bound, tuple(notes), constancy)
 
 
-def _spanning(model: TermModel, iv: dict, alternatives: Sequence[tuple]) -> dict:
-    """``iv`` with each coefficient's interval widened to the values of ``model`` (its holds
-    kept) refit on each alternative ``(label, columns, y)``."""
+def _spanning(fitted: TermModel, iv: dict, alternatives: Sequence[tuple]) -> dict:
+    """``iv`` with each coefficient's interval widened to its value in ``fitted`` moved by the
+    difference of two refits of the model (its holds kept) on each alternative ``(label, columns,
+    y, columns_same, y_same)``: the rows as the other choice reads them less the same rows as read
+    here."""
     out = dict(iv)
-    for _, cols, yy in alternatives:
-        if len(yy) <= len(model.terms):
+    lo, hi = fitted.bounds()
+    for _, cols, yy, cols0, yy0 in alternatives:
+        if len(yy) <= len(fitted.terms):
             continue
-        alt = model.fit(cols, yy)
-        for lab, c in zip(model.labels, alt.coefs):
+        moved = np.asarray(fitted.fit(cols, yy).coefs) - np.asarray(fitted.fit(cols0, yy0).coefs)
+        for i, (lab, c0, dc) in enumerate(zip(fitted.labels, fitted.coefs, moved)):
+            c = float(np.clip(c0 + dc, lo[i], hi[i]))     # within the physical range
             if lab in out and np.isfinite(c):
                 a, b = out[lab]
-                out[lab] = (min(a, float(c)), max(b, float(c)))
+                out[lab] = (min(a, c), max(b, c))
     return out
 
 

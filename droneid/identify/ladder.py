@@ -195,12 +195,13 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
     their nominal value, :func:`droneid.fitting.terms.physical_fit`) measured on the training rows
     (train; validation = blocked CV of the same terms refit without each block, or the training
     error for a model with nothing fitted), the test rows and the constraints. ``alternatives``:
-    ((offset s, training Dataset), ...) the training rows with the thrust inputs read at each other
-    offset the data admit (:attr:`TargetProblem.train_at`): the intervals span the refits there."""
+    ((offset s, training Dataset, the training rows it shares), ...) the thrust inputs read at each
+    other offset the data admit (:attr:`TargetProblem.train_at`): the intervals span the refits there."""
     tr_cols, te_cols = train.columns(), test.columns()
     evidence = None
     if isinstance(model, TermModel):
-        alts = tuple((f"{1000 * d:+.0f} ms", ds.columns(), ds.y) for d, ds in alternatives)
+        alts = tuple((f"{1000 * d:+.0f} ms", ds.columns(), ds.y, same.columns(), same.y)
+                     for d, ds, same in alternatives)
         evidence = physical_fit(model, tr_cols, train.y, bootstrap_blocks(train), flight=train.flight,
                                 t=train.t, sources=train.sources, alternatives=alts)
         model = evidence.model
@@ -224,7 +225,7 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
                 tuple(evidence.notes) if evidence else (), p_te, dict(evidence.constancy) if evidence else {})
 
 
-def per_flight_offset_lead(p: TargetProblem, final: Rung) -> str:
+def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     """One sentence testing the simplest flight condition behind vehicle constants that move
     between flights ("" when none moves, or with one training flight): the final physical model
     (its held coefficients kept) with a constant acceleration of its own on each flight (what a

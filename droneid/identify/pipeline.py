@@ -36,7 +36,7 @@ from droneid.errors import ConfigError, DataError
 from droneid.dataset.suitability import check_prior_data
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel
 from droneid.fitting.constancy import constancy_sentence, leads
-from droneid.identify.ladder import TERM_ALPHA, final_rung, per_flight_offset_lead, trivial_errors
+from droneid.identify.ladder import TERM_ALPHA, final_rung, per_flight_condition_lead, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section
 from droneid.diagnosis.diagnose import plan_identification
 from droneid.planning.plan import holdout_cuts, resolve_plan_prior
@@ -101,7 +101,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
     lead = leads(final.constancy, p.plan.diagnosis if p.plan is not None else {},
                  p.plan.offset if p.plan is not None else None)
     if lead:
-        notes.append("; ".join(filter(None, (lead, per_flight_offset_lead(p, final)))))
+        notes.append("; ".join(filter(None, (lead, per_flight_condition_lead(p, final)))))
     ladder = (*p.ladder, final)
     vd = verdict(p.target, final, p.ladder[0], guards.chosen_run is not None, p.holdout, float(np.std(p.train.y)),
                  reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma,

@@ -51,7 +51,7 @@ class TargetProblem:
     plan : the :class:`~droneid.planning.plan.Plan` it was built from; ladder : its physical
     :class:`~droneid.identify.ladder.Rung` s (empirical, refit, offset, effects); blocks, validation : the
     training rows' validation blocks and how they were made; notes : sentences for the result
-    train_at : ((offset s, Dataset), ...) the training rows with the thrust inputs read at each
+    train_at : ((offset s, Dataset, the training rows it shares), ...) the thrust inputs read at each
         other offset the data admit (:meth:`~droneid.planning.plan.Plan.admitted_offsets`): the
         vehicle constants' intervals span their refits there
     """
@@ -198,8 +198,9 @@ def prepare_target(train_flights: Sequence, test_flights: Sequence | None, targe
 
 
 def _train_at(plan: Plan, cfg, train_flights, target, inputs, extras, cuts, holdout, train, feats) -> tuple:
-    """((offset s, training Dataset), ...) at each offset of :meth:`Plan.admitted_offsets` other
-    than the chosen one, on the rows ``train`` has (the same rows, another reading)."""
+    """((offset s, training Dataset at it, ``train`` on the same rows), ...) at each offset of
+    :meth:`Plan.admitted_offsets` other than the chosen one: the rows both readings have (an
+    offset moves the signals' gaps and ends), so a refit compares the readings, not the rows."""
     out = []
     for d in plan.admitted_offsets():
         ds = dataset_builder(cfg, {s: d for s in plan.thrust_signals}).build(
@@ -207,7 +208,7 @@ def _train_at(plan: Plan, cfg, train_flights, target, inputs, extras, cuts, hold
         ds = train_rows(ds, cuts) if holdout else ds
         ds = _same_rows(_finite_rows(ds, feats, "training", []), train)
         if len(ds) > 10:
-            out.append((d, ds))
+            out.append((d, ds, _same_rows(train, ds)))
     return tuple(out)
 
 

@@ -94,22 +94,18 @@ class Plan:
         target's own interval (a clock offset is one for the log: what each target admits, the
         vehicle constants must be reported over). Empty without an offset decision."""
         off = self.offset
-        if off is None or off.decision is None or not self.thrust_signals:
-            return []
-        spans = [off.interval_s, *([v[1:] for v in off.per_target.values()] if not off.targets_agree else [])]
-        lo, hi = min(a for a, _ in spans), max(b for _, b in spans)
-        return [d for d in OFFSET_GRID_S if lo <= d <= hi and d != off.offset_s]
+        return off.admitted() if off is not None and self.thrust_signals else []
 
     def aligned(self, flights) -> list:
         """The training ``flights`` (in the order the plan was made from) with each flight whose
         clock the plan corrects (:attr:`OffsetDecision.clock`) moved in time on its thrust inputs,
-        so that reading them at the chosen offset (``delays_s``) reads that flight's at its own: a
-        clock offset of one flight's streams corrected where every stage reads it. Other flights
-        (and flights not trained on) are returned as they are."""
-        clock = self.offset.clock if self.offset is not None else {}
-        if not clock:
-            return list(flights)
-        return _clock_corrected(flights, self.thrust_signals, {n: d for n, (d, _) in clock.items()})
+        so that reading them at the chosen offset (``delays_s``) reads that flight's at the chosen
+        offset plus its clock's difference from the others' (:attr:`OffsetDecision.applied`): a clock
+        offset of one flight's streams corrected where every stage reads it. Other flights are
+        returned as they are; pass the training flights only, in the plan's order (flights are
+        matched by name)."""
+        shifts = self.offset.shifts if self.offset is not None else {}
+        return _clock_corrected(flights, self.thrust_signals, shifts) if shifts else list(flights)
 
     def record(self) -> dict:
         """The plan's decisions as result.json (identify's ``config``) and diagnosis.json
@@ -128,6 +124,7 @@ class Plan:
                             "own": {f: {"offset_s": d, "accepted": dec.accepted, "evidence": dec.evidence}
                                     for f, (d, dec) in off.own.items()},
                             "clock_s": {f: {"shift_s": d, "evidence": ev} for f, (d, ev) in off.clock.items()},
+                            "unmoved": list(off.unmoved),
                             "applied_s": off.applied} if off is not None else None),
                 "thrust_curve": self.thrust_curve.to_dict() if self.thrust_curve is not None else None}
 
@@ -190,13 +187,16 @@ class OffsetDecision:
     own : {flight: (its own best offset s, Decision)}: each training flight whose own best offset
         is not the chosen one, tested against it on that flight's (target, block) units by the rule
         of :mod:`droneid.fitting.decide` (Holm over every flight and every other offset of the grid,
-        at :data:`OFFSET_ALPHA`), on the flights as :func:`choose_offsets` last moved them (none
-        accepted there, or its rounds ran out)
+        at :data:`OFFSET_ALPHA`), in the last round of :func:`choose_offsets` (none accepted there,
+        or its rounds ran out: :attr:`unmoved`); like ``per_flight``, in each flight's own clock
+        (the offset it would be read at, its shift included)
     clock : {flight: (shift s, evidence)}: the flights whose clock differs from the others' (their
         own offset was accepted in a round of :func:`choose_offsets`): their thrust inputs are
         moved by ``shift`` and so read at ``offset_s + shift`` (:attr:`applied`,
         :meth:`Plan.aligned`), a condition of that flight like its wind; the flights share the
         chosen offset (:attr:`flights_share`) when there is none
+    unmoved : flights whose own offset still passed when :func:`choose_offsets`' rounds ran out
+        (read at the chosen offset and said so)
     """
     offset_s: float
     interval_s: tuple
@@ -206,6 +206,23 @@ class OffsetDecision:
     per_flight: Mapping[str, tuple] = field(default_factory=dict)
     own: Mapping[str, tuple] = field(default_factory=dict)
     clock: Mapping[str, tuple] = field(default_factory=dict)
+    unmoved: tuple = ()
+
+    @property
+    def shifts(self) -> dict:
+        """{flight: s} the thrust inputs of each flight with a clock of its own are moved by."""
+        return {n: d for n, (d, _) in self.clock.items()}
+
+    def admitted(self) -> list[float]:
+        """The offsets of the grid the data do not reject besides the chosen one (s): those in the
+        chosen offset's 95 % interval and, when the targets disagree on it, in the span of every
+        target's own interval (a clock offset is one for the log: what each target admits, the
+        coefficients are reported over)."""
+        if self.decision is None:
+            return []
+        spans = [self.interval_s, *([v[1:] for v in self.per_target.values()] if not self.targets_agree else [])]
+        lo, hi = min(a for a, _ in spans), max(b for _, b in spans)
+        return [d for d in OFFSET_GRID_S if lo <= d <= hi and d != self.offset_s]
 
     @property
     def applied(self) -> dict:
@@ -215,8 +232,9 @@ class OffsetDecision:
 
     @property
     def flights_share(self) -> bool:
-        """Whether every training flight is read at the chosen offset (no flight's own beats it)."""
-        return not self.applied
+        """Whether every training flight is read at the chosen offset: none was moved, and no
+        flight's own offset still beats it (:attr:`unmoved`)."""
+        return not self.clock and not self.unmoved
 
     @property
     def targets_agree(self) -> bool:
@@ -241,10 +259,13 @@ class OffsetDecision:
             "every flight's own best is the chosen offset"
         if self.flights_share:
             return f"the flights share it ({tested}; none beats it by the block test)"
-        each = "; ".join(f"{n} at {1000 * (self.offset_s + d):+.0f} ms ({ev})" for n, (d, ev) in self.clock.items())
-        return (f"NOT SHARED: these flights' clocks differ, and each is read at its own offset (a condition "
-                f"of the flight): {each}; flights not used in training are read at the chosen "
-                f"{1000 * self.offset_s:+.0f} ms")
+        each = "; ".join(f"{n} moved by {1000 * d:+.0f} ms, read at {1000 * (self.offset_s + d):+.0f} ms ({ev})"
+                         for n, (d, ev) in self.clock.items())
+        left = (f"; the rounds ran out with {', '.join(self.unmoved)} still beating it: read at the chosen offset"
+                if self.unmoved else "")
+        return (f"NOT SHARED: these flights' clocks differ from the others' (a condition of the flight), and each "
+                f"is moved by the difference its own offset showed: {each}{left}; flights not used in training "
+                f"are read at the chosen {1000 * self.offset_s:+.0f} ms")
 
     def text(self, signals) -> str:
         names = ", ".join(signals)
@@ -352,29 +373,35 @@ def choose_offset(train_flights, prior, targets, signals, cfg, cuts=None,
     return OffsetDecision(best, (min(same), max(same)), scores, fam[best_name], per_target, per_flight, own)
 
 
-#: rounds of :func:`choose_offsets` (each moves the flights whose own offset passed, then chooses again)
-CLOCK_ROUNDS = 4
-
-
 def choose_offsets(train_flights, prior, targets, signals, cfg, cuts=None,
                    grid: Sequence[float] = OFFSET_GRID_S) -> OffsetDecision:
     """:func:`choose_offset` with each training flight's own clock: a flight whose own offset
     beats the chosen one by the block test (:attr:`OffsetDecision.own`) has its thrust inputs
-    moved by the difference, and the offset is chosen again on the moved flights (the vehicle's
-    terms of the others' profiles then fitted on flights whose clocks agree), until no flight's
-    own passes or :data:`CLOCK_ROUNDS` rounds are done. The decision of the last round, with the
-    shifts it was made on (:attr:`OffsetDecision.clock`)."""
+    moved by the difference (its clock against the others'), and the offset is chosen again on
+    the moved flights (the vehicle's terms of the others' profiles then fitted on flights whose
+    clocks agree), until no flight's own passes, at most twice as many rounds as there are
+    flights (a flight badly off distorts the others' profiles until it is moved, so one passes
+    per round; :attr:`OffsetDecision.unmoved` names any the rounds left). The decision of the
+    last round, on the flights as moved, its per-flight figures given back in each flight's own
+    clock (the shift added: the offset that flight is read at)."""
     names = _unique_names([f.name for f in train_flights])
     clock: dict = {}
-    for k in range(CLOCK_ROUNDS):
+    rounds = max(2, 2 * len(train_flights))
+    for k in range(rounds):
         moved = _clock_corrected(train_flights, signals, {n: d for n, (d, _) in clock.items()}, names)
         dec = choose_offset(moved, prior, targets, signals, cfg, cuts, grid)
         new = {n: (own - dec.offset_s, d.evidence) for n, (own, d) in dec.own.items() if d.accepted}
-        if not new or k == CLOCK_ROUNDS - 1:
+        if not new:
+            break
+        if k == rounds - 1:      # the rounds ran out: the decision stands on the flights as moved
+            dec = replace(dec, unmoved=tuple(new))
             break
         for n, (dd, ev) in new.items():
             clock[n] = (round(clock.get(n, (0.0, ""))[0] + dd, 3), ev)
-    return replace(dec, clock={n: v for n, v in clock.items() if v[0]})
+    shift = {n: d for n, (d, _) in clock.items()}
+    per_flight = {n: tuple(round(v + shift.get(n, 0.0), 3) for v in t) for n, t in dec.per_flight.items()}
+    own = {n: (round(d + shift.get(n, 0.0), 3), x) for n, (d, x) in dec.own.items()}
+    return replace(dec, per_flight=per_flight, own=own, clock={n: v for n, v in clock.items() if v[0]})
 
 
 def _clock_corrected(flights, signals: Sequence[str], shifts: Mapping[str, float], names=None) -> list:
@@ -487,18 +514,18 @@ def plan_inputs(train_flights, cfg, progress: Callable | None = None,
         decision = choose_offsets(train_flights, prior, targets, thrust, cfg, cuts)
         scores = dict(decision.scores)
         # each flight's thrust inputs at its own clock (the flights that have one)
-        aligned = _clock_corrected(train_flights, thrust, {n: d for n, (d, _) in decision.clock.items()})
+        aligned = _clock_corrected(train_flights, thrust, decision.shifts)
         if decision.offset_s or decision.clock:
             delays = {s: decision.offset_s for s in thrust} if decision.offset_s else {}
             if curve is not None and not curve.lag_s:   # the curve again, from the commands read at the offset
                 prior, curve = _with_thrust_curve(prior, aligned, cfg, cuts, delays)
+            elif curve is not None and decision.clock:  # a kept lag: again on the flights' own clocks
+                prior, curve = _with_thrust_curve(prior, aligned, cfg, cuts)
         if curve is not None and not curve.lag_s:       # its interval over every offset the data admit
             # (a kept motor lag is the curve stage's own model of how the commands lead their thrust)
             from droneid.fitting.thrust_curve import over_offsets
-            lo, hi = decision.interval_s
-            admitted = [d for d in OFFSET_GRID_S if lo <= d <= hi and d != decision.offset_s]
             curve = over_offsets(curve, aligned, prior, cfg, cuts, thrust,
-                                 [decision.offset_s, *admitted])
+                                 [decision.offset_s, *decision.admitted()])
         notes.append(decision.text(thrust))
     if curve is not None:
         notes.insert(0, curve.text())

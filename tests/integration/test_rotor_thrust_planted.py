@@ -218,6 +218,8 @@ def test_each_flight_gets_its_own_offset_and_flights_with_other_clocks_are_not_s
     read = [fixed.applied.get(n, fixed.offset_s) for n in own]
     assert 0.03 <= read[1] - read[0] <= 0.1, read      # the late flight read later, toward its 80 ms
     assert not any(dec.accepted for _, dec in fixed.own.values())
+    # each moved flight's own figures are given in its own clock: its own best is what it is read at
+    assert all(abs(fixed.per_flight[n][0] - d) <= 0.01 for n, d in fixed.applied.items()), (fixed.per_flight, fixed.applied)
     assert not choose_offsets(same, prior, targets, signals, cfg).clock
     both_late = [simulate(path="random", duration_s=30.0, rate_hz=100.0, seed=s, rpm_delay_s=0.08,
                           effects={"thrust_variation": {"amp_m": a, "period_s": p}}).flight for s, a, p in RHYTHMS]
