@@ -16,7 +16,8 @@ is the 2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, 
 gives a wide interval: the output says so and never pretends a shape. The thrust is the rotors'
 (:mod:`droneid.fitting.command_thrust`): each rotor's speed through a first-order motor lag τ
 profiled beside e (kept by the block test), thrust ∝ Σ speed², compared with the target as the
-mean over the differentiator's window.
+mean over the differentiator's window, or a wider one where the logged velocity is itself
+smoothed (:func:`_over_smoothings`: the intervals span every width the data admit).
 
 Battery compensation: the motors see the battery's voltage, so the thrust of a command falls as
 it sags; ArduPilot scales its commands by V/V_ref to make up for it. The candidate reads every
@@ -85,6 +86,11 @@ class ThrustCurve:
     lag_s, lag_interval : the first-order motor lag (s) the shape was profiled with and its 95 %
         interval (0: none kept); lag_decision : the block test of the best lag ``lag_tried_s``
         against none (None: the best lag was none, or not testable)
+    smoothing_s, smoothings_s : the extra half-width (s) of the window the thrust is compared with
+        the target through (0: the differentiator's own; a logged velocity is itself smoothed by
+        its estimator) and the (low, high) widths the chosen one does not beat, which every
+        interval here spans (:func:`_over_smoothings`); smoothing_decision : the block test of the
+        best width against none (None: not testable)
     """
     source: str
     expo: float
@@ -105,6 +111,9 @@ class ThrustCurve:
     lag_interval: tuple = (0.0, 0.0)
     lag_decision: object | None = None
     lag_tried_s: float = 0.0
+    smoothing_s: float = 0.0
+    smoothings_s: tuple = (0.0, 0.0)
+    smoothing_decision: object | None = None
 
     @property
     def at_bound(self) -> bool:
@@ -142,6 +151,12 @@ class ThrustCurve:
             shape += (f"; motor lag (first order on each rotor's speed) {1000 * self.lag_tried_s:.0f} ms "
                       + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it)" if self.lag_s else
                          "not kept") + f": {self.lag_decision.evidence}")
+        if self.smoothing_decision is not None:
+            lo_s, hi_s = (1000 * v for v in self.smoothings_s)
+            shape += (f"; thrust compared with v̇z through the differentiator's window "
+                      + (f"widened by ±{1000 * self.smoothing_s:.0f} ms" if self.smoothing_s else "as it is")
+                      + f" (a logged velocity is smoothed by its estimator: widths {lo_s:.0f}-{hi_s:.0f} ms "
+                      f"admitted, the intervals span them; best width: {self.smoothing_decision.evidence})")
         hv = (f"; hover thrust fraction {self.hover:.3f} [{self.hover_interval[0]:.3f}, "
               f"{self.hover_interval[1]:.3f}]")
         dec = ""
@@ -182,7 +197,10 @@ class ThrustCurve:
                 "voltage_not_tried": self.why_not, "declared": dict(self.declared),
                 "n_units": self.n_units, "offsets_s": list(self.offsets_s), "lag_s": self.lag_s,
                 "lag_interval": list(self.lag_interval), "lag_tried_s": self.lag_tried_s,
-                "lag_decision": self.lag_decision.to_dict() if self.lag_decision is not None else None, "free_expo": self.free_expo, "at_bound": self.at_bound,
+                "lag_decision": self.lag_decision.to_dict() if self.lag_decision is not None else None,
+                "smoothing_s": self.smoothing_s, "smoothings_s": list(self.smoothings_s),
+                "smoothing_decision": self.smoothing_decision.to_dict() if self.smoothing_decision is not None else None,
+                "free_expo": self.free_expo, "at_bound": self.at_bound,
                 "profile": {f"{e:.2f}": v for e, v in self.profile.items()}}
 
 
@@ -214,6 +232,15 @@ _LO, _HI = np.zeros(2), np.full(2, np.inf)
 
 #: first-order motor lags τ (s) profiled beside the shape (0: none)
 LAG_GRID_S = tuple(round(0.01 * k, 3) for k in range(11))
+#: extra half-widths (s) of the window the thrust is compared through (0: the differentiator's
+#: own): a logged velocity is itself an estimate (a motion-capture slope over several frames, an
+#: EKF), so its difference averages the acceleration over a window wider than the differentiator's,
+#: by an amount no log states; a shape that curves the thrust is biased by it
+#: (:func:`_over_smoothings`)
+SMOOTHING_GRID_S = (0.0, 0.01, 0.02, 0.03, 0.04)
+#: family-wise level of choosing a smoothing other than none (Holm over the grid), and the level
+#: of the smoothings the chosen one does not beat (the interval's, as the offsets')
+SMOOTHING_ALPHA, SMOOTHING_INTERVAL_ALPHA = 0.01, 0.05
 
 
 def _nnls2(a, b, p, c, q, r):
@@ -363,9 +390,10 @@ def _rows(flights, cfg, delays, inputs, cuts):
     return ds, train_rows(fine.build(list(flights), target=_TARGET, inputs=inputs), cuts)
 
 
-def _columns(prior, ds, fine, cfg):
+def _columns(prior, ds, fine, cfg, smoothing_s: float = 0.0):
     """(thrust: :class:`CommandThrust` of the command prior ``prior`` (its normalisation and v_ref
-    as given) on the rows of ``ds`` from the finer rows ``fine``, the drag column, y less the
+    as given) on the rows of ``ds`` from the finer rows ``fine``, compared through the
+    differentiator's window widened by ``smoothing_s`` s on each side, the drag column, y less the
     known physics) of v̇z."""
     feats = split_terms(prior, _TARGET)
     role = lambda r: [i for i, f in enumerate(feats) if f.role == r]    # noqa: E731
@@ -382,8 +410,50 @@ def _columns(prior, ds, fine, cfg):
         full["battery_voltage"] = np.full(len(fine), float(p["v_ref"]))
     Af, _, _, _ = prior_terms(prior.with_params(expo=1.0), _TARGET)._problem(full, fine.y)
     k = Af[:, role("thrust")].sum(axis=1) / len(names)
-    thrust = CommandThrust.build(q, k, fine.t, fine.flight, ds.t, ds.flight, averaging_window(cfg.method, cfg.ts))
+    window = tuple(w + float(smoothing_s) for w in averaging_window(cfg.method, cfg.ts))
+    thrust = CommandThrust.build(q, k, fine.t, fine.flight, ds.t, ds.flight, window)
     return thrust, A[:, role("drag")].sum(axis=1), yy
+
+
+def _over_smoothings(prof: dict, prior, ds, fine, cfg, blocks, lags: Sequence[float], *, seed: int = 0) -> tuple[dict, dict]:
+    """(the profile at the chosen smoothing, with its intervals widened to the hull of the
+    intervals at every smoothing the chosen one does not beat; {"smoothing_s", "admitted_s" (low,
+    high), "decision"}). ``prof``: :func:`profile_expo` with the thrust compared through the
+    differentiator's own window (``lags`` as it was profiled with, ``prior`` its command prior).
+
+    Each extra half-width of :data:`SMOOTHING_GRID_S` is profiled the same way and scored by its
+    held-out v̇z residuals over the (flight, block) units ``blocks`` (the thrust at its own (τ, e),
+    scale and drag refit per held-out block); the widths ≠ 0 are tested against none by the rule
+    of :mod:`droneid.fitting.decide` (Holm over the grid at :data:`SMOOTHING_ALPHA`), the lowest
+    held-out error among the accepted is chosen, and every width it does not beat at
+    :data:`SMOOTHING_INTERVAL_ALPHA` is admitted: a condition of how the log estimated its velocity,
+    which the shape's, the lag's and the scale's intervals span like the offsets the data admit."""
+    from droneid.fitting.decide import decide_family
+
+    none = {"smoothing_s": 0.0, "admitted_s": (0.0, 0.0), "decision": None}
+    if len(SMOOTHING_GRID_S) < 2:
+        return prof, none
+    _, D, yy = _columns(prior, ds, fine, cfg)
+    profs = {0.0: prof}
+    for w in SMOOTHING_GRID_S[1:]:
+        thrust, _, _ = _columns(prior, ds, fine, cfg, w)
+        profs[w] = profile_expo(thrust, D, yy, blocks, seed=seed, lags=lags)
+    errs = {w: yy - blocked_cv(np.column_stack([p["thrust"], D]), yy, blocks, _LO, _HI) for w, p in profs.items()}
+    names = {f"target smoothing ±{1000 * w:.0f} ms": w for w in SMOOTHING_GRID_S[1:]}
+    try:
+        fam = decide_family(errs[0.0], {n: errs[w] for n, w in names.items()}, blocks, alpha=SMOOTHING_ALPHA)
+    except ConfigError:     # fewer than 3 blocks: nothing testable, nothing spanned
+        return prof, none
+    rms = {w: float(np.sqrt(np.mean(e[np.isfinite(e)] ** 2))) for w, e in errs.items()}
+    accepted = [w for n, w in names.items() if fam[n].accepted]
+    best = min(accepted, key=lambda w: (rms[w], w)) if accepted else 0.0
+    decision = fam[min(names, key=lambda n: (rms[names[n]], names[n]))]
+    same = [w for w in profs if w == best or not decide(errs[w], errs[best], blocks, alpha=SMOOTHING_INTERVAL_ALPHA,
+                                                        min_effect_pct=0.0).accepted]
+    out = dict(profs[best])
+    for key in ("interval", "scale_interval", "lag_interval"):
+        out[key] = (min(profs[w][key][0] for w in same), max(profs[w][key][1] for w in same))
+    return out, {"smoothing_s": best, "admitted_s": (min(same), max(same)), "decision": decision}
 
 
 def over_offsets(curve: ThrustCurve, train_flights, prior, cfg, cuts, signals: Sequence[str],
@@ -399,8 +469,8 @@ def over_offsets(curve: ThrustCurve, train_flights, prior, cfg, cuts, signals: S
         ds, fine = _rows(train_flights, cfg, {s: float(d) for s in signals}, inputs, cuts)
         if len(ds) < 30:
             continue
-        prof = profile_expo(*_columns(prior, ds, fine, cfg), time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA),
-                            seed=seed)
+        prof = profile_expo(*_columns(prior, ds, fine, cfg, curve.smoothing_s),
+                            time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA), seed=seed)
         lo, hi = min(lo, prof["interval"][0]), max(hi, prof["interval"][1])
     return replace(curve, interval=(lo, hi), offsets_s=(min(offsets), max(offsets)) if len(offsets) else ())
 
@@ -463,6 +533,10 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
             lag_decision = None
         if lag_decision is not None and lag_decision.accepted:
             prof = prof_lag
+    # the window the target averages the thrust over: the differentiator's, or wider where the
+    # logged velocity is itself smoothed; the intervals span every width the data admit
+    prof, smooth = _over_smoothings(prof, prior.with_params(v_ref=v_ref if keep else None), ds, fine, cfg, blocks,
+                                    LAG_GRID_S if prof is prof_lag else (0.0,), seed=seed)
     motors = int(prior.params.get("motors", 1)) if source == "motor" else 1
     g = float(prior.params.get("g", 9.81))
     k_nom = float(prior.params.get("k_T", 1.0))
@@ -475,4 +549,6 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     return ThrustCurve(source, prof["expo"], prof["interval"], prof["profile"], hover, h_iv,
                        keep, v_ref, v_from, decision, why_not, declared, prof["n_units"], prof["free_expo"],
                        lag_s=prof.get("lag_s", 0.0), lag_interval=prof.get("lag_interval", (0.0, 0.0)),
-                       lag_decision=lag_decision, lag_tried_s=prof_lag["lag_s"])
+                       lag_decision=lag_decision, lag_tried_s=prof_lag["lag_s"],
+                       smoothing_s=smooth["smoothing_s"], smoothings_s=smooth["admitted_s"],
+                       smoothing_decision=smooth["decision"])
