@@ -17,6 +17,11 @@ off, the true lag: e 0.0025 low with point values, exact with window means). So 
 computed on a grid :data:`FINE_STEPS` times finer than Ts (the commands interpolated as every
 input is) and its window mean taken at each dataset row; the drag column (linear in the velocity)
 stays at t.
+
+A logged velocity is itself an estimate. Where it is a least-squares slope of the positions over
+±h (a motion-capture system's velocity; a Savitzky-Golay first derivative), it is the velocity
+averaged with the weights ``h² − s²`` over ``|s| ≤ h``, and so is its difference: ``slope_s`` = h
+convolves the fine thrust with that kernel before the window mean (:func:`slope_smoothed`).
 """
 from __future__ import annotations
 
@@ -26,7 +31,7 @@ import numpy as np
 
 from priors.thrust import rotor_speed
 
-__all__ = ["CommandThrust", "LinearThrust", "lagged", "FINE_STEPS"]
+__all__ = ["CommandThrust", "LinearThrust", "lagged", "slope_smoothed", "FINE_STEPS"]
 
 #: fine-grid steps per dataset step Ts on which the thrust is computed before its window mean
 FINE_STEPS = 5
@@ -79,6 +84,33 @@ def lagged(x: np.ndarray, t: np.ndarray, flight: np.ndarray, tau_s: float) -> np
     return y.reshape(x.shape)
 
 
+def slope_smoothed(x: np.ndarray, t: np.ndarray, flight: np.ndarray, half_s: float) -> np.ndarray:
+    """``x`` (rows ordered by flight, then time ``t`` s, on a uniform grid within each segment;
+    1-D or 2-D, one series per column) averaged as a least-squares slope over ±``half_s`` s
+    averages a derivative: weights ``h² − s²`` for ``|s| ≤ h`` (h = ``half_s``), each segment (a
+    flight, or the rows between gaps) on its own, its ends continued by their first and last
+    values. ``half_s`` below one step: ``x``."""
+    from scipy.ndimage import convolve1d
+
+    x = np.asarray(x, float)
+    t = np.asarray(t, float)
+    seg = _segments(t, flight)
+    steps = np.diff(t)[seg[1:] == seg[:-1]]
+    if half_s <= 0 or steps.size == 0:
+        return x.copy()
+    n = int(round(half_s / float(np.median(steps)) - 0.5))
+    if n < 1:
+        return x.copy()
+    s = np.arange(-n, n + 1, dtype=float)
+    k = (n + 0.5) ** 2 - s * s        # h² − s² at the grid's steps, h = (n + ½) steps
+    k /= k.sum()
+    y = np.empty_like(x)
+    starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
+    for s0, s1 in zip(starts, [*starts[1:], x.shape[0]]):
+        y[s0:s1] = convolve1d(x[s0:s1], k, axis=0, mode="nearest")
+    return y
+
+
 @dataclass(frozen=True)
 class LinearThrust:
     """A thrust column linear in the shape, ``(1 − e)·linear + e·quadratic`` (no lag): the
@@ -103,17 +135,22 @@ class CommandThrust:
     t, flight : (n,) the fine rows' times (s) and flights
     at : (rows, 2) the window [t − before, t + after] of each dataset row on the fine time axis,
         clamped to the fine segment holding the row (its ends as fine-row positions, fractional)
+    slope_s : half-width h (s) of the least-squares slope the logged velocity is taken to be
+        (0: the velocity as it is; :func:`slope_smoothed`)
     """
     q: np.ndarray
     k: np.ndarray
     t: np.ndarray
     flight: np.ndarray
     at: np.ndarray
+    slope_s: float = 0.0
 
     @classmethod
-    def build(cls, q, k, t, flight, rows_t, rows_flight, window: tuple[float, float]) -> "CommandThrust":
+    def build(cls, q, k, t, flight, rows_t, rows_flight, window: tuple[float, float],
+              slope_s: float = 0.0) -> "CommandThrust":
         """From the fine rows (``q`` (n, M), ``k``, ``t`` s, ``flight``), the dataset rows' times
-        and flights and the differentiator's ``window`` (before, after) s."""
+        and flights, the differentiator's ``window`` (before, after) s and the velocity's
+        ``slope_s``."""
         t, flight = np.asarray(t, float), np.asarray(flight)
         seg = _segments(t, flight)
         span = 2.0 * (float(np.max(t)) - float(np.min(t)) + 1.0) if t.size else 1.0
@@ -126,7 +163,7 @@ class CommandThrust:
         lo = np.maximum(rkey - window[0], seg_lo[s])
         hi = np.minimum(rkey + window[1], seg_hi[s])
         pos = [np.interp(x, key, np.arange(key.size, dtype=float)) for x in (lo, hi)]
-        return cls(np.asarray(q, float), np.asarray(k, float), t, flight, np.column_stack(pos))
+        return cls(np.asarray(q, float), np.asarray(k, float), t, flight, np.column_stack(pos), float(slope_s))
 
     def fine(self, expos, tau_s: float) -> np.ndarray:
         """(n, E) the thrust per unit mass (m/s²) on the fine rows at each shape of ``expos``."""
@@ -139,8 +176,9 @@ class CommandThrust:
         return self.k[:, None] * np.einsum("nem,nem->ne", w, w)
 
     def __call__(self, expos, tau_s: float = 0.0) -> np.ndarray:
-        """(rows, E): the window mean of :meth:`fine` at each dataset row (m/s²)."""
-        F = self.fine(expos, tau_s)
+        """(rows, E): the window mean of :meth:`fine` (through the velocity's slope) at each
+        dataset row (m/s²)."""
+        F = slope_smoothed(self.fine(expos, tau_s), self.t, self.flight, self.slope_s)
         seg = _segments(self.t, self.flight)
         inc = np.zeros_like(F)
         same = seg[1:] == seg[:-1]

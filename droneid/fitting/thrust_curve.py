@@ -16,8 +16,8 @@ is the 2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, 
 gives a wide interval: the output says so and never pretends a shape. The thrust is the rotors'
 (:mod:`droneid.fitting.command_thrust`): each rotor's speed through a first-order motor lag τ
 profiled beside e (kept by the block test), thrust ∝ Σ speed², compared with the target as the
-mean over the differentiator's window, or a wider one where the logged velocity is itself
-smoothed (:func:`_over_smoothings`: the intervals span every width the data admit).
+mean over the differentiator's window, and through the least-squares slope the logged velocity
+may itself be (:func:`_over_smoothings`: the intervals span every slope the data admit).
 
 Battery compensation: the motors see the battery's voltage, so the thrust of a command falls as
 it sags; ArduPilot scales its commands by V/V_ref to make up for it. The candidate reads every
@@ -86,11 +86,11 @@ class ThrustCurve:
     lag_s, lag_interval : the first-order motor lag (s) the shape was profiled with and its 95 %
         interval (0: none kept); lag_decision : the block test of the best lag ``lag_tried_s``
         against none (None: the best lag was none, or not testable)
-    smoothing_s, smoothings_s : the extra half-width (s) of the window the thrust is compared with
-        the target through (0: the differentiator's own; a logged velocity is itself smoothed by
-        its estimator) and the (low, high) widths the chosen one does not beat, which every
+    smoothing_s, smoothings_s : the half-width h (s) of the least-squares slope the logged
+        velocity is taken to be (0: the velocity as it is; a logged velocity is itself smoothed
+        by its estimator) and the (low, high) half-widths the chosen one does not beat, which every
         interval here spans (:func:`_over_smoothings`); smoothing_decision : the block test of the
-        best width against none (None: not testable)
+        best half-width against none (None: not testable)
     """
     source: str
     expo: float
@@ -153,10 +153,11 @@ class ThrustCurve:
                          "not kept") + f": {self.lag_decision.evidence}")
         if self.smoothing_decision is not None:
             lo_s, hi_s = (1000 * v for v in self.smoothings_s)
-            shape += (f"; thrust compared with v̇z through the differentiator's window "
-                      + (f"widened by ±{1000 * self.smoothing_s:.0f} ms" if self.smoothing_s else "as it is")
-                      + f" (a logged velocity is smoothed by its estimator: widths {lo_s:.0f}-{hi_s:.0f} ms "
-                      f"admitted, the intervals span them; best width: {self.smoothing_decision.evidence})")
+            shape += (f"; the logged velocity read "
+                      + (f"as a least-squares slope over ±{1000 * self.smoothing_s:.0f} ms" if self.smoothing_s
+                         else "as it is")
+                      + f" (a logged velocity is smoothed by its estimator: slopes over ±{lo_s:.0f} to ±{hi_s:.0f} ms "
+                      f"admitted, the intervals span them; the best: {self.smoothing_decision.evidence})")
         hv = (f"; hover thrust fraction {self.hover:.3f} [{self.hover_interval[0]:.3f}, "
               f"{self.hover_interval[1]:.3f}]")
         dec = ""
@@ -232,12 +233,12 @@ _LO, _HI = np.zeros(2), np.full(2, np.inf)
 
 #: first-order motor lags τ (s) profiled beside the shape (0: none)
 LAG_GRID_S = tuple(round(0.01 * k, 3) for k in range(11))
-#: extra half-widths (s) of the window the thrust is compared through (0: the differentiator's
-#: own): a logged velocity is itself an estimate (a motion-capture slope over several frames, an
-#: EKF), so its difference averages the acceleration over a window wider than the differentiator's,
-#: by an amount no log states; a shape that curves the thrust is biased by it
-#: (:func:`_over_smoothings`)
-SMOOTHING_GRID_S = (0.0, 0.01, 0.02, 0.03, 0.04)
+#: half-widths h (s) of the least-squares slope the logged velocity may be (0: the velocity as
+#: it is): a logged velocity is itself an estimate (a motion-capture slope over several frames, a
+#: Savitzky-Golay derivative, an EKF), so its difference averages the acceleration over more than
+#: the differentiator's window, by an amount no log states, and a shape that curves the thrust is
+#: biased by it (:func:`_over_smoothings`; :func:`droneid.fitting.command_thrust.slope_smoothed`)
+SMOOTHING_GRID_S = (0.0, 0.025, 0.05, 0.075, 0.1)
 #: family-wise level of choosing a smoothing other than none (Holm over the grid), and the level
 #: of the smoothings the chosen one does not beat (the interval's, as the offsets')
 SMOOTHING_ALPHA, SMOOTHING_INTERVAL_ALPHA = 0.01, 0.05
@@ -392,9 +393,9 @@ def _rows(flights, cfg, delays, inputs, cuts):
 
 def _columns(prior, ds, fine, cfg, smoothing_s: float = 0.0):
     """(thrust: :class:`CommandThrust` of the command prior ``prior`` (its normalisation and v_ref
-    as given) on the rows of ``ds`` from the finer rows ``fine``, compared through the
-    differentiator's window widened by ``smoothing_s`` s on each side, the drag column, y less the
-    known physics) of v̇z."""
+    as given) on the rows of ``ds`` from the finer rows ``fine``, the logged velocity taken as a
+    least-squares slope over ±``smoothing_s`` s (0: as it is), the drag column, y less the known
+    physics) of v̇z."""
     feats = split_terms(prior, _TARGET)
     role = lambda r: [i for i, f in enumerate(feats) if f.role == r]    # noqa: E731
     A, yy, _, _ = prior_terms(prior, _TARGET)._problem(ds.columns(), ds.y)
@@ -410,8 +411,8 @@ def _columns(prior, ds, fine, cfg, smoothing_s: float = 0.0):
         full["battery_voltage"] = np.full(len(fine), float(p["v_ref"]))
     Af, _, _, _ = prior_terms(prior.with_params(expo=1.0), _TARGET)._problem(full, fine.y)
     k = Af[:, role("thrust")].sum(axis=1) / len(names)
-    window = tuple(w + float(smoothing_s) for w in averaging_window(cfg.method, cfg.ts))
-    thrust = CommandThrust.build(q, k, fine.t, fine.flight, ds.t, ds.flight, window)
+    thrust = CommandThrust.build(q, k, fine.t, fine.flight, ds.t, ds.flight, averaging_window(cfg.method, cfg.ts),
+                                 smoothing_s)
     return thrust, A[:, role("drag")].sum(axis=1), yy
 
 
@@ -421,7 +422,7 @@ def _over_smoothings(prof: dict, prior, ds, fine, cfg, blocks, lags: Sequence[fl
     high), "decision"}). ``prof``: :func:`profile_expo` with the thrust compared through the
     differentiator's own window (``lags`` as it was profiled with, ``prior`` its command prior).
 
-    Each extra half-width of :data:`SMOOTHING_GRID_S` is profiled the same way and scored by its
+    Each slope half-width of :data:`SMOOTHING_GRID_S` is profiled the same way and scored by its
     held-out v̇z residuals over the (flight, block) units ``blocks`` (the thrust at its own (τ, e),
     scale and drag refit per held-out block); the widths ≠ 0 are tested against none by the rule
     of :mod:`droneid.fitting.decide` (Holm over the grid at :data:`SMOOTHING_ALPHA`), the lowest
@@ -439,7 +440,7 @@ def _over_smoothings(prof: dict, prior, ds, fine, cfg, blocks, lags: Sequence[fl
         thrust, _, _ = _columns(prior, ds, fine, cfg, w)
         profs[w] = profile_expo(thrust, D, yy, blocks, seed=seed, lags=lags)
     errs = {w: yy - blocked_cv(np.column_stack([p["thrust"], D]), yy, blocks, _LO, _HI) for w, p in profs.items()}
-    names = {f"target smoothing ±{1000 * w:.0f} ms": w for w in SMOOTHING_GRID_S[1:]}
+    names = {f"velocity a slope over ±{1000 * w:.0f} ms": w for w in SMOOTHING_GRID_S[1:]}
     try:
         fam = decide_family(errs[0.0], {n: errs[w] for n, w in names.items()}, blocks, alpha=SMOOTHING_ALPHA)
     except ConfigError:     # fewer than 3 blocks: nothing testable, nothing spanned
@@ -533,8 +534,8 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
             lag_decision = None
         if lag_decision is not None and lag_decision.accepted:
             prof = prof_lag
-    # the window the target averages the thrust over: the differentiator's, or wider where the
-    # logged velocity is itself smoothed; the intervals span every width the data admit
+    # the logged velocity as it is, or as the least-squares slope it may itself be (where the
+    # log smoothed it): the intervals span every slope the data admit
     prof, smooth = _over_smoothings(prof, prior.with_params(v_ref=v_ref if keep else None), ds, fine, cfg, blocks,
                                     LAG_GRID_S if prof is prof_lag else (0.0,), seed=seed)
     motors = int(prior.params.get("motors", 1)) if source == "motor" else 1
