@@ -242,6 +242,8 @@ SMOOTHING_GRID_S = (0.0, 0.025, 0.05, 0.075, 0.1)
 #: family-wise level of choosing a smoothing other than none (Holm over the grid), and the level
 #: of the smoothings the chosen one does not beat (the interval's, as the offsets')
 SMOOTHING_ALPHA, SMOOTHING_INTERVAL_ALPHA = 0.01, 0.05
+#: half-width of the shapes e each slope is profiled over, about the velocity-as-it-is minimum
+LOCAL_EXPO = 0.1
 
 
 def _nnls2(a, b, p, c, q, r):
@@ -434,11 +436,15 @@ def _over_smoothings(prof: dict, prior, ds, fine, cfg, blocks, lags: Sequence[fl
     none = {"smoothing_s": 0.0, "admitted_s": (0.0, 0.0), "decision": None}
     if len(SMOOTHING_GRID_S) < 2:
         return prof, none
-    _, D, yy = _columns(prior, ds, fine, cfg)
+    thrust0, D, yy = _columns(prior, ds, fine, cfg)
+    # a slope moves e by hundredths: each is profiled on the shapes near the velocity-as-it-is
+    # minimum (e ± LOCAL_EXPO; every lag: τ can move further), a fifth of the cost
+    grid = [g for g in EXPO_GRID if abs(g - prof["expo"]) <= LOCAL_EXPO + 1e-9]
+    if len(grid) < 3:
+        grid = list(EXPO_GRID)
     profs = {0.0: prof}
     for w in SMOOTHING_GRID_S[1:]:
-        thrust, _, _ = _columns(prior, ds, fine, cfg, w)
-        profs[w] = profile_expo(thrust, D, yy, blocks, seed=seed, lags=lags)
+        profs[w] = profile_expo(replace(thrust0, slope_s=w), D, yy, blocks, seed=seed, lags=lags, grid=grid)
     errs = {w: yy - blocked_cv(np.column_stack([p["thrust"], D]), yy, blocks, _LO, _HI) for w, p in profs.items()}
     names = {f"velocity a slope over ±{1000 * w:.0f} ms": w for w in SMOOTHING_GRID_S[1:]}
     try:

@@ -213,6 +213,7 @@ def test_identify_in_a_process_pool_matches_in_process(logs):
     assert np.allclose([r.rmse_test for r in a.runs], [r.rmse_test for r in b.runs])
 
 
+@pytest.mark.slow
 def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
     from conftest import SAMPLE_LOGS
     # sample_logs/ is committed: its absence is a broken checkout, not a reason to skip

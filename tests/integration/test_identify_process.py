@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -46,6 +48,7 @@ print(json.dumps(d, sort_keys=False, default=str))
 """
 
 
+@pytest.mark.slow
 def test_the_split_stages_give_what_the_serial_ones_give():
     # the offset search and the scorings of the test flights run on forked workers: the whole
     # result, notes and their order included, must be that of every stage run in one process

@@ -117,6 +117,7 @@ def _identify_delays(delay_s, late_s=0.0):
     return dict(res.plan.delays_s), dict(res.plan.delay_scores)
 
 
+@pytest.mark.slow
 def test_identify_finds_the_planted_rpm_logging_delay():
     delays, scores = _identify_delays(0.04)
     assert set(delays) == {"rpm1", "rpm2", "rpm3", "rpm4"}, (delays, scores)
@@ -124,11 +125,13 @@ def test_identify_finds_the_planted_rpm_logging_delay():
         assert d == pytest.approx(0.04, abs=0.01), (delays, scores)
 
 
+@pytest.mark.slow
 def test_identify_chooses_no_delay_where_none_is_planted():
     delays, scores = _identify_delays(0.0)
     assert not delays, (delays, scores)
 
 
+@pytest.mark.slow
 def test_identify_reads_a_late_motor_stream_later_and_keeps_the_stop_and_go_flight_airborne():
     """The motor stream of a merged log stamped 80 ms late (issue 25): the offset is −80 ± 20 ms
     (read later: a clock correction), with its interval and evidence, and the random path's
@@ -164,6 +167,7 @@ def test_the_rotor_sample_log_shows_its_planted_delay():
         assert d == pytest.approx(planted, abs=0.01), plan.delay_scores
 
 
+@pytest.mark.slow
 def test_the_offset_search_chooses_the_same_on_one_worker_and_on_two():
     # the offsets of the grid are split over forked workers (speed): the held-out errors, and so
     # the choice, its interval, its evidence and the order of the scores (result.json's
@@ -185,6 +189,7 @@ def test_the_offset_search_chooses_the_same_on_one_worker_and_on_two():
     assert one.interval_s == two.interval_s and one.decision.evidence == two.decision.evidence
 
 
+@pytest.mark.slow
 def test_each_flight_gets_its_own_offset_and_flights_with_other_clocks_are_not_shared():
     """The clock offset is a condition of one flight: flights with one delay share it, flights
     whose delays differ by 80 ms are called NOT SHARED, each flight's own offset (its rows at each
@@ -228,6 +233,7 @@ def test_each_flight_gets_its_own_offset_and_flights_with_other_clocks_are_not_s
     assert late.flights_share and all(b == pytest.approx(0.08, abs=0.01) for b, _, _ in late.per_flight.values())
 
 
+@pytest.mark.slow
 def test_identify_reads_a_flight_with_another_clock_at_its_own_offset():
     """Issue 35.1 end to end: two flights whose motor streams differ by 80 ms. identify moves the
     late flight (its own offset passes the block test), says NOT SHARED, records the offset it
