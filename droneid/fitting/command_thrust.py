@@ -89,7 +89,7 @@ def slope_smoothed(x: np.ndarray, t: np.ndarray, flight: np.ndarray, half_s: flo
     1-D or 2-D, one series per column) averaged as a least-squares slope over ±``half_s`` s
     averages a derivative: weights ``h² − s²`` for ``|s| ≤ h`` (h = ``half_s``), each segment (a
     flight, or the rows between gaps) on its own, its ends continued by their first and last
-    values. ``half_s`` below one step: ``x``."""
+    values. ``half_s`` of one step or less: ``x``."""
     from scipy.ndimage import convolve1d
 
     x = np.asarray(x, float)
@@ -98,11 +98,12 @@ def slope_smoothed(x: np.ndarray, t: np.ndarray, flight: np.ndarray, half_s: flo
     steps = np.diff(t)[seg[1:] == seg[:-1]]
     if half_s <= 0 or steps.size == 0:
         return x.copy()
-    n = int(round(half_s / float(np.median(steps)) - 0.5))
+    h = half_s / float(np.median(steps))                  # in steps
+    n = int(np.ceil(h - 1e-9)) - 1                         # the steps with |s| < h
     if n < 1:
         return x.copy()
     s = np.arange(-n, n + 1, dtype=float)
-    k = (n + 0.5) ** 2 - s * s        # h² − s² at the grid's steps, h = (n + ½) steps
+    k = h * h - s * s                 # h² − s² sampled at the grid's steps
     k /= k.sum()
     y = np.empty_like(x)
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
