@@ -87,9 +87,10 @@ def lagged(x: np.ndarray, t: np.ndarray, flight: np.ndarray, tau_s: float) -> np
 def slope_smoothed(x: np.ndarray, t: np.ndarray, flight: np.ndarray, half_s: float) -> np.ndarray:
     """``x`` (rows ordered by flight, then time ``t`` s, on a uniform grid within each segment;
     1-D or 2-D, one series per column) averaged as a least-squares slope over ±``half_s`` s
-    averages a derivative: weights ``h² − s²`` for ``|s| ≤ h`` (h = ``half_s``), each segment (a
-    flight, or the rows between gaps) on its own, its ends continued by their first and last
-    values. ``half_s`` of one step or less: ``x``."""
+    averages a derivative: weights ``h² − s²`` for ``|s| ≤ h`` (h = ``half_s``; each row takes the
+    kernel's integral over its own cell of one step), each segment (a flight, or the rows between
+    gaps) on its own, its ends continued by their first and last values (how an estimator treats
+    its ends, no log says). ``half_s`` of one step or less: ``x``."""
     from scipy.ndimage import convolve1d
 
     x = np.asarray(x, float)
@@ -99,11 +100,12 @@ def slope_smoothed(x: np.ndarray, t: np.ndarray, flight: np.ndarray, half_s: flo
     if half_s <= 0 or steps.size == 0:
         return x.copy()
     h = half_s / float(np.median(steps))                  # in steps
-    n = int(np.ceil(h - 1e-9)) - 1                         # the steps with |s| < h
-    if n < 1:
+    if h <= 1.0:
         return x.copy()
+    n = int(np.ceil(h - 0.5 - 1e-9))                       # the cells [j − ½, j + ½] within ±h
     s = np.arange(-n, n + 1, dtype=float)
-    k = h * h - s * s                 # h² − s² sampled at the grid's steps
+    a, b = np.maximum(s - 0.5, -h), np.minimum(s + 0.5, h)
+    k = h * h * (b - a) - (b ** 3 - a ** 3) / 3.0          # ∫ (h² − u²) du over each row's cell
     k /= k.sum()
     y = np.empty_like(x)
     starts = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))

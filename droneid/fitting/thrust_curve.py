@@ -148,9 +148,10 @@ class ThrustCurve:
             shape += "; the flights hardly constrain the shape (a flat profile): e is a best guess"
         if self.lag_decision is not None:
             lo_l, hi_l = self.lag_interval
-            shape += (f"; motor lag (first order on each rotor's speed) {1000 * self.lag_tried_s:.0f} ms "
+            shape += (f"; motor lag (first order on each rotor's speed) "
+                      f"{1000 * (self.lag_s or self.lag_tried_s):.0f} ms "
                       + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it)" if self.lag_s else
-                         "not kept") + f": {self.lag_decision.evidence}")
+                         "not kept") + f" (decided with the velocity as logged): {self.lag_decision.evidence}")
         if self.smoothing_decision is not None:
             lo_s, hi_s = (1000 * v for v in self.smoothings_s)
             shape += (f"; the logged velocity read "
@@ -434,29 +435,46 @@ def _over_smoothings(prof: dict, prior, ds, fine, cfg, blocks, lags: Sequence[fl
     from droneid.fitting.decide import decide_family
 
     none = {"smoothing_s": 0.0, "admitted_s": (0.0, 0.0), "decision": None}
-    if len(SMOOTHING_GRID_S) < 2:
+    # a slope of fewer than two fine steps is the velocity as it is (slope_smoothed)
+    widths = [w for w in SMOOTHING_GRID_S[1:] if w >= 2 * cfg.ts / FINE_STEPS]
+    if not widths:
         return prof, none
     thrust0, D, yy = _columns(prior, ds, fine, cfg)
     # a slope moves e by hundredths: each is profiled on the shapes near the velocity-as-it-is
-    # minimum (e ± LOCAL_EXPO; every lag: τ can move further), a fifth of the cost
-    grid = [g for g in EXPO_GRID if abs(g - prof["expo"]) <= LOCAL_EXPO + 1e-9]
-    if len(grid) < 3:
-        grid = list(EXPO_GRID)
-    profs = {0.0: prof}
-    for w in SMOOTHING_GRID_S[1:]:
-        profs[w] = profile_expo(replace(thrust0, slope_s=w), D, yy, blocks, seed=seed, lags=lags, grid=grid)
+    # minimum (e ± LOCAL_EXPO; every lag: τ can move further), a fifth of the cost; profiled on
+    # the whole grid again where that matters (below)
+    near = [g for g in EXPO_GRID if abs(g - prof["expo"]) <= LOCAL_EXPO + 1e-9]
+    local = near if len(near) >= 3 else list(EXPO_GRID)
+
+    def profiled(w, grid):
+        return profile_expo(replace(thrust0, slope_s=w), D, yy, blocks, seed=seed, lags=lags, grid=grid)
+
+    profs = {0.0: prof, **{w: profiled(w, local) for w in widths}}
     errs = {w: yy - blocked_cv(np.column_stack([p["thrust"], D]), yy, blocks, _LO, _HI) for w, p in profs.items()}
-    names = {f"velocity a slope over ±{1000 * w:.0f} ms": w for w in SMOOTHING_GRID_S[1:]}
+    names = {f"velocity a slope over ±{1000 * w:.0f} ms": w for w in widths}
     try:
         fam = decide_family(errs[0.0], {n: errs[w] for n, w in names.items()}, blocks, alpha=SMOOTHING_ALPHA)
     except ConfigError:     # fewer than 3 blocks: nothing testable, nothing spanned
         return prof, none
-    rms = {w: float(np.sqrt(np.mean(e[np.isfinite(e)] ** 2))) for w, e in errs.items()}
+    shared = np.all([np.isfinite(e) for e in errs.values()], axis=0)
+    rms = {w: float(np.sqrt(np.mean(e[shared] ** 2))) for w, e in errs.items()}
     accepted = [w for n, w in names.items() if fam[n].accepted]
     best = min(accepted, key=lambda w: (rms[w], w)) if accepted else 0.0
-    decision = fam[min(names, key=lambda n: (rms[names[n]], names[n]))]
+    decision = fam[next(n for n, w in names.items() if w == best)] if best else \
+        fam[min(names, key=lambda n: (rms[names[n]], names[n]))]
     same = [w for w in profs if w == best or not decide(errs[w], errs[best], blocks, alpha=SMOOTHING_INTERVAL_ALPHA,
                                                         min_effect_pct=0.0).accepted]
+    # the whole grid where the local one could have cut a profile short: the chosen width (its
+    # profile is reported), and an admitted one whose estimate or interval reaches the local edge
+    step = EXPO_GRID[1] - EXPO_GRID[0]
+
+    def cut(p):
+        ends = [v for v in (p["expo"], *p["interval"])]
+        return ((local[0] > EXPO_GRID[0] and min(ends) <= local[0] + step) or
+                (local[-1] < EXPO_GRID[-1] and max(ends) >= local[-1] - step))
+    for w in same:
+        if w and (w == best or cut(profs[w])):
+            profs[w] = profiled(w, EXPO_GRID)
     out = dict(profs[best])
     for key in ("interval", "scale_interval", "lag_interval"):
         out[key] = (min(profs[w][key][0] for w in same), max(profs[w][key][1] for w in same))
@@ -472,13 +490,15 @@ def over_offsets(curve: ThrustCurve, train_flights, prior, cfg, cuts, signals: S
     command prior with the curve's battery compensation."""
     lo, hi = curve.interval
     inputs = tuple(prior.inputs(_TARGET))
+    slopes = sorted({float(curve.smoothing_s), *(float(v) for v in curve.smoothings_s)})
     for d in offsets:
         ds, fine = _rows(train_flights, cfg, {s: float(d) for s in signals}, inputs, cuts)
         if len(ds) < 30:
             continue
-        prof = profile_expo(*_columns(prior, ds, fine, cfg, curve.smoothing_s),
-                            time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA), seed=seed)
-        lo, hi = min(lo, prof["interval"][0]), max(hi, prof["interval"][1])
+        blocks = time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA)
+        for h in slopes:        # the velocity's slopes the curve admits, at each offset
+            prof = profile_expo(*_columns(prior, ds, fine, cfg, h), blocks, seed=seed)
+            lo, hi = min(lo, prof["interval"][0]), max(hi, prof["interval"][1])
     return replace(curve, interval=(lo, hi), offsets_s=(min(offsets), max(offsets)) if len(offsets) else ())
 
 
