@@ -23,6 +23,13 @@ for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
 del _var
 
+# library code never prints: droneid's log records reach a user only through a handler the
+# application configures (the command line does, droneid/cli.py), not Python's last-resort stderr
+import logging as _logging
+
+_logging.getLogger(__name__).addHandler(_logging.NullHandler())
+del _logging
+
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_log", "Identifier", "IdentificationResult", "PredictionResult", "Score"]
