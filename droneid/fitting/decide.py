@@ -49,7 +49,7 @@ import numpy as np
 from droneid.errors import ConfigError
 from droneid.core.regression import blocked_cv
 
-__all__ = ["Decision", "decide", "decide_units", "decide_predictions", "decide_designs", "decide_family",
+__all__ = ["Decision", "decide", "decide_units", "p_text", "decide_predictions", "decide_designs", "decide_family",
            "holm_step_down",
            "block_differences", "block_log_ratios", "paired_block_test", "holm_threshold", "N_FLIPS"]
 
@@ -200,6 +200,18 @@ def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: i
 _LOSSES = {"mse": ("CV RMSE", "blocks", True), "simerr": ("SimErr", "cells", False)}
 
 
+def p_text(p: float, threshold: float) -> str:
+    """``p`` with 2 significant digits, or as many more (up to 8) as it takes to tell it from
+    ``threshold`` as printed: a p of 0.0099998 against 0.01 reads "0.0099998 < 0.01", not
+    "0.01 < 0.01"."""
+    thr = float(f"{threshold:.2g}")
+    for digits in range(2, 9):
+        s = f"{p:.{digits}g}"
+        if float(s) != thr or p == threshold:
+            return s
+    return repr(float(p))
+
+
 def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, family_size: int = 1,
                  rank: int = 1, min_effect_pct: float = 1.0, loss: str = "mse", what: str = "") -> Decision:
     """The rule (module docstring, steps 2-4) on one held-out error per unit of each model.
@@ -239,7 +251,7 @@ def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, fam
     n = int(m0.size)
     reasons = []
     if not p < thr:
-        reasons.append(f"{'block' if squared else 'cell'} test p = {p:.2g} ≥ {thr:.2g}")
+        reasons.append(f"{'block' if squared else 'cell'} test p = {p_text(p, thr)} ≥ {thr:.2g}")
         if 2.0 ** -n >= thr:
             reasons.append(f"{n} {units} cannot reach p < {thr:.2g} (a sign-flip p is ≥ 2^−B): "
                            f"use more {units}")
@@ -254,7 +266,7 @@ def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, fam
     change = f"{-pct:+.1f} %" + (f", pooled over the rows; the typical {units[:-1] if units.endswith('s') else units} "
                                  f"{'gets worse' if t < 0 else 'improves'}" if apart else "")
     line = (f"{what + ': ' if what else ''}{label} {r0:.4g} -> {r1:.4g} ({change}), "
-            f"t = {t:.2f} over {n} {units}, sign-flip p = {p:.2g} "
+            f"t = {t:.2f} over {n} {units}, sign-flip p = {p_text(p, thr)} "
             f"{'<' if p < thr else '≥'} {thr:.2g} (α = {alpha:g}, {holm}), "
             f"{better}/{n} {units} better: " + ("accepted" if accepted else
                                                 "rejected (" + "; ".join(reasons) + ")"))

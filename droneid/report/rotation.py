@@ -12,6 +12,7 @@ from droneid.rotation.stage import RotationResult
 from droneid.report.document import Document, fmt, new_figure, text_table
 from droneid.report.rollout import ONE_STEP_POSITION
 from droneid.fitting.verdict import VERDICT_KINDS
+from droneid.fitting.decide import p_text
 
 __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "fig_open_loop_drift",
            "ladder_rows"]
@@ -78,7 +79,7 @@ def _test_cell(st: Mapping) -> str:
     if st.get("p_value") is None:
         return f"not tested ({st.get('cells', 0)} cells)"
     p, thr = float(st["p_value"]), float(st["threshold"])
-    return f"p {p:.2g} {'<' if p < thr else '≥'} {thr:.2g} over {st['cells']} cells"
+    return f"p {p_text(p, thr)} {'<' if p < thr else '≥'} {thr:.2g} over {st['cells']} cells"
 
 
 def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:

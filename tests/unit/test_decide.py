@@ -201,3 +201,15 @@ def test_holm_step_down_is_the_family_rule_over_any_decisions():
                                                    loss="simerr"), list(gains))
     assert [out[n].accepted for n in "abc"] == [True, True, False]
     assert sorted(out[n].rank for n in "abc") == [1, 2, 3]
+
+
+def test_a_p_on_its_threshold_is_printed_so_that_it_can_be_told_from_it():
+    """log171's battery compensation had p = 0.0099998 (499 of 50 000 sign patterns) against
+    0.01, printed "0.01 < 0.01": a reader could not tell why it passed. The p now carries the
+    digits that tell it from the threshold; a p away from it keeps two."""
+    from droneid.fitting.decide import p_text
+    assert p_text(0.0099998, 0.01) == "0.0099998"
+    assert p_text(0.010239795, 0.01) == "0.0102"
+    assert p_text(0.00046, 0.00067) == "0.00046"
+    assert p_text(0.5, 0.01) == "0.5"
+    assert p_text(0.01, 0.01) == "0.01"
