@@ -43,7 +43,7 @@ from droneid.fitting.decide import decide
 from droneid.errors import ConfigError
 from droneid.core.differentiation import averaging_window
 from droneid.core.regression import blocked_cv, gram, gram_bounded_lstsq, robust_fit
-from droneid.fitting.command_thrust import FINE_STEPS, CommandThrust, LinearThrust, lagged
+from droneid.fitting.command_thrust import FINE_STEPS, CommandThrust, LinearThrust, lagged, window_rows
 from droneid.fitting.terms import prior_terms, split_terms
 from droneid.dataset.validation import time_blocks
 
@@ -385,11 +385,14 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
 
 def _rows(flights, cfg, delays, inputs, cuts):
     """(the v̇z dataset on the grid of Ts, the same inputs on a grid :data:`FINE_STEPS` times finer):
-    the training rows before ``cuts``, the thrust inputs read at ``delays``."""
+    the training rows before ``cuts`` whose target is the mean of the acceleration over its
+    window (:func:`~droneid.fitting.command_thrust.window_rows`: not the one-sided differences at
+    a segment's ends), the thrust inputs read at ``delays``."""
     from droneid.planning.plan import dataset_builder, train_rows
     from droneid.dataset.builder import DatasetBuilder
 
-    ds = train_rows(dataset_builder(cfg, delays).build(list(flights), target=_TARGET, inputs=inputs), cuts)
+    full = dataset_builder(cfg, delays).build(list(flights), target=_TARGET, inputs=inputs)
+    ds = train_rows(full.subset(window_rows(full.t, full.flight, averaging_window(cfg.method, cfg.ts))), cuts)
     fine = DatasetBuilder(ts=cfg.ts / FINE_STEPS, method=cfg.method, delays_s=dict(delays or {}))
     return ds, train_rows(fine.build(list(flights), target=_TARGET, inputs=inputs), cuts)
 
