@@ -200,16 +200,19 @@ def decide(err_without, err_with, blocks, *, alpha: float = 0.01, family_size: i
 _LOSSES = {"mse": ("CV RMSE", "blocks", True), "simerr": ("SimErr", "cells", False)}
 
 
-def p_text(p: float, threshold: float) -> str:
-    """``p`` with 2 significant digits, or as many more (up to 8) as it takes to tell it from
-    ``threshold`` as printed: a p of 0.0099998 against 0.01 reads "0.0099998 < 0.01", not
-    "0.01 < 0.01"."""
-    thr = float(f"{threshold:.2g}")
+def p_text(p: float, threshold: float) -> tuple[str, str]:
+    """(``p``, ``threshold``) as text with 2 significant digits, or as many more (up to 8) as it
+    takes for the two to differ and to compare as the numbers do: a p of 0.0099998 against 0.01
+    reads "0.0099998" and "0.01", not "0.01 < 0.01"; 0.00332 against 0.01/3 "0.00332" and
+    "0.00333", not "0.00332 < 0.0033"."""
+    p, threshold = float(p), float(threshold)
     for digits in range(2, 9):
-        s = f"{p:.{digits}g}"
-        if float(s) != thr or p == threshold:
-            return s
-    return repr(float(p))
+        ps, ts = f"{p:.{digits}g}", f"{threshold:.{digits}g}"
+        if p == threshold or not (math.isfinite(p) and math.isfinite(threshold)):
+            return ps, ts
+        if ps != ts and (float(ps) < float(ts)) == (p < threshold):
+            return ps, ts
+    return repr(p), repr(threshold)
 
 
 def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, family_size: int = 1,
@@ -245,13 +248,14 @@ def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, fam
     pooled1 = float(np.sum(m1 * rows) / np.sum(rows))
     dn = block_log_ratios(m0, m1)
     t, p = paired_block_test(dn)
+    p_s, thr_s = p_text(p, thr)
     r0, r1 = (math.sqrt(pooled0), math.sqrt(pooled1)) if squared else (pooled0, pooled1)
     pct = 100.0 * (1.0 - r1 / r0) if r0 > 0 else 0.0
     better = int(np.sum(m0 - m1 > 0))
     n = int(m0.size)
     reasons = []
     if not p < thr:
-        reasons.append(f"{'block' if squared else 'cell'} test p = {p_text(p, thr)} ≥ {thr:.2g}")
+        reasons.append(f"{'block' if squared else 'cell'} test p = {p_s} ≥ {thr_s}")
         if 2.0 ** -n >= thr:
             reasons.append(f"{n} {units} cannot reach p < {thr:.2g} (a sign-flip p is ≥ 2^−B): "
                            f"use more {units}")
@@ -266,8 +270,8 @@ def decide_units(loss_without, loss_with, rows=None, *, alpha: float = 0.01, fam
     change = f"{-pct:+.1f} %" + (f", pooled over the rows; the typical {units[:-1] if units.endswith('s') else units} "
                                  f"{'gets worse' if t < 0 else 'improves'}" if apart else "")
     line = (f"{what + ': ' if what else ''}{label} {r0:.4g} -> {r1:.4g} ({change}), "
-            f"t = {t:.2f} over {n} {units}, sign-flip p = {p_text(p, thr)} "
-            f"{'<' if p < thr else '≥'} {thr:.2g} (α = {alpha:g}, {holm}), "
+            f"t = {t:.2f} over {n} {units}, sign-flip p = {p_s} "
+            f"{'<' if p < thr else '≥'} {thr_s} (α = {alpha:g}, {holm}), "
             f"{better}/{n} {units} better: " + ("accepted" if accepted else
                                                 "rejected (" + "; ".join(reasons) + ")"))
     return Decision(accepted, float(t), float(p), float(thr), n, float(pct), line,

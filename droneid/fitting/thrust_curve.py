@@ -391,8 +391,9 @@ def _rows(flights, cfg, delays, inputs, cuts):
     from droneid.planning.plan import dataset_builder, train_rows
     from droneid.dataset.builder import DatasetBuilder
 
-    full = dataset_builder(cfg, delays).build(list(flights), target=_TARGET, inputs=inputs)
-    ds = train_rows(full.subset(window_rows(full.t, full.flight, averaging_window(cfg.method, cfg.ts))), cuts)
+    ds = train_rows(dataset_builder(cfg, delays).build(list(flights), target=_TARGET, inputs=inputs), cuts)
+    # after the cut: the fine rows end there too, so the last row before it has no whole window
+    ds = ds.subset(window_rows(ds.t, ds.flight, averaging_window(cfg.method, cfg.ts)))
     fine = DatasetBuilder(ts=cfg.ts / FINE_STEPS, method=cfg.method, delays_s=dict(delays or {}))
     return ds, train_rows(fine.build(list(flights), target=_TARGET, inputs=inputs), cuts)
 

@@ -406,7 +406,7 @@ def _judge(flight, checks, findings) -> None:
         res, axes = vp["res"], vp["axes"]
         strong = {v: res[v][p] for p, v in axes if res[v][p][1] >= STRONG_CORR}
         before = len(findings)
-        kmh = [v for v, (s, c, _) in strong.items() if _may_be(s, c, _KMH) and not _may_be(s, c, OK_SLOPE)]
+        kmh = [v for v, (s, _, _) in strong.items() if _in(s, _KMH)]
         if not time_k and kmh:
             v0 = kmh[0]
             findings.append(Finding("kmh", f"{v0} is {strong[v0][0]:.2f} x d({v0[1:]})/dt: velocity in km/h?",

@@ -79,7 +79,8 @@ def _test_cell(st: Mapping) -> str:
     if st.get("p_value") is None:
         return f"not tested ({st.get('cells', 0)} cells)"
     p, thr = float(st["p_value"]), float(st["threshold"])
-    return f"p {p_text(p, thr)} {'<' if p < thr else '≥'} {thr:.2g} over {st['cells']} cells"
+    p_s, thr_s = p_text(p, thr)
+    return f"p {p_s} {'<' if p < thr else '≥'} {thr_s} over {st['cells']} cells"
 
 
 def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:

@@ -208,8 +208,11 @@ def test_a_p_on_its_threshold_is_printed_so_that_it_can_be_told_from_it():
     0.01, printed "0.01 < 0.01": a reader could not tell why it passed. The p now carries the
     digits that tell it from the threshold; a p away from it keeps two."""
     from droneid.fitting.decide import p_text
-    assert p_text(0.0099998, 0.01) == "0.0099998"
-    assert p_text(0.010239795, 0.01) == "0.0102"
-    assert p_text(0.00046, 0.00067) == "0.00046"
-    assert p_text(0.5, 0.01) == "0.5"
-    assert p_text(0.01, 0.01) == "0.01"
+    assert p_text(0.0099998, 0.01) == ("0.0099998", "0.01")
+    assert p_text(0.010239795, 0.01) == ("0.0102", "0.01")
+    assert p_text(0.00046, 0.00067) == ("0.00046", "0.00067")
+    assert p_text(0.5, 0.01) == ("0.5", "0.01")
+    assert p_text(0.01, 0.01) == ("0.01", "0.01")
+    # a Holm threshold that two digits do not show: both get the digits, in the right order
+    assert p_text(166 / 50000, 0.01 / 3) == ("0.00332", "0.00333")
+    assert p_text(0.00126, 0.00125) == ("0.00126", "0.00125")
