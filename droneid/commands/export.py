@@ -32,6 +32,11 @@ def register(sub) -> None:
                    help="write to FILE (atomically) instead of stdout; for matlab the file name "
                         "(without .m) is the function name")
     p.add_argument("--target", default=None, help="target(s), comma separated (default: every final model)")
+    p.add_argument("--identified", action="store_true",
+                   help="export the identified model of every target even where identify's verdict says to keep "
+                        "the empirical model or neither (result.json targets.<t>.use); without it such a target "
+                        "is exported as the empirical model as given, a target whose verdict keeps neither is "
+                        "left out, and --vehicle is refused")
     p.add_argument("--vehicle", action="store_true",
                    help="the whole vehicle (python or c): the final vx_dot, vy_dot, vz_dot models and the "
                         "result's rotational model (rotation.model; null: the body rates held), stepped by RK4 "
@@ -82,13 +87,42 @@ def _provenance(path):
 def _equations(args) -> str:
     targets = [t.strip() for t in args.target.split(",")] if args.target else None
     models = _predict.load_models(args.result, targets)
-    finals = [m["identified"] for t, m in models.items() if not t.startswith("_") and "identified" in m]
-    if not finals:
+    chosen, notes, left_out = [], [], []
+    for t, m in models.items():
+        if t.startswith("_") or "identified" not in m:
+            continue
+        use, said = m.get("use", "identified"), _verdict_words(m)
+        if use == "identified":
+            chosen.append(m["identified"])
+        elif args.identified:
+            chosen.append(m["identified"])
+            notes.append(f"{t}: the IDENTIFIED model, exported with --identified although identify's verdict "
+                         f"says to keep {'the empirical model' if use == 'empirical' else 'neither model'} ({said})")
+        elif use == "empirical" and "empirical" in m:
+            chosen.append(m["empirical"])
+            notes.append(f"{t}: the EMPIRICAL model as given, as identify's verdict says ({said}); "
+                         f"--identified writes the identified one")
+        else:
+            left_out.append(t)
+            notes.append(f"{t}: not exported: identify's verdict keeps neither model ({said}); --identified "
+                         f"writes the identified one")
+    if not chosen:
+        if left_out:
+            raise DataError(f"{args.result}: identify's verdicts keep no model of {', '.join(left_out)}; "
+                            f"--identified exports the identified models anyway")
         raise DataError(f"{args.result}: no final model to export (targets.<t>.final is written by "
                         f"droneid identify; older results hold only the engine model)")
+    for n in notes:
+        print(f"note: {n}", file=sys.stderr)
     name = Path(args.output).stem if args.output and args.to == "matlab" else "droneid_model"
-    return _export.export_models(finals, args.to, source=_source(args.result, models), name=name,
-                                 inputs=_export.input_sources(_provenance(args.result)))
+    return _export.export_models(chosen, args.to, source=_source(args.result, models), name=name,
+                                 inputs=_export.input_sources(_provenance(args.result)), notes=notes)
+
+
+def _verdict_words(m: dict) -> str:
+    """The first sentence of a target's verdict without its target name, for a note."""
+    text = str(m.get("verdict") or "").split(": ", 1)[-1]
+    return text.split("; keep")[0].split(": keep")[0][:300] or "no verdict recorded"
 
 
 def _vehicle(args) -> str:
@@ -105,6 +139,11 @@ def _vehicle(args) -> str:
                         "and motor speeds); re-run droneid identify on such logs")
     finals = {t: models[t]["identified"] for t in ("vx_dot", "vy_dot", "vz_dot")
               if "identified" in models.get(t, {})}
+    kept_other = [t for t in finals if models[t].get("use", "identified") != "identified"]
+    if kept_other and not args.identified:
+        raise DataError(f"{args.result}: identify's verdict does not keep the identified model of "
+                        f"{', '.join(kept_other)} ({'; '.join(f'{t}: ' + _verdict_words(models[t]) for t in kept_other)}), "
+                        f"so the vehicle built from it is not the one to use; --identified exports it anyway")
     missing = [t for t in ("vx_dot", "vy_dot", "vz_dot") if t not in finals]
     if missing:
         raise DataError(f"{args.result}: --vehicle needs the final models of vx_dot, vy_dot and vz_dot; "

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from droneid.core.numerics import to_float
 from droneid.core.text import improvement_pct
 
-__all__ = ['MARGIN_PCT', 'VERDICT_KINDS', 'Verdict', 'verdict', 'axis_verdict']
+__all__ = ['MARGIN_PCT', 'VERDICT_KINDS', 'MODEL_TO_USE', 'Verdict', 'verdict', 'axis_verdict', 'model_to_use']
 
 
 #: a model is called better (worse) than its baseline only at an improvement of at least this much
@@ -24,11 +24,29 @@ VERDICT_KINDS = {"better": "green", "no better": "grey", "worse": "red", "not to
                  "no verdict": "grey"}
 
 
+#: which model a verdict says to use (issue 36.6): the identified one where it wins (or where
+#: nothing could be measured against it), the empirical one where it does not; "neither" where
+#: predicting zero or the mean beats both (the NEITHER MODEL verdict)
+MODEL_TO_USE = {"better": "identified", "no verdict": "identified", "no better": "empirical",
+                "worse": "empirical", "not to be trusted": "empirical"}
+
+
+def model_to_use(kind: str, use: str = "") -> str:
+    """``use`` when given, else the model the verdict ``kind`` says to use (:data:`MODEL_TO_USE`;
+    an unknown kind: "identified", as results written before issue 36.6 were used)."""
+    return use or MODEL_TO_USE.get(kind, "identified")
+
+
 @dataclass(frozen=True)
 class Verdict:
-    """One sentence a user reads first, and its kind (a key of :data:`VERDICT_KINDS`)."""
+    """One sentence a user reads first, its kind (a key of :data:`VERDICT_KINDS`) and the model it
+    says to use (:func:`model_to_use`: "identified", "empirical" or "neither")."""
     kind: str
     text: str
+    use: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "use", model_to_use(self.kind, self.use))
 
     def __str__(self) -> str:
         return self.text
@@ -80,7 +98,7 @@ def verdict(target: str, final, empirical, evolved: bool, holdout: bool,
     if known:
         name, e0 = min(known.items(), key=lambda kv: kv[1])
         if improvement_pct(min(a, b), e0) >= MARGIN_PCT:
-            return Verdict("no better", f"{target}: NEITHER MODEL beats predicting {name} {where}: RMSE "
+            return Verdict("no better", use="neither", text=f"{target}: NEITHER MODEL beats predicting {name} {where}: RMSE "
                            f"{e0:.3g} m/s² for {name} vs {a:.3g} for the {what} and {b:.3g} for the empirical "
                            f"model" + (f" ({sd})" if sd else "") + f": these flights do not show {target} "
                            f"above its noise, so keep neither as a model of it (fly with more excitation)"

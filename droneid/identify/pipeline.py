@@ -118,7 +118,7 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
         ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy),
                                                                   _offset_caveat(p), _curve_caveat(p)))),
-        verdict_kind=vd.kind,
+        verdict_kind=vd.kind, use=vd.use,
         equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
         readable_equation(p.target, {}, {}, final.intercept),
         identified=identified, empirical=dict(p.empirical), empirical_refit=dict(p.empirical_refit),

@@ -15,6 +15,7 @@ from droneid import __version__
 from droneid.errors import DataError
 from droneid.use.export import export_models, input_sources
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel, check_schema
+from droneid.fitting.verdict import model_to_use
 from droneid.fitting.constancy import Constancy
 from droneid.core.io_util import to_jsonable
 from droneid.identify.ladder import GuardReport, Interval, Rung
@@ -60,6 +61,8 @@ class TargetResult:
     ladder : the rungs, empirical as given -> refit -> offset -> effects -> FINAL (the last)
     guards : what the trust guards did with the runs
     verdict, verdict_kind : one sentence, and its kind (:data:`droneid.fitting.verdict.VERDICT_KINDS`)
+    use : the model the verdict says to use: "identified", "empirical" or "neither"
+        (:func:`droneid.fitting.verdict.model_to_use`); predict's headline and export follow it
     equation : the final model, readable (prior terms as ⟨name⟩, 4 significant figures)
     identified, empirical, empirical_refit : the errors of the final model, the empirical model as
         given and the prior refit (rmse_train, rmse_test, constraint_rmse_test, ...)
@@ -92,6 +95,10 @@ class TargetResult:
     intervals: Mapping[str, Interval] = field(default_factory=dict)
     screened: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
     input_ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    use: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "use", model_to_use(self.verdict_kind, self.use))
 
     def __repr__(self) -> str:
         return (f"TargetResult({self.target!r}, verdict_kind={self.verdict_kind!r}, n_train={self.n_train}, "
@@ -148,8 +155,8 @@ class TargetResult:
             "prior_features": [asdict(f) for f in self.prior_features],
             "empirical_terms": [asdict(f) for f in self.empirical_terms],
             "ladder": [r.to_dict() for r in self.ladder], "guards": self.guards.to_dict(),
-            "verdict": self.verdict, "verdict_kind": self.verdict_kind, "equation": self.equation,
-            "equation_expanded": f"{self.target} = {self.final.text()}",
+            "verdict": self.verdict, "verdict_kind": self.verdict_kind, "use": self.use,
+            "equation": self.equation, "equation_expanded": f"{self.target} = {self.final.text()}",
             "coefficients": self.coefficients, "prior_coefficients": self.prior_coefficients,
             "intercept": self.intercept, "final": self.final.to_dict(),
             "empirical_model": self.empirical_model.to_dict(), "refit_model": self.refit_model.to_dict(),
@@ -177,7 +184,7 @@ class TargetResult:
                 dict(d["test_series"]), tuple(d["notes"]),
                 {k: Interval.of(v) for k, v in d["intervals"].items()},
                 {k: dict(v) for k, v in d["screened"].items()},
-                {k: tuple(v) for k, v in d["input_ranges"].items()})
+                {k: tuple(v) for k, v in d["input_ranges"].items()}, use=str(d.get("use") or ""))
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise DataError(f"not a target result of {SCHEMA}: {type(exc).__name__} {exc}") from None
 

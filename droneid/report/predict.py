@@ -21,6 +21,9 @@ def text(res) -> str:
     out = [f"warning: {w}" for w in res.warnings]
     for t, r in res.targets.items():
         out.append(f"== {t}: {r.equation or '(model)'}")
+        if r.use != "identified":
+            out.append(f"USE {'THE EMPIRICAL MODEL' if r.use == 'empirical' else 'NEITHER MODEL'} for {t}: "
+                       f"identify's verdict: {r.verdict.split(': ', 1)[-1] if r.verdict else r.use}")
         first = next(iter(r.errors.values()))
         keys = [k for k in _LABELS if getattr(first, k) is not None]
         header = ["data", "samples"] + [_LABELS[k] for k in keys]

@@ -140,16 +140,19 @@ def checked_models(models: Sequence[IdentifiedModel]) -> list[IdentifiedModel]:
 
 
 def export_models(models: Sequence[IdentifiedModel], to: str, source: str = "", name: str = "droneid_model",
-                  inputs: dict | None = None) -> str:
+                  inputs: dict | None = None, notes: Sequence[str] = ()) -> str:
     """The text of one file holding every model, in format ``to`` (one of :data:`FORMATS`).
 
     ``source`` names where the models come from (e.g. the result.json path) for the header;
     ``name`` is the MATLAB function name (the file must be called ``<name>.m``); ``inputs`` maps
     a signal to its unit, raw log field and normalisation (:func:`input_sources` of the result's
-    provenance) for the header."""
+    provenance) for the header; ``notes``: sentences the header states first (which model of a
+    target was written, and why)."""
     check_choice("to", to, FORMATS, owner="export")
     models = checked_models(models)
     header = model_header(models, source, to, inputs)
+    if notes:
+        header = header[:2] + [f"NOTE: {n}" for n in notes] + header[2:]
     if to == "python":
         return _python(models, header, inputs or {})
     if to == "c":

@@ -23,6 +23,7 @@ from priors.registry import get_prior
 
 from droneid.engine import runner
 from droneid.dataset.builder import DatasetBuilder
+from droneid.fitting.verdict import model_to_use
 from droneid.errors import ConfigError, DataError, DroneIdError, check_choice
 from droneid.core.expressions import compile_expression
 from droneid.logs.flight import Flight
@@ -152,6 +153,8 @@ def _entry(path, target: str, tr: dict) -> dict:
                 raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
     out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
     out["input_ranges"] = dict(tr.get("input_ranges") or {})
+    out["use"] = model_to_use(str(tr.get("verdict_kind") or ""), str(tr.get("use") or ""))
+    out["verdict"] = str(tr.get("verdict") or "")
     return out
 
 
@@ -290,7 +293,8 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
                          f"(e.g. a delayed input read before its signal starts)")
         results[target] = TargetScore(models[target].get("equation"), tuple(ds.input_names), tuple(ds.sources), per,
                                       _screened(flights, ds, [*ds.input_names, state_of(target)]),
-                                      _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes))
+                                      _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes),
+                                      models[target].get("use", "identified"), models[target].get("verdict", ""))
     roll, table, info = None, None, None
     motor = MotorModel.from_record(models.get("_config") or {}) if open_loop else None
     stages = (("horizons",) if horizons else ()) + (("open loop",) if open_loop else ())

@@ -60,7 +60,8 @@ class TargetScore:
     sources : the flights (file stems); errors : {"all" | flight: :class:`Errors`} (one row per
     flight only when there are several); screened : {flight: {signal: implausible samples left
     out}}; out_of_range : {flight: {input: fraction of the samples outside the training range}};
-    notes : sentences (delayed inputs, samples left out)."""
+    notes : sentences (delayed inputs, samples left out); use, verdict : the model identify's verdict
+    says to use ("identified", "empirical" or "neither") and that verdict."""
     equation: str | None
     inputs: tuple[str, ...]
     sources: tuple[str, ...]
@@ -68,6 +69,8 @@ class TargetScore:
     screened: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
     out_of_range: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    use: str = "identified"
+    verdict: str = ""
 
     def to_dict(self) -> dict:
         out = {"equation": self.equation, "inputs": list(self.inputs), "sources": list(self.sources),
@@ -76,6 +79,9 @@ class TargetScore:
                "out_of_range": {k: dict(v) for k, v in self.out_of_range.items()}}
         if self.notes:
             out["notes"] = list(self.notes)
+        out["use"] = self.use
+        if self.verdict:
+            out["verdict"] = self.verdict
         return out
 
     @classmethod
@@ -83,7 +89,8 @@ class TargetScore:
         return cls(d.get("equation"), tuple(d.get("inputs") or ()), tuple(d.get("sources") or ()),
                    {k: Errors.from_dict(e) for k, e in d["errors"].items()},
                    {k: dict(v) for k, v in (d.get("screened") or {}).items()},
-                   {k: dict(v) for k, v in (d.get("out_of_range") or {}).items()}, tuple(d.get("notes") or ()))
+                   {k: dict(v) for k, v in (d.get("out_of_range") or {}).items()}, tuple(d.get("notes") or ()),
+                   str(d.get("use") or "identified"), str(d.get("verdict") or ""))
 
 
 @dataclass(frozen=True)

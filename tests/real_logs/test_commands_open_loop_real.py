@@ -43,9 +43,25 @@ def test_open_loop_and_vehicle_export_run_on_commands(path, tmp_path, capsys):
         capsys.readouterr()
         assert main(["predict", str(result), str(log), "--open-loop", "--json"]) == 0
         doc = json.loads(capsys.readouterr().out)
+        # the verdicts steer use (issue 36.6): where a target's verdict keeps the empirical model
+        # the identified vehicle is refused, and written only when asked for
+        kept = [t for t in ("vx_dot", "vy_dot", "vz_dot") if res.targets[t].use != "identified"]
+        capsys.readouterr()
+        code = main(["export", str(result), "--vehicle", "--allow-unsteerable", "--to", "python"])
+        err = capsys.readouterr().err
+        assert code == (2 if kept else 0), err
+        if kept:
+            assert len(err.strip().splitlines()) == 1 and all(t in err for t in kept) and "--identified" in err
         for to in ("python", "c"):
-            assert main(["export", str(result), "--vehicle", "--allow-unsteerable", "--to", to,
+            assert main(["export", str(result), "--vehicle", "--allow-unsteerable", "--identified", "--to", to,
                          "-o", str(tmp_path / f"vehicle.{'py' if to == 'python' else 'c'}")]) == 0
+    for t in kept:          # predict says which model to use; export writes that one
+        assert doc["targets"][t]["use"] == res.targets[t].use, doc["targets"][t]
+    assert main(["export", str(result), "--to", "python", "-o", str(tmp_path / "equations.py")]) == 0
+    header = (tmp_path / "equations.py").read_text().split('"""')[1]
+    for t in kept:
+        assert (f"NOTE: {t}: the EMPIRICAL model as given" in header if res.targets[t].use == "empirical"
+                else f"NOTE: {t}: not exported" in header), header
     ol = doc["open_loop"]
     assert list(ol) == ["identified", "nominal physics", "constant"]
     for q in ("velocity", "position"):
