@@ -285,7 +285,7 @@ def read_flat_csv(path, column_map=None) -> Flight:
         raise LogFormatError(path, f"no recognised signal columns (x y z, qx qy qz qw, roll pitch yaw, "
                                    f"vx vy vz, ...; or name them: --column x=COLUMN ...); columns: {shown}")
     b = FlightBuilder(path, "csv")
-    b.skip("rows with more fields than the header (extra fields ignored)", _long_rows(path, len(columns)))
+    df = _misshapen_rows(b, df, path, len(columns))
 
     def num(name):
         return pd.to_numeric(df[found[name]], errors="coerce").to_numpy(float)
@@ -359,15 +359,31 @@ def _rotor_columns(b: FlightBuilder, t, found, num) -> None:
                 b.add(f"rpm{i}", t, num(f"rpm{i}"), "rpm", col)
 
 
-def _long_rows(path, n_columns: int) -> int:
-    """Data rows with more comma-separated fields than the header (pandas drops the extras)."""
-    n = 0
+def _misshapen_rows(b: FlightBuilder, df, path, n_columns: int):
+    """``df`` without a last row cut by the end of the file (its cells may be cut too), and both
+    kinds of misshapen row counted on ``b``."""
+    long_rows, cut_last = _row_shapes(path, n_columns)
+    b.skip("rows with more fields than the header (extra fields ignored)", long_rows)
+    if cut_last and len(df):
+        b.skip("row cut by the end of the file (fewer fields than the header, no line end)", 1)
+        return df.iloc[:-1]
+    return df
+
+
+def _row_shapes(path, n_columns: int) -> tuple[int, bool]:
+    """(data rows with more comma-separated fields than the header, which pandas drops the extras
+    of; whether the last row is cut: fewer fields than the header and no line end, as a copy
+    stopped mid-row leaves it, which pandas would fill with blanks)."""
+    n, last = 0, b""
     with open(path, "rb") as f:
         next(f, None)
         for line in f:
             if line.count(b",") >= n_columns and b'"' not in line:
                 n += 1
-    return n
+            if line.strip():
+                last = line
+    cut = bool(last) and not last.endswith(b"\n") and b'"' not in last and last.count(b",") < n_columns - 1
+    return n, cut
 
 
 def _check_euler(q, e) -> str:

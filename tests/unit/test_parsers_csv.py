@@ -77,6 +77,27 @@ def test_flat_csv_nan_cells_and_bad_stamps_are_counted(tmp_path):
     assert np.all(np.diff(f["x"].t) > 0)
 
 
+def test_a_csv_cut_mid_row_drops_and_counts_its_last_row(tmp_path):
+    """A copy stopped mid-row leaves a last row with fewer fields and no line end; pandas fills its
+    missing cells with blanks and its last cell may itself be cut ("0.12" of "0.1234"), so the row
+    is left out and counted, as a DataFlash record cut by the end of a file is. A file that merely
+    lacks its final line end keeps every row."""
+    t = np.arange(0, 1, 0.01)
+    cols = {"x": np.arange(t.size) * 0.1234567, "y": np.ones_like(t), "vx": np.ones_like(t)}
+    whole = tmp_path / "whole.csv"
+    _write_flat(whole, t, cols)
+    text = whole.read_text()
+    cut = tmp_path / "cut.csv"
+    cut.write_text(text[:text.rstrip("\n").rfind(",") - 3])       # inside the last row's x cell
+    f = read_flight(cut)
+    assert f.diagnostics.skipped["row cut by the end of the file (fewer fields than the header, no line end)"] == 1
+    assert len(f["x"]) == t.size - 1 and np.allclose(f["x"].values, cols["x"][:-1])
+    no_end = tmp_path / "no_end.csv"
+    no_end.write_text(text.rstrip("\n"))
+    g = read_flight(no_end)
+    assert len(g["x"]) == t.size and not any("cut" in k for k in g.diagnostics.skipped)
+
+
 def test_flat_csv_without_needed_columns(tmp_path):
     p = tmp_path / "cols.csv"
     p.write_text("time,foo,bar\n0,1,2\n1,2,3\n")
