@@ -47,18 +47,29 @@ def choose_prior(signals, requested: str = "auto", slow=None) -> tuple[str, dict
     counts = motor_count(have)
     if requested not in ("auto", "rotor-thrust"):
         return requested, {}, "named by the user"
+    passed = []         # per-motor sources the log has only in part: said, not silently skipped
     for src in THRUST_SOURCES:
-        if src in counts and counts[src] >= 3:
+        present = [i for i in range(1, 17) if f"{src}{i}" in have]
+        if src in counts and counts[src] >= 3 and max(present) == counts[src]:
             return "rotor-thrust", {"source": src, "motors": counts[src]}, (
-                f"the log has {counts[src]} {_WHAT[src]} ({src}1..{src}{counts[src]})")
+                f"the log has {counts[src]} {_WHAT[src]} ({src}1..{src}{counts[src]})" + _incomplete(passed))
         if src in ("thrust", "throttle") and src in have:
-            return "rotor-thrust", {"source": src}, f"the log has the collective {src}"
+            return "rotor-thrust", {"source": src}, f"the log has the collective {src}" + _incomplete(passed)
+        if present and src in ("rpm", "motor"):
+            passed.append(f"its {_WHAT[src]} are incomplete ({', '.join(f'{src}{i}' for i in present)}; "
+                          f"no {src}{next(i for i in range(1, 18) if i not in present)})")
     too_slow = _slow_thrust(slow or {})
     if requested == "rotor-thrust":
         raise ConfigError("prior 'rotor-thrust' needs motor speeds (rpm1..), motor commands "
                           "(motor1..), collective thrust or throttle; "
                           + (too_slow or "the data have none of them"))
-    return "tilt-drag", {}, too_slow or "the log has no motor speeds, motor commands or thrust"
+    return "tilt-drag", {}, (too_slow or "the log has no motor speeds, motor commands or thrust") + _incomplete(passed)
+
+
+def _incomplete(passed) -> str:
+    """"; its motor speeds are incomplete (rpm1, rpm2, rpm4; no rpm3)" for the per-motor sources
+    the choice passed over because a motor is missing ("" for none)."""
+    return "".join(f"; {p}" for p in passed)
 
 
 #: the thrust sources of :data:`THRUST_SOURCES` in words

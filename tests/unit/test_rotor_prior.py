@@ -100,3 +100,17 @@ def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_
     plan_prior, _ = resolve_plan_prior(cfg, [f])
     diag = diagnose_plan([f], "auto")
     assert plan_prior.params["source"] == diag.prior.params["source"] == "motor", diag.prior_reason
+
+
+def test_a_motor_source_missing_a_rotor_is_passed_over_and_said():
+    """A CSV without m3_erpm has rotor speeds 1, 2 and 4: the commands drive the thrust then, and
+    the reason says why the speeds were not used; speeds of 4 rotors out of 8 never stand for an
+    octocopter's thrust."""
+    from priors.registry import choose_prior
+    name, params, why = choose_prior({"rpm1", "rpm2", "rpm4", "motor1", "motor2", "motor3", "motor4"})
+    assert params == {"source": "motor", "motors": 4}
+    assert why.endswith("its motor speeds are incomplete (rpm1, rpm2, rpm4; no rpm3)"), why
+    octo = {f"rpm{i}" for i in (1, 2, 3, 4, 6, 7, 8)} | {f"motor{i}" for i in range(1, 9)}
+    assert choose_prior(octo)[1] == {"source": "motor", "motors": 8}
+    assert choose_prior({f"rpm{i}" for i in range(1, 5)}) == ("rotor-thrust", {"source": "rpm", "motors": 4},
+                                                               "the log has 4 motor speeds (rpm1..rpm4)")
