@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+import re
 from dataclasses import replace
 
 from droneid.core.lazy import lazy_module
+from droneid.errors import ConfigError
 from droneid.commands._common import ProgressBar, add_log_options, log_options, print_json, read_logs
 
 _settings = lazy_module("droneid.planning.settings")      # the engine's parameters: numba
@@ -46,12 +48,23 @@ def add_budget_arguments(p: argparse.ArgumentParser, *, runs_help: str,
                         f"drop only dead terms (default {prune_default})")
 
 
+#: the option a user typed for each IdentifyConfig parameter whose name differs from it
+_FLAGS = {"test_fraction": "--holdout", "population_size": "--population", "targets": "--target"}
+
+
 def config_from_args(args, **extra):
-    return _settings.IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
-                               jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
-                               population_size=args.population, seed=args.seed, ts=args.ts, method=args.method,
-                               test_fraction=args.holdout,
-                               prune=args.prune, **extra)
+    """The IdentifyConfig of the parsed options; a refused value names the option as typed
+    ("--holdout must be ...", not "The 'test_fraction' parameter must be ...")."""
+    try:
+        return _settings.IdentifyConfig.make(quick=args.quick, targets=args.target, prior=args.prior, runs=args.runs,
+                                   jobs=args.jobs, scheduler=args.scheduler, generations=args.generations,
+                                   population_size=args.population, seed=args.seed, ts=args.ts, method=args.method,
+                                   test_fraction=args.holdout,
+                                   prune=args.prune, **extra)
+    except ConfigError as exc:
+        text = re.sub(r"The '(\w+)' parameter(?: of \w+)? ",
+                      lambda m: f"{_FLAGS.get(m.group(1), '--' + m.group(1).replace('_', '-'))} ", str(exc), count=1)
+        raise ConfigError(text) from None
 
 
 def register(sub) -> None:
