@@ -39,16 +39,22 @@ _VERDICT_CSS = {"green": ("#eef5ee", "#2a7"), "grey": ("#f2f2f2", "#888"), "red"
 
 #: characters that Markdown may read as syntax anywhere in a line
 _MD_INLINE = re.compile(r"([\\`*\[\]|!])|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
+#: an ``&`` that would start an HTML entity, a ``<`` that would open a tag or comment
+_MD_ENTITY = re.compile(r"&(?=#?[A-Za-z0-9]+;)")
+_MD_TAG = re.compile(r"<(?=[A-Za-z/!?])")
 #: characters that start a heading, quote, list or rule at the beginning of a line
 _MD_LINE_START = re.compile(r"^(\s*)([#>+=*-]+|\d+[.)])(?=\s|$)", re.MULTILINE)
 
 
 def md_escape(text, line_start: bool = True) -> str:
-    """``text`` as literal Markdown text: HTML's ``& < >`` become entities, Markdown's
+    """``text`` as literal Markdown text: a ``<`` that could open an HTML tag (before a letter,
+    ``/``, ``!`` or ``?``) and an ``&`` that could start an entity become entities, so no markup
+    gets through while "RMSE 1.5 -> 1.4" and "(< 1 %)" stay readable as they are; Markdown's
     punctuation (`` ` * [ ] | ! \\ `` and word-edge ``_``) is backslash-escaped, and a line
     starting like a heading, quote or list is escaped at its start (unless ``line_start`` is
     false: table cells). Intra-word underscores (``vx_dot``) stay readable."""
-    s = html.escape(str(text), quote=False)
+    s = _MD_ENTITY.sub("&amp;", str(text))
+    s = _MD_TAG.sub("&lt;", s)
     s = _MD_INLINE.sub(lambda m: "\\" + m.group(0), s)
     if not line_start:
         return s
