@@ -104,8 +104,9 @@ def _equations(args) -> str:
                          f"--identified writes the identified one")
         else:
             left_out.append(t)
-            notes.append(f"{t}: not exported: identify's verdict keeps neither model ({said}); --identified "
-                         f"writes the identified one")
+            why = ("identify's verdict keeps neither model" if use == "neither" else
+                   "identify's verdict keeps the empirical model, which the result does not hold")
+            notes.append(f"{t}: not exported: {why} ({said}); --identified writes the identified one")
     if not chosen:
         if left_out:
             raise DataError(f"{args.result}: identify's verdicts keep no model of {', '.join(left_out)}; "
@@ -122,7 +123,7 @@ def _equations(args) -> str:
 def _verdict_words(m: dict) -> str:
     """The first sentence of a target's verdict without its target name, for a note."""
     text = str(m.get("verdict") or "").split(": ", 1)[-1]
-    return text.split("; keep")[0].split(": keep")[0][:300] or "no verdict recorded"
+    return text.split("; keep")[0].split(": keep")[0] or "no verdict recorded"
 
 
 def _vehicle(args) -> str:
@@ -140,6 +141,10 @@ def _vehicle(args) -> str:
     finals = {t: models[t]["identified"] for t in ("vx_dot", "vy_dot", "vz_dot")
               if "identified" in models.get(t, {})}
     kept_other = [t for t in finals if models[t].get("use", "identified") != "identified"]
+    for t in kept_other if args.identified else ():
+        print(f"note: {t}: the IDENTIFIED model, exported with --identified although identify's verdict says to "
+              f"keep {'the empirical model' if models[t]['use'] == 'empirical' else 'neither model'} "
+              f"({_verdict_words(models[t])})", file=sys.stderr)
     if kept_other and not args.identified:
         raise DataError(f"{args.result}: identify's verdict does not keep the identified model of "
                         f"{', '.join(kept_other)} ({'; '.join(f'{t}: ' + _verdict_words(models[t]) for t in kept_other)}), "

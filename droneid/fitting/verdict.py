@@ -31,10 +31,13 @@ MODEL_TO_USE = {"better": "identified", "no verdict": "identified", "no better":
                 "worse": "empirical", "not to be trusted": "empirical"}
 
 
-def model_to_use(kind: str, use: str = "") -> str:
+def model_to_use(kind: str, use: str = "", text: str = "") -> str:
     """``use`` when given, else the model the verdict ``kind`` says to use (:data:`MODEL_TO_USE`;
-    an unknown kind: "identified", as results written before issue 36.6 were used)."""
-    return use or MODEL_TO_USE.get(kind, "identified")
+    "neither" where the verdict ``text`` says NEITHER MODEL, as results written before issue 36.6
+    say it; an unknown kind: "identified", as those results were used)."""
+    if use:
+        return use
+    return "neither" if "NEITHER MODEL" in text else MODEL_TO_USE.get(kind, "identified")
 
 
 @dataclass(frozen=True)

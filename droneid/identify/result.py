@@ -98,7 +98,7 @@ class TargetResult:
     use: str = ""
 
     def __post_init__(self):
-        object.__setattr__(self, "use", model_to_use(self.verdict_kind, self.use))
+        object.__setattr__(self, "use", model_to_use(self.verdict_kind, self.use, self.verdict))
 
     def __repr__(self) -> str:
         return (f"TargetResult({self.target!r}, verdict_kind={self.verdict_kind!r}, n_train={self.n_train}, "
@@ -267,8 +267,9 @@ class IdentificationResult:
         return models_from_document(self.to_dict(), where="this result")
 
     def export(self, lang: str = "python", name: str = "droneid_model") -> str:
-        """The final models as source code (``lang``: python, c, matlab or latex), as
-        ``droneid export`` writes it."""
+        """The final (identified) models of every target as source code (``lang``: python, c,
+        matlab or latex), whatever the verdicts say; ``droneid export`` writes the model each
+        target's verdict says to use (``TargetResult.use``) unless given ``--identified``."""
         return export_models([tr.final for tr in self.targets.values()], lang, source="droneid.Identifier",
                              name=name, inputs=input_sources(self.provenance))
 

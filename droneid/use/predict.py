@@ -153,8 +153,10 @@ def _entry(path, target: str, tr: dict) -> dict:
                 raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
     out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
     out["input_ranges"] = dict(tr.get("input_ranges") or {})
-    out["use"] = model_to_use(str(tr.get("verdict_kind") or ""), str(tr.get("use") or ""))
     out["verdict"] = str(tr.get("verdict") or "")
+    out["use"] = model_to_use(str(tr.get("verdict_kind") or ""), str(tr.get("use") or ""), out["verdict"])
+    if out["use"] not in ("identified", "empirical", "neither"):
+        raise DataError(f"{path}: targets.{target}.use: {out['use']!r} is not identified, empirical or neither")
     return out
 
 

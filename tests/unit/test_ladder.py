@@ -224,3 +224,15 @@ def test_a_verdict_says_when_predicting_zero_beats_both_models():
     # on test rows the baselines are measured there (the training mean carried over)
     t = trivial_errors(np.full(10, 2.0), None, np.full(5, 1.0))
     assert t == {"zero": 1.0, "the training mean": 1.0}
+
+
+def test_the_verdict_says_which_model_to_use():
+    """Issue 36.6: the identified model where it wins (or nothing could be measured), the empirical
+    one where it is no better, worse or not to be trusted, neither where predicting zero or the
+    mean beats both; a result written before the field existed reads the same from its verdict."""
+    from droneid.fitting.verdict import Verdict, model_to_use
+    assert [Verdict(k, "t").use for k in ("better", "no verdict", "no better", "worse", "not to be trusted")] == \
+        ["identified", "identified", "empirical", "empirical", "empirical"]
+    assert Verdict("no better", "t", use="neither").use == "neither"
+    assert model_to_use("no better", "", "vz_dot: NEITHER MODEL beats predicting zero ...") == "neither"
+    assert model_to_use("worse", "identified") == "identified"      # a recorded choice is kept
