@@ -15,6 +15,8 @@ User priors come from TOML files (:func:`load_priors`, see :mod:`priors.user`).
 """
 from __future__ import annotations
 
+import re
+
 import inspect
 from types import MappingProxyType
 
@@ -47,23 +49,28 @@ def choose_prior(signals, requested: str = "auto", slow=None) -> tuple[str, dict
     counts = motor_count(have)
     if requested not in ("auto", "rotor-thrust"):
         return requested, {}, "named by the user"
-    passed = []         # per-motor sources the log has only in part: said, not silently skipped
+    passed = []         # per-motor sources with a motor missing: said, never silently skipped
     for src in THRUST_SOURCES:
-        present = [i for i in range(1, 17) if f"{src}{i}" in have]
-        if src in counts and counts[src] >= 3 and max(present) == counts[src]:
+        present = sorted(int(m.group(1)) for n in have if (m := re.fullmatch(rf"{src}(\d+)", str(n))))
+        gap = bool(present) and present[-1] != len(present)
+        if src in counts and counts[src] >= 3 and not gap:
             return "rotor-thrust", {"source": src, "motors": counts[src]}, (
                 f"the log has {counts[src]} {_WHAT[src]} ({src}1..{src}{counts[src]})" + _incomplete(passed))
         if src in ("thrust", "throttle") and src in have:
             return "rotor-thrust", {"source": src}, f"the log has the collective {src}" + _incomplete(passed)
-        if present and src in ("rpm", "motor"):
+        if gap and src in ("rpm", "motor"):
+            missing = next(i for i in range(1, present[-1] + 1) if i not in present)
             passed.append(f"its {_WHAT[src]} are incomplete ({', '.join(f'{src}{i}' for i in present)}; "
-                          f"no {src}{next(i for i in range(1, 18) if i not in present)})")
+                          f"no {src}{missing})")
     too_slow = _slow_thrust(slow or {})
     if requested == "rotor-thrust":
         raise ConfigError("prior 'rotor-thrust' needs motor speeds (rpm1..), motor commands "
                           "(motor1..), collective thrust or throttle; "
-                          + (too_slow or "the data have none of them"))
-    return "tilt-drag", {}, (too_slow or "the log has no motor speeds, motor commands or thrust") + _incomplete(passed)
+                          + (too_slow or ("the data have no complete set of them" if passed else
+                                          "the data have none of them")) + _incomplete(passed))
+    return "tilt-drag", {}, (too_slow or ("the log has no complete set of motor speeds or motor commands, and no thrust"
+                                          if passed else "the log has no motor speeds, motor commands or thrust")
+                             ) + _incomplete(passed)
 
 
 def _incomplete(passed) -> str:
