@@ -372,17 +372,22 @@ def _misshapen_rows(b: FlightBuilder, df, path, n_columns: int):
 
 def _row_shapes(path, n_columns: int) -> tuple[int, bool]:
     """(data rows with more comma-separated fields than the header, which pandas drops the extras
-    of; whether the last row is cut: fewer fields than the header and no line end, as a copy
-    stopped mid-row leaves it, which pandas would fill with blanks)."""
-    n, last = 0, b""
+    of; whether the last row is cut: fewer fields than the header and than the row before it, no
+    quotes and no line end, as a copy stopped mid-row leaves it, which pandas would fill with
+    blanks)."""
+    n, last, before = 0, b"", b""
     with open(path, "rb") as f:
         next(f, None)
         for line in f:
             if line.count(b",") >= n_columns and b'"' not in line:
                 n += 1
             if line.strip():
-                last = line
-    cut = bool(last) and not last.endswith(b"\n") and b'"' not in last and last.count(b",") < n_columns - 1
+                last, before = line, last
+    fields = last.count(b",")
+    # shorter than the header AND than the row before it (a writer that leaves off empty trailing
+    # cells writes every row short), and no line end; a row with quotes is not judged
+    cut = (bool(last) and not last.endswith(b"\n") and b'"' not in last and fields < n_columns - 1
+           and bool(before) and fields < before.count(b","))
     return n, cut
 
 

@@ -96,6 +96,12 @@ def test_a_csv_cut_mid_row_drops_and_counts_its_last_row(tmp_path):
     no_end.write_text(text.rstrip("\n"))
     g = read_flight(no_end)
     assert len(g["x"]) == t.size and not any("cut" in k for k in g.diagnostics.skipped)
+    # a writer that leaves off empty trailing cells writes every row short: no row is cut
+    short = tmp_path / "short_rows.csv"
+    lines = text.rstrip("\n").split("\n")
+    short.write_text("\n".join([lines[0] + ",note"] + lines[1:]))
+    h = read_flight(short)
+    assert len(h["x"]) == t.size and not any("cut" in k for k in h.diagnostics.skipped)
 
 
 def test_flat_csv_without_needed_columns(tmp_path):
