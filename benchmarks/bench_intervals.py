@@ -117,7 +117,9 @@ def run_case(spec: dict) -> dict:
                          "low": iv.low, "high": iv.high, "p": c.p, "constant": c.constant})
     offset = res.plan.offset["offset_s"] if res.plan.offset else 0.0
     own = dict(res.plan.offset.get("applied_s", {})) if res.plan.offset else {}
+    shared = res.shared_constants.get("thrust")
     return {**{k: spec[k] for k in ("seed", "condition", "missing")}, "rows": rows, "offset_s": offset,
+            "shared_flag": bool(shared) and shared["constant"] is False,
             "applied_s": own, "secs": time.perf_counter() - t0}
 
 
@@ -230,6 +232,10 @@ def main(argv=None) -> int:
     flag_rate = miss["flagged"] / max(miss["cases"], 1)
     print(f"model right: intervals cover the planted value in {right['covered']}/{right['n']} = {cov_rate:.2f} "
           f"(target >= {TARGETS['coverage']}); constancy false flags {right['flags']}/{right['n']}")
+    sh = {c: sum(r["shared_flag"] for r in results if r["condition"] == c) for c in CODE}
+    print(f"one thrust scale across v̇x, v̇y, v̇z (Cochran's Q over the targets' scales): flagged on "
+          f"{sh['right']}/{right['cases']} model-right vehicles (its size; no target), "
+          f"{sh['missing']}/{miss['cases']} missing-something, {sh['clock']}/{clock['cases']} clock")
     print(f"model missing something: constancy flags {miss['flagged']}/{miss['cases']} vehicles = {flag_rate:.2f} "
           f"(target >= {TARGETS['flagged']}); narrow intervals (< ±5 %) around a value > 50 % off (these and "
           f"the clock vehicles): {len(tight_off)} {tight_off or ''}")

@@ -8,7 +8,8 @@ import re
 
 from droneid.core.numerics import to_float
 
-__all__ = ['improvement_pct', 'round_floats', 'display_term', 'readable_equation', 'split_leading_number', 'undeclared_line']
+__all__ = ['improvement_pct', 'round_floats', 'display_term', 'readable_equation', 'split_leading_number', 'undeclared_line',
+           'sentences']
 
 
 def improvement_pct(reference: float, value: float) -> float:
@@ -81,6 +82,13 @@ def split_leading_number(label: str, coefficient: float) -> tuple[float, str]:
     if lead:
         return coefficient * float(lead.group(1)), label[lead.end():]
     return coefficient, label
+
+
+def sentences(*parts: str) -> str:
+    """The non-empty ``parts`` as one paragraph: each ends with a full stop (unless it ends with
+    one, '!' or '?') and they are joined by a space."""
+    out = [p.strip() for p in parts if p and p.strip()]
+    return " ".join(p if p[-1] in ".!?" else p + "." for p in out)
 
 
 def undeclared_line(undeclared: list[tuple[str, str, str]]) -> str:

@@ -44,7 +44,8 @@ import numpy as np
 from scipy import special    # chdtrc, stdtrit: scipy.stats' chi2.sf and t.ppf, without its 0.5 s import
 
 __all__ = ["Constancy", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
-           "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS"]
+           "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
+           "SHARED_ROLES", "SharedConstant", "across_targets"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -248,3 +249,80 @@ def constancy_sentence(constancy: Mapping[str, Constancy]) -> str:
     return (f"NOT vehicle constants: {names} differ between the training {among} by more than their "
             f"noise allows: not a property of this vehicle under this model (something the model lacks "
             f"moves them)")
+
+
+# ------------------------------------------------------------------------------------------------
+# one constant across the targets
+
+#: prior-term roles whose scale is one constant of the vehicle whatever the target: the thrust
+#: (and, at hover balance, the thrust direction's) scale is the same along world x, y and z (one
+#: vehicle has one thrust per unit mass); drag scales may differ by axis and are not compared
+SHARED_ROLES = ("thrust", "tilt")
+
+
+@dataclass(frozen=True)
+class SharedConstant:
+    """One vehicle constant as several targets' terms estimate it (the thrust scale along world x,
+    y and z): the same Cochran's Q test as :class:`Constancy`, with each term's 95 % interval
+    as its estimate's noise (standard error = half-width / 1.96).
+
+    role : the terms' role (:data:`SHARED_ROLES`); per_term : {term label: (value, low, high)};
+    p : Cochran's Q p-value; tau : the between-term spread (DerSimonian-Laird), in the
+    coefficient's units; constant : False when p < :data:`ALPHA` (Holm over the roles tested)
+    and τ ≥ :data:`MIN_TAU_REL` of the value, True otherwise, None with fewer than two terms.
+    The targets' estimates are treated as independent (each target's residuals are its own
+    axis's); a term held at its nominal value or pulled to a bound is not an estimate and is
+    left out."""
+    role: str
+    per_term: Mapping[str, tuple[float, float, float]]
+    p: float
+    tau: float
+    constant: bool | None
+
+    def sentence(self, labels: Sequence[str]) -> str:
+        """The verdict's words for a target whose terms ``labels`` are among these ("" when the
+        constant holds, or none of ``labels`` is here)."""
+        if self.constant is not False or not any(lab in self.per_term for lab in labels):
+            return ""
+        mine = [lab for lab in self.per_term if lab in labels]
+        others = [lab for lab in self.per_term if lab not in labels]
+        said = "; ".join(f"{lab} {v:.4g} [{lo:.4g}, {hi:.4g}]" for lab in mine + others
+                         for v, lo, hi in (self.per_term[lab],))
+        mean = float(np.mean([v[0] for v in self.per_term.values()]))
+        rel = 100 * self.tau / abs(mean) if mean else math.nan
+        return (f"NOT ONE {self.role.upper()} SCALE: {said} differ between the targets by more than their "
+                f"noise allows (Cochran's Q p = {self.p:.2g}, spread τ {rel:.2g} %): one vehicle has one "
+                f"{self.role} per unit mass, so at least one of these fits absorbs something its model lacks "
+                f"(a weakly excited axis, an attitude bias, an effect of one axis) and its {self.role} scale is "
+                f"not the vehicle's.")
+
+    def note(self) -> str:
+        """One line for the run's notes: what was tested and its outcome."""
+        return (f"one {self.role} scale across the targets ({', '.join(self.per_term)}): Cochran's Q p = "
+                f"{self.p:.2g}: " + ("they agree" if self.constant else "they DIFFER (the verdicts say so)"))
+
+    def to_dict(self) -> dict:
+        return {"role": self.role, "per_term": {k: list(v) for k, v in self.per_term.items()},
+                "p": self.p, "tau": self.tau, "constant": self.constant}
+
+
+def across_targets(terms: Mapping[str, Mapping[str, tuple[float, float, float]]]) -> dict[str, SharedConstant]:
+    """{role: :class:`SharedConstant`} for the roles of :data:`SHARED_ROLES` in ``terms``
+    ({role: {term label: (value, low, high)}}, each term's fitted scale and 95 % interval), with
+    Holm over the roles that have at least two terms."""
+    tested, ps = {}, {}
+    for role in SHARED_ROLES:
+        per = {lab: tuple(map(float, v)) for lab, v in terms.get(role, {}).items()
+               if all(math.isfinite(float(x)) for x in v)}
+        if len(per) < 2:
+            continue
+        vals = np.array([v[0] for v in per.values()])
+        se = np.array([(v[2] - v[1]) / (2 * 1.959964) for v in per.values()])
+        h = heterogeneity(vals, se)
+        tested[role], ps[role] = (per, h), h["p"]
+    flags = holm_flags(ps)
+    out = {}
+    for role, (per, h) in tested.items():
+        big = math.isfinite(h["tau"]) and h["tau"] >= MIN_TAU_REL * abs(h["mean"])
+        out[role] = SharedConstant(role, per, h["p"], h["tau"], not (flags[role] and big))
+    return out

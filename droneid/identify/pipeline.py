@@ -35,14 +35,14 @@ from droneid.dataset.builder import reuse_datasets
 from droneid.errors import ConfigError, DataError
 from droneid.dataset.suitability import check_prior_data
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel
-from droneid.fitting.constancy import constancy_sentence, leads
+from droneid.fitting.constancy import SHARED_ROLES, across_targets, constancy_sentence, leads
 from droneid.identify.ladder import TERM_ALPHA, final_rung, per_flight_condition_lead, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section
 from droneid.diagnosis.diagnose import plan_identification
 from droneid.planning.plan import holdout_cuts, resolve_plan_prior
 from droneid.identify.result import FeatureText, IdentificationResult, PlanRecord, TargetResult, flight_provenance, versions
 from droneid.identify.problem import TargetProblem, empirical_model, prepare_target
-from droneid.core.text import readable_equation, split_leading_number, undeclared_line
+from droneid.core.text import readable_equation, sentences, split_leading_number, undeclared_line
 from droneid.fitting.verdict import verdict
 from droneid.simulation.rollout import horizon_section
 from droneid.rotation.commands import CommandSpeeds
@@ -116,8 +116,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
         constraints=(getattr(cset, "name", "") or "custom") if cset is not None and cfg.constrained else "none",
         prior_features=tuple(map(FeatureText.of_feature, feats)),
         empirical_terms=tuple(map(FeatureText.of_feature, p.priors3)),
-        ladder=ladder, guards=guards, verdict=" ".join(filter(None, (str(vd), constancy_sentence(final.constancy),
-                                                                  _offset_caveat(p), _curve_caveat(p)))),
+        ladder=ladder, guards=guards, verdict=sentences(str(vd), constancy_sentence(final.constancy),
+                                                         _offset_caveat(p), _curve_caveat(p)),
         verdict_kind=vd.kind, use=vd.use,
         equation=f"{p.target} = " + " ".join(parts).lstrip("+") if parts else
         readable_equation(p.target, {}, {}, final.intercept),
@@ -128,6 +128,34 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
                       for i, n in enumerate(p.train.input_names)} if len(p.train) else {},
         screened={"training": dict(p.train.screened),
                   **({"test": dict(p.test.screened)} if len(p.test) and not p.holdout else {})})
+
+
+def shared_constants(results: Mapping[str, TargetResult], problems: Mapping[str, TargetProblem]
+                     ) -> tuple[dict[str, TargetResult], dict]:
+    """The targets' results with the test of one vehicle constant across them
+    (:func:`droneid.fitting.constancy.across_targets`: the thrust scale along world x, y and z is one
+    constant of the vehicle) in the verdict of each target whose scale takes part when the targets
+    disagree, and {role: :class:`~droneid.fitting.constancy.SharedConstant`} tested. Only the prior's own terms of a
+    :data:`~droneid.fitting.constancy.SHARED_ROLES` role count, with their final fitted value and
+    95 % interval; a held or bounded one is not an estimate."""
+    terms: dict[str, dict] = {}
+    owner: dict[str, list[str]] = {}
+    for t, r in results.items():
+        fin = r.final_rung
+        for f in problems[t].priors3[:problems[t].n_base]:
+            lab = f"⟨{f.name}⟩"
+            if f.role not in SHARED_ROLES or lab not in fin.terms or lab not in fin.intervals \
+                    or lab in fin.held or lab in fin.at_bound:
+                continue
+            iv = fin.intervals[lab]
+            terms.setdefault(f.role, {})[lab] = (float(fin.terms[lab]), iv.low, iv.high)
+            owner.setdefault(t, []).append(lab)
+    shared = across_targets(terms)
+    out = {}
+    for t, r in results.items():
+        said = [c.sentence(owner.get(t, ())) for c in shared.values()]
+        out[t] = replace(r, verdict=sentences(r.verdict, *said)) if any(said) else r
+    return out, shared
 
 
 def _curve_caveat(p: TargetProblem) -> str:
@@ -212,7 +240,8 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
             first = next(iter(errors.values()), "unknown error")
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         results[t] = summarise_target(problems[t], cfg, runs, errors)
-    notes = [*plan.lines(), *_data_notes(fitness), *notes_early]
+    results, shared = shared_constants(results, problems)
+    notes = [*plan.lines(), *_data_notes(fitness), *notes_early, *(c.note() for c in shared.values())]
     if outcome.interrupted:
         notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
@@ -222,7 +251,8 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     rotation_notes: list = []       # why there is no rotational result, if there is none
     rotation = _rotation(outcome, jobs, rotation_notes)
     res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted, 0.0, outcome.backend,
-                               (), {}, rotation=rotation)
+                               (), {}, rotation=rotation,
+                               shared_constants={role: c.to_dict() for role, c in shared.items()})
     horizons = {}
     if test_flights:    # independent scorings of the test flights, side by side on the cores
         stages = ("horizons",) + (("rotation", "open loop") if rotation is not None else ())

@@ -227,6 +227,8 @@ class IdentificationResult:
     horizons: Mapping[str, object] = field(default_factory=dict)   # multi-step prediction on the test flights
     reader_options: Mapping[str, object] = field(default_factory=dict)
     rotation: RotationResult | None = None   # the rotational targets (issue 28); None: not modelled
+    #: {role: SharedConstant.to_dict()}: one vehicle constant (the thrust scale) tested across the targets
+    shared_constants: Mapping[str, object] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         head = (f"IdentificationResult(targets={list(self.targets)}, prior={self.plan.prior_used!r}, "
@@ -280,7 +282,8 @@ class IdentificationResult:
             "versions": dict(self.versions), "interrupted": self.interrupted, "wall_s": self.wall_s,
             "backend": self.backend, "notes": list(self.notes), "horizons": dict(self.horizons),
             "reader_options": dict(self.reader_options),
-            "rotation": None if self.rotation is None else self.rotation.to_dict()})
+            "rotation": None if self.rotation is None else self.rotation.to_dict(),
+            "shared_constants": dict(self.shared_constants)})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "IdentificationResult":
@@ -299,7 +302,8 @@ class IdentificationResult:
                    dict(d.get("provenance") or {}), dict(d.get("versions") or {}),
                    bool(d.get("interrupted", False)), float(d.get("wall_s") or 0.0), str(d.get("backend") or ""),
                    tuple(d.get("notes") or ()), dict(d.get("horizons") or {}), dict(d.get("reader_options") or {}),
-                   RotationResult.from_dict(d["rotation"]) if d.get("rotation") else None)
+                   RotationResult.from_dict(d["rotation"]) if d.get("rotation") else None,
+                   dict(d.get("shared_constants") or {}))
 
 
 def versions() -> dict:

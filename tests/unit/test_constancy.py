@@ -174,3 +174,34 @@ def test_collinear_physical_terms_are_tied_into_the_combination_the_data_identif
     pred = ev.model.predict({"motor1": u, "vz": vz}, n)
     assert np.sqrt(np.mean((pred - y) ** 2)) < 0.1      # noise 0.05 m/s²; both held at 1 would be ~10
     assert "collinear" in ev.notes[0] and "one scale" in ev.notes[0]
+
+
+def test_one_thrust_scale_across_the_targets():
+    """The thrust scale along x, y and z is one constant of the vehicle: scales that differ by more
+    than their intervals allow are flagged (the x500 hover: 0.2 along x, 0.98 along z), in the
+    verdict of every target that takes part; scales that agree, a spread under MIN_TAU_REL, one
+    term alone and a role not shared (drag) are not."""
+    from droneid.fitting.constancy import across_targets
+    apart = across_targets({"thrust": {"⟨t_x⟩": (0.202, 0.0825, 0.322), "⟨t_y⟩": (0.14, 0.05, 0.227),
+                                       "⟨t_z⟩": (0.977, 0.974, 0.987)},
+                            "drag": {"⟨d_x⟩": (0.2, 0.1, 0.3), "⟨d_z⟩": (3.0, 2.9, 3.1)}})
+    assert set(apart) == {"thrust"}
+    c = apart["thrust"]
+    assert c.constant is False and c.p < 1e-6
+    said = c.sentence(["⟨t_x⟩"])
+    assert said.startswith("NOT ONE THRUST SCALE: ⟨t_x⟩ 0.202 [0.0825, 0.322]") and "⟨t_z⟩ 0.977" in said
+    assert c.sentence(["⟨other⟩"]) == ""
+    agree = across_targets({"thrust": {"⟨t_x⟩": (0.991, 0.9725, 1.009), "⟨t_y⟩": (0.987, 0.9645, 1.012),
+                                       "⟨t_z⟩": (0.989, 0.9812, 0.9968)}})["thrust"]
+    assert agree.constant is True and agree.p > 0.5 and agree.sentence(["⟨t_x⟩"]) == ""
+    # significant but under 1 %: long flights make any difference significant; not a finding
+    tiny = across_targets({"thrust": {"⟨t_x⟩": (1.000, 0.9995, 1.0005), "⟨t_z⟩": (1.004, 1.0035, 1.0045)}})["thrust"]
+    assert tiny.p < ALPHA and tiny.constant is True
+    assert across_targets({"thrust": {"⟨t_z⟩": (0.98, 0.97, 0.99)}}) == {}
+
+
+def test_sentences_end_with_a_full_stop():
+    from droneid.core.text import sentences
+    assert sentences("a beats b (RMSE 1 vs 2)", "", "NOT vehicle constants: x", "It sits on e = 0.") == \
+        "a beats b (RMSE 1 vs 2). NOT vehicle constants: x. It sits on e = 0."
+    assert sentences("", "  ") == ""
