@@ -8,6 +8,7 @@ Only the chosen command's module is imported, once it has been chosen: ``droneid
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
 import json
 import logging
@@ -91,7 +92,9 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = chosen_command(argv)
     parser = build_parser(only=() if command is None else (command,))
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        _refuse_unknown(parser, command, extra)
     logging.basicConfig(
         level=logging.DEBUG if args.debug else logging.WARNING,
         format="droneid: %(levelname)s: %(message)s",
@@ -104,6 +107,24 @@ def main(argv: list[str] | None = None) -> int:
     if process and COMMANDS[args.command].no_teardown:
         _end_process(code)
     return code
+
+
+def _refuse_unknown(parser: argparse.ArgumentParser, command: str | None, extra: Sequence[str]) -> None:
+    """argparse's "unrecognized arguments" (exit 2), from the command's own parser (its usage
+    line), with the nearest option named for an option that is a typo ("--quik": did you mean
+    --quick?)."""
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)  # noqa: SLF001
+    own = sub.choices[command] if sub is not None and command in sub.choices else parser
+    known = [o for o in own._option_string_actions if o.startswith("--")]  # noqa: SLF001
+    hints = []
+    for arg in extra:
+        if arg.startswith("--"):
+            near = difflib.get_close_matches(arg.split("=", 1)[0], known, n=1, cutoff=0.6)
+            if near:
+                hints.append(f"{arg}: did you mean {near[0]}?")
+    if len(extra) == 1 and hints:
+        hints = [hints[0].split(": ", 1)[1]]
+    own.error(f"unrecognized arguments: {' '.join(extra)}" + (f" ({'; '.join(hints)})" if hints else ""))
 
 
 def _end_process(code: int) -> None:

@@ -205,3 +205,16 @@ def test_time_left_ignores_the_one_off_cost_of_the_first_result(monkeypatch):
     lines = out.getvalue().splitlines()
     assert "left" not in lines[1]          # one result: no pace yet
     assert "~8 s left" in lines[2]         # 8 runs at 1 s each, not 8 x 20.5 s
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["identify", "a.bin", "--quik"], "droneid identify: error: unrecognized arguments: --quik (did you mean --quick?)"),
+    (["predict", "r.json", "a.bin", "--opn-loop", "--zzzz"],
+     "unrecognized arguments: --opn-loop --zzzz (--opn-loop: did you mean --open-loop?)"),
+    (["identify", "a.bin", "--zzzz"], "droneid identify: error: unrecognized arguments: --zzzz\n"),
+])
+def test_an_unknown_option_is_refused_with_the_nearest_one_named(argv, said, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert said in capsys.readouterr().err
