@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from droneid.report.document import fmt, text_table
 from droneid.report.rollout import ONE_STEP_POSITION
-from droneid.report.rotation import open_loop_legend
+from droneid.report.rotation import open_loop_legend, open_loop_verdict
 
 __all__ = ["text"]
 
@@ -72,7 +72,7 @@ def open_loop_lines(ol: dict, rotation: bool = False, motor: str = "") -> list[s
     inputs = "the logged motor commands" if motor else "the motor speeds"
     return [f"== open loop (the nanodrone benchmark's metric): full state simulated from {inputs}, "
             "MAE over every start; SimErr = sum of MAE over 1..50 steps",
-            text_table(header, rows),
+            *filter(None, [open_loop_verdict(ol, rotation)]), text_table(header, rows),
             *([f"motor model (identified; the identified row reads the commands through it, nominal physics "
                f"through its curve without lag): {motor}"] if motor else []),
             open_loop_legend(rotation, bool(motor)) + "\n"]

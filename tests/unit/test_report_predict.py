@@ -85,3 +85,25 @@ def test_identify_multistep_table_says_why_1_step_positions_agree():
          "dt_s": 0.01, "n_starts": {"1": 100}}
     text = "\n".join(horizon_lines(h))
     assert "the 1-step position column measures the log" in text and "held between its updates" in text
+
+
+def test_the_open_loop_table_has_a_verdict_first():
+    """A user who reads only the first line learns whether the identified vehicle drifts less than
+    holding the state, and where it does not, up to which horizon it is the better prediction and
+    that held body rates are what drifts (log171 before this: SimErr 661 m against 310 held, no word)."""
+    from droneid.report.rotation import open_loop_verdict
+
+    def rows(pos, att=1.0):
+        return {"simerr": {"position": pos, "attitude": att}, "1": {"position": pos / 100},
+                "10": {"position": pos / 10}, "50": {"position": pos}}
+    best = open_loop_verdict({"identified": rows(1), "nominal physics": rows(3), "constant": rows(5)})
+    assert best.startswith("open loop: the identified vehicle drifts least (position SimErr 1 m against 5")
+    mid = open_loop_verdict({"identified": rows(4), "nominal physics": rows(3), "constant": rows(5)})
+    assert "MORE than nominal physics (3)" in mid
+    drift = rows(661, 40.5)
+    drift["1"]["position"], drift["10"]["position"] = 0.03, 0.68
+    said = open_loop_verdict({"identified": drift, "constant": rows(310, 17.5)}, rotation=False)
+    assert "drifts FURTHER than the state held (position SimErr 661 m against 310" in said
+    assert "up to 10 steps, not at 50" in said and "its body rates are held" in said
+    assert "body rates are held" not in open_loop_verdict({"identified": drift, "constant": rows(310, 17.5)})
+    assert open_loop_verdict({"constant": rows(1)}) == ""
