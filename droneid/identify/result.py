@@ -34,20 +34,22 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class FeatureText:
     """A prior feature as the result records it: its name, expression (sympy's text, over
-    canonical signals) and what it means."""
+    canonical signals), what it means and its role (:data:`priors.base.ROLES`; "" in results
+    written before it was recorded)."""
     name: str
     expr: str
     description: str = ""
+    role: str = ""
 
     @classmethod
     def of(cls, d: Mapping) -> "FeatureText":
-        """From result.json's ``{"name", "expr", "description"}``."""
-        return cls(str(d["name"]), str(d["expr"]), str(d.get("description") or ""))
+        """From result.json's ``{"name", "expr", "description", "role"}``."""
+        return cls(str(d["name"]), str(d["expr"]), str(d.get("description") or ""), str(d.get("role") or ""))
 
     @classmethod
     def of_feature(cls, f) -> "FeatureText":
         """From a :class:`priors.base.PriorFeature`."""
-        return cls(f.name, str(f.expr), f.description)
+        return cls(f.name, str(f.expr), f.description, str(getattr(f, "role", "") or ""))
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from droneid.report.document import fmt, text_table
 from droneid.report.rollout import ONE_STEP_POSITION
 from droneid.report.rotation import open_loop_legend, open_loop_verdict
+from droneid.use.transfer import constants_line
 
 __all__ = ["text"]
 
@@ -29,6 +30,8 @@ def text(res) -> str:
         header = ["data", "samples"] + [_LABELS[k] for k in keys]
         rows = [[name, str(e.n)] + [fmt(getattr(e, k)) for k in keys] for name, e in r.errors.items()]
         out.append(text_table(header, rows))
+        if r.constants:
+            out.append(constants_line(r.constants))
         for src, counts in r.screened.items():
             out.append(f"screened: {src}: " + ", ".join(f"{n} {c}" for n, c in counts.items())
                        + " implausible sample(s) or jump(s); rows that use them are not scored")

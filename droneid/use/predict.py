@@ -21,6 +21,7 @@ import numpy as np
 
 from priors.registry import get_prior
 
+from droneid.use.transfer import check_constants, identified_constants
 from droneid.engine import runner
 from droneid.dataset.builder import DatasetBuilder
 from droneid.fitting.verdict import model_to_use
@@ -153,6 +154,7 @@ def _entry(path, target: str, tr: dict) -> dict:
                 raise DataError(f"{path}: targets.{target}.{key}: {exc}") from None
     out["equation"] = out["equation"] or f"{target} = {out['identified'].text()}"
     out["input_ranges"] = dict(tr.get("input_ranges") or {})
+    out["constants"] = identified_constants(tr)
     out["verdict"] = str(tr.get("verdict") or "")
     out["use"] = model_to_use(str(tr.get("verdict_kind") or ""), str(tr.get("use") or ""), out["verdict"])
     if out["use"] not in ("identified", "empirical", "neither"):
@@ -293,10 +295,13 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
         if not ok.all():
             notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
                          f"(e.g. a delayed input read before its signal starts)")
+        checks = check_constants(models[target].get("constants") or {}, ds.columns(), ds.y, preds["identified"],
+                                 ds.t, ds.flight, ds.sources) if "identified" in preds else ()
         results[target] = TargetScore(models[target].get("equation"), tuple(ds.input_names), tuple(ds.sources), per,
                                       _screened(flights, ds, [*ds.input_names, state_of(target)]),
                                       _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes),
-                                      models[target].get("use", "identified"), models[target].get("verdict", ""))
+                                      models[target].get("use", "identified"), models[target].get("verdict", ""),
+                                      checks)
     roll, table, info = None, None, None
     motor = MotorModel.from_record(models.get("_config") or {}) if open_loop else None
     stages = (("horizons",) if horizons else ()) + (("open loop",) if open_loop else ())

@@ -71,6 +71,8 @@ class TargetScore:
     notes: tuple[str, ...] = ()
     use: str = "identified"
     verdict: str = ""
+    #: the result's vehicle constants fitted on each flight alone (:mod:`droneid.use.transfer`)
+    constants: tuple = ()
 
     def to_dict(self) -> dict:
         out = {"equation": self.equation, "inputs": list(self.inputs), "sources": list(self.sources),
@@ -82,15 +84,19 @@ class TargetScore:
         out["use"] = self.use
         if self.verdict:
             out["verdict"] = self.verdict
+        if self.constants:
+            out["constants"] = [c.to_dict() for c in self.constants]
         return out
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "TargetScore":
+        from droneid.use.transfer import ConstantCheck
         return cls(d.get("equation"), tuple(d.get("inputs") or ()), tuple(d.get("sources") or ()),
                    {k: Errors.from_dict(e) for k, e in d["errors"].items()},
                    {k: dict(v) for k, v in (d.get("screened") or {}).items()},
                    {k: dict(v) for k, v in (d.get("out_of_range") or {}).items()}, tuple(d.get("notes") or ()),
-                   str(d.get("use") or "identified"), str(d.get("verdict") or ""))
+                   str(d.get("use") or "identified"), str(d.get("verdict") or ""),
+                   tuple(ConstantCheck.from_dict(c) for c in d.get("constants") or ()))
 
 
 @dataclass(frozen=True)
