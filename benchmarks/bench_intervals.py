@@ -119,7 +119,7 @@ def run_case(spec: dict) -> dict:
     own = dict(res.plan.offset.get("applied_s", {})) if res.plan.offset else {}
     shared = res.shared_constants.get("thrust")
     return {**{k: spec[k] for k in ("seed", "condition", "missing")}, "rows": rows, "offset_s": offset,
-            "shared_flag": bool(shared) and shared["constant"] is False,
+            "shared_flag": shared is not None and not shared.constant,
             "applied_s": own, "secs": time.perf_counter() - t0}
 
 

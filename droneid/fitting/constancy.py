@@ -45,7 +45,7 @@ from scipy import special    # chdtrc, stdtrit: scipy.stats' chi2.sf and t.ppf, 
 
 __all__ = ["Constancy", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
-           "SHARED_ROLES", "SharedConstant", "across_targets"]
+           "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -110,6 +110,25 @@ def heterogeneity(values, se) -> dict:
     qs = float(np.sum(ws * (v - mu) ** 2)) / (k - 1)
     half = float(special.stdtrit(k - 1, 0.975)) * math.sqrt(max(qs, 1.0) / float(np.sum(ws)))
     return {"p": p, "q": q, "tau": math.sqrt(tau2), "mean": mu, "low": mu - half, "high": mu + half}
+
+
+def moved(flagged: bool, spread: float, value: float) -> bool:
+    """The constancy rule's verdict "NOT constant" (one home for every test of a vehicle constant:
+    across flights, across targets, on a predicted flight): the test ``flagged`` it (Holm at
+    :data:`ALPHA`) and the ``spread`` (τ, or a difference) is at least :data:`MIN_TAU_REL` of
+    ``value``: a significant but negligible difference is no finding."""
+    return bool(flagged) and math.isfinite(spread) and spread >= MIN_TAU_REL * abs(value)
+
+
+def se_of_interval(low: float, high: float) -> float:
+    """The standard error a reported 95 % interval stands for: its half-width / 1.96 (a
+    normal-theory reading of a percentile or hull interval: approximate where it is skewed)."""
+    return (high - low) / (2 * 1.959964)
+
+
+def rule_text(what: str) -> str:
+    """The constancy rule in words, after ``what`` was estimated (for a report line)."""
+    return f"{what}; Holm at α = {ALPHA:g}, and a difference of {100 * MIN_TAU_REL:g} % or more"
 
 
 def holm_flags(p_values: Mapping[str, float], alpha: float = ALPHA) -> dict[str, bool]:
@@ -260,50 +279,74 @@ def constancy_sentence(constancy: Mapping[str, Constancy]) -> str:
 SHARED_ROLES = ("thrust", "tilt")
 
 
+#: what each shared role's scale is, in the words of a verdict
+_SHARED_WORDS = {"thrust": ("THRUST", "thrust scale", "thrust per unit mass"),
+                 "tilt": ("THRUST-DIRECTION", "thrust-direction (tilt) scale", "thrust per unit mass at hover")}
+
+
 @dataclass(frozen=True)
 class SharedConstant:
     """One vehicle constant as several targets' terms estimate it (the thrust scale along world x,
     y and z): the same Cochran's Q test as :class:`Constancy`, with each term's 95 % interval
-    as its estimate's noise (standard error = half-width / 1.96).
+    as its estimate's noise (:func:`se_of_interval`).
 
     role : the terms' role (:data:`SHARED_ROLES`); per_term : {term label: (value, low, high)};
     p : Cochran's Q p-value; tau : the between-term spread (DerSimonian-Laird), in the
-    coefficient's units; constant : False when p < :data:`ALPHA` (Holm over the roles tested)
-    and τ ≥ :data:`MIN_TAU_REL` of the value, True otherwise, None with fewer than two terms.
+    coefficient's units; mean : the random-effects mean the spread is measured against;
+    constant : False when the rule says so (:func:`moved`: p below :data:`ALPHA`, Holm over the
+    roles tested, and τ at least :data:`MIN_TAU_REL` of the mean), True otherwise.
     The targets' estimates are treated as independent (each target's residuals are its own
-    axis's); a term held at its nominal value or pulled to a bound is not an estimate and is
-    left out."""
+    axis's). What they share (the input offset's uncertainty that widens every interval, a
+    payload that moves every axis's scale together) makes the true variance of a difference
+    smaller than the sum, so the test is conservative: it flags less often than its level. A
+    term held at its nominal value or pulled to a bound is not an estimate and is left out."""
     role: str
     per_term: Mapping[str, tuple[float, float, float]]
     p: float
     tau: float
-    constant: bool | None
+    constant: bool
+    mean: float = math.nan
+
+    def _spread_pct(self) -> str:
+        rel = 100 * self.tau / abs(self.mean) if self.mean else math.nan
+        return f"{rel:.2g}" if rel < 10 else f"{rel:.0f}"
 
     def sentence(self, labels: Sequence[str]) -> str:
         """The verdict's words for a target whose terms ``labels`` are among these ("" when the
         constant holds, or none of ``labels`` is here)."""
-        if self.constant is not False or not any(lab in self.per_term for lab in labels):
+        if self.constant or not any(lab in self.per_term for lab in labels):
             return ""
         mine = [lab for lab in self.per_term if lab in labels]
         others = [lab for lab in self.per_term if lab not in labels]
         said = "; ".join(f"{lab} {v:.4g} [{lo:.4g}, {hi:.4g}]" for lab in mine + others
                          for v, lo, hi in (self.per_term[lab],))
-        mean = float(np.mean([v[0] for v in self.per_term.values()]))
-        rel = 100 * self.tau / abs(mean) if mean else math.nan
-        return (f"NOT ONE {self.role.upper()} SCALE: {said} differ between the targets by more than their "
-                f"noise allows (Cochran's Q p = {self.p:.2g}, spread τ {rel:.2g} %): one vehicle has one "
-                f"{self.role} per unit mass, so at least one of these fits absorbs something its model lacks "
-                f"(a weakly excited axis, an attitude bias, an effect of one axis) and its {self.role} scale is "
-                f"not the vehicle's.")
+        caps, scale, per_mass = _SHARED_WORDS.get(self.role, (self.role.upper(), f"{self.role} scale", self.role))
+        return (f"NOT ONE {caps} SCALE: {said} differ between the targets by more than their noise allows "
+                f"(Cochran's Q p = {self.p:.2g}, spread τ {self._spread_pct()} %): one vehicle has one "
+                f"{per_mass}, so at least one of these fits absorbs something its model lacks (a weakly "
+                f"excited axis, whose attitude noise pulls its scale toward 0; an attitude bias; an effect of "
+                f"one axis) and its {scale} is not the vehicle's.")
 
     def note(self) -> str:
         """One line for the run's notes: what was tested and its outcome."""
-        return (f"one {self.role} scale across the targets ({', '.join(self.per_term)}): Cochran's Q p = "
-                f"{self.p:.2g}: " + ("they agree" if self.constant else "they DIFFER (the verdicts say so)"))
+        _, scale, _ = _SHARED_WORDS.get(self.role, ("", f"{self.role} scale", ""))
+        if not self.constant:
+            said = "they DIFFER (the verdicts say so)"
+        elif self.p < ALPHA:
+            said = f"they agree within {100 * MIN_TAU_REL:g} % (spread τ {self._spread_pct()} %)"
+        else:
+            said = "they agree"
+        return f"one {scale} across the targets ({', '.join(self.per_term)}): Cochran's Q p = {self.p:.2g}: {said}"
 
     def to_dict(self) -> dict:
         return {"role": self.role, "per_term": {k: list(v) for k, v in self.per_term.items()},
-                "p": self.p, "tau": self.tau, "constant": self.constant}
+                "p": self.p, "tau": self.tau, "constant": self.constant, "mean": self.mean}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "SharedConstant":
+        num = lambda v: math.nan if v is None else float(v)   # noqa: E731 - JSON null: a non-finite number
+        return cls(str(d["role"]), {str(k): tuple(num(x) for x in v) for k, v in d["per_term"].items()},
+                   num(d["p"]), num(d["tau"]), bool(d["constant"]), num(d.get("mean")))
 
 
 def across_targets(terms: Mapping[str, Mapping[str, tuple[float, float, float]]]) -> dict[str, SharedConstant]:
@@ -316,13 +359,8 @@ def across_targets(terms: Mapping[str, Mapping[str, tuple[float, float, float]]]
                if all(math.isfinite(float(x)) for x in v)}
         if len(per) < 2:
             continue
-        vals = np.array([v[0] for v in per.values()])
-        se = np.array([(v[2] - v[1]) / (2 * 1.959964) for v in per.values()])
-        h = heterogeneity(vals, se)
+        h = heterogeneity([v[0] for v in per.values()], [se_of_interval(v[1], v[2]) for v in per.values()])
         tested[role], ps[role] = (per, h), h["p"]
     flags = holm_flags(ps)
-    out = {}
-    for role, (per, h) in tested.items():
-        big = math.isfinite(h["tau"]) and h["tau"] >= MIN_TAU_REL * abs(h["mean"])
-        out[role] = SharedConstant(role, per, h["p"], h["tau"], not (flags[role] and big))
-    return out
+    return {role: SharedConstant(role, per, h["p"], h["tau"], not moved(flags[role], h["tau"], h["mean"]), h["mean"])
+            for role, (per, h) in tested.items()}

@@ -25,7 +25,7 @@ import sympy as sp
 
 from droneid.core.expressions import compile_expression
 from droneid.core.numerics import rmse
-from droneid.fitting.constancy import MIN_TAU_REL, MIN_UNIT_ROWS, Constancy, heterogeneity, holm_flags, units_of
+from droneid.fitting.constancy import MIN_UNIT_ROWS, Constancy, heterogeneity, holm_flags, moved, units_of
 from droneid.core.regression import block_bootstrap, blocked_cv, bootstrap_draws, robust_fit
 from droneid.dataset.validation import time_blocks
 
@@ -384,7 +384,7 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
         h = het[lab]
         out[lab] = Constancy(
             kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(used)},
-            h["p"], (not (flags[lab] and h["tau"] >= MIN_TAU_REL * abs(h["mean"]))) if math.isfinite(h["p"]) else None,
+            h["p"], (not moved(flags[lab], h["tau"], h["mean"])) if math.isfinite(h["p"]) else None,
             (h["low"], h["high"]) if kind == "flight" else None, h["tau"], _physical_scale(model.terms[i]))
     return out
 

@@ -252,7 +252,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
     rotation = _rotation(outcome, jobs, rotation_notes)
     res = IdentificationResult(results, cfg, record, prov, versions(), outcome.interrupted, 0.0, outcome.backend,
                                (), {}, rotation=rotation,
-                               shared_constants={role: c.to_dict() for role, c in shared.items()})
+                               shared_constants=shared)
     horizons = {}
     if test_flights:    # independent scorings of the test flights, side by side on the cores
         stages = ("horizons",) + (("rotation", "open loop") if rotation is not None else ())

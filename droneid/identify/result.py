@@ -16,7 +16,7 @@ from droneid.errors import DataError
 from droneid.use.export import export_models, input_sources
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel, check_schema
 from droneid.fitting.verdict import model_to_use
-from droneid.fitting.constancy import Constancy
+from droneid.fitting.constancy import Constancy, SharedConstant
 from droneid.core.io_util import to_jsonable
 from droneid.identify.ladder import GuardReport, Interval, Rung
 from droneid.use.predict import models_from_document, predict_flights
@@ -229,8 +229,8 @@ class IdentificationResult:
     horizons: Mapping[str, object] = field(default_factory=dict)   # multi-step prediction on the test flights
     reader_options: Mapping[str, object] = field(default_factory=dict)
     rotation: RotationResult | None = None   # the rotational targets (issue 28); None: not modelled
-    #: {role: SharedConstant.to_dict()}: one vehicle constant (the thrust scale) tested across the targets
-    shared_constants: Mapping[str, object] = field(default_factory=dict)
+    #: {role: SharedConstant}: one vehicle constant (the thrust scale) tested across the targets
+    shared_constants: Mapping[str, SharedConstant] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         head = (f"IdentificationResult(targets={list(self.targets)}, prior={self.plan.prior_used!r}, "
@@ -285,7 +285,7 @@ class IdentificationResult:
             "backend": self.backend, "notes": list(self.notes), "horizons": dict(self.horizons),
             "reader_options": dict(self.reader_options),
             "rotation": None if self.rotation is None else self.rotation.to_dict(),
-            "shared_constants": dict(self.shared_constants)})
+            "shared_constants": {k: v.to_dict() for k, v in self.shared_constants.items()}})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "IdentificationResult":
@@ -305,7 +305,7 @@ class IdentificationResult:
                    bool(d.get("interrupted", False)), float(d.get("wall_s") or 0.0), str(d.get("backend") or ""),
                    tuple(d.get("notes") or ()), dict(d.get("horizons") or {}), dict(d.get("reader_options") or {}),
                    RotationResult.from_dict(d["rotation"]) if d.get("rotation") else None,
-                   dict(d.get("shared_constants") or {}))
+                   {str(k): SharedConstant.from_dict(v) for k, v in (d.get("shared_constants") or {}).items()})
 
 
 def versions() -> dict:

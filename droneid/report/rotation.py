@@ -13,6 +13,7 @@ from droneid.report.document import Document, fmt, new_figure, text_table
 from droneid.report.rollout import ONE_STEP_POSITION
 from droneid.fitting.verdict import VERDICT_KINDS
 from droneid.fitting.decide import p_text
+from droneid.core.numerics import to_float
 
 __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "open_loop_verdict", "fig_open_loop_drift",
            "ladder_rows"]
@@ -136,9 +137,11 @@ def open_loop_verdict(ol: Mapping, rotation: bool = True) -> str:
     ident, const = ol.get("identified"), ol.get("constant")
     if not ident or not const or "simerr" not in ident or "simerr" not in const:
         return ""
-    a, c = ident["simerr"]["position"], const["simerr"]["position"]
+    a, c = to_float(ident["simerr"].get("position")), to_float(const["simerr"].get("position"))
+    if not (math.isfinite(a) and math.isfinite(c)):
+        return ""
     nom = ol.get("nominal physics")
-    n = nom["simerr"]["position"] if nom and "simerr" in nom else math.nan
+    n = to_float(nom["simerr"].get("position")) if nom and "simerr" in nom else math.nan
     beside = f" and {n:.3g} for nominal physics" if math.isfinite(n) else ""
     if a < c and not a >= n:
         return (f"open loop: the identified vehicle drifts least (position SimErr {a:.3g} m against {c:.3g} for the "
@@ -147,7 +150,7 @@ def open_loop_verdict(ol: Mapping, rotation: bool = True) -> str:
         return (f"open loop: the identified vehicle drifts less than the state held (position SimErr {a:.3g} m "
                 f"against {c:.3g}) but MORE than nominal physics ({n:.3g})")
     steps = sorted(int(h) for h in ident if h.isdigit() and h in const)
-    good = [h for h in steps if ident[str(h)]["position"] < const[str(h)]["position"]]
+    good = [h for h in steps if to_float(ident[str(h)].get("position")) < to_float(const[str(h)].get("position"))]
     upto, worse = 0, None
     for h in steps:
         if h not in good:
@@ -155,11 +158,11 @@ def open_loop_verdict(ol: Mapping, rotation: bool = True) -> str:
             break
         upto = h
     when = (f"it is the better prediction up to {upto} steps, not at {worse}" if upto and worse else
-            "it is no better at the first horizon" if not upto else
+            "it is no better at any horizon shown" if not upto else
             "it is better at each horizon shown, not summed over 1..50 steps")
     out = (f"open loop: the identified vehicle drifts FURTHER than the state held (position SimErr {a:.3g} m "
            f"against {c:.3g} for the state held{beside}); {when}")
-    ia, ca = ident["simerr"].get("attitude", math.nan), const["simerr"].get("attitude", math.nan)
+    ia, ca = to_float(ident["simerr"].get("attitude")), to_float(const["simerr"].get("attitude"))
     if not rotation and ia > ca:
         out += (f"; its attitude drifts (attitude SimErr {ia:.3g} rad against {ca:.3g} held): its body rates are "
                 f"held (no rotational model), so from the motors alone nothing keeps the attitude: do not "
@@ -252,6 +255,9 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
         doc.paragraph(f"NOTE: {n}")
     if rot.open_loop_test:
         doc.heading("The whole vehicle open loop on the test flights", level=3)
+        said = open_loop_verdict(rot.open_loop_test, _has_rotation(rot))
+        if said:
+            doc.paragraph(said)
         header, rows = open_loop_table(rot.open_loop_test)
         doc.table(header, rows)
         doc.paragraph(open_loop_legend(_has_rotation(rot), rot.from_commands))

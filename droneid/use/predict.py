@@ -49,7 +49,8 @@ def load_models(path, targets: Sequence[str] | None = None) -> dict:
     """{target: {"identified", "empirical", "refit" (IdentifiedModels) | "model" (a bare engine model),
     "inputs", "equation", ...}} plus "_config" and
     "_reader_options" (the reader options the result was identified with: read_flight keywords,
-    ``{}`` when none were recorded) from a JSON file: an identify result.json (schema
+    ``{}`` when none were recorded) and "_trained" (its training flights' names, whose vehicle
+    constants predict does not test against themselves) from a JSON file: an identify result.json (schema
     :data:`droneid.fitting.closed_form.SCHEMA`; an older one is refused with one line) or a bare model."""
     path = Path(path)
     try:
@@ -87,7 +88,19 @@ def models_from_document(doc: dict, targets: Sequence[str] | None = None, where:
     out["_config"] = doc.get("config") or {}
     out["_reader_options"] = _reader_options(where, doc.get("reader_options"))
     out["_rotation"] = _rotation_model(where, doc.get("rotation"))
+    out["_trained"] = trained_names(doc.get("provenance"))
     return out
+
+
+def trained_names(provenance) -> tuple[str, ...]:
+    """The names (file stems, as a Flight is named) of a result's training flights, from its
+    ``provenance.train`` (empty when it does not say)."""
+    train = (provenance or {}).get("train") if isinstance(provenance, dict) else None
+    names = []
+    for p in train or []:
+        for f in (p.get("files") or [])[:1] if isinstance(p, dict) else []:
+            names.append(Path(str(f)).stem)
+    return tuple(names)
 
 
 def _rotation_model(where: str, section) -> RotationModel | None:
@@ -296,7 +309,7 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
             notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
                          f"(e.g. a delayed input read before its signal starts)")
         checks = check_constants(models[target].get("constants") or {}, ds.columns(), ds.y, preds["identified"],
-                                 ds.t, ds.flight, ds.sources) if "identified" in preds else ()
+                                 ds.t, ds.flight, ds.sources, models.get("_trained", ())) if "identified" in preds else ()
         results[target] = TargetScore(models[target].get("equation"), tuple(ds.input_names), tuple(ds.sources), per,
                                       _screened(flights, ds, [*ds.input_names, state_of(target)]),
                                       _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes),

@@ -2,20 +2,30 @@
 
 A model is a property of the vehicle only if it holds from flight to flight. ``predict`` applies
 it to flights it was not identified on; this module asks of each such flight what identify asks
-of its training flights (:mod:`droneid.fitting.constancy`): the scales of the prior's thrust,
-thrust-direction and drag terms (the vehicle constants, :data:`~droneid.fitting.constancy.VEHICLE_CONSTANT_ROLES`)
-are fitted on the flight alone, every other part of the final model kept as identified, each with
-its 95 % block-bootstrap interval over the flight's own time blocks, and tested against the
-identified value and interval by the same Cochran's Q (p below :data:`~droneid.fitting.constancy.ALPHA`,
-Holm over the target's constants, and a spread τ of at least
-:data:`~droneid.fitting.constancy.MIN_TAU_REL` of the value). The identified interval's standard
-error is its half-width / 1.96; where identify had several training flights that interval already
-counts how they differ, so a flight of the same vehicle in the same condition should agree.
+of its training flights (:mod:`droneid.fitting.constancy`). The scales of the prior's thrust,
+thrust-direction and drag terms (the vehicle constants,
+:data:`~droneid.fitting.constancy.VEHICLE_CONSTANT_ROLES`) are fitted on the flight alone, every
+other part of the final model kept as identified, each with its block-bootstrap standard error
+over the flight's own time blocks, and compared with what the result says a flight of this
+vehicle gives (:func:`identified_constants`):
+
+- with several training flights, the random-effects mean μ of their per-flight values and the
+  spread of a NEW flight about it, √(se_μ² + τ²) (τ: the flights' spread, DerSimonian-Laird;
+  se_μ from the Hartung-Knapp interval of μ), with k − 1 degrees of freedom;
+- with one training flight, its value and the standard error of its interval (half-width /
+  1.96): one flight cannot show how flights differ, and the line says so.
+
+A constant DOES NOT HOLD when ``t = (θ − μ) / √(se_new² + se_μ² + τ²)`` has p below
+:data:`~droneid.fitting.constancy.ALPHA` (two-sided, Holm over the target's constants on the
+flight) and the difference is at least :data:`~droneid.fitting.constancy.MIN_TAU_REL` of μ: the
+constancy test's rule (:func:`~droneid.fitting.constancy.moved`). A constant the flight does not
+excite (its value at a bound, or its interval wider than
+±:data:`~droneid.fitting.terms.IDENTIFIABLE_REL`) is "not identifiable on this flight", and a
+flight that was trained on is not checked (its data are in the result's value).
 
 A constant that does not hold says: this flight's vehicle, payload or battery differs from the
-training flights', or the model lacks something that moves the constant on this flight (the
-identify verdict's "NOT vehicle constants" says the same of the training flights). The check
-never changes a prediction; it is reported beside it.
+training flights', or the model lacks something that moves the constant on this flight. The
+check never changes a prediction; it is reported beside it.
 """
 from __future__ import annotations
 
@@ -24,84 +34,117 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import special
 
 from droneid.core.expressions import parse_expression
 from droneid.core.regression import bootstrap_draws, robust_fit
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DroneIdError
-from droneid.fitting.constancy import ALPHA, MIN_TAU_REL, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, heterogeneity, holm_flags
-from droneid.fitting.terms import evaluate_expr
+from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved, rule_text,
+                                       se_of_interval)
+from droneid.fitting.terms import IDENTIFIABLE_REL, evaluate_expr
 
 __all__ = ["ConstantCheck", "identified_constants", "check_constants", "constants_line"]
 
-_Z95 = 1.959964
+
+def _number(v) -> float:
+    return math.nan if v is None else float(v)
 
 
 @dataclass(frozen=True)
 class ConstantCheck:
     """One vehicle constant on one flight (predict's ``targets.<t>.constants``).
 
-    flight : the flight's name; label : the term, ``⟨name⟩``; value, low, high : its scale fitted
-    on this flight alone (1 = nominal) and the 95 % block-bootstrap interval; identified :
-    (value, low, high) in the result; p : Cochran's Q p-value of the two; holds : False when the
-    test flags it (Holm over the target's constants on this flight), True otherwise."""
+    flight : the flight's name; label : the term, ``⟨name⟩``; role : its role (thrust, tilt,
+    drag); value, low, high : its scale fitted on this flight alone (1 = nominal) and the 95 %
+    block-bootstrap interval; expected : (μ, low, high) what a flight of this vehicle gives by
+    the result (μ ± 1.96 of the spread of a new flight about it); p : the test's p-value;
+    holds : True, False (DOES NOT HOLD) or None (not checked: ``why``); trained_on : the result's
+    training flights behind ``expected`` (1: how flights differ is not in it)."""
     flight: str
     label: str
+    role: str
     value: float
     low: float
     high: float
-    identified: tuple[float, float, float]
+    expected: tuple[float, float, float]
     p: float
-    holds: bool
+    holds: bool | None
+    why: str = ""
+    trained_on: int = 0
 
     def to_dict(self) -> dict:
-        return {"flight": self.flight, "label": self.label, "value": self.value, "low": self.low,
-                "high": self.high, "identified": list(self.identified), "p": self.p, "holds": self.holds}
+        return {"flight": self.flight, "label": self.label, "role": self.role, "value": self.value,
+                "low": self.low, "high": self.high, "expected": list(self.expected), "p": self.p,
+                "holds": self.holds, "why": self.why, "trained_on": self.trained_on}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "ConstantCheck":
-        return cls(str(d["flight"]), str(d["label"]), float(d["value"]), float(d["low"]), float(d["high"]),
-                   tuple(float(v) for v in d["identified"]), float(d["p"]), bool(d["holds"]))
+        return cls(str(d["flight"]), str(d["label"]), str(d.get("role") or ""), _number(d["value"]),
+                   _number(d["low"]), _number(d["high"]), tuple(_number(v) for v in d["expected"]),
+                   _number(d["p"]), d["holds"] if d["holds"] is None else bool(d["holds"]), str(d.get("why") or ""),
+                   int(d.get("trained_on") or 0))
 
     def text(self) -> str:
-        v, lo, hi = self.identified
-        return (f"{self.label} {self.value:.4g} [{self.low:.4g}, {self.high:.4g}] against {v:.4g} "
-                f"[{lo:.4g}, {hi:.4g}] identified" + ("" if self.holds else f" (p = {self.p:.2g}): DOES NOT HOLD"))
+        mu, lo, hi = self.expected
+        if self.holds is None:
+            return f"{self.label} not checked ({self.why})"
+        return (f"{self.label} {self.value:.4g} [{self.low:.4g}, {self.high:.4g}], a flight of the result's vehicle "
+                f"{mu:.4g} [{lo:.4g}, {hi:.4g}]" + ("" if self.holds else f" (p = {self.p:.2g}): DOES NOT HOLD"))
 
 
 def identified_constants(tr: Mapping) -> dict:
-    """{label: {"value", "low", "high", "expr"}}: the vehicle constants of one target of a
-    result.json (``targets.<t>``): the final rung's prior terms whose role is a vehicle
-    constant's, with their 95 % interval, leaving out those held at nominal or pulled to a bound
-    (no estimate). Empty for a result written before roles were recorded."""
+    """{label: {"value", "se", "df", "role", "expr", "flights"}}: the vehicle constants of one
+    target of a result.json (``targets.<t>``), those of the final rung's prior terms whose role
+    is a vehicle constant's and that the result neither held at nominal nor pulled to a bound,
+    with what a NEW flight of the vehicle should give: ``value`` ± ``se`` with ``df`` degrees of
+    freedom (inf: normal) and ``flights`` the training flights behind it (see the module
+    docstring). Empty for a result written before roles were recorded."""
     ladder = tr.get("ladder") or []
     if not ladder or not isinstance(ladder[-1], Mapping):
         return {}
     final = ladder[-1]
     terms, ivs = final.get("terms") or {}, final.get("intervals") or {}
     skip = set(final.get("held") or {}) | set(final.get("at_bound") or {})
+    constancy = tr.get("constancy") or {}
     out = {}
     for f in tr.get("empirical_terms") or []:
-        lab = f"⟨{f.get('name')}⟩"
+        name = str(f.get("name"))
+        lab = f"⟨{name}⟩"
         if f.get("role") not in VEHICLE_CONSTANT_ROLES or lab not in terms or lab not in ivs or lab in skip:
             continue
         try:
             v, (lo, hi) = float(terms[lab]), (float(x) for x in ivs[lab])
         except (TypeError, ValueError):
             continue
-        if all(math.isfinite(x) for x in (v, lo, hi)) and hi > lo:
-            out[lab] = {"value": v, "low": lo, "high": hi, "expr": str(f.get("expr"))}
+        if not (all(math.isfinite(x) for x in (v, lo, hi)) and hi > lo):
+            continue
+        entry = {"value": v, "se": se_of_interval(lo, hi), "df": math.inf, "role": str(f["role"]),
+                 "expr": str(f.get("expr")), "flights": 1}
+        c = constancy.get(name) or {}
+        per = c.get("per_flight") or {}
+        between, tau = c.get("between"), c.get("tau")
+        if c.get("unit") == "flight" and len(per) >= 2 and between and tau is not None and math.isfinite(float(tau)):
+            k = len(per)
+            b_lo, b_hi = float(between[0]), float(between[1])
+            se_mu = (b_hi - b_lo) / 2 / float(special.stdtrit(k - 1, 0.975))
+            entry.update(value=(b_lo + b_hi) / 2, se=math.hypot(se_mu, float(tau)), df=float(k - 1), flights=k)
+        out[lab] = entry
     return out
+
+
+def _p_two_sided(t: float, df: float) -> float:
+    return float(special.erfc(abs(t) / math.sqrt(2))) if math.isinf(df) else float(2 * special.stdtr(df, -abs(t)))
 
 
 def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.ndarray], y: np.ndarray,
                     predicted: np.ndarray, t: np.ndarray, flight: np.ndarray, names: Sequence[str],
-                    *, seed: int = 0) -> tuple[ConstantCheck, ...]:
+                    trained: Sequence[str] = (), *, seed: int = 0) -> tuple[ConstantCheck, ...]:
     """Each vehicle constant of :func:`identified_constants` fitted on every flight alone (rows of
     ``flight`` == i, named ``names[i]``; ``columns``, ``y`` (m/s²), ``predicted`` (the final
-    model's v̇ on the rows) and ``t`` (s) as predict built them), tested against its identified
-    value (see the module docstring). A flight with fewer than
-    :data:`~droneid.fitting.constancy.MIN_UNIT_ROWS` usable rows is not checked."""
+    model's v̇ on the rows) and ``t`` (s) as predict built them) and tested (module docstring).
+    A flight named in ``trained`` (a training flight of the result) or with fewer than
+    :data:`~droneid.fitting.constancy.MIN_UNIT_ROWS` usable rows gets "not checked"."""
     if not constants:
         return ()
     n = len(y)
@@ -116,10 +159,19 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
     z = np.asarray(y, float) - rest
     ok = np.isfinite(z) & np.all(np.isfinite(A), axis=1)
     lo, hi = np.zeros(len(labs)), np.full(len(labs), np.inf)
+    nan3 = (math.nan, math.nan, math.nan)
     out = []
     for i, name in enumerate(names):
         rows = np.flatnonzero(ok & (np.asarray(flight) == i))
+
+        def unchecked(why):
+            return [ConstantCheck(str(name), lab, constants[lab]["role"], math.nan, math.nan, math.nan, nan3,
+                                  math.nan, None, why, constants[lab]["flights"]) for lab in labs]
+        if str(name) in set(trained):
+            out += unchecked("a training flight of the result: its data are in the value it is tested against")
+            continue
         if rows.size < MIN_UNIT_ROWS:
+            out += unchecked(f"{rows.size} rows, fewer than {MIN_UNIT_ROWS}")
             continue
         Ai, zi = A[rows], z[rows]
         fit = robust_fit(Ai, zi, lo, hi)
@@ -128,16 +180,30 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
         draws = bootstrap_draws(Ai, zi, blocks, fit, lo, hi, seed=seed)
         se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
         pct = np.percentile(draws, [2.5, 97.5], axis=0)
-        het = {}
+        res, ps = {}, {}
         for j, lab in enumerate(labs):
             c = constants[lab]
-            het[lab] = heterogeneity([c["value"], fit.beta[j]], [(c["high"] - c["low"]) / (2 * _Z95), se[j]])
-        flags = holm_flags({lab: h["p"] for lab, h in het.items()}, ALPHA)
-        for j, lab in enumerate(labs):
-            c, h = constants[lab], het[lab]
-            moved = flags[lab] and h["tau"] >= MIN_TAU_REL * abs(h["mean"])
-            out.append(ConstantCheck(str(name), lab, float(fit.beta[j]), float(pct[0, j]), float(pct[1, j]),
-                                     (c["value"], c["low"], c["high"]), float(h["p"]), not moved))
+            v, half = float(fit.beta[j]), (float(pct[1, j]) - float(pct[0, j])) / 2
+            q = float(special.stdtrit(c["df"], 0.975)) if math.isfinite(c["df"]) else 1.959964
+            expected = (c["value"], max(c["value"] - q * c["se"], 0.0), c["value"] + q * c["se"])  # scales >= 0
+            if bool(fit.at_bound[j]) or half > IDENTIFIABLE_REL * max(abs(v), 1.0):
+                res[lab] = ConstantCheck(str(name), lab, c["role"], v, float(pct[0, j]), float(pct[1, j]), expected,
+                                         math.nan, None, "not identifiable on this flight: at its bound, or its "
+                                         f"interval wider than ±{100 * IDENTIFIABLE_REL:.0f} %", c["flights"])
+                continue
+            tt = (v - c["value"]) / math.hypot(float(se[j]), c["se"])
+            ps[lab] = _p_two_sided(tt, c["df"]) if math.isfinite(tt) else math.nan
+            res[lab] = (v, float(pct[0, j]), float(pct[1, j]), expected)
+        flags = holm_flags(ps, ALPHA)
+        for lab in labs:
+            r = res[lab]
+            if isinstance(r, ConstantCheck):
+                out.append(r)
+                continue
+            v, l95, h95, expected = r
+            bad = moved(flags[lab], abs(v - expected[0]), expected[0])
+            out.append(ConstantCheck(str(name), lab, constants[lab]["role"], v, l95, h95, expected, ps[lab], not bad,
+                                     trained_on=constants[lab]["flights"]))
     return tuple(out)
 
 
@@ -146,21 +212,28 @@ def constants_line(checks: Sequence[ConstantCheck]) -> str:
     what that means), then each flight's values; "" without checks."""
     if not checks:
         return ""
-    bad = [c for c in checks if not c.holds]
-    rule = ("each fitted on its flight alone against the result's interval; Cochran's Q, Holm at α = 0.01, "
-            "a spread of 1 % or more")
-    if not bad:
-        one = len({c.flight for c in checks}) == 1
-        head = f"vehicle constants on {'this flight' if one else 'these flights'}: every one holds ({rule})"
+    tested = [c for c in checks if c.holds is not None]
+    bad = [c for c in tested if not c.holds]
+    rule = rule_text("each fitted on its flight alone, against the spread of a new flight of the result's vehicle")
+    one = len({c.flight for c in checks}) == 1
+    if not tested:
+        head = "vehicle constants not checked on " + ("this flight" if one else "these flights")
+    elif not bad:
+        head = f"vehicle constants on {'this flight' if one else 'these flights'}: every one tested holds ({rule})"
     else:
         flights = list(dict.fromkeys(c.flight for c in bad))
         labels = list(dict.fromkeys(c.label for c in bad))
         head = (f"VEHICLE CONSTANTS DO NOT HOLD on {', '.join(flights)}: {', '.join(labels)} "
-                f"{'differs' if len(labels) == 1 else 'differ'} from the result's by more than the noise allows "
-                f"({rule}). The vehicle, payload or battery of "
-                f"{'this flight' if len(flights) == 1 else 'these flights'} differ from the training flights', "
-                f"or something the model lacks moves them here (a tilt or horizontal thrust scale also falls the "
-                f"less a flight tilts: noise in the attitude pulls it toward 0)")
+                f"{'differs' if len(labels) == 1 else 'differ'} from what a flight of the result's vehicle gives "
+                f"by more than the noise allows ({rule}). The vehicle, payload or battery of "
+                f"{'this flight differs' if len(flights) == 1 else 'these flights differ'} from the training "
+                f"flights', or something the model lacks moves {'it' if len(labels) == 1 else 'them'} here")
+        if any(c.role == "tilt" or (c.role == "thrust" and not c.label.endswith("_z⟩")) for c in bad):
+            head += (" (a thrust-direction or horizontal thrust scale also falls the less a flight tilts: noise in "
+                     "the logged attitude pulls it toward 0)")
+    if any(c.trained_on == 1 for c in tested):
+        head += ("; the result has one training flight, so how flights of the vehicle differ is not in its "
+                 "interval")
     per: dict[str, list[str]] = {}
     for c in checks:
         per.setdefault(c.flight, []).append(c.text())
