@@ -8,6 +8,7 @@ simulator.
 """
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING
 
 from droneid.errors import ConfigError, did_you_mean
@@ -133,15 +134,16 @@ def thrust_columns(source: str, motors: int = 4, expo: float = NOMINAL_EXPO,
 
 
 def motor_count(signals) -> dict[str, int]:
-    """{source: number of consecutive motors 1..N available} for the per-motor sources."""
-    have = set(signals)
+    """{source: N} for the per-motor sources logged for every motor 1..N, N the highest index
+    logged. A source with a motor missing below its highest (rpm1, rpm2, rpm4) is left out: a
+    sum over some of the motors is no collective thrust (the motors that are there also carry
+    the attitude control's differences), so no prior, effect or proxy may sum it."""
+    have = {str(n) for n in signals}
     out = {}
     for src in ("rpm", "motor"):
-        n = 0
-        while f"{src}{n + 1}" in have:
-            n += 1
-        if n:
-            out[src] = n
+        present = sorted({int(m.group(1)) for n in have if (m := re.fullmatch(rf"{src}(\d+)", n))} - {0})
+        if present and present[-1] == len(present):
+            out[src] = len(present)
     return out
 
 

@@ -253,6 +253,10 @@ def test_thrust_variation_is_built_from_the_logged_thrust_never_from_a_derivativ
     assert thrust_proxy({"throttle", "rpm1", "rpm2"})[0] == "Σ(rpm/10⁴)²"
     assert thrust_proxy({"throttle", "thrust"})[0] == "thrust"
     assert thrust_proxy({"vx"}) is None
+    # a motor missing below the highest: the motors that are there are no collective thrust
+    # (a walkthrough found rpm1 + rpm2 summed for rpm1, rpm2, rpm4)
+    assert thrust_proxy({"rpm1", "rpm2", "rpm4", "motor1", "motor2", "motor3", "motor4"})[0] == "mean motor command"
+    assert thrust_proxy({"rpm1", "rpm2", "rpm4", "throttle"})[0] == "throttle"
     assert e.missing({TILT, "vz", "az"}) == ["thrust|rpm1|motor1|throttle"]
     # with the rotor-thrust prior the thrust IS logged: not applicable
     thr = EffectContext.build("vx_dot", ctx.columns, ctx.t, ctx.flight, ctx.tilt, tilt_role="thrust")
