@@ -3,9 +3,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_identify_refuses_vz_dot_with_the_tilt_drag_prior():
     log = ROOT / "sample_logs" / "paper_train_eight.tlog"
     assert log.is_file(), "sample_logs/ is part of the repository"

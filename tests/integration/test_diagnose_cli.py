@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from droneid.cli import main
 
 from conftest import SAMPLE_LOGS
 
 
+@pytest.mark.slow
 def test_cli_finds_wind_then_quadratic_drag_in_the_sample_log(tmp_path, capsys):
     log = SAMPLE_LOGS / "wind_quadratic_eight.tlog"
     rc = main(["-q", "diagnose", str(log), "--generations", "0", "--json",

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import diag_synth as S
 from droneid.diagnosis.diagnose import DiagnoseConfig, diagnose_datasets
@@ -10,6 +11,7 @@ from droneid.diagnosis.residual_search import clock_like
 CFG = DiagnoseConfig(generations=1500, population_size=200, seed=3)
 
 
+@pytest.mark.slow
 def test_open_ended_search_claims_nothing_on_a_control_flight():
     for seed in (1, 2):
         r = diagnose_datasets(S.make(None, seed=seed, duration_s=40),

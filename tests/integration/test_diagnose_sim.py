@@ -46,7 +46,14 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("effect,params,path,check", CASES, ids=[c[0] for c in CASES])
+def _fast_only(cases, fast):
+    """``cases`` as parameters, those whose first item is not in ``fast`` marked slow: `make
+    test-fast` keeps one representative of each family, `make test` runs them all."""
+    return [pytest.param(*c, id=str(c[0]), marks=() if c[0] in fast else pytest.mark.slow) for c in cases]
+
+
+@pytest.mark.parametrize("effect,params,path,check",
+                         _fast_only(CASES, ("quadratic_drag", "wind", "thrust_variation")))
 def test_simulated_effect_is_named_first_and_cuts_test_error(effect, params, path, check):
     r = _diagnose({effect: params}, train_path=path)
     assert r.effects_added[:1] == [effect], r.candidates
@@ -57,13 +64,15 @@ def test_simulated_effect_is_named_first_and_cuts_test_error(effect, params, pat
     assert r.effects_added == [effect]
 
 
-@pytest.mark.parametrize("path,seed", [("eight", 3), ("square", 4), ("random", 5), ("lissajous", 6)])
+@pytest.mark.parametrize("path,seed", _fast_only([("eight", 3), ("square", 4), ("random", 5), ("lissajous", 6)],
+                                                  ("eight",)))
 def test_simulated_control_adds_nothing(path, seed):
     r = _diagnose(None, train_path=path, seed=seed)
     assert r.effects_added == [], r.steps
     assert r.conclusion == NO_FURTHER
 
 
+@pytest.mark.slow
 def test_effect_without_its_signal_is_untestable():
     # battery sag planted, but the log has no voltage: untestable, never "absent"
     r = _diagnose({"battery_sag": None}, train_path="eight", drop=("battery_voltage",))
@@ -74,12 +83,14 @@ def test_effect_without_its_signal_is_untestable():
     assert "ground_effect" in r.untestable and r.effects_added == []
 
 
+@pytest.mark.slow
 def test_effect_invisible_in_horizontal_dynamics_is_not_detected():
     # an altitude-holding controller balances the battery's thrust loss: nothing to see in v̇x, v̇y
     r = _diagnose({"battery_sag": None}, train_path="eight")
     assert r.effects_added == [] and "battery_sag" in r.not_detected
 
 
+@pytest.mark.slow
 def test_wind_is_per_flight_and_quadratic_drag_acts_on_air_velocity():
     # training flight with wind AND quadratic drag; the test flight has a different wind
     eff = {"wind": {"wx": 1.5, "wy": -1.0}, "quadratic_drag": {"c": 0.15}}
@@ -103,7 +114,7 @@ def test_wind_is_per_flight_and_quadratic_drag_acts_on_air_velocity():
 AUTO_CASES = [c for c in CASES if c[0] in ("wind", "attitude_bias", "attitude_delay", "quadratic_drag")]
 
 
-@pytest.mark.parametrize("effect,params,path,check", AUTO_CASES, ids=[c[0] for c in AUTO_CASES])
+@pytest.mark.parametrize("effect,params,path,check", _fast_only(AUTO_CASES, ("attitude_bias",)))
 def test_rotor_thrust_prior_names_the_planted_effect(effect, params, path, check):
     tr = simulate(path=path, duration_s=40.0, seed=1, effects={effect: params}).flight
     r = diagnose([tr], None, prior="auto", config=CFG)
@@ -114,7 +125,7 @@ def test_rotor_thrust_prior_names_the_planted_effect(effect, params, path, check
     assert "thrust_variation" in r.not_applicable
 
 
-@pytest.mark.parametrize("path,seed", [("eight", 3), ("square", 4)])
+@pytest.mark.parametrize("path,seed", _fast_only([("eight", 3), ("square", 4)], ()))
 def test_rotor_thrust_control_adds_nothing_and_flat_heights_leave_ground_effect_untestable(path, seed):
     tr = simulate(path=path, duration_s=40.0, seed=seed).flight
     r = diagnose([tr], None, prior="auto", config=CFG)

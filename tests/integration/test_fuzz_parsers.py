@@ -91,6 +91,7 @@ def small_logs(tmp_path_factory) -> dict[str, bytes]:
     return out
 
 
+@pytest.mark.slow
 def test_fuzz_small_logs_of_every_format(small_logs, tmp_path):
     rng = random.Random(20261123)
     seen = {0: 0, 2: 0}

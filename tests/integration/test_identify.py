@@ -122,6 +122,7 @@ def test_identify_terminal_output_and_holdout_note(logs, capsys):
         assert label in out
 
 
+@pytest.mark.slow
 def test_constrained_priors_beat_baseline_on_constraints_and_match_refit(logs, tmp_path):
     """Planted truth: the paper's model with k_D = 0.4 (training: eight; test: another eight with
     different noise, i.e. the same flight regime). The constrained + 3 prior variant must satisfy
@@ -160,6 +161,7 @@ def test_test_data_outside_the_training_range_are_flagged(logs):
     assert any("leave the training range" in n and "vx [" in n for n in p.notes)
 
 
+@pytest.mark.slow
 def test_study_table_shape_and_p_values(logs, tmp_path, capsys):
     train, test = logs
     out_dir = tmp_path / "study"
@@ -201,6 +203,7 @@ def test_bad_input_is_one_line_exit_2(logs, capsys, argv, message):
     assert message in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_identify_in_a_process_pool_matches_in_process(logs):
     """Runs are seeded from one SeedSequence: the pool gives the same runs as one process."""
     from droneid.identify.pipeline import IdentifyConfig, identify
@@ -227,6 +230,7 @@ def test_demo_on_the_shipped_sample_logs_with_a_tiny_budget(tmp_path, capsys):
     assert (tmp_path / "demo" / "report.html").is_file()
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_the_finished_runs(logs, monkeypatch, tmp_path):
     """A KeyboardInterrupt in the third run: the first two are reported, flagged interrupted."""
     import droneid.identify.pipeline as ident
@@ -295,7 +299,7 @@ def test_holdout_is_cut_before_any_choice(logs):
     assert "before any choice" in res.test_data
 
 
-@pytest.mark.parametrize("planted", [{"quadratic_drag": {"c": 0.3}}, None])
+@pytest.mark.parametrize("planted", [{"quadratic_drag": {"c": 0.3}}, pytest.param(None, marks=pytest.mark.slow)])
 def test_identify_folds_the_effect_the_diagnosis_finds(planted):
     """Planted truth inside identify: a quadratic drag the rotor-thrust prior lacks is found on the
     training flight, folded into the prior features (a ladder rung with c near the planted value)
@@ -319,6 +323,7 @@ def test_identify_folds_the_effect_the_diagnosis_finds(planted):
             assert not any(r.startswith("effect:") for r in rungs), (t, rungs, res.notes)
 
 
+@pytest.mark.slow
 def test_the_rotational_choice_runs_beside_the_runs_and_says_what_it_could_not_do():
     """Two simulated training flights with the full state and motor speeds: the rotational job
     runs in the batch, and with two flights no rung can reach the test's first Holm threshold

@@ -12,6 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_identify_ends_its_process_with_every_output_complete(tmp_path):
     report = tmp_path / "report"
     r = subprocess.run([sys.executable, "-m", "droneid", "identify", str(ROOT / "sample_logs" / "rotor_climb_eight.csv"),

@@ -81,6 +81,7 @@ def result(logs, tmp_path_factory):
     return d / "rep" / "result.json"
 
 
+@pytest.mark.slow
 def test_intact_logs_pass_every_command(logs, result, tmp_path):
     """The control: every command accepts every intact format (so a mutant's refusal is about
     its damage)."""

@@ -34,6 +34,7 @@ def _run(p, term) -> RunRecord:
     return RunRecord(target=p.target, model=m.to_dict())
 
 
+@pytest.mark.slow
 def test_a_single_motor_term_is_refused_even_when_the_data_hold_one(problem, monkeypatch):
     p = problem
     rpm2 = p.train.columns()["rpm2"]

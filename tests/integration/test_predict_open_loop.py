@@ -12,6 +12,7 @@ from droneid.fitting.closed_form import IdentifiedModel
 from droneid.simulation.simulator import simulate
 
 
+@pytest.mark.slow
 def test_open_loop_scores_the_final_model_nominal_physics_and_the_held_state(tmp_path, capsys):
     sim = simulate(path="eight", duration_s=12.0, rate_hz=100.0, seed=3,
                    effects={"thrust_variation": {"amp_m": 0.3, "period_s": 2.5}})

@@ -74,12 +74,14 @@ def _errors(out: str) -> dict:
     return json.loads(out)["targets"]["vx_dot"]["errors"]["all"]
 
 
+@pytest.mark.slow
 def test_identify_records_the_mapping(result):
     doc = json.loads(result.read_text(encoding="utf-8"))
     assert doc["reader_options"]["column_map"] == RENAMED
     assert {k for k, v in doc["reader_options"].items() if v is not None} == {"column_map"}
 
 
+@pytest.mark.slow
 def test_the_renamed_log_needs_the_mapping(logs):
     """Without a mapping the user's format cannot be read: what the record is for."""
     from droneid.errors import DroneIdError

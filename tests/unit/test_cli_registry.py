@@ -100,6 +100,7 @@ def _table(path, n=80):
     return path
 
 
+@pytest.mark.slow
 def test_fit_as_a_process_writes_everything_before_it_ends_without_teardown(tmp_path):
     """`fit` ends its process without the interpreter's teardown: its output, piped, and its
     saved model are complete, and errors keep their exit code."""

@@ -10,6 +10,7 @@ import sys
 import types
 
 import numpy as np
+import pytest
 
 _AFTER_SEARCH = """
 import json, sys
@@ -48,6 +49,7 @@ def test_the_background_import_leaves_nothing_to_import_after_the_search(tmp_pat
     assert late == []     # model, test error (lambdify) and equation: all imported beforehand
 
 
+@pytest.mark.slow
 def test_without_the_background_import_modules_do_come_after_the_search(tmp_path):
     # the counterpart of the test above: it can fail (sympy and numpy import lazily)
     code = _AFTER_SEARCH.replace("C._import_quietly()", "import droneid.sngp.model")

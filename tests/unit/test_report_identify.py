@@ -316,6 +316,7 @@ def test_a_run_record_survives_json_and_keeps_its_summary_keys():
         RunRecord.from_dict([1, 2])
 
 
+@pytest.mark.slow
 def test_the_verdict_box_colour_follows_the_verdict(tmp_path):
     """Green only for "better"; a model not to be trusted is amber, a worse one red."""
     for kind, colour in (("better", "green"), ("no better", "grey"), ("worse", "red"),

@@ -40,6 +40,7 @@ def _speeds() -> CommandSpeeds:
     return CommandSpeeds(MotorModel(EXPO, lag_s=LAG), 4)
 
 
+@pytest.mark.slow
 def test_the_commands_thrust_differences_show_the_layouts_roll_and_pitch_signs(two_flights):
     logs = [_speeds().speed_log(log) for log in flight_state_logs(two_flights, signals=_speeds().signals())]
     assert all(0.3 < float(np.median(log.rpm)) < 1.0 for log in logs)     # normalised speeds, not rpm
@@ -47,6 +48,7 @@ def test_the_commands_thrust_differences_show_the_layouts_roll_and_pitch_signs(t
     np.testing.assert_array_equal(signs[:2], np.sign(get_layout("quad_x").patterns())[:2])
 
 
+@pytest.mark.slow
 def test_two_command_flights_reach_the_rotational_ladder(two_flights):
     """No rotor speed logged: the stage runs on the commands' speeds, says so in its units, and any
     model it keeps reads the commands (no rotor speed) and answers them with the layout's sign."""

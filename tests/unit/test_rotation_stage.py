@@ -40,6 +40,7 @@ def test_speed_scale_follows_the_recorded_unit():
         speed_scale(flight.without("rpm1"))
 
 
+@pytest.mark.slow
 def test_the_test_flights_never_reach_the_choice(monkeypatch):
     """Through identify (in process): select_rotation sees the training flights' stretches only;
     the test flights are scored after the choice, with the final v̇ models."""

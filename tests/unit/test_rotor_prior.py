@@ -85,6 +85,7 @@ def test_identified_model_round_trips_through_its_dict():
     assert back.signals == m.signals
 
 
+@pytest.mark.slow
 def test_identify_and_diagnose_choose_the_same_auto_prior_when_motor_speeds_are_too_slow():
     """4 Hz ESC telemetry must not win over 100 Hz motor commands, in either pipeline."""
     from droneid.diagnosis.diagnose import diagnose_plan

@@ -213,6 +213,7 @@ def test_thrust_variation_residual():
     assert s == pytest.approx(1.0, abs=0.2) and corr > 0.8
 
 
+@pytest.mark.slow
 def test_battery_sag_needs_more_throttle_not_a_new_tilt_law():
     eff = {"battery_sag": {"v_start": 12.6, "v_end": 10.8, "exponent": 2.0}}
     res = simulate(path="hover", duration_s=20, rate_hz=RATE, seed=3, effects=eff, noise=False)

@@ -145,6 +145,7 @@ def test_tilt_drag_without_prior_small_error():
 
 
 # -- determinism, robustness ----------------------------------------------------------------------
+@pytest.mark.slow
 def test_same_seed_same_model_different_seed_differs():
     X, y = flight_data(extra=-0.3, seed=6)
     a = SNGPRegressor(generations=600, seed=11).fit(X, y, feature_names=NAMES)

@@ -35,6 +35,7 @@ def _fit(mode: str) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_light_kernel_loading_skips_numbas_set_up_and_keeps_the_model_bit_for_bit():
     numba_own, light = _fit("numba"), _fit("light")
     assert light["model"] == numba_own["model"] and light["rmse"] == numba_own["rmse"]

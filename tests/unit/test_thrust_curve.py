@@ -86,7 +86,7 @@ def _command_flights(expo, sag, n=3, duration=20.0):
     return out
 
 
-@pytest.mark.parametrize("expo,sag", [(0.4, True), (0.7, False)])
+@pytest.mark.parametrize("expo,sag", [(0.4, True), pytest.param(0.7, False, marks=pytest.mark.slow)])
 def test_choose_thrust_curve_on_simulated_command_flights(expo, sag):
     flights = _command_flights(expo, sag)
     cfg = IdentifyConfig()
