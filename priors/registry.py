@@ -123,7 +123,8 @@ def get_prior(name: str, **params) -> PriorModel:
     """A built-in prior model by name, with its parameters (e.g. ``get_prior("tilt-drag", k_D=0.3)``)."""
     if name not in PRIORS:
         raise ConfigError(f"unknown prior {name!r}{did_you_mean(str(name), PRIORS)}; "
-                          f"built-in priors: {', '.join(PRIORS)} (user priors: load_priors(path))")
+                          f"built-in priors: {', '.join(PRIORS)} (a prior of your own: --prior FILE.toml:NAME, or "
+                          f"priors.registry.load_priors(path) in Python)")
     accepted = list(inspect.signature(PRIORS[name]).parameters)
     for k in params:
         if k not in accepted:

@@ -103,7 +103,9 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
     if lead:
         notes.append("; ".join(filter(None, (lead, per_flight_condition_lead(p, final)))))
     ladder = (*p.ladder, final)
-    vd = verdict(p.target, final, p.ladder[0], guards.chosen_run is not None, p.holdout, float(np.std(p.train.y)),
+    # the target's spread where the errors are measured: the test rows, else the training rows
+    spread = float(np.std(p.test.y if len(p.test) else p.train.y))
+    vd = verdict(p.target, final, p.ladder[0], guards.chosen_run is not None, p.holdout, spread,
                  reference=p.ladder[1] if len(p.ladder) > 1 else None, gamma=cfg.gamma,
                  trivial=trivial_errors(p.train.y, p.blocks, p.test.y))
     parts = [f"{c:+.4g}·{lab}" for c, lab in (split_leading_number(lab, c) for lab, c in final.terms.items())]

@@ -90,7 +90,7 @@ class ConstantCheck:
         if self.holds is None:
             return f"{self.label} not checked ({self.why})"
         return (f"{self.label} {self.value:.4g} [{self.low:.4g}, {self.high:.4g}], a flight of the result's vehicle "
-                f"{mu:.4g} [{lo:.4g}, {hi:.4g}]" + ("" if self.holds else f" (p = {self.p:.2g}): DOES NOT HOLD"))
+                f"{mu:.4g} [{lo:.4g}, {hi:.4g}], p = {self.p:.2g}" + ("" if self.holds else ": DOES NOT HOLD"))
 
 
 def identified_constants(tr: Mapping) -> dict:
@@ -214,7 +214,8 @@ def constants_line(checks: Sequence[ConstantCheck]) -> str:
         return ""
     tested = [c for c in checks if c.holds is not None]
     bad = [c for c in tested if not c.holds]
-    rule = rule_text("each fitted on its flight alone, against the spread of a new flight of the result's vehicle")
+    rule = rule_text("each fitted on its flight alone, against the spread of a new flight of the result's vehicle "
+                     "and its own noise together (the band shown leaves its own noise out); two-sided p")
     one = len({c.flight for c in checks}) == 1
     if not tested:
         head = "vehicle constants not checked on " + ("this flight" if one else "these flights")
