@@ -54,6 +54,8 @@ import logging
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, replace
 
+import math
+
 import numpy as np
 
 from priors.effects import CATALOGUE, is_measured_derivative
@@ -63,7 +65,7 @@ from droneid.dataset.data import Dataset
 from droneid.fitting.decide import decide
 from droneid.diagnosis.result import (NO_FURTHER, DiagnoseConfig, DiagnosisResult, evidence_of,
                                fold_into_prior, folded_feature, with_test_errors)
-from droneid.diagnosis.effect_model import (EffectModel, diagnose_blocks, drop_stand_ins, fold_features,
+from droneid.diagnosis.effect_model import (EffectModel, air_jacobians, diagnose_blocks, drop_stand_ins, fold_features,
                            linear_drag_of, make_part, physical_terms, prior_terms,
                            refine_contexts, score_candidates, strip_effect_id, uses_derivative)
 from droneid.errors import ConfigError, DataError, did_you_mean
@@ -309,6 +311,29 @@ _LOGGED = ("cv_rmse_after", "rel_improvement", "statistic", "p_value", "p_thresh
            "test_rmse_after", "passed", "reasons", "text")
 
 
+#: the wind's refinement: at most this many Newton rounds, stopped when the air velocity moves by
+#: less than the tolerance (m/s) on every row
+_REFINE_ROUNDS, _REFINE_TOL_M_S = 8, 1e-3
+
+
+def _air_columns(model) -> list:
+    """The air velocity (``vx_air``, ``vy_air``, m/s) of every part, or None where not set."""
+    return [tuple(p.ctx.columns.get(k) for k in ("vx_air", "vy_air"))
+            for p in (*model.tr_parts, *(model.te_parts or ()))]
+
+
+def _moved(before, after) -> float:
+    """The largest change (m/s) between two :func:`_air_columns`; inf where one of them is unset."""
+    worst = 0.0
+    for b, a in zip(before, after):
+        for x, y in zip(b, a):
+            if (x is None) != (y is None):
+                return math.inf
+            if x is not None and x.size:
+                worst = max(worst, float(np.max(np.abs(x - y))))
+    return worst
+
+
 def _best_first(scores) -> list:
     """Candidates best first by held-out error; one that only fits with impossible values goes
     last (it stands in for something else: the next one is judged instead)."""
@@ -434,7 +459,9 @@ class _Search:
 
     def _add(self, group, et, ett, new, ev, jointly: bool) -> None:
         """Take a passing group into the model, one step per effect, then let effects that refine
-        the inputs (the wind's air velocity) refresh the contexts and refit, twice (a fixed point)."""
+        the inputs (the wind's air velocity) refresh the contexts and refit until the air velocity
+        moves by less than :data:`_REFINE_TOL_M_S` (Newton steps on the wind, at most
+        :data:`_REFINE_ROUNDS`)."""
         model = self.model
         coef = {k: new["beta"][k] for k in et}
         local = {k: v for k, v in new.get("test_local_beta", {}).items() if k in ett}
@@ -453,10 +480,14 @@ class _Search:
         self.added.extend(e.id for e in group)
         self.terms, self.test_terms, self.fit = {**self.terms, **et}, {**self.test_terms, **ett}, new
         refiners = [self.effects[eid] for eid in self.added if self.effects[eid].refine_fn is not None]
-        for _ in range(2 if refiners else 0):
-            refine_contexts(refiners, model.tr_parts, model.te_parts, self.fit, model.base_info(self.fit))
+        for _ in range(_REFINE_ROUNDS if refiners else 0):
+            before = _air_columns(model)
+            refine_contexts(refiners, model.tr_parts, model.te_parts, self.fit, model.base_info(self.fit),
+                            air_jacobians(model, self.effects, self.added, self.fit))
             self.terms, self.test_terms = model.terms_of(self.added, self.effects)
             self.fit = model.fit(self.terms, self.test_terms)
+            if _moved(before, _air_columns(model)) < _REFINE_TOL_M_S:
+                break
 
     def drop_stand_ins(self) -> None:
         """Every added effect judged again with all the others in (:func:`drop_stand_ins`)."""

@@ -31,12 +31,12 @@ from droneid.errors import ConfigError, MissingSignalError
 from droneid.core.expressions import compile_expression, symbol
 from droneid.dataset.validation import block_ids, block_in_flight
 from droneid.core.numerics import lstsq, rmse
-from droneid.core.targets import velocity_of
+from droneid.core.targets import HORIZONTAL, velocity_of
 
 log = logging.getLogger(__name__)
 
 __all__ = ["PriorTerms", "prior_terms", "Part", "make_part", "EffectModel", "diagnose_blocks",
-           "refine_contexts", "linear_drag_of", "physical_terms", "strip_effect_id", "fold_features",
+           "refine_contexts", "air_jacobians", "linear_drag_of", "physical_terms", "strip_effect_id", "fold_features",
            "uses_derivative", "score_candidates", "drop_stand_ins"]
 
 _ANGLES = ("roll", "pitch")
@@ -232,13 +232,16 @@ def _terms_for(effect, parts: Sequence[Part], consts: Mapping[str, dict] | None 
     return terms
 
 
-def refine_contexts(refiners, tr_parts, te_parts, fit, base) -> None:
+def refine_contexts(refiners, tr_parts, te_parts, fit, base, jacobians=None) -> None:
     """Let each added effect with a refine hook (:meth:`priors.effects.Effect.refine`) update every
     part's context from ``fit``: its coefficients per flight (test flights: their own per-flight
     estimates, else the training ones) and ``base`` (``k_D`` in 1/s). E.g. the wind sets the air
-    velocity that drag effects act on."""
-    for parts, betas in ((tr_parts, fit["beta"]),
-                         (te_parts or [], {**fit["beta"], **fit.get("test_local_beta", {})})):
+    velocity that drag effects act on. ``jacobians``: :func:`air_jacobians` of the same fit, given
+    to the hooks as ``base["air_jacobian"]`` ({flight code: 2×2}) of the parts' own flights."""
+    for kind, parts, betas in (("train", tr_parts, fit["beta"]),
+                               ("test", te_parts or [], {**fit["beta"], **fit.get("test_local_beta", {})})):
+        if jacobians is not None:
+            base = {**base, "air_jacobian": jacobians.get(kind, {})}
         for e in refiners:
             own = _split_flight_params({k: v for k, v in betas.items() if k.startswith(e.id + ".")})
             shared = own.get(None, {})
@@ -248,6 +251,65 @@ def refine_contexts(refiners, tr_parts, te_parts, fit, base) -> None:
                 cols = e.refine(p.ctx, coef, base)
                 if cols:
                     p.ctx = p.ctx.with_columns(cols)
+
+
+#: the wind step of :func:`air_jacobians`' central differences (m/s)
+_AIR_STEP_M_S = 0.01
+
+
+def air_jacobians(model, effects, added, fit) -> dict:
+    """How the model's air-velocity terms move with the wind estimate, per flight: {"train" |
+    "test": {flight code: 2×2 array}}, row i the mean of v̇x (i = 0) or v̇y (i = 1) over the
+    flight's rows, column j the derivative with respect to ŵ_x (j = 0) or ŵ_y (j = 1), in 1/s.
+
+    Central differences of ±:data:`_AIR_STEP_M_S` on the wind estimate of every flight at once
+    (the flights' rows are disjoint), through every added effect's terms with the fitted
+    coefficients: the quadratic drag's c(|u|I + u uᵀ/|u|) and the anisotropic drag's body-axis
+    matrix, u = v − ŵ, whatever effects read the air velocity. The wind's hook needs them: its
+    offset measures K·w + A·(w − ŵ) (K the linear drag, A this matrix), not K·w, once a drag effect
+    acts on v − ŵ, so ŵ = offset / K alone is a fixed point that diverges when A outweighs K (a
+    quadratic drag of 0.16 1/m at 2 m/s airspeed against a linear drag of 0.35 1/s)."""
+    out: dict = {}
+    readers = [effects[eid] for eid in added if effects[eid].refine_fn is None]
+    consts = {e.id: model.constants(e) for e in readers}
+    for kind, parts, beta in (("train", model.tr_parts, fit["beta"]),
+                              ("test", model.te_parts or [], {**fit["beta"], **fit.get("test_local_beta", {})})):
+        rows = [(i, p) for p in parts for i, tgt in enumerate(HORIZONTAL) if p.target == tgt]
+        if not rows or not readers:
+            continue
+        saved = [p.ctx for p in parts]
+        deriv = {}
+        try:
+            for j in range(2):
+                sides = []
+                for sign in (1.0, -1.0):
+                    for p, ctx in zip(parts, saved):
+                        c = ctx.columns
+                        if "vx" not in c or "vy" not in c:
+                            continue
+                        wx = c["vx"] - c.get("vx_air", c["vx"]) + (sign * _AIR_STEP_M_S if j == 0 else 0.0)
+                        wy = c["vy"] - c.get("vy_air", c["vy"]) + (sign * _AIR_STEP_M_S if j == 1 else 0.0)
+                        ax, ay = c["vx"] - wx, c["vy"] - wy
+                        p.ctx = ctx.with_columns({"vx_air": ax, "vy_air": ay, "speed_air": np.hypot(ax, ay)})
+                    pred = {}
+                    for e in readers:
+                        for name, cols in _terms_for(e, parts, consts[e.id]).items():
+                            for tgt, col in cols.items():
+                                pred[tgt] = pred.get(tgt, 0.0) + beta.get(name, 0.0) * col
+                    sides.append(pred)
+                    for p, ctx in zip(parts, saved):
+                        p.ctx = ctx
+                for i, p in rows:
+                    d = (np.asarray(sides[0].get(p.target, 0.0)) - np.asarray(sides[1].get(p.target, 0.0))) \
+                        / (2 * _AIR_STEP_M_S)
+                    d = np.broadcast_to(d, p.flight.shape)
+                    for f in np.unique(p.flight):
+                        deriv.setdefault(int(f), np.zeros((2, 2)))[i, j] = float(np.mean(d[p.flight == f]))
+        finally:
+            for p, ctx in zip(parts, saved):
+                p.ctx = ctx
+        out[kind] = deriv
+    return out
 
 
 def _split_flight_params(coef: Mapping[str, float]) -> dict[str | None, dict]:

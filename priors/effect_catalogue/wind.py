@@ -46,19 +46,37 @@ def _interpret(coef, base):
 
 
 def _air_velocity(ctx, coef, base):
-    """``vx_air``, ``vy_air``, ``speed_air`` (m/s): v − ŵ with ŵ_axis = offset_axis / k_D per
-    flight (offsets in m/s², k_D in 1/s); 0 wind where a flight has no offset or k_D ≤ 1e-6."""
+    """``vx_air``, ``vy_air``, ``speed_air`` (m/s): v − ŵ per flight. ŵ is the Newton step from the
+    current estimate ŵ₀ (v − the context's air velocity, 0 at first): the offset measures
+    K·w + A·(w − ŵ₀), so ŵ = (K + A)⁻¹(offset + A·ŵ₀), with K = diag(k_D) (1/s) and A =
+    ``base["air_jacobian"][flight]`` (1/s: how the drag effects acting on v − ŵ move with ŵ, see
+    :func:`droneid.diagnosis.effect_model.air_jacobians`). Without A, or where K + A is singular,
+    ŵ = offset / k_D (exact when only the linear drag acts on the air velocity). 0 wind where a
+    flight has no offset or k_D ≤ 1e-6."""
     c = ctx.columns
     if "vx" not in c or "vy" not in c:
         return {}
     kd = base.get("k_D") or {}
+    jac = base.get("air_jacobian") or {}
     w = {"x": np.zeros(ctx.t.size), "y": np.zeros(ctx.t.size)}
+    w0 = {"x": c["vx"] - c.get("vx_air", c["vx"]), "y": c["vy"] - c.get("vy_air", c["vy"])}
     for f, params in coef.items():
-        for tgt in HORIZONTAL:
-            ax = axis_of(tgt)
-            off, k = params.get(f"offset_{ax}"), kd.get(tgt)
-            if off is not None and k is not None and k > _K_MIN:
-                w[ax][ctx.flight == f] = off / k
+        rows = ctx.flight == f
+        off = [params.get(f"offset_{axis_of(t)}") for t in HORIZONTAL]
+        k = [kd.get(t) for t in HORIZONTAL]
+        A = jac.get(f)
+        if A is not None and None not in off and all(x is not None and x > _K_MIN for x in k):
+            prev = np.array([float(np.mean(w0[axis_of(t)][rows])) if rows.any() else 0.0 for t in HORIZONTAL])
+            M = np.diag(k) + np.asarray(A, float)
+            est = (np.linalg.solve(M, np.asarray(off, float) + np.asarray(A, float) @ prev)
+                   if abs(np.linalg.det(M)) > _K_MIN ** 2 else None)
+            if est is not None and np.all(np.isfinite(est)):
+                for t, v in zip(HORIZONTAL, est):
+                    w[axis_of(t)][rows] = v
+                continue
+        for t, o, kk in zip(HORIZONTAL, off, k):
+            if o is not None and kk is not None and kk > _K_MIN:
+                w[axis_of(t)][rows] = o / kk
     vx_air, vy_air = c["vx"] - w["x"], c["vy"] - w["y"]
     return {"vx_air": vx_air, "vy_air": vy_air, "speed_air": np.hypot(vx_air, vy_air)}
 

@@ -91,21 +91,25 @@ def test_effect_invisible_in_horizontal_dynamics_is_not_detected():
 
 
 @pytest.mark.slow
-def test_wind_is_per_flight_and_quadratic_drag_acts_on_air_velocity():
-    # training flight with wind AND quadratic drag; the test flight has a different wind
-    eff = {"wind": {"wx": 1.5, "wy": -1.0}, "quadratic_drag": {"c": 0.15}}
+@pytest.mark.parametrize("c", [0.15, 0.3])
+def test_wind_is_per_flight_and_quadratic_drag_acts_on_air_velocity(c):
+    """Training flight with wind AND quadratic drag; the test flight has a different wind. At
+    c = 0.3 1/m the quadratic drag's slope outweighs the linear drag (0.28 1/s) and the wind read
+    as offset / k_D diverged (train (1.86, −1.34), test (0.17, −0.10) m/s, c 0.38): the wind is a
+    Newton step that takes the drag effects' own slope in the wind (the air Jacobian)."""
+    eff = {"wind": {"wx": 1.5, "wy": -1.0}, "quadratic_drag": {"c": c}}
     tr = simulate(path="random", duration_s=40.0, seed=1, effects=eff).flight
     te = simulate(path="square", duration_s=20.0, seed=11,
-                  effects={"wind": {"wx": -0.5, "wy": 1.0}, "quadratic_drag": {"c": 0.15}}).flight
+                  effects={"wind": {"wx": -0.5, "wy": 1.0}, "quadratic_drag": {"c": c}}).flight
     r = diagnose([tr], [te], config=CFG)
     assert r.effects_added == ["wind", "quadratic_drag"]
     fin = {f["effect"]: f for f in r.final_effects}
-    assert _rel(fin["quadratic_drag"]["physical_values"]["c_D_over_m_per_m"], 0.15) < 0.2
+    assert _rel(fin["quadratic_drag"]["physical_values"]["c_D_over_m_per_m"], c) < 0.05
     per = fin["wind"]["physical_per_flight"]
     (trw,) = [v for k, v in per.items() if k.startswith("train:")]
     (tew,) = [v for k, v in per.items() if k.startswith("test:")]
-    assert math.hypot(trw["w_x_m_s"] - 1.5, trw["w_y_m_s"] + 1.0) < 0.2 * 1.8
-    assert math.hypot(tew["w_x_m_s"] + 0.5, tew["w_y_m_s"] - 1.0) < 0.2 * 1.8 + 0.1
+    assert math.hypot(trw["w_x_m_s"] - 1.5, trw["w_y_m_s"] + 1.0) < 0.1
+    assert math.hypot(tew["w_x_m_s"] + 0.5, tew["w_y_m_s"] - 1.0) < 0.1
     for v in r.targets.values():
         assert v["rmse_after"]["test"] < 0.5 * v["rmse_before"]["test"]
 

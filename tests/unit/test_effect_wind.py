@@ -41,6 +41,31 @@ def test_no_positive_linear_drag_means_no_wind(k_d):
     np.testing.assert_array_equal(cols["vy_air"], ctx.columns["vy"])
 
 
+def test_the_wind_is_a_newton_step_when_drag_effects_read_the_air_velocity():
+    """With a drag effect acting on v − ŵ the offset measures K·w + A·(w − ŵ₀), not K·w: offset / k_D
+    alone diverged (case 17 of bench_diagnose: 2.35, 2.83 m/s for a wind of 1.34, 1.15, which an
+    attitude delay then stood in for). The hook solves (K + A) ŵ = offset + A ŵ₀."""
+    ctx = _two_flights()
+    c = ctx.columns
+    prev = ctx.with_columns({"vx_air": c["vx"] - 1.0, "vy_air": c["vy"] - 0.5})      # ŵ₀ = (1, 0.5)
+    A = np.array([[0.6, 0.1], [0.1, 0.4]])
+    off = {"offset_x": 0.5, "offset_y": -0.25}
+    cols = WIND.refine(prev, {0: off, 1: {}}, {**BASE, "air_jacobian": {0: A}})
+    want = np.linalg.solve(np.diag([0.25, 0.5]) + A, np.array([0.5, -0.25]) + A @ [1.0, 0.5])
+    first = ctx.flight == 0
+    np.testing.assert_allclose(cols["vx_air"], np.where(first, c["vx"] - want[0], c["vx"]))
+    np.testing.assert_allclose(cols["vy_air"], np.where(first, c["vy"] - want[1], c["vy"]))
+    # the truth is its fixed point: offset = K·w at ŵ₀ = w, whatever A
+    w = np.array([1.2, -0.7])
+    at = ctx.with_columns({"vx_air": c["vx"] - w[0], "vy_air": c["vy"] - w[1]})
+    cols = WIND.refine(at, {0: {"offset_x": 0.25 * w[0], "offset_y": 0.5 * w[1]}, 1: {}},
+                       {**BASE, "air_jacobian": {0: A}})
+    np.testing.assert_allclose(cols["vx_air"][first], c["vx"][first] - w[0])
+    # A = 0 is the plain rule
+    cols = WIND.refine(prev, {0: off, 1: {}}, {**BASE, "air_jacobian": {0: np.zeros((2, 2))}})
+    np.testing.assert_allclose(cols["vx_air"], np.where(first, c["vx"] - 2.0, c["vx"]))
+
+
 def test_without_both_velocities_there_is_no_air_velocity():
     ctx = _two_flights()
     cols = {k: v for k, v in ctx.columns.items() if k != "vy"}
@@ -75,7 +100,8 @@ def test_the_diagnosis_calls_the_hook_of_any_effect_that_has_one():
                           config=dataclasses.replace(cfg, effects=("gust",)))
     assert a.effects_added == ["wind"] and b.effects_added == ["gust"]
     assert a.final_effects[0]["coefficients"] == b.final_effects[0]["coefficients"]
-    # two fixed-point refits, each refining both targets' contexts of the one training flight
+    # two refits, each refining both targets' contexts of the one training flight: the second
+    # moves the air velocity by nothing (no drag effect reads it), so the refinement stops there
     assert [t for t, _, _ in calls] == ["vx_dot", "vy_dot"] * 2
     target, coef, base = calls[-1]
     assert set(coef) == {0} and set(coef[0]) == {"offset_x", "offset_y"}
