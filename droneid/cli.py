@@ -28,7 +28,7 @@ def build_parser(only: Iterable[str] | None = None) -> argparse.ArgumentParser:
     parsers are built (what :func:`main` passes: the chosen command); every other command is
     listed with its help only. None: every command is built (tests, documentation checks)."""
     parser = argparse.ArgumentParser(
-        prog="droneid",
+        prog="droneid", allow_abbrev=False,
         description="Identify analytic models of drone dynamics from flight logs "
                     "(SNGP symbolic regression with prior features and formal constraints).",
     )
@@ -57,6 +57,8 @@ class _Subcommands:
 
     def add_parser(self, name: str, **kwargs) -> argparse.ArgumentParser:
         kwargs["help"] = COMMANDS[name].help
+        # an abbreviation is a guess: --horizon was read as --horizons; the refusal names the option
+        kwargs.setdefault("allow_abbrev", False)
         return self._action.add_parser(name, **kwargs)
 
 

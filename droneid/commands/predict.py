@@ -1,6 +1,7 @@
 """``droneid predict``: apply a saved model (identify's result.json) to other logs, report its error."""
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -66,6 +67,8 @@ def run(args) -> int:
     given = {k: v for k, v in log_options(args).items() if v is not None}
     if recorded or given:
         res = replace(res, reader_options={"recorded": recorded, "given": given})
+    for w in res.warnings:
+        print(f"droneid predict: warning: {w}", file=sys.stderr)
     written = []
     if args.plot and res.rollout is not None:
         for name, png in _rollout_report.horizon_figures(res.rollout.to_dict()).items():

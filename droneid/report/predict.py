@@ -17,9 +17,10 @@ _LABELS = {"rmse_identified": "e_d final model", "rmse_empirical": "e_d empirica
 
 
 def text(res) -> str:
-    """The terminal report of a :class:`~droneid.use.score.Score`: warnings, one table per target, the
-    horizon table when measured."""
-    out = [f"warning: {w}" for w in res.warnings]
+    """The terminal report of a :class:`~droneid.use.score.Score`: one table per target, the
+    horizon table when measured. The data-fitness warnings are not in it: the command prints them
+    on standard error (a report redirected to a file must not hide them)."""
+    out = []
     for t, r in res.targets.items():
         out.append(f"== {t}: {r.equation or '(model)'}")
         if r.use != "identified":

@@ -212,6 +212,9 @@ def test_time_left_ignores_the_one_off_cost_of_the_first_result(monkeypatch):
     (["predict", "r.json", "a.bin", "--opn-loop", "--zzzz"],
      "unrecognized arguments: --opn-loop --zzzz (--opn-loop: did you mean --open-loop?)"),
     (["identify", "a.bin", "--zzzz"], "droneid identify: error: unrecognized arguments: --zzzz\n"),
+    # an abbreviation is refused, not guessed: --horizon was read as --horizons
+    (["predict", "r.json", "a.bin", "--horizon", "10"],
+     "unrecognized arguments: --horizon 10 (--horizon: did you mean --horizons?)"),
 ])
 def test_an_unknown_option_is_refused_with_the_nearest_one_named(argv, said, capsys):
     with pytest.raises(SystemExit) as e:

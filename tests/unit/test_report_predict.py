@@ -57,11 +57,13 @@ def test_a_score_s_repr_is_a_summary():
     assert len(text.splitlines()) <= 4 and "vx_dot: n=10, RMSE final 0.25" in text
 
 
-def test_the_text_report_has_a_table_per_target_and_the_warnings_first():
+def test_the_text_report_has_a_table_per_target_and_leaves_the_warnings_to_stderr():
+    """The warnings went to standard output, into a redirected report; the command prints them on
+    standard error."""
     out = predict_report.text(_result(fitness={}, warnings=("slow signal",)))
     lines = out.splitlines()
-    assert lines[0] == "warning: slow signal" and lines[1] == "== vx_dot: vx_dot = -0.3·vx"
-    assert "e_d final model" in lines[2] and "0.25" in out and "multi-step" not in out
+    assert "slow signal" not in out and lines[0] == "== vx_dot: vx_dot = -0.3·vx"
+    assert "e_d final model" in lines[1] and "0.25" in out and "multi-step" not in out
 
 
 def test_the_open_loop_table_says_what_nominal_physics_is_and_why_1_step_positions_agree():
