@@ -11,8 +11,10 @@ model. Reduced to what the data identify: ONE shape parameter e and one linear t
 at every e the linear scale and the vertical drag are refit (robust weights of a Huber fit,
 bounded >= 0, no free constant: free fall at zero thrust), e is the minimum of the residual sum
 of squares (between grid points: the parabola through the grid minimum), and its 95 % interval
-is the 2.5-97.5 % percentiles of the minimum over a block bootstrap of (flight, time block) units
-(:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile
+spans the percentile and the basic intervals of the minimum over a block bootstrap of (flight,
+time block) units (:func:`droneid.core.regression.bootstrap_span`: a profile's minimum is a biased
+estimator, which the percentile interval alone carries the wrong way;
+:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile
 gives a wide interval: the output says so and never pretends a shape. The thrust is the rotors'
 (:mod:`droneid.fitting.command_thrust`): each rotor's speed through a first-order motor lag τ
 profiled beside e (kept by the block test), thrust ∝ Σ speed², compared with the target as the
@@ -42,7 +44,7 @@ from priors.thrust import COMMAND_SOURCES
 from droneid.fitting.decide import decide
 from droneid.errors import ConfigError
 from droneid.core.differentiation import averaging_window
-from droneid.core.regression import blocked_cv, gram, gram_bounded_lstsq, robust_fit
+from droneid.core.regression import blocked_cv, bootstrap_span, gram, gram_bounded_lstsq, robust_fit
 from droneid.fitting.command_thrust import FINE_STEPS, CommandThrust, LinearThrust, lagged, window_rows
 from droneid.fitting.terms import prior_terms, split_terms
 from droneid.dataset.validation import time_blocks
@@ -323,9 +325,10 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     (95 %), "scale" (a at e), "scale_interval", "profile" {e: RSS / min RSS at the chosen lag},
     "n_units", "lag_s", "lag_interval", "thrust" (the thrust column at the chosen (τ, e))}: (τ, e)
     from the least residual sum of squares (:func:`_surface_min`: between grid points where the
-    profile curves), the intervals the 2.5-97.5 % percentiles of the minima of ``n_boot``
-    block-bootstrap replicates of the units (each re-profiled over the whole grid; a replicate's
-    scale is the one at its grid minimum)."""
+    profile curves), the intervals :func:`~droneid.core.regression.bootstrap_span` (the hull of
+    the percentile and the basic 95 % intervals, within the grids' bounds) of the minima of
+    ``n_boot`` block-bootstrap replicates of the units (each re-profiled over the whole grid; a
+    replicate's scale is the one at its grid minimum)."""
     grid, taus = np.asarray(grid, float), np.asarray(lags, float)
     drag, y, units = np.asarray(drag, float), np.asarray(y, float), np.asarray(units)
     cols = [np.asarray(thrust(grid, float(tau)), float) for tau in taus]     # T x (rows, E)
@@ -372,14 +375,14 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     lags_b, es = _surface_min(taus, grid, Rb)
     kb = np.argmin(np.where(np.isfinite(Rb), Rb, np.inf).reshape(n_boot, -1), axis=1)
     scales = xb.reshape(n_boot, -1)[np.arange(n_boot), kb]
-    lo, hi = np.percentile(es, [2.5, 97.5])
-    slo, shi = np.percentile(scales, [2.5, 97.5])
+    lo, hi = bootstrap_span(es, e, min(grid[0], EXPO_GRID[0]), max(grid[-1], EXPO_GRID[-1]))
+    slo, shi = bootstrap_span(scales, a_hat, _LO[0], _HI[0])
     k = int(np.argmin(np.abs(taus - tau_hat)))
     best = float(np.min(R[k])) if np.min(R[k]) > 0 else 1.0
     return {"expo": e, "free_expo": free_e, "interval": (float(lo), float(hi)), "scale": a_hat,
             "scale_interval": (float(slo), float(shi)),
             "profile": {float(g): float(v / best) for g, v in zip(grid, R[k])}, "n_units": int(ids.size),
-            "lag_s": tau_hat, "lag_interval": tuple(float(v) for v in np.percentile(lags_b, [2.5, 97.5])),
+            "lag_s": tau_hat, "lag_interval": bootstrap_span(lags_b, tau_hat, taus[0], taus[-1]),
             "thrust": Fe}
 
 

@@ -84,6 +84,21 @@ def _test_cell(st: Mapping) -> str:
     return f"p {p_s} {'<' if p < thr else '≥'} {thr_s} over {st['cells']} cells"
 
 
+def _taken_cell(st: Mapping, min_effect_pct: float) -> str:
+    """Whether a ladder step was taken and, when not, the rule's part that stopped it: a passing p
+    with a pooled gain under the minimum read as 'no' with no reason (walkthrough)."""
+    if st["taken"]:
+        return "yes"
+    if st.get("p_value") is None:
+        return "no (not tested)"
+    if float(st["p_value"]) >= float(st["threshold"]):
+        return "no (p ≥ threshold)"
+    eff = st.get("effect_pct")
+    if eff is not None and float(eff) < min_effect_pct:
+        return f"no (SimErr {-float(eff):+.2f} %: not {min_effect_pct:g} % lower)"
+    return "no (a rung below not taken)" if st.get("accepted") else "no"
+
+
 def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
     """(header, rows): each axis's ladder step by step, from the choice's ``ladder``: the rung
     against the one below, the held-out flight-regime cells where it is better, its error ratio
@@ -92,13 +107,15 @@ def ladder_rows(rot: RotationResult) -> tuple[list[str], list[list[str]]]:
     header = ["axis", "rung", "against", "cells better", "error ratio by regime, calm to hard", "SimErr",
               "test (sign-flip, Holm)", "taken"]
     rows = []
+    first = next(iter(rot.choice.get("ladder") or ()), {})
+    min_effect = float(first.get("min_effect_pct", 1.0))
     for axis in rot.choice.get("ladder", ()):
         for st in axis["steps"]:
             cells = [w for row in st["wins"] for w in row if w is not None]
             ratio = ", ".join("—" if r is None else f"{r:.2f}" for r in st["ratio"])
             effect = "—" if st.get("effect_pct") is None else f"{-float(st['effect_pct']):+.1f} %"
             rows.append([axis["axis"], st["rung"], st["against"], f"{sum(cells)}/{len(cells)}", ratio, effect,
-                         _test_cell(st), "yes" if st["taken"] else "no"])
+                         _test_cell(st), _taken_cell(st, min_effect)])
     return header, rows
 
 

@@ -256,3 +256,15 @@ def test_the_equation_error_fit_recovers_the_attitude_spring():
     for k, (c, kap) in enumerate([(8.0, 40.0), (4.0, 20.0)]):
         got = dict(zip(m.columns(k), m.coef[k]))
         assert got["damping"] == pytest.approx(c, rel=0.1) and got["attitude"] == pytest.approx(kap, rel=0.1), k
+
+
+def test_the_ladder_table_says_why_a_step_was_not_taken():
+    """A passing p with a pooled gain under the minimum read 'taken: no' with the reason only in a
+    footnote (walkthrough: yaw's spin-up, p 0.00022 < 0.002, SimErr -0.77 %)."""
+    from droneid.report.rotation import _taken_cell
+    st = {"taken": False, "accepted": False, "p_value": 0.00022, "threshold": 0.002, "effect_pct": 0.77}
+    assert _taken_cell(st, 1.0) == "no (SimErr -0.77 %: not 1 % lower)"
+    assert _taken_cell({**st, "p_value": 0.3}, 1.0) == "no (p ≥ threshold)"
+    assert _taken_cell({**st, "p_value": None}, 1.0) == "no (not tested)"
+    assert _taken_cell({**st, "effect_pct": 5.0, "accepted": True}, 1.0) == "no (a rung below not taken)"
+    assert _taken_cell({**st, "taken": True}, 1.0) == "yes"
