@@ -58,7 +58,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from priors.thrust import in_rpm_unit
+from priors.thrust import COMMAND_SOURCES, in_rpm_unit
 
 from droneid.logs.consistency import raise_if_inconsistent
 from droneid.core.text import undeclared_line
@@ -225,7 +225,7 @@ class Fitness:
 
 def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str], ts: float,
            prior_kind: str = "multirotor", vehicle: str | None = None, prior: str = "",
-           inputs_fixed: bool = False) -> Fitness:
+           inputs_fixed: bool = False, optional_signals: Sequence[str] = ()) -> Fitness:
     """Judge whether ``flights`` can identify a ``prior_kind`` model of ``needed_signals`` on a
     grid of ``ts`` seconds (see the module doc for the thresholds and the order of problems).
 
@@ -233,6 +233,9 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     vehicle type, as ``--vehicle`` does; ``prior`` names the prior in the result (display only).
     ``inputs_fixed``: the signals are those of a model already identified (predict), so a missing
     one can only come from the log, not from choosing another prior or target.
+    ``optional_signals``: signals a later stage may use where the log has them (a command prior's
+    battery voltage, for the thrust curve's compensation): their rates are judged like the needed
+    ones', warnings only (a missing or too slow one is the stage's decision, never a refusal).
     """
     if isinstance(flights, Flight):
         flights = [flights]
@@ -296,7 +299,8 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
                 names = ", ".join(s for s, b in in_air.items() if b == text)
                 warnings.append(f"{name}: {names} {'come' if ',' in names else 'comes'} in {text}: "
                                 f"rates and samples count the time with data only")
-            _rate_verdict(name, rates, ts, refuse, warnings)
+            optional = {s: coverage(f[s]).rate_hz for s in optional_signals if s not in needed and f.has(s)}
+            _rate_verdict(name, rates, ts, refuse, warnings, optional)
             tilt, speed = _excitation(f, ivs)
             yaw_span = evidence.yaw_span_deg
             if airborne > 0:
@@ -382,12 +386,17 @@ def _map_hint(f: Flight, signal: str, inputs_fixed: bool = False) -> str:
     return f": the {f.provenance.format} log has no field for it; {other}"
 
 
-def _rate_verdict(name, rates, ts, refuse, warnings) -> None:
-    """One line per kind of rate trouble, listing the signals (slowest first)."""
+def _rate_verdict(name, rates, ts, refuse, warnings, optional=None) -> None:
+    """One line per kind of rate trouble, listing the signals (slowest first). ``optional``
+    ({signal: Hz}): signals a later stage may use, in the warnings only (never refused: one too
+    slow to use is listed with the coarse ones)."""
     known = sorted(((hz, s) for s, hz in rates.items() if math.isfinite(hz)))
+    extra = sorted(((hz, s) for s, hz in (optional or {}).items() if math.isfinite(hz)))
     refused = [(hz, s) for hz, s in known if hz * ts < MIN_RATE_STEPS]
-    coarse = [(hz, s) for hz, s in known if MIN_RATE_STEPS <= hz * ts < 0.95]   # 5 % jitter
-    slow = [(hz, s) for hz, s in known if hz < SLOW_DYNAMICS_HZ and hz * ts >= MIN_RATE_STEPS]
+    coarse = sorted([(hz, s) for hz, s in known if MIN_RATE_STEPS <= hz * ts < 0.95]     # 5 % jitter
+                    + [(hz, s) for hz, s in extra if hz * ts < 0.95])
+    slow = sorted([(hz, s) for hz, s in known if hz < SLOW_DYNAMICS_HZ and hz * ts >= MIN_RATE_STEPS]
+                  + [(hz, s) for hz, s in extra if hz < SLOW_DYNAMICS_HZ])
 
     def listing(items):
         return ", ".join(f"{s} {hz:.1f} Hz" for hz, s in items)
@@ -505,8 +514,10 @@ def prior_fitness(flights, prior, targets, ts: float, vehicle: str | None = None
     kind = getattr(prior, "vehicle", "multirotor")
     if kind not in _ACCEPTS:
         return None
+    optional = ("battery_voltage",) if getattr(prior, "params", {}).get("source") in COMMAND_SOURCES else ()
     return assess(list(flights), needed_signals=prior_signals(prior, targets), ts=ts,
-                  prior_kind=kind, vehicle=vehicle, prior=getattr(prior, "name", ""))
+                  prior_kind=kind, vehicle=vehicle, prior=getattr(prior, "name", ""),
+                  optional_signals=optional)
 
 
 def check_prior_data(flights, prior, targets, ts: float, role: str = "training") -> "Fitness | None":

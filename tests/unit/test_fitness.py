@@ -93,6 +93,20 @@ def test_rate_between_quarter_and_one_grid_step_is_a_warning():
     assert any("slower than the grid" in w and "vx 10.0 Hz" in w for w in a.warnings)
 
 
+def test_an_optional_signal_s_rate_is_said_never_refused():
+    """A command prior's battery voltage is used by the thrust curve where it helps: log171's
+    9.9 Hz voltage was missing from the 'logged slower than the grid' note (walkthrough)."""
+    f = _flight()
+    for hz in (10.0, 1.0):      # coarse; and below 1/(4 Ts), where a needed signal is refused
+        t = np.arange(0.0, 30.0, 1 / hz)
+        g = Flight({**f.signals, "battery_voltage": Signal("battery_voltage", t, 12.0 + 0 * t, "V")},
+                   f.provenance, segments=f.segments)
+        a = _assess(g, optional_signals=("battery_voltage",))
+        assert a.ok and not a.problems
+        assert any("slower than the grid" in w and f"battery_voltage {hz:.1f} Hz" in w for w in a.warnings)
+        assert not any("battery_voltage" in w for w in _assess(g).warnings)
+
+
 def test_no_airborne_time_and_short_flights():
     a = _assess(_flight(armed=False))
     assert not a.ok and any("no airborne data" in p and "never armed" in p for p in a.problems)
