@@ -93,7 +93,7 @@ def test_the_open_loop_table_has_a_verdict_first():
     """A user who reads only the first line learns whether the identified vehicle drifts less than
     holding the state, and where it does not, up to which horizon it is the better prediction and
     that held body rates are what drifts (log171 before this: SimErr 661 m against 310 held, no word)."""
-    from droneid.report.rotation import open_loop_verdict
+    from droneid.simulation.openloop import open_loop_verdict
 
     def rows(pos, att=1.0):
         return {"simerr": {"position": pos, "attitude": att}, "1": {"position": pos / 100},
@@ -109,3 +109,8 @@ def test_the_open_loop_table_has_a_verdict_first():
     assert "up to 10 steps, not at 50" in said and "its body rates are held" in said
     assert "body rates are held" not in open_loop_verdict({"identified": drift, "constant": rows(310, 17.5)})
     assert open_loop_verdict({"constant": rows(1)}) == ""
+    # predict's JSON says it too (the verdict lived in report/, which use/ does not import)
+    full = {m: {h: {"velocity": 0.0, "attitude": 1.0, "rates": 0.0, **e} for h, e in per.items()}
+            for m, per in {"identified": rows(1), "nominal physics": rows(3), "constant": rows(5)}.items()}
+    d = _result(open_loop=full).to_dict()
+    assert d["open_loop_verdict"] == best
