@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special    # chdtrc, stdtrit: scipy.stats' chi2.sf and t.ppf, without its 0.5 s import
 
-__all__ = ["Constancy", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
+__all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
            "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text"]
 
@@ -199,6 +199,14 @@ def _span(c: Constancy) -> str:
     return text
 
 
+def spread_text(rel_pct: float) -> str:
+    """A spread τ relative to its mean, for people: "1.3 %", "150 %" (not "1.5e+02 %"); "—" where
+    it has no relative size (a mean of 0: a term held at its bound on every unit)."""
+    if not math.isfinite(rel_pct):
+        return "—"
+    return f"{rel_pct:.2g} %" if rel_pct < 10 else f"{rel_pct:.0f} %"
+
+
 def constancy_line(constancy: Mapping[str, Constancy]) -> str:
     """One line for a report: each vehicle constant's range over the units, its p and verdict;
     empty without any."""
@@ -211,10 +219,12 @@ def constancy_line(constancy: Mapping[str, Constancy]) -> str:
              f"its intervals leave that out)")
     parts = []
     for lab, c in constancy.items():
-        verdict = {True: "constant", False: "NOT constant", None: "untestable"}[c.constant]
         vals = [v[0] for v in c.per_unit.values()]
         rel = 100 * c.tau / abs(float(np.mean(vals))) if vals and np.mean(vals) != 0 else math.nan
-        parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}, spread τ {rel:.2g} %: {verdict}")
+        verdict = {True: "constant", False: "NOT constant", None: "untestable"}[c.constant]
+        if c.constant and rel >= 100 * MIN_TAU_REL:     # a wide spread the test does not flag
+            verdict = "constant within its noise"
+        parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}, spread τ {spread_text(rel)}: {verdict}")
     return (f"  constancy over {where} (each fitted alone; Cochran's Q, Holm at α = {ALPHA:g}, "
             f"and a spread τ of {100 * MIN_TAU_REL:g} % or more): "
             + "; ".join(parts))
@@ -232,11 +242,14 @@ CONDITION_LEADS = {"thrust": "a payload or a battery that differs between flight
                    "drag": "a wind that differs between flights, or headings that differ with a drag along the body axes"}
 
 
-def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -> str:
+def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None, curve=None) -> str:
     """Where to look when vehicle constants are NOT constant, one sentence ("" when all hold):
     the flight conditions droneid saw differ between the flights (the clock offset, ``offset``:
     the plan's :class:`~droneid.planning.plan.OffsetDecision`) and the catalogue effects that move such a
-    coefficient, with what the diagnosis (``diagnosis``: the plan's summary) said of each."""
+    coefficient, with what the diagnosis (``diagnosis``: the plan's summary) said of each; a
+    command-driven vehicle's thrust curve (``curve``: the plan's
+    :class:`~droneid.fitting.thrust_curve.ThrustCurve`) holds the thrust curve and, where kept, the
+    battery compensation (the diagnosis does not try them then: they are not 'not tried')."""
     bad = [lab for lab, c in constancy.items() if c.constant is False]
     if not bad:
         return ""
@@ -245,6 +258,10 @@ def leads(constancy: Mapping[str, Constancy], diagnosis: Mapping, offset=None) -
     said = {**{e: "not detected" for e in diagnosis.get("not_detected", ())},
             **{e: "untestable" for e in diagnosis.get("untestable", {})},
             **{e: "added" for e in diagnosis.get("effects_added", ())}}
+    if curve is not None:
+        said["thrust_curve"] = f"in the model: the curve's shape e = {curve.expo:.2f}"
+        said["battery_sag"] = ("in the model: the curve's battery compensation" if curve.voltage else
+                               "the curve's battery compensation not kept")
     out = []
     if offset is not None and getattr(offset, "per_flight", None) and not offset.flights_share:
         out.append("the flights' thrust clock offsets differ (" + ", ".join(
@@ -308,8 +325,7 @@ class SharedConstant:
     mean: float = math.nan
 
     def _spread_pct(self) -> str:
-        rel = 100 * self.tau / abs(self.mean) if self.mean else math.nan
-        return f"{rel:.2g}" if rel < 10 else f"{rel:.0f}"
+        return spread_text(100 * self.tau / abs(self.mean) if self.mean else math.nan)
 
     def sentence(self, labels: Sequence[str]) -> str:
         """The verdict's words for a target whose terms ``labels`` are among these ("" when the
@@ -322,7 +338,7 @@ class SharedConstant:
                          for v, lo, hi in (self.per_term[lab],))
         caps, scale, per_mass = _SHARED_WORDS.get(self.role, (self.role.upper(), f"{self.role} scale", self.role))
         return (f"NOT ONE {caps} SCALE: {said} differ between the targets by more than their noise allows "
-                f"(Cochran's Q p = {self.p:.2g}, spread τ {self._spread_pct()} %): one vehicle has one "
+                f"(Cochran's Q p = {self.p:.2g}, spread τ {self._spread_pct()}): one vehicle has one "
                 f"{per_mass}, so at least one of these fits absorbs something its model lacks (a weakly "
                 f"excited axis, whose attitude noise pulls its scale toward 0; an attitude bias; an effect of "
                 f"one axis) and its {scale} is not the vehicle's.")
@@ -333,7 +349,7 @@ class SharedConstant:
         if not self.constant:
             said = "they DIFFER (the verdicts say so)"
         elif self.p < ALPHA:
-            said = f"they agree within {100 * MIN_TAU_REL:g} % (spread τ {self._spread_pct()} %)"
+            said = f"they agree within {100 * MIN_TAU_REL:g} % (spread τ {self._spread_pct()})"
         else:
             said = "they agree"
         return f"one {scale} across the targets ({', '.join(self.per_term)}): Cochran's Q p = {self.p:.2g}: {said}"

@@ -62,7 +62,11 @@ LAG_ALPHA = 0.01
 N_BOOT_EXPO = 200
 #: ArduPilot parameters that declare the thrust curve or the command normalisation
 DECLARED = ("MOT_THST_EXPO", "MOT_THST_HOVER", "MOT_SPIN_MIN", "MOT_SPIN_MAX", "MOT_SPIN_ARM",
-            "MOT_PWM_MIN", "MOT_PWM_MAX", "MOT_BAT_VOLT_MAX", "MOT_BAT_VOLT_MIN")
+            "MOT_PWM_MIN", "MOT_PWM_MAX", "MOT_BAT_VOLT_MAX", "MOT_BAT_VOLT_MIN",
+            "MOT_THST_BAT_MAX", "MOT_THST_BAT_MIN", "THR_MID")
+#: the voltage ArduPilot's compensation scales the commands by (V), by name: MOT_BAT_VOLT_MAX, or
+#: before ArduCopter 3.6 MOT_THST_BAT_MAX (the same parameter, `_batt_voltage_max`, renamed)
+V_REF_NAMES = ("MOT_BAT_VOLT_MAX", "MOT_THST_BAT_MAX")
 _TARGET = "vz_dot"
 
 
@@ -138,14 +142,14 @@ class ThrustCurve:
                     f"(the log's MOT_SPIN_MIN/MAX)")
         over = (f", and over the offsets {1000 * self.offsets_s[0]:+.0f} to {1000 * self.offsets_s[1]:+.0f} ms "
                 f"the offset's interval admits" if self.offsets_s else "")
-        shape = (f"thrust curve of {what}: (1 − e)·u + e·u²{norm}, e = {self.expo:.2f} [{lo:.2f}, {hi:.2f}] "
+        shape = (f"thrust curve of {what}: (1 − e)·u + e·u²{norm}, e = {_expo_text(self.expo, lo, hi)} "
                  f"(95 %, block bootstrap over {self.n_units} (flight, block) units{over}; v̇z profiled with "
                  f"the thrust scale and drag refit at each e)")
         if self.at_bound:
             pull = (f"to {self.free_expo:.2f}" if math.isfinite(self.free_expo) else
                     "below 0" if self.expo == 0 else "above 1")
             shape += (f"; e sits on its bound {self.expo:g}: the data pull it {pull}, outside [0, 1] (the "
-                      f"command map lacks something, e.g. a command normalisation the log does not declare)")
+                      f"command map lacks something, e.g. a command normalisation other than the one read)")
         elif not self.identified:
             shape += "; the flights hardly constrain the shape (a flat profile): e is a best guess"
         if self.lag_decision is not None:
@@ -164,12 +168,15 @@ class ThrustCurve:
         hv = (f"; hover thrust fraction {self.hover:.3f} [{self.hover_interval[0]:.3f}, "
               f"{self.hover_interval[1]:.3f}]")
         dec = ""
-        if "MOT_THST_EXPO" in self.declared or "MOT_THST_HOVER" in self.declared:
-            parts = []
-            if "MOT_THST_EXPO" in self.declared:
-                parts.append(f"MOT_THST_EXPO {self.declared['MOT_THST_EXPO']:g} (identified {self.expo:.2f})")
-            if "MOT_THST_HOVER" in self.declared:
-                parts.append(f"MOT_THST_HOVER {self.declared['MOT_THST_HOVER']:.3g} (identified {self.hover:.3f})")
+        parts = []
+        if "MOT_THST_EXPO" in self.declared:
+            parts.append(f"MOT_THST_EXPO {self.declared['MOT_THST_EXPO']:g} (identified {self.expo:.2f})")
+        if "MOT_THST_HOVER" in self.declared:
+            parts.append(f"MOT_THST_HOVER {self.declared['MOT_THST_HOVER']:.3g} (identified {self.hover:.3f})")
+        elif "THR_MID" in self.declared:     # ArduCopter before 3.5: the hover throttle, 0-1000
+            parts.append(f"THR_MID {self.declared['THR_MID']:g} (the hover throttle of ArduCopter before 3.5: "
+                         f"{self.declared['THR_MID'] / 1000:.3g} of full; identified {self.hover:.3f})")
+        if parts:
             dec = "; the log declares " + ", ".join(parts)
         if self.decision is not None:
             batt = (f"; battery compensation u·V/{self.v_ref:.4g} V ({self.v_ref_from}) "
@@ -188,9 +195,9 @@ class ThrustCurve:
             return (f"Its thrust curve sits on its bound e = {self.expo:g}{beside}: the data want a shape "
                     f"outside [0, 1], so the command map lacks something and the thrust scale absorbs it.")
         if not self.identified:
-            return (f"The flights hardly constrain its thrust curve (e = {self.expo:.2f} [{lo:.2f}, {hi:.2f}]"
+            return (f"The flights hardly constrain its thrust curve (e = {_expo_text(self.expo, lo, hi)}"
                     f"{beside}): trust it only for commands like the training flights'.")
-        return (f"Thrust from the commands through the identified curve e = {self.expo:.2f} [{lo:.2f}, {hi:.2f}]"
+        return (f"Thrust from the commands through the identified curve e = {_expo_text(self.expo, lo, hi)}"
                 f"{beside}, {batt} battery compensation.")
 
     def to_dict(self) -> dict:
@@ -206,6 +213,13 @@ class ThrustCurve:
                 "smoothing_decision": self.smoothing_decision.to_dict() if self.smoothing_decision is not None else None,
                 "free_expo": self.free_expo, "at_bound": self.at_bound,
                 "profile": {f"{e:.2f}": v for e, v in self.profile.items()}}
+
+
+def _expo_text(e: float, lo: float, hi: float) -> str:
+    """``e [lo, hi]`` with the digits that tell the ends apart: 2 decimals, 3 where the interval is
+    narrower than 0.02 ("0.50 [0.50, 0.50]" read as a zero-width interval; it was [0.495, 0.503])."""
+    d = 3 if hi - lo < 0.02 else 2
+    return f"{e:.{d}f} [{lo:.{d}f}, {hi:.{d}f}]"
 
 
 def declared_parameters(flights) -> dict:
@@ -530,8 +544,9 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     blocks = time_blocks(ds.t, ds.flight, alpha=VOLTAGE_ALPHA)
     if have_v:
         volts = np.asarray(ds.columns()["battery_voltage"], float)
-        if declared.get("MOT_BAT_VOLT_MAX", 0) > 0:
-            v_ref, v_from = float(declared["MOT_BAT_VOLT_MAX"]), "the log's MOT_BAT_VOLT_MAX"
+        named = next((n for n in V_REF_NAMES if declared.get(n, 0) > 0), None)
+        if named is not None:
+            v_ref, v_from = float(declared[named]), f"the log's {named}"
         elif volts.size and float(np.max(volts)) > 0:
             v_ref, v_from = float(np.round(np.max(volts), 2)), "the training flights' highest voltage"
         else:

@@ -99,7 +99,8 @@ def summarise_target(p: TargetProblem, cfg: IdentifyConfig, runs: Sequence[RunRe
     series["sources"] = list(p.test.sources)
     notes.extend(final.evidence)
     lead = leads(final.constancy, p.plan.diagnosis if p.plan is not None else {},
-                 p.plan.offset if p.plan is not None else None)
+                 p.plan.offset if p.plan is not None else None,
+                 p.plan.thrust_curve if p.plan is not None else None)
     if lead:
         notes.append("; ".join(filter(None, (lead, per_flight_condition_lead(p, final)))))
     ladder = (*p.ladder, final)

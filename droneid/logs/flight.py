@@ -70,10 +70,12 @@ ROTOR_SIGNALS: Mapping[str, tuple[re.Pattern, str, str]] = MappingProxyType({
 
 
 #: vehicle parameters a reader keeps in :attr:`Provenance.parameters` (ArduPilot's names): the
-#: thrust curve (MOT_THST_EXPO, MOT_THST_HOVER), the command normalisation (MOT_PWM_MIN/MAX,
-#: MOT_SPIN_ARM/MIN/MAX) and the voltage scaling (MOT_BAT_VOLT_MAX/MIN)
+#: thrust curve (MOT_THST_EXPO, MOT_THST_HOVER; THR_MID, the hover throttle before ArduCopter 3.5),
+#: the command normalisation (MOT_PWM_MIN/MAX, MOT_SPIN_ARM/MIN/MAX) and the voltage scaling
+#: (MOT_BAT_VOLT_MAX/MIN; MOT_THST_BAT_MAX/MIN before ArduCopter 3.6)
 VEHICLE_PARAMETERS = ("MOT_THST_EXPO", "MOT_THST_HOVER", "MOT_SPIN_ARM", "MOT_SPIN_MIN", "MOT_SPIN_MAX",
-                      "MOT_PWM_MIN", "MOT_PWM_MAX", "MOT_BAT_VOLT_MAX", "MOT_BAT_VOLT_MIN")
+                      "MOT_PWM_MIN", "MOT_PWM_MAX", "MOT_BAT_VOLT_MAX", "MOT_BAT_VOLT_MIN",
+                      "MOT_THST_BAT_MAX", "MOT_THST_BAT_MIN", "THR_MID")
 #: time units a log's stamps may be in (``--time-unit``) -> seconds per unit; droneid's is "s"
 TIME_UNITS: Mapping[str, float] = MappingProxyType({"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9})
 

@@ -46,9 +46,13 @@ def test_declared_expo_and_hover_are_shown_beside_the_identified(identified):
     curve = plan.thrust_curve
     d = curve.to_dict()
     text = curve.text()
-    if "copter33" in path:        # log171 declares MOT_THST_EXPO 0.8 only
-        assert d["declared"] == {"MOT_THST_EXPO": 0.8}
+    if "copter33" in path:        # log171 (ArduCopter 3.3) declares the older names
+        assert d["declared"] == {"MOT_THST_EXPO": 0.8, "MOT_THST_BAT_MAX": 16.8, "MOT_THST_BAT_MIN": 12.0,
+                                 "THR_MID": 400.0}
         assert "MOT_THST_EXPO 0.8 (identified" in text and "MOT_THST_EXPO 0.8" in curve.verdict()
+        # 3.3's name of MOT_BAT_VOLT_MAX is the compensation's V_ref; its hover throttle is shown
+        assert "u·V/16.8 V (the log's MOT_THST_BAT_MAX)" in text
+        assert "THR_MID 400 (the hover throttle of ArduCopter before 3.5: 0.4 of full; identified" in text
     else:                         # a PX4 log declares none of these
         assert d["declared"] == {} and "declares" not in text
 

@@ -147,6 +147,14 @@ def test_leads_point_to_what_moves_a_constant_and_what_the_diagnosis_said():
     thrust = {"sum_rpm_sq_z": Constancy("flight", {"a": (0.9, 0.89, 0.91), "b": (1.2, 1.19, 1.21)}, 1e-9, False)}
     assert "payload" in leads(thrust, diag)
     assert leads(good, diag) == ""
+    # a command-driven vehicle's curve holds the thrust curve and its battery compensation: log171's
+    # leads said 'battery_sag (not tried), thrust_curve (not tried)' with both in the model
+    from types import SimpleNamespace
+    text = leads(thrust, diag, curve=SimpleNamespace(expo=0.0, voltage=True))
+    assert "thrust_curve (in the model: the curve's shape e = 0.00)" in text
+    assert "battery_sag (in the model: the curve's battery compensation)" in text and "not tried)" in text
+    assert "battery_sag (the curve's battery compensation not kept)" in leads(
+        thrust, diag, curve=SimpleNamespace(expo=0.5, voltage=False))
 
 
 def test_collinear_physical_terms_are_tied_into_the_combination_the_data_identify():
@@ -205,3 +213,16 @@ def test_sentences_end_with_a_full_stop():
     assert sentences("a beats b (RMSE 1 vs 2)", "", "NOT vehicle constants: x", "It sits on e = 0.") == \
         "a beats b (RMSE 1 vs 2). NOT vehicle constants: x. It sits on e = 0."
     assert sentences("", "  ") == ""
+
+
+def test_a_spread_reads_as_a_person_writes_it():
+    """'spread τ nan %' and 'spread τ 1.5e+02 %: constant' reached a user (walkthrough): no
+    relative size is '—', a wide spread the test does not flag is 'constant within its noise'."""
+    from droneid.fitting.constancy import constancy_line, spread_text
+    assert (spread_text(float("nan")), spread_text(150.4), spread_text(1.27)) == ("—", "150 %", "1.3 %")
+    wide = {"minus_kD_vz": Constancy("stretch", {"a": (0.0, 0.0, 0.4), "b": (0.42, 0.0, 0.9)}, 0.23, True,
+                                     tau=0.3)}
+    line = constancy_line(wide)
+    assert "spread τ 143 %: constant within its noise" in line and "e+" not in line
+    held = {"minus_kD_vz": Constancy("stretch", {"a": (0.0, 0.0, 0.4), "b": (0.0, 0.0, 0.9)}, 1.0, True, tau=0.0)}
+    assert "spread τ —: constant" in constancy_line(held) and "nan" not in constancy_line(held)

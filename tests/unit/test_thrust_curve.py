@@ -303,3 +303,10 @@ def test_a_biased_estimate_s_interval_spans_the_reflected_percentiles_and_stays_
     lo, hi = bootstrap_span(sym, 3.0)
     assert hi - lo == pytest.approx(np.diff(np.percentile(sym, [2.5, 97.5]))[0], rel=0.05)
     assert np.all(np.isnan(bootstrap_span([np.nan], 1.0)))            # no finite replicate: nothing to say
+
+
+def test_a_narrow_expo_interval_gets_the_digits_that_tell_its_ends_apart():
+    """'e = 0.50 [0.50, 0.50]' read as a zero-width interval (walkthrough; it was [0.495, 0.503])."""
+    from droneid.fitting.thrust_curve import _expo_text
+    assert _expo_text(0.4987, 0.4952, 0.5031) == "0.499 [0.495, 0.503]"
+    assert _expo_text(0.0, 0.0, 0.16) == "0.00 [0.00, 0.16]"
