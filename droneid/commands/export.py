@@ -145,27 +145,34 @@ def _vehicle(args) -> str:
         print(f"note: {t}: the IDENTIFIED model, exported with --identified although identify's verdict says to "
               f"keep {'the empirical model' if models[t]['use'] == 'empirical' else 'neither model'} "
               f"({_verdict_words(models[t])})", file=sys.stderr)
-    if kept_other and not args.identified:
-        raise DataError(f"{args.result}: identify's verdict does not keep the identified model of "
-                        f"{', '.join(kept_other)} ({'; '.join(f'{t}: ' + _verdict_words(models[t]) for t in kept_other)}), "
-                        f"so the vehicle built from it is not the one to use; --identified exports it anyway")
     missing = [t for t in ("vx_dot", "vy_dot", "vz_dot") if t not in finals]
     if missing:
         raise DataError(f"{args.result}: --vehicle needs the final models of vx_dot, vy_dot and vz_dot; "
                         f"the result has none of {', '.join(missing)}")
+    # every reason to refuse, said at once (a user fixed one and met the next)
+    refusals = []
+    if kept_other and not args.identified:
+        refusals.append(f"identify's verdict does not keep the identified model of {', '.join(kept_other)} "
+                        f"({'; '.join(f'{t}: ' + _verdict_words(models[t]) for t in kept_other)}), so the vehicle "
+                        f"built from it is not the one to use; --identified exports it anyway")
     stuck = _rotation.unsteerable(models.get("_rotation"))
+    replay = "logged motor commands" if motor is not None else "logged motor speeds"
     if stuck and not args.allow_unsteerable:
         if motor is not None and models.get("_rotation") is None:
             why = next((n for n in doc.get("notes") or () if str(n).startswith("rotation not modelled")),
                        "the rotational stage kept no model: every body rate is held")
-            raise DataError(f"{args.result}: a command-driven vehicle without a rotational model ({why}), so the "
-                            f"exported vehicle holds its body rates: its commands drive the thrust only and cannot "
-                            f"steer it; --allow-unsteerable exports it anyway (for open-loop replay of logged "
-                            f"commands, not for controller design)")
-        raise DataError(f"{args.result}: the identified rotational model does not answer the motors on "
-                        f"{', '.join(stuck)} (decay-only or held: differential thrust does not turn it), so "
-                        f"the exported vehicle cannot be steered; --allow-unsteerable exports it anyway "
-                        f"(for open-loop replay of logged motor speeds, not for controller design)")
+            refusals.append(f"a command-driven vehicle without a rotational model ({why}), so the exported vehicle "
+                            f"holds its body rates: its commands drive the thrust only and cannot steer it; "
+                            f"--allow-unsteerable exports it anyway (for open-loop replay of {replay}, not for "
+                            f"controller design)")
+        else:
+            refusals.append(f"the identified rotational model does not answer the motors on {', '.join(stuck)} "
+                            f"(decay-only or held: differential thrust does not turn it), so the exported vehicle "
+                            f"cannot be steered; --allow-unsteerable exports it anyway (for open-loop replay of "
+                            f"{replay}, not for controller design)")
+    if refusals:
+        raise DataError(f"{args.result}: " + (refusals[0] if len(refusals) == 1 else
+                                              " ".join(f"({k}) {r}." for k, r in enumerate(refusals, 1))))
     dt, note = _step(args, doc)
     try:
         return _vehicle_export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),

@@ -102,8 +102,9 @@ def _input_line(signal: str, sources: dict) -> str:
 
 
 def model_header(models: Sequence[IdentifiedModel], source: str, to: str = "python",
-            sources: dict | None = None) -> list[str]:
-    """The header lines (without comment markers); equations in the syntax of ``to``."""
+            sources: dict | None = None, delays_note: str = "") -> list[str]:
+    """The header lines (without comment markers); equations in the syntax of ``to``.
+    ``delays_note``: said after each model's delays (a vehicle that feeds them otherwise)."""
     sources = sources or {}
     lines = [f"Identified models exported by droneid {__version__}"
              + (f" from {source}" if source else "") + ".",
@@ -118,7 +119,8 @@ def model_header(models: Sequence[IdentifiedModel], source: str, to: str = "pyth
             lines.append("  inputs (unit, then the log field and its normalisation when the result records it):")
             lines.extend(f"    {_input_line(s, sources)}" for s in m.signals)
         if m.delays_s:
-            lines.append("  delays: " + ", ".join(f"feed {s} at t - {d:g} s" for s, d in sorted(m.delays_s.items())))
+            lines.append("  delays: " + ", ".join(f"feed {s} at t - {d:g} s" for s, d in sorted(m.delays_s.items()))
+                         + (f" ({delays_note})" if delays_note else ""))
         else:
             lines.append("  delays: none (every input at time t)")
     return lines
@@ -171,7 +173,7 @@ def _python(models, header, sources) -> str:
     return "\n".join(out).rstrip() + "\n"
 
 
-def python_functions(models, sources) -> list[str]:
+def python_functions(models, sources, delays_note: str = "") -> list[str]:
     """One keyword-only function per model (``numpy`` imported by the caller)."""
     from sympy.printing.numpy import NumPyPrinter
     out = []
@@ -183,6 +185,7 @@ def python_functions(models, sources) -> list[str]:
         doc = f"{m.target} in {m.unit}; inputs: " + (", ".join(f"{s} [{input_unit(s, sources)}]" for s in m.signals) or "none")
         if m.delays_s:
             doc += "; delays: " + ", ".join(f"{s} at t - {d:g} s" for s, d in sorted(m.delays_s.items()))
+            doc += f" ({delays_note})" if delays_note else ""
         out += ["", f"{sig}", f'    """{doc}."""']
         out += [f"    return {body}", ""]
     return out

@@ -323,8 +323,11 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
             steps[m.target, name] = k
     K = len(names)
     col = {(a, name): a * K + i for a in range(3) for i, name in enumerate(names)}
-    equations = model_header(ordered, source, to, sources)[3:]     # in the syntax of the file's language
     lagged = commands and motor.lagged
+    # the one-step models name the offset they were fitted at; this vehicle feeds them otherwise
+    note = ("called on their own; in this vehicle the commands are read at t through the motor lag "
+            "instead, as the header says") if lagged else ""
+    equations = model_header(ordered, source, to, sources, note)[3:]     # in the syntax of the file's language
     what = "logged motor commands and battery voltage" if commands else "logged motor speeds"
     header = ("Translation (m/s^2, world ENU): identify's final models, fed the simulated velocity vx, vy, vz "
               "and the Z-Y-X Euler angles",
@@ -351,7 +354,7 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
         vals = [_STATE_ARGS[s] if s in _STATE_ARGS else f"u[{col[a, s]}]" for s in m.signals]
         return ", ".join(f"{s}={v}" for s, v in zip(m.signals, vals)) if to == "python" else ", ".join(vals)
 
-    py_defs = (lag["python"]["defs"] if lag else "") + "\n".join(python_functions(ordered, sources)).strip() + "\n"
+    py_defs = (lag["python"]["defs"] if lag else "") + "\n".join(python_functions(ordered, sources, note)).strip() + "\n"
     py_deriv = ("    dv = ["
                 + ",\n          ".join(f"float({m.target}({args(a, m, 'python')}))" for a, m in enumerate(ordered))
                 + "]\n")

@@ -109,6 +109,9 @@ def test_exported_command_vehicle_reproduces_the_open_loop_rollout(tmp_path, cas
     if tau:
         assert "TAU = 0.04 s" in text and "read at t, not at the models' offsets" in text
         assert "motor1 of 0 step(s) earlier" in text
+        # the models' own offsets (their docstrings, the header) say the vehicle feeds them otherwise
+        assert "feed motor4 at t - 0.03 s (called on their own; in this vehicle the commands are read at t" in text
+        assert text.count("in this vehicle the commands are read at t through the motor lag") >= 6
         # the lag answers a command step over its time constant, not at once
         step = _logged(log).copy()
         step[START:, :4] += 0.1
@@ -116,6 +119,7 @@ def test_exported_command_vehicle_reproduces_the_open_loop_rollout(tmp_path, cas
         assert np.abs(moved[0, 3:6] - got[0, 3:6]).max() < np.abs(moved[H // 2, 3:6] - got[H // 2, 3:6]).max()
     else:
         assert "No motor lag was kept" in text and "motor4 of 4 step(s) earlier" in text
+        assert "in this vehicle" not in text
     if CC is not None:
         c = vehicle_c_rollout(tmp_path, export_vehicle(_models(delays), None, "c", dt_s=DT, motor=motor),
                               _logged(log), log.state[START], START, H)

@@ -12,6 +12,7 @@ steps. The C is compiled with ``-std=c99 -Wall -Werror`` and must match the Pyth
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -189,6 +190,20 @@ def test_cli_writes_the_vehicle_of_a_result(tmp_path, capsys):
     assert "Step: dt = 0.01 s (given by --dt)" in text
     assert main(["export", held, "--to", "c", "--dt", "0.01"]) == 2           # the equations hold no step
     assert "--dt applies to --vehicle only" in capsys.readouterr().err
+
+
+def test_every_refusal_of_the_vehicle_is_said_at_once(tmp_path, capsys):
+    """A user met the verdict's refusal, passed --identified, then met the steerability's
+    (walkthrough): both are said in the one line, each with the option that overrides it."""
+    path = _result(tmp_path, _translation(), "held")
+    doc = json.loads(Path(path).read_text())
+    doc["targets"]["vz_dot"].update(use="empirical", verdict="vz_dot: keep the empirical model")
+    Path(path).write_text(json.dumps(doc))
+    assert main(["export", path, "--vehicle", "--to", "python"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "(1) identify's verdict does not keep the identified model of vz_dot" in err
+    assert "--identified exports it anyway. (2) the identified rotational model does not answer the motors" in err
+    assert "--allow-unsteerable" in err and "replay of logged motor speeds" in err
 
 
 @pytest.mark.parametrize("case, expect", [
