@@ -156,7 +156,10 @@ class ThrustCurve:
             lo_l, hi_l = self.lag_interval
             shape += (f"; motor lag (first order on each rotor's speed) "
                       f"{1000 * (self.lag_s or self.lag_tried_s):.0f} ms "
-                      + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it)" if self.lag_s else
+                      + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it; the one-step v̇ models "
+                         f"read the commands at the plan's offset, the open loop and the exported vehicle at t "
+                         f"through this lag: each describes how the commands lead their thrust, never both at once)"
+                         if self.lag_s else
                          "not kept") + f" (decided with the velocity as logged): {self.lag_decision.evidence}")
         if self.smoothing_decision is not None:
             lo_s, hi_s = (1000 * v for v in self.smoothings_s)

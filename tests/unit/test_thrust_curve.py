@@ -310,3 +310,15 @@ def test_a_narrow_expo_interval_gets_the_digits_that_tell_its_ends_apart():
     from droneid.fitting.thrust_curve import _expo_text
     assert _expo_text(0.4987, 0.4952, 0.5031) == "0.499 [0.495, 0.503]"
     assert _expo_text(0.0, 0.0, 0.16) == "0.00 [0.00, 0.16]"
+
+
+def test_a_kept_lag_says_where_it_applies_and_where_the_offset_does():
+    """A kept lag and an accepted offset were both shown, with no word on which reads the commands
+    where (walkthrough)."""
+    from types import SimpleNamespace
+    from droneid.fitting.thrust_curve import ThrustCurve
+    c = ThrustCurve("motor", 0.5, (0.495, 0.503), {0.5: 1.0}, 0.5, (0.49, 0.51), lag_s=0.049,
+                    lag_interval=(0.043, 0.054), lag_decision=SimpleNamespace(evidence="motor lag 49 ms: accepted"))
+    text = c.text()
+    assert "49 ms [43, 54] ms kept" in text and "e = 0.500 [0.495, 0.503]" in text
+    assert "the one-step v̇ models read the commands at the plan's offset" in text and "never both at once" in text
