@@ -233,9 +233,8 @@ def assess(flights: Flight | Sequence[Flight], *, needed_signals: Sequence[str],
     vehicle type, as ``--vehicle`` does; ``prior`` names the prior in the result (display only).
     ``inputs_fixed``: the signals are those of a model already identified (predict), so a missing
     one can only come from the log, not from choosing another prior or target.
-    ``optional_signals``: signals a later stage may use where the log has them (a command prior's
-    battery voltage, for the thrust curve's compensation): their rates are judged like the needed
-    ones', warnings only (a missing or too slow one is the stage's decision, never a refusal).
+    ``optional_signals``: signals a later stage may use (a command prior's battery voltage): their
+    rates are in the warnings only, never refused (using them is that stage's decision).
     """
     if isinstance(flights, Flight):
         flights = [flights]
@@ -387,16 +386,13 @@ def _map_hint(f: Flight, signal: str, inputs_fixed: bool = False) -> str:
 
 
 def _rate_verdict(name, rates, ts, refuse, warnings, optional=None) -> None:
-    """One line per kind of rate trouble, listing the signals (slowest first). ``optional``
-    ({signal: Hz}): signals a later stage may use, in the warnings only (never refused: one too
-    slow to use is listed with the coarse ones)."""
+    """One line per kind of rate trouble, listing the signals (slowest first); ``optional``
+    ({signal: Hz}) in the coarse line only (never refused; a voltage is no dynamics)."""
     known = sorted(((hz, s) for s, hz in rates.items() if math.isfinite(hz)))
     extra = sorted(((hz, s) for s, hz in (optional or {}).items() if math.isfinite(hz)))
     refused = [(hz, s) for hz, s in known if hz * ts < MIN_RATE_STEPS]
-    coarse = sorted([(hz, s) for hz, s in known if MIN_RATE_STEPS <= hz * ts < 0.95]     # 5 % jitter
-                    + [(hz, s) for hz, s in extra if hz * ts < 0.95])
-    slow = sorted([(hz, s) for hz, s in known if hz < SLOW_DYNAMICS_HZ and hz * ts >= MIN_RATE_STEPS]
-                  + [(hz, s) for hz, s in extra if hz < SLOW_DYNAMICS_HZ])
+    coarse = sorted([x for x in known if MIN_RATE_STEPS <= x[0] * ts < 0.95] + [x for x in extra if x[0] * ts < 0.95])
+    slow = [x for x in known if x[0] < SLOW_DYNAMICS_HZ and x[0] * ts >= MIN_RATE_STEPS]  # coarse: 5 % jitter
 
     def listing(items):
         return ", ".join(f"{s} {hz:.1f} Hz" for hz, s in items)
@@ -411,8 +407,7 @@ def _rate_verdict(name, rates, ts, refuse, warnings, optional=None) -> None:
         warnings.append(f"{name}: logged slower than the grid (1/Ts = {1 / ts:.0f} Hz), grid values "
                         f"between samples are interpolated: {listing(coarse)}")
     if slow:
-        warnings.append(f"{name}: below {SLOW_DYNAMICS_HZ:.0f} Hz, multirotor dynamics are barely "
-                        f"resolved: {listing(slow)}")
+        warnings.append(f"{name}: below {SLOW_DYNAMICS_HZ:.0f} Hz, multirotor dynamics are barely resolved: {listing(slow)}")
 
 
 def _nice(x: float) -> str:
@@ -510,14 +505,13 @@ def prior_signals(prior, targets) -> tuple[str, ...]:
 def prior_fitness(flights, prior, targets, ts: float, vehicle: str | None = None) -> "Fitness | None":
     """THE fitness verdict of ``flights`` for ``prior`` and its ``targets`` (never raises on a
     refusal: see :func:`check_prior_data`); None for priors of vehicles the check does not know
-    (e.g. the ground robot's unicycle). identify, diagnose and ``inspect`` all use this."""
+    (the unicycle). identify, diagnose and ``inspect`` use this."""
     kind = getattr(prior, "vehicle", "multirotor")
     if kind not in _ACCEPTS:
         return None
     optional = ("battery_voltage",) if getattr(prior, "params", {}).get("source") in COMMAND_SOURCES else ()
-    return assess(list(flights), needed_signals=prior_signals(prior, targets), ts=ts,
-                  prior_kind=kind, vehicle=vehicle, prior=getattr(prior, "name", ""),
-                  optional_signals=optional)
+    return assess(list(flights), needed_signals=prior_signals(prior, targets), ts=ts, prior_kind=kind,
+                  vehicle=vehicle, prior=getattr(prior, "name", ""), optional_signals=optional)
 
 
 def check_prior_data(flights, prior, targets, ts: float, role: str = "training") -> "Fitness | None":

@@ -11,11 +11,9 @@ model. Reduced to what the data identify: ONE shape parameter e and one linear t
 at every e the linear scale and the vertical drag are refit (robust weights of a Huber fit,
 bounded >= 0, no free constant: free fall at zero thrust), e is the minimum of the residual sum
 of squares (between grid points: the parabola through the grid minimum), and its 95 % interval
-spans the percentile and the basic intervals of the minimum over a block bootstrap of (flight,
-time block) units (:func:`droneid.core.regression.bootstrap_span`: a profile's minimum is a biased
-estimator, which the percentile interval alone carries the wrong way;
-:func:`droneid.dataset.validation.time_blocks`; each replicate re-profiles e). A flat profile
-gives a wide interval: the output says so and never pretends a shape. The thrust is the rotors'
+:func:`droneid.core.regression.bootstrap_span` of the minima over a block bootstrap of (flight,
+time block) units (each replicate re-profiles e). A flat profile gives a wide interval: the
+output says so and never pretends a shape. The thrust is the rotors'
 (:mod:`droneid.fitting.command_thrust`): each rotor's speed through a first-order motor lag τ
 profiled beside e (kept by the block test), thrust ∝ Σ speed², compared with the target as the
 mean over the differentiator's window, and through the least-squares slope the logged velocity
@@ -23,7 +21,7 @@ may itself be (:func:`_over_smoothings`: the intervals span every slope the data
 
 Battery compensation: the motors see the battery's voltage, so the thrust of a command falls as
 it sags; ArduPilot scales its commands by V/V_ref to make up for it. The candidate reads every
-command as u·V/V_ref (V_ref: the log's MOT_BAT_VOLT_MAX when declared, else the training
+command as u·V/V_ref (V_ref: the log's :data:`V_REF_NAMES` when declared, else the training
 flights' largest screened voltage) and is kept only when :func:`droneid.fitting.decide.decide` on held-out
 v̇z residuals over the (flight, block) units says it helps (α = :data:`VOLTAGE_ALPHA`); the
 voltage's own glitches are screened like every input (:mod:`droneid.logs.screening`).
@@ -41,6 +39,7 @@ import numpy as np
 
 from priors.thrust import COMMAND_SOURCES
 
+from droneid.logs.flight import VEHICLE_PARAMETERS
 from droneid.fitting.decide import decide
 from droneid.errors import ConfigError
 from droneid.core.differentiation import averaging_window
@@ -60,12 +59,9 @@ VOLTAGE_ALPHA = 0.01
 LAG_ALPHA = 0.01
 #: block-bootstrap replicates of the expo's interval
 N_BOOT_EXPO = 200
-#: ArduPilot parameters that declare the thrust curve or the command normalisation
-DECLARED = ("MOT_THST_EXPO", "MOT_THST_HOVER", "MOT_SPIN_MIN", "MOT_SPIN_MAX", "MOT_SPIN_ARM",
-            "MOT_PWM_MIN", "MOT_PWM_MAX", "MOT_BAT_VOLT_MAX", "MOT_BAT_VOLT_MIN",
-            "MOT_THST_BAT_MAX", "MOT_THST_BAT_MIN", "THR_MID")
-#: the voltage ArduPilot's compensation scales the commands by (V), by name: MOT_BAT_VOLT_MAX, or
-#: before ArduCopter 3.6 MOT_THST_BAT_MAX (the same parameter, `_batt_voltage_max`, renamed)
+#: ArduPilot parameters that declare the thrust curve or the command normalisation (one home)
+DECLARED = VEHICLE_PARAMETERS
+#: the compensation's V_ref by name: MOT_BAT_VOLT_MAX, before ArduCopter 3.6 MOT_THST_BAT_MAX
 V_REF_NAMES = ("MOT_BAT_VOLT_MAX", "MOT_THST_BAT_MAX")
 _TARGET = "vz_dot"
 
@@ -159,8 +155,7 @@ class ThrustCurve:
                       + (f"[{1000 * lo_l:.0f}, {1000 * hi_l:.0f}] ms kept (e profiled with it; the one-step v̇ models "
                          f"read the commands at the plan's offset, the open loop and the exported vehicle at t "
                          f"through this lag: each describes how the commands lead their thrust, never both at once)"
-                         if self.lag_s else
-                         "not kept") + f" (decided with the velocity as logged): {self.lag_decision.evidence}")
+                         if self.lag_s else "not kept") + f" (decided with the velocity as logged): {self.lag_decision.evidence}")
         if self.smoothing_decision is not None:
             lo_s, hi_s = (1000 * v for v in self.smoothings_s)
             shape += (f"; the logged velocity read "
@@ -214,13 +209,11 @@ class ThrustCurve:
                 "lag_decision": self.lag_decision.to_dict() if self.lag_decision is not None else None,
                 "smoothing_s": self.smoothing_s, "smoothings_s": list(self.smoothings_s),
                 "smoothing_decision": self.smoothing_decision.to_dict() if self.smoothing_decision is not None else None,
-                "free_expo": self.free_expo, "at_bound": self.at_bound,
-                "profile": {f"{e:.2f}": v for e, v in self.profile.items()}}
+                "free_expo": self.free_expo, "at_bound": self.at_bound, "profile": {f"{e:.2f}": v for e, v in self.profile.items()}}
 
 
 def _expo_text(e: float, lo: float, hi: float) -> str:
-    """``e [lo, hi]`` with the digits that tell the ends apart: 2 decimals, 3 where the interval is
-    narrower than 0.02 ("0.50 [0.50, 0.50]" read as a zero-width interval; it was [0.495, 0.503])."""
+    """``e [lo, hi]`` with 3 decimals where the interval is narrower than 0.02, else 2."""
     d = 3 if hi - lo < 0.02 else 2
     return f"{e:.{d}f} [{lo:.{d}f}, {hi:.{d}f}]"
 
@@ -342,10 +335,9 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     (95 %), "scale" (a at e), "scale_interval", "profile" {e: RSS / min RSS at the chosen lag},
     "n_units", "lag_s", "lag_interval", "thrust" (the thrust column at the chosen (τ, e))}: (τ, e)
     from the least residual sum of squares (:func:`_surface_min`: between grid points where the
-    profile curves), the intervals :func:`~droneid.core.regression.bootstrap_span` (the hull of
-    the percentile and the basic 95 % intervals, within the grids' bounds) of the minima of
-    ``n_boot`` block-bootstrap replicates of the units (each re-profiled over the whole grid; a
-    replicate's scale is the one at its grid minimum)."""
+    profile curves); over ``n_boot`` block-bootstrap replicates of the units (each re-profiled
+    over the whole grid), e's and τ's intervals :func:`~droneid.core.regression.bootstrap_span` of
+    their minima, the scale's the percentiles of the scales at the replicates' grid minima."""
     grid, taus = np.asarray(grid, float), np.asarray(lags, float)
     drag, y, units = np.asarray(drag, float), np.asarray(y, float), np.asarray(units)
     cols = [np.asarray(thrust(grid, float(tau)), float) for tau in taus]     # T x (rows, E)
@@ -393,7 +385,9 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     kb = np.argmin(np.where(np.isfinite(Rb), Rb, np.inf).reshape(n_boot, -1), axis=1)
     scales = xb.reshape(n_boot, -1)[np.arange(n_boot), kb]
     lo, hi = bootstrap_span(es, e, min(grid[0], EXPO_GRID[0]), max(grid[-1], EXPO_GRID[-1]))
-    slo, shi = bootstrap_span(scales, a_hat, _LO[0], _HI[0])
+    # the replicates' scales are at their grid minimum, a_hat at the refined (τ, e): not one estimator
+    # to reflect about, so the scale keeps the percentile interval
+    slo, shi = np.percentile(scales, [2.5, 97.5])
     k = int(np.argmin(np.abs(taus - tau_hat)))
     best = float(np.min(R[k])) if np.min(R[k]) > 0 else 1.0
     return {"expo": e, "free_expo": free_e, "interval": (float(lo), float(hi)), "scale": a_hat,

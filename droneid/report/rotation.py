@@ -13,7 +13,7 @@ from droneid.report.document import Document, fmt, new_figure, text_table
 from droneid.report.rollout import ONE_STEP_POSITION
 from droneid.fitting.verdict import VERDICT_KINDS
 from droneid.fitting.decide import p_text
-from droneid.simulation.openloop import open_loop_verdict
+from droneid.simulation.drift import open_loop_verdict
 
 __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "open_loop_verdict", "fig_open_loop_drift",
            "ladder_rows"]

@@ -206,7 +206,7 @@ class Score:
             out["horizon_info"] = self.horizon_info
         if self.open_loop is not None:
             out["open_loop"] = self.open_loop_table()
-            from droneid.simulation.openloop import open_loop_verdict
+            from droneid.simulation.drift import open_loop_verdict
             out["open_loop_verdict"] = open_loop_verdict(out["open_loop"], self.open_loop_rotation)
             out["open_loop_rotation"] = self.open_loop_rotation
             if self.open_loop_inputs:

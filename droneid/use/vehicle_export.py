@@ -282,8 +282,12 @@ def _rpm_index(name: str) -> int:
     return int(name[3:]) - 1
 
 
-def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str,
-                     motor=None) -> tuple[Part, int]:
+#: said after the one-step models' own delays (the offset they were fitted at) in a vehicle that
+#: reads its commands at t through the motor lag instead
+_LAGGED_DELAYS = "called on their own; in this vehicle the commands are read at t through the motor lag instead, as the header says"
+
+
+def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, to: str, motor=None) -> tuple[Part, int]:
     """identify's final v̇ models (:class:`droneid.simulation.openloop.IdentifiedTranslation`), fed the simulated
     velocity and Euler angles and their logged inputs at ``t − delay`` in whole steps of ``dt_s``,
     as :meth:`IdentifiedTranslation.inputs` reads them; columns model by model, input by input. A
@@ -324,9 +328,7 @@ def _identified_part(models: Mapping, dt_s: float, source: str, sources: dict, t
     K = len(names)
     col = {(a, name): a * K + i for a in range(3) for i, name in enumerate(names)}
     lagged = commands and motor.lagged
-    # the one-step models name the offset they were fitted at; this vehicle feeds them otherwise
-    note = ("called on their own; in this vehicle the commands are read at t through the motor lag "
-            "instead, as the header says") if lagged else ""
+    note = _LAGGED_DELAYS if lagged else ""
     equations = model_header(ordered, source, to, sources, note)[3:]     # in the syntax of the file's language
     what = "logged motor commands and battery voltage" if commands else "logged motor speeds"
     header = ("Translation (m/s^2, world ENU): identify's final models, fed the simulated velocity vx, vy, vz "

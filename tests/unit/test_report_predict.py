@@ -93,7 +93,7 @@ def test_the_open_loop_table_has_a_verdict_first():
     """A user who reads only the first line learns whether the identified vehicle drifts less than
     holding the state, and where it does not, up to which horizon it is the better prediction and
     that held body rates are what drifts (log171 before this: SimErr 661 m against 310 held, no word)."""
-    from droneid.simulation.openloop import open_loop_verdict
+    from droneid.simulation.drift import open_loop_verdict
 
     def rows(pos, att=1.0):
         return {"simerr": {"position": pos, "attitude": att}, "1": {"position": pos / 100},
