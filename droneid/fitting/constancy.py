@@ -43,9 +43,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special    # chdtrc, stdtrit: scipy.stats' chi2.sf and t.ppf, without its 0.5 s import
 
+from droneid.core.regression import bootstrap_draws, robust_fit
+
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
-           "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text"]
+           "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text",
+           "unit_estimate", "constancies", "new_flight_expectation", "new_flight_p"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -110,6 +113,70 @@ def heterogeneity(values, se) -> dict:
     qs = float(np.sum(ws * (v - mu) ** 2)) / (k - 1)
     half = float(special.stdtrit(k - 1, 0.975)) * math.sqrt(max(qs, 1.0) / float(np.sum(ws)))
     return {"p": p, "q": q, "tau": math.sqrt(tau2), "mean": mu, "low": mu - half, "high": mu + half}
+
+
+def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None, *,
+                  seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One unit's own fit (a flight or a stretch): ``(β, se, pct)``, its robust fit, the standard
+    error of each coefficient over the block bootstrap of its own time ``blocks`` (inflated by
+    ``B/(B − 1)`` for B blocks: the block bootstrap's small-sample shrinkage) and the (2, k)
+    percentile 95 % interval of the draws."""
+    f = robust_fit(A, y, lo, hi)
+    b = np.unique(blocks).size
+    draws = bootstrap_draws(A, y, blocks, f, lo, hi, seed=seed)
+    se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
+    return f.beta, se, np.percentile(draws, [2.5, 97.5], axis=0)
+
+
+def constancies(kind: str, names: Sequence[str], vals, ses, ivs, labels: Mapping[int, str],
+                physical: Mapping[int, tuple[float, str] | None] | None = None) -> dict[str, "Constancy"]:
+    """{label: :class:`Constancy`} of the coefficients ``labels`` (column index: name) from the
+    per-unit estimates of :func:`unit_estimate` (``vals``, ``ses`` (U, k), ``ivs`` U × (2, k)) of
+    the units ``names`` of ``kind``: each tested and combined by :func:`heterogeneity`, flagged by
+    Holm over ``labels`` (:func:`holm_flags`) and the spread rule (:func:`moved`); {} with fewer
+    than two units."""
+    if len(names) < 2:
+        return {}
+    vals, ses = np.asarray(vals, float), np.asarray(ses, float)
+    het = {lab: heterogeneity(vals[:, i], ses[:, i]) for i, lab in labels.items()}
+    flags = holm_flags({lab: h["p"] for lab, h in het.items()})
+    out = {}
+    for i, lab in labels.items():
+        h = het[lab]
+        out[lab] = Constancy(
+            kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(names)},
+            h["p"], (not moved(flags[lab], h["tau"], h["mean"])) if math.isfinite(h["p"]) else None,
+            (h["low"], h["high"]) if kind == "flight" else None, h["tau"], (physical or {}).get(i))
+    return out
+
+
+def new_flight_expectation(value: float, low: float, high: float, constancy: Mapping | None) -> dict:
+    """What a NEW flight of the vehicle should give for a constant identified as ``value`` [``low``,
+    ``high``] (95 %) with its constancy record ``constancy`` (:meth:`Constancy.to_dict`, or None):
+    ``{"value", "se", "df", "flights"}``. With two or more training flights, the random-effects mean μ
+    of their values (the middle of the between-flight interval) and the spread of a new flight
+    about it, √(se_μ² + τ²) (se_μ from the Hartung-Knapp interval), with k − 1 degrees of freedom;
+    otherwise ``value`` and the standard error its interval stands for (normal)."""
+    out = {"value": float(value), "se": se_of_interval(low, high), "df": math.inf, "flights": 1}
+    c = constancy or {}
+    per = c.get("per_flight") or {}
+    between, tau = c.get("between"), c.get("tau")
+    if c.get("unit") == "flight" and len(per) >= 2 and between and tau is not None and math.isfinite(float(tau)):
+        k = len(per)
+        b_lo, b_hi = float(between[0]), float(between[1])
+        se_mu = (b_hi - b_lo) / 2 / float(special.stdtrit(k - 1, 0.975))
+        out.update(value=(b_lo + b_hi) / 2, se=math.hypot(se_mu, float(tau)), df=float(k - 1), flights=k)
+    return out
+
+
+def new_flight_p(value: float, se: float, expected: Mapping) -> float:
+    """Two-sided p of a flight's own estimate ``value`` ± ``se`` against :func:`new_flight_expectation`'s
+    ``expected``: ``t = (θ − μ) / √(se² + se_new²)`` on its degrees of freedom (NaN: no test)."""
+    t = (float(value) - expected["value"]) / math.hypot(float(se), expected["se"])
+    if not math.isfinite(t):
+        return math.nan
+    df = expected["df"]
+    return float(special.erfc(abs(t) / math.sqrt(2))) if math.isinf(df) else float(2 * special.stdtr(df, -abs(t)))
 
 
 def moved(flagged: bool, spread: float, value: float) -> bool:

@@ -25,8 +25,8 @@ import sympy as sp
 
 from droneid.core.expressions import compile_expression
 from droneid.core.numerics import rmse
-from droneid.fitting.constancy import MIN_UNIT_ROWS, Constancy, heterogeneity, holm_flags, moved, units_of
-from droneid.core.regression import block_bootstrap, blocked_cv, bootstrap_draws, robust_fit
+from droneid.fitting.constancy import MIN_UNIT_ROWS, constancies, unit_estimate, units_of
+from droneid.core.regression import block_bootstrap, blocked_cv, robust_fit
 from droneid.dataset.validation import time_blocks
 
 __all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "constancy_of", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
@@ -355,38 +355,20 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
         return {}
     unit, names, kind = units_of(t, flight, sources)
     lo, hi = model.bounds()
-    vals, ses, ivs = [], [], []
-    used = []
+    vals, ses, ivs, used = [], [], [], []
     for u, name in enumerate(names):
         rows = np.flatnonzero(unit == u)
         if rows.size < MIN_UNIT_ROWS:
             continue
         sub = {n: np.asarray(v)[rows] for n, v in columns.items()}
         A, yy, _, _ = model._problem(sub, np.asarray(y, float)[rows])
-        f = robust_fit(A, yy, lo, hi)
-        blocks = time_blocks(t[rows], np.zeros(rows.size, int))
-        b = np.unique(blocks).size
-        draws = bootstrap_draws(A, yy, blocks, f, lo, hi, seed=seed)
-        se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
-        pct = np.percentile(draws, [2.5, 97.5], axis=0)
-        vals.append(f.beta)
+        beta, se, pct = unit_estimate(A, yy, time_blocks(t[rows], np.zeros(rows.size, int)), lo, hi, seed=seed)
+        vals.append(beta)
         ses.append(se)
         ivs.append(pct)
         used.append(name)
-    if len(used) < 2:
-        return {}
-    vals, ses = np.array(vals), np.array(ses)
-    het = {model.labels[i]: heterogeneity(vals[:, i], ses[:, i]) for i in which}
-    flags = holm_flags({lab: h["p"] for lab, h in het.items()})
-    out = {}
-    for i in which:
-        lab = model.labels[i]
-        h = het[lab]
-        out[lab] = Constancy(
-            kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(used)},
-            h["p"], (not moved(flags[lab], h["tau"], h["mean"])) if math.isfinite(h["p"]) else None,
-            (h["low"], h["high"]) if kind == "flight" else None, h["tau"], _physical_scale(model.terms[i]))
-    return out
+    return constancies(kind, used, vals, ses, ivs, {i: model.labels[i] for i in which},
+                       {i: _physical_scale(model.terms[i]) for i in which})
 
 
 def _physical_scale(term: sp.Expr) -> tuple[float, str] | None:

@@ -7,7 +7,8 @@ import math
 
 from collections.abc import Mapping
 
-from droneid.rotation.model import unsteerable, unsteerable_sentence
+from droneid.fitting.constancy import constancy_line, rule_text
+from droneid.rotation.model import AXIS_NAMES, unsteerable, unsteerable_sentence
 from droneid.rotation.stage import RotationResult
 from droneid.report.document import Document, fmt, new_figure, text_table
 from droneid.report.rollout import ONE_STEP_POSITION
@@ -16,7 +17,7 @@ from droneid.fitting.decide import p_text
 from droneid.simulation.drift import open_loop_verdict
 
 __all__ = ["rotation_lines", "rotation_section", "open_loop_table", "open_loop_legend", "open_loop_verdict", "fig_open_loop_drift",
-           "ladder_rows"]
+           "ladder_rows", "gains_lines"]
 
 _QUANTITIES = (("position", "m"), ("velocity", "m/s"), ("attitude", "rad"), ("rates", "rad/s"))
 _SHOWN = ("1", "10", "50")
@@ -137,6 +138,40 @@ def _model_line(rot: RotationResult) -> str:
                                                                  f"--allow-unsteerable)" if tail else "")
 
 
+def gains_lines(rot: RotationResult) -> list[str]:
+    """The vehicle's torque gains (:mod:`droneid.rotation.gains`): each axis's gain with its 95 %
+    interval, which axes of the chosen model use it, and their constancy over the training flights."""
+    g = rot.torque_gains
+    if g is None:
+        return []
+    used = [ax for k, ax in enumerate(AXIS_NAMES) if rot.axes[k].rung == "torque"]
+    shown = ", ".join(f"{ax} {v:.3g} [{lo:.3g}, {hi:.3g}]" for ax, (v, lo, hi) in g.gains.items())
+    where = (f"the chosen model uses it on {', '.join(used)}" if used else
+             "the chosen model uses it on no axis (the ladder did not take the torque rung)")
+    return [f"torque gains, the motors' torque over the body's inertia ({g.unit}; the torque rung's model fitted "
+            f"at the equation level, a trim per in-flight stretch; 95 % interval: the hull of the (flight, block) "
+            f"bootstrap and the between-flight interval): {shown}; {where}",
+            *filter(None, [constancy_line(g.constancy), _tested_line(g)])]
+
+
+def _tested_line(g) -> str:
+    """The torque gains on the test flights (reported, never chosen on): the verdict first."""
+    if not g.tested:
+        return ""
+    bad = [f"{f} {ax}" for f, per in g.tested.items() for ax, v in per.items() if v[4] is False]
+    head = (f"DO NOT HOLD on the test flights ({', '.join(bad)}): not the vehicle's constants under this model"
+            if bad else "hold on the test flights")
+    parts = []
+    for f, per in g.tested.items():
+        cells = []
+        for ax, (v, lo, hi, p, holds) in per.items():
+            said = "not identifiable" if holds is None else f"p = {p:.2g}" + ("" if holds else ": DOES NOT HOLD")
+            cells.append(f"{ax} {v:.3g} [{lo:.3g}, {hi:.3g}] ({said})")
+        parts.append(f"{f}: " + ", ".join(cells))
+    rule = rule_text("each flight fitted alone, against what a new flight of the vehicle should give; two-sided p")
+    return f"  the torque gains {head} ({rule}; reported, never chosen on): " + "; ".join(parts)
+
+
 def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:
     """(header, rows): per model MAE at 1, 10, 50 steps and SimErr for the four quantities."""
     header = ["model", "horizon"] + [f"{q} ({u})" for q, u in _QUANTITIES]
@@ -169,7 +204,7 @@ def rotation_lines(rot: RotationResult | None) -> list[str]:
         return []
     out = ["", "== rotation: ω̇x, ω̇y, ω̇z (body FLU), against the nominal rigid body with the rates held",
            *(a.verdict for a in rot.axes),
-           f"rotor layout {rot.layout}: {rot.layout_source}; {rot.speed_note}", _model_line(rot)]
+           f"rotor layout {rot.layout}: {rot.layout_source}; {rot.speed_note}", _model_line(rot), *gains_lines(rot)]
     header, rows = _axes_table(rot)
     out += [text_table(header, rows),
             "body-rate SimErr per axis (Σ over 1..50 steps of the mean |Δω|, rad/s), open loop; validation: each "
@@ -214,6 +249,8 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
         doc.verdict(a.verdict, VERDICT_KINDS.get(a.verdict_kind, "grey"))
     doc.paragraph(f"Rotor layout {rot.layout}: {rot.layout_source}; {rot.speed_note}.")
     doc.code(_model_line(rot))
+    for line in gains_lines(rot):
+        doc.paragraph(line.strip())
     header, rows = _axes_table(rot)
     doc.table(header, rows)
     doc.paragraph("Body-rate SimErr per axis: Σ over 1..50 steps of the mean |Δω| (rad/s), simulated open loop "

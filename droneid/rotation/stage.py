@@ -42,14 +42,17 @@ from droneid.rotation.commands import COMMAND_SPEED_NOTE, CommandSpeeds
 from droneid.simulation.motor_model import MotorModel
 from droneid.rotation.model import (AXIS_NAMES, NO_RESPONSE, SPEED_UNIT, RotationModel, identify_layout,
                                     unsteerable)
-from droneid.rotation.choice import HeldRates, select_rotation, validation_sums
+from droneid.rotation.choice import DEFAULT_CANDIDATES, HeldRates, select_rotation, validation_sums
+from droneid.rotation.gains import TorqueGains, check_gains, torque_gains
 
 __all__ = ["ROTATION_TARGETS", "AxisResult", "RotationResult", "RotationJob", "rotation_job", "choose_rotation",
            "score_rotation", "speed_scale"]
 
 #: the rotational targets, body FLU axes x (roll), y (pitch), z (yaw)
 ROTATION_TARGETS = ("wx_dot", "wy_dot", "wz_dot")
-#: open-loop windows scored on the test flights: every start
+#: the unit of the torque gains of logged rotor speeds, and of a command-driven vehicle's
+GAIN_UNIT = "rad/s² per unit of (P s), s = (rotor speed / 1000 rad/s)²"
+GAIN_UNIT_COMMANDS = "rad/s² per unit of (P s), s = each rotor's thrust as a fraction of full thrust"
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,9 @@ class RotationResult:
         time constants were fitted at (the exported step function's default step)
     from_commands : the rotors' speeds came from the logged motor commands through the plan's motor
         model (:mod:`droneid.rotation.commands`: ``s`` in units of full thrust), not logged speeds
+    torque_gains : the vehicle's torque gains per body axis, with intervals and their constancy
+        across the training flights (:mod:`droneid.rotation.gains`), whatever rung each axis took;
+        None when they could not be fitted (a note says why)
     """
     layout: str
     layout_source: str
@@ -110,6 +116,7 @@ class RotationResult:
     notes: tuple[str, ...] = ()
     dt_s: float = math.nan
     from_commands: bool = False
+    torque_gains: TorqueGains | None = None
 
     def to_dict(self) -> dict:
         return to_jsonable({"targets": list(ROTATION_TARGETS), "layout": self.layout,
@@ -118,7 +125,8 @@ class RotationResult:
                             "model": None if self.model is None else self.model.to_dict(),
                             "choice": dict(self.choice), "axes": [a.to_dict() for a in self.axes],
                             "open_loop_test": dict(self.open_loop_test), "notes": list(self.notes),
-                            "dt_s": self.dt_s, "from_commands": self.from_commands})
+                            "dt_s": self.dt_s, "from_commands": self.from_commands,
+                            "torque_gains": None if self.torque_gains is None else self.torque_gains.to_dict()})
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "RotationResult":
@@ -129,7 +137,8 @@ class RotationResult:
                        str(d.get("speed_note") or ""), model, dict(d["choice"]),
                        tuple(AxisResult.from_dict(a) for a in d["axes"]), dict(d.get("open_loop_test") or {}),
                        tuple(d.get("notes") or ()), math.nan if d.get("dt_s") is None else float(d["dt_s"]),
-                       bool(d.get("from_commands", False)))
+                       bool(d.get("from_commands", False)),
+                       None if d.get("torque_gains") is None else TorqueGains.from_dict(d["torque_gains"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(f"the result's rotation section is damaged: {exc}") from None
 
@@ -205,6 +214,9 @@ def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Map
     IdentifiedModel} as the translation (``motor``: the motor model of a command-driven vehicle's
     models), against the rates held (a note when they cannot be scored)."""
     commands = None if rot.model is None else rot.model.commands
+    gains = rot.torque_gains
+    if commands is None and gains is not None and gains.model is not None:
+        commands = gains.model.commands
     try:
         tr = IdentifiedTranslation(translation, motor if motor is not None or commands is None else commands.motor)
         signals = tuple(dict.fromkeys([*tr.signals(), *(commands.signals() if commands is not None else ())]))
@@ -213,7 +225,13 @@ def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Map
         model = _axis_simerr(IdentifiedVehicle(tr, rot.model), test) if rot.model is not None else held
     except DroneIdError as exc:
         return replace(rot, notes=(*rot.notes, f"rotation not scored on the test flights: {exc}"))
-    return replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model, rot.model))
+    if gains is not None:
+        try:
+            gains = check_gains(gains, test)
+        except DroneIdError as exc:
+            rot = replace(rot, notes=(*rot.notes, f"the torque gains not checked on the test flights: {exc}"))
+    return replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model, rot.model),
+                   torque_gains=gains)
 
 
 @dataclass(frozen=True)
@@ -246,10 +264,17 @@ class RotationJob:
         record = {k: v for k, v in choice.to_dict().items() if k != "model"}   # the model is kept once
         val_model = choice.table[choice.chosen]["rates_axis_simerr"] if choice.model is not None else \
             choice.held["rates_axis_simerr"]
+        gains, notes = None, ()
+        try:
+            gains = torque_gains(train, get_layout(layout), DEFAULT_CANDIDATES[0], rad_s_per_rpm=self.rad_s_per_rpm,
+                                 unit=GAIN_UNIT_COMMANDS if self.commands is not None else GAIN_UNIT,
+                                 commands=self.commands)
+        except DataError as exc:
+            notes = (f"the torque gains could not be fitted: {exc}",)
         return RotationResult(layout, source, self.rad_s_per_rpm, self.speed_note, choice.model, record,
-                              _axes(record, val_model, [math.nan] * 3, [math.nan] * 3, choice.model),
+                              _axes(record, val_model, [math.nan] * 3, [math.nan] * 3, choice.model), notes=notes,
                               dt_s=float(np.median([log.dt_s for log in train])),
-                              from_commands=self.commands is not None)
+                              from_commands=self.commands is not None, torque_gains=gains)
 
 
 def _axes(record: Mapping, val_model: Sequence[float], test_held: Sequence[float],

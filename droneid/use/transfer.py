@@ -40,8 +40,8 @@ from droneid.core.expressions import parse_expression
 from droneid.core.regression import bootstrap_draws, robust_fit
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DroneIdError
-from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved, rule_text,
-                                       se_of_interval)
+from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved,
+                                       new_flight_expectation, new_flight_p, rule_text)
 from droneid.fitting.terms import IDENTIFIABLE_REL, evaluate_expr
 
 __all__ = ["ConstantCheck", "identified_constants", "check_constants", "constants_line"]
@@ -119,22 +119,10 @@ def identified_constants(tr: Mapping) -> dict:
             continue
         if not (all(math.isfinite(x) for x in (v, lo, hi)) and hi > lo):
             continue
-        entry = {"value": v, "se": se_of_interval(lo, hi), "df": math.inf, "role": str(f["role"]),
-                 "expr": str(f.get("expr")), "flights": 1}
-        c = constancy.get(name) or {}
-        per = c.get("per_flight") or {}
-        between, tau = c.get("between"), c.get("tau")
-        if c.get("unit") == "flight" and len(per) >= 2 and between and tau is not None and math.isfinite(float(tau)):
-            k = len(per)
-            b_lo, b_hi = float(between[0]), float(between[1])
-            se_mu = (b_hi - b_lo) / 2 / float(special.stdtrit(k - 1, 0.975))
-            entry.update(value=(b_lo + b_hi) / 2, se=math.hypot(se_mu, float(tau)), df=float(k - 1), flights=k)
+        entry = {**new_flight_expectation(v, lo, hi, constancy.get(name)), "role": str(f["role"]),
+                 "expr": str(f.get("expr"))}
         out[lab] = entry
     return out
-
-
-def _p_two_sided(t: float, df: float) -> float:
-    return float(special.erfc(abs(t) / math.sqrt(2))) if math.isinf(df) else float(2 * special.stdtr(df, -abs(t)))
 
 
 def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.ndarray], y: np.ndarray,
@@ -191,8 +179,7 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
                                          math.nan, None, "not identifiable on this flight: at its bound, or its "
                                          f"interval wider than ±{100 * IDENTIFIABLE_REL:.0f} %", c["flights"])
                 continue
-            tt = (v - c["value"]) / math.hypot(float(se[j]), c["se"])
-            ps[lab] = _p_two_sided(tt, c["df"]) if math.isfinite(tt) else math.nan
+            ps[lab] = new_flight_p(v, float(se[j]), c)
             res[lab] = (v, float(pct[0, j]), float(pct[1, j]), expected)
         flags = holm_flags(ps, ALPHA)
         for lab in labs:

@@ -1,0 +1,251 @@
+"""The vehicle's torque gains (issue 37.4): how hard each body axis answers its motors, as a
+constant of the vehicle, with its interval and its test across flights.
+
+The torque rung's model (:data:`droneid.rotation.choice.DEFAULT_CANDIDATES`: its terms and input
+conditioning), fitted at the equation level on the training flights, ``ω̇_k = a_k (P s)_k + … +
+b_k,flight``, gives per body axis the gain ``a_k``: the rotors' torque over the body's inertia, in
+rad/s² per unit of ``(P s)_k`` (``s_i = (ω_i / 1000 rad/s)²``, ``P`` the layout's torque patterns;
+on a command-driven vehicle ``s_i`` is the rotor's thrust as a fraction of full thrust). Whether an
+axis's open-loop model uses it is the ladder's decision (:mod:`droneid.rotation.choice`); the gain
+is what a controller designer needs either way, and like the v̇ constants
+(:mod:`droneid.fitting.constancy`, the same functions) it must hold from flight to flight:
+
+- **pooled**: one fit of every training flight, a trim per in-flight stretch (a flight condition:
+  balance point, battery); its 95 % interval is the percentile block bootstrap over (flight, time
+  block) units (:func:`droneid.dataset.validation.time_blocks`), each replicate refit with its
+  trims;
+- **per flight**: each flight alone (its own trims), with its block-bootstrap standard error;
+- **constancy**: Cochran's Q over the flights, Holm over the three axes at
+  :data:`droneid.fitting.constancy.ALPHA`, and a spread τ of at least
+  :data:`~droneid.fitting.constancy.MIN_TAU_REL` of the gain (:func:`~droneid.fitting.constancy.constancies`);
+- **the reported interval**: the hull of the pooled bootstrap's and the between-flight
+  (random-effects, HKSJ) one, so it counts how much the flights disagree;
+- **on the test flights** (:func:`check_gains`; reported, never chosen on): each flight's own gain
+  against what a new flight of the vehicle should give, the rule of ``predict``'s check of the v̇
+  constants (:func:`droneid.fitting.constancy.new_flight_expectation`, two-sided p, Holm over the
+  axes, the spread rule).
+
+The physics bound: a gain is never negative (the torque along the layout's pattern turns the body
+the pattern's way; :func:`droneid.rotation.model.rotation_bounds`). An equation-error gain of a
+vehicle flown in closed loop is not free of the controller: the motor differences also follow the
+rotation they react to (docs/use-the-model.md), which is one reason it can move between flights.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from priors.torque import RotorLayout
+
+from droneid.core.io_util import to_jsonable
+from droneid.core.regression import (gram_bounded_lstsq_many, group_grams, robust_fit_grouped, within_gram)
+from droneid.dataset.validation import time_blocks
+from droneid.errors import DataError
+from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, Constancy, constancies, holm_flags, moved,
+                                       new_flight_expectation, new_flight_p, unit_estimate)
+from droneid.rotation.commands import CommandSpeeds
+from droneid.rotation.model import (AXIS_NAMES, RotationModel, fit_rotation, rotation_bounds, rotation_design,
+                                    rotation_rows)
+from droneid.simulation.openloop import StateLog
+
+__all__ = ["TorqueGains", "torque_gains", "check_gains", "N_BOOT", "IDENTIFIABLE_REL"]
+
+#: bootstrap replicates of the pooled gain
+N_BOOT = 200
+#: a flight's gain whose 95 % interval is wider than ± this fraction of it is not identifiable there
+IDENTIFIABLE_REL = 0.5
+
+
+@dataclass(frozen=True)
+class TorqueGains:
+    """result.json's ``rotation.torque_gains``.
+
+    unit : the gains' unit; terms : the torque model's other terms (fitted beside the gain);
+    gains : {axis: (value, low, high)} the pooled gain and its reported 95 % interval (the hull of
+        the pooled block bootstrap and the between-flight interval); pooled_interval : {axis:
+        (low, high)} the bootstrap's alone; constancy : {axis: :class:`Constancy`} (empty with
+        fewer than two flights long enough to fit alone); model : the torque rung's model fitted on
+        every training flight (its coefficients and input conditioning: what the test flights are
+        read through; ``commands`` set on a command-driven vehicle); tested : {test flight: {axis:
+        (value, low, high, p, holds)}} from :func:`check_gains` (holds None: not identifiable there)
+    """
+    unit: str
+    terms: tuple[str, ...]
+    gains: Mapping[str, tuple[float, float, float]]
+    pooled_interval: Mapping[str, tuple[float, float]]
+    constancy: Mapping[str, Constancy] = field(default_factory=dict)
+    model: RotationModel | None = None
+    tested: Mapping[str, Mapping[str, tuple]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return to_jsonable({"unit": self.unit, "terms": list(self.terms),
+                            "gains": {k: list(v) for k, v in self.gains.items()},
+                            "pooled_interval": {k: list(v) for k, v in self.pooled_interval.items()},
+                            "constancy": {k: c.to_dict() for k, c in self.constancy.items()},
+                            "model": None if self.model is None else self.model.to_dict(),
+                            "tested": {f: {a: list(v) for a, v in per.items()} for f, per in self.tested.items()}})
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "TorqueGains":
+        try:
+            def nums(v):
+                return tuple(math.nan if x is None else float(x) for x in v)
+            return cls(str(d["unit"]), tuple(d["terms"]), {k: nums(v) for k, v in d["gains"].items()},
+                       {k: nums(v) for k, v in d["pooled_interval"].items()},
+                       {k: Constancy.from_dict(c) for k, c in (d.get("constancy") or {}).items()},
+                       None if d.get("model") is None else RotationModel.from_dict(d["model"]),
+                       {f: {a: (*nums(v[:4]), v[4]) for a, v in per.items()} for f, per in (d.get("tested") or {}).items()})
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"the result's torque gains are damaged: {exc}") from None
+
+
+def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mapping, *, rad_s_per_rpm: float,
+                 unit: str, window_s: float = 0.05, seed: int = 0, n_boot: int = N_BOOT,
+                 commands: CommandSpeeds | None = None) -> TorqueGains:
+    """The torque gains of ``logs`` (training flights' in-flight stretches; stretches of one flight
+    share its name; a command-driven vehicle's already its commands' speeds, ``commands`` the
+    motor model they came through) under the torque ``candidate`` (keywords of
+    :func:`droneid.rotation.model.fit_rotation`); see the module docstring. DataError without a
+    row in flight."""
+    shell = fit_rotation(logs, layout, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm, **dict(candidate))
+    terms = shell.terms
+    rows = _rows(logs, shell, window_s)
+    flight, group, t = rows["flight"], rows["group"], rows["t"]
+    names = rows["names"]
+    blocks = time_blocks(t, flight)
+    used = [f for f in range(len(names)) if np.count_nonzero(flight == f) >= MIN_UNIT_ROWS]
+    pooled, boot, vals, ses, ivs = {}, {}, np.zeros((len(used), 3)), np.zeros((len(used), 3)), \
+        [np.zeros((2, 3)) for _ in used]
+    for k, axis in enumerate(AXIS_NAMES):
+        A, y = rows["A"][k], rows["y"][k]
+        lo = rotation_bounds(k, terms, A.shape[1])
+        fit = robust_fit_grouped(A, y, group, lo=lo)
+        pooled[axis] = float(fit.beta[0])
+        draws = _grouped_draws(A, y, group, blocks, fit.weights, lo, n_boot, seed)[:, 0]
+        boot[axis] = tuple(float(x) for x in np.percentile(draws, [2.5, 97.5]))
+        for i, f in enumerate(used):
+            beta, se, pct = _alone(A, y, group, t, flight == f, lo, seed)
+            vals[i, k], ses[i, k], ivs[i][:, k] = beta[0], se[0], pct[:, 0]
+    const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)))
+    gains = {}
+    for axis in AXIS_NAMES:
+        lo_, hi_ = boot[axis]
+        c = const.get(axis)
+        if c is not None and c.between is not None:
+            lo_, hi_ = min(lo_, c.between[0]), max(hi_, c.between[1])
+        gains[axis] = (pooled[axis], max(lo_, 0.0), hi_)
+    return TorqueGains(unit, tuple(terms), gains, boot, const, model=dataclasses.replace(shell, commands=commands))
+
+
+def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0.05, seed: int = 0) -> TorqueGains:
+    """``g`` with each flight of ``logs`` (test flights' in-flight stretches, as logged: a
+    command-driven vehicle's are read through ``g.model.commands``) tested: its own gain per axis
+    (fitted alone with its trims, the other terms free, as a training flight's) against what a new
+    flight of the vehicle should give (:func:`droneid.fitting.constancy.new_flight_expectation` of
+    the reported gain and its constancy), two-sided p, Holm over the axes at ALPHA, the spread rule;
+    a gain at its bound or with an interval wider than ±:data:`IDENTIFIABLE_REL` of it is not
+    identifiable there (holds None). Reported, never chosen on."""
+    shell = g.model
+    if shell is None or not logs:
+        return g
+    if shell.commands is not None:
+        logs = [shell.commands.speed_log(log) for log in logs]
+    rows = _rows(logs, shell, window_s)
+    tested = {}
+    for f, name in enumerate(rows["names"]):
+        sel = rows["flight"] == f
+        if np.count_nonzero(sel) < MIN_UNIT_ROWS:
+            continue
+        res, ps = {}, {}
+        for k, axis in enumerate(AXIS_NAMES):
+            lo = rotation_bounds(k, shell.terms, rows["A"][k].shape[1])
+            beta, se, pct = _alone(rows["A"][k], rows["y"][k], rows["group"], rows["t"], sel, lo, seed)
+            v, low, high = float(beta[0]), float(pct[0, 0]), float(pct[1, 0])
+            c = g.constancy.get(axis)
+            expected = new_flight_expectation(g.gains[axis][0], *g.pooled_interval[axis],
+                                              None if c is None else c.to_dict())
+            res[axis] = (v, low, high)
+            if v > 0 and (high - low) / 2 <= IDENTIFIABLE_REL * v:
+                ps[axis] = new_flight_p(v, float(se[0]), expected)
+                res[axis] += (expected["value"],)
+        flags = holm_flags(ps, ALPHA)
+        tested[name] = {axis: (*res[axis][:3], ps[axis], not moved(flags[axis], abs(res[axis][0] - res[axis][3]),
+                                                                    res[axis][3]))
+                        if axis in ps else (*res[axis], math.nan, None) for axis in AXIS_NAMES}
+    return dataclasses.replace(g, tested=tested)
+
+
+#: the smoothing applied alike to the target and to every regressor (a linear filter on both sides
+#: keeps the equation exact): triangular, 5 steps
+_KERNEL = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
+
+
+def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float) -> dict:
+    """Every axis's design and target over ``logs`` with ``shell``'s conditioning, and per row its
+    flight (index into ``names``: stretches of one flight share its name), stretch (``group``) and
+    a time index (``t``, steps; stretches far apart).
+
+    The target is each step's rate change over the step, ``(ω_{k+1} − ω_k) / dt``, at the step's
+    midpoint where the regressors sit (the input held over the step, the states at the midpoint):
+    exact for the integral of ω̇ over the step, and white gyro noise in it is uncorrelated with the
+    midpoint rate of the decay term. Both sides are then smoothed by one filter (:data:`_KERNEL`),
+    which keeps the equation. (A Savitzky-Golay derivative of the rates against unsmoothed
+    regressors, as the open-loop fit takes it, attenuates the gains: 1 % on the planted flights of
+    tests/unit/test_torque_gains.py, more than their intervals.)"""
+    P = shell.layout.patterns()
+    names = list(dict.fromkeys(log.name for log in logs))
+    A, y = [[], [], []], [[], [], []]
+    flight, group, t = [], [], []
+    for j, log in enumerate(logs):
+        r = rotation_rows(log, shell, window_s)
+        every = (np.ones_like(r[0]), *r[1:])
+        keep = np.flatnonzero(np.convolve(r[0].astype(float), np.ones(_KERNEL.size), mode="same") >= _KERNEL.size - 1e-9)
+        dw = np.diff(log.state[:, 10:13], axis=0) / log.dt_s
+        for k in range(3):
+            A[k].append(_smooth(rotation_design(k, P, shell.terms, every))[keep])
+            y[k].append(_smooth(dw[:, k:k + 1])[keep, 0])
+        flight.append(np.full(keep.size, names.index(log.name)))
+        group.append(np.full(keep.size, j))
+        t.append(keep + 1e7 * j)
+    return {"names": names, "flight": np.concatenate(flight), "group": np.concatenate(group),
+            "t": np.concatenate(t).astype(float), "A": [np.vstack(a) for a in A], "y": [np.concatenate(v) for v in y]}
+
+
+def _smooth(x: np.ndarray) -> np.ndarray:
+    """Each column of ``x`` (N, K) filtered by :data:`_KERNEL` (centred; the ends left partial)."""
+    return np.column_stack([np.convolve(x[:, c], _KERNEL, mode="same") for c in range(x.shape[1])])
+
+
+def _alone(A: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray, lo: np.ndarray,
+           seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`droneid.fitting.constancy.unit_estimate` of the rows ``sel`` (one flight), a trim per
+    stretch of it, bootstrapped over its own time blocks."""
+    stretches = np.unique(group[sel])
+    A1 = np.column_stack([A[sel], (group[sel][:, None] == stretches[None]).astype(float)])
+    lo1 = np.concatenate([lo, np.full(stretches.size, -np.inf)])
+    return unit_estimate(A1, y[sel], time_blocks(t[sel], np.zeros(int(sel.sum()), int)), lo1, seed=seed)
+
+
+def _grouped_draws(A: np.ndarray, y: np.ndarray, group: np.ndarray, blocks: np.ndarray, w: np.ndarray,
+                   lo: np.ndarray, n_boot: int, seed: int) -> np.ndarray:
+    """(n_boot, k) coefficients of ``y ≈ A β + b_group`` refit on block-bootstrap replicates: the
+    (flight, block) units ``blocks`` resampled with replacement, the rows keeping the full fit's
+    robust weights ``w``, each replicate's intercepts (one per ``group``) profiled out."""
+    g_ids, g_inv = np.unique(group, return_inverse=True)
+    b_ids, b_inv = np.unique(blocks, return_inverse=True)
+    cell = b_inv * g_ids.size + g_inv                     # a unit cut where it spans two stretches
+    c_ids, S = group_grams(A, y, w, cell)
+    c_block, c_group = c_ids // g_ids.size, c_ids % g_ids.size
+    rng = np.random.default_rng(seed)
+    counts = np.stack([np.bincount(d, minlength=b_ids.size)
+                       for d in rng.integers(0, b_ids.size, (n_boot, b_ids.size))]).astype(float)
+    within = np.empty((n_boot, A.shape[1] + 1, A.shape[1] + 1))
+    for r in range(n_boot):
+        Sg = np.zeros((g_ids.size, *S.shape[1:]))
+        np.add.at(Sg, c_group, counts[r, c_block][:, None, None] * S)
+        within[r] = within_gram(Sg)
+    return gram_bounded_lstsq_many(within, lo)
