@@ -145,13 +145,24 @@ def gains_lines(rot: RotationResult) -> list[str]:
     if g is None:
         return []
     used = [ax for k, ax in enumerate(AXIS_NAMES) if rot.axes[k].rung == "torque"]
-    shown = ", ".join(f"{ax} {v:.3g} [{lo:.3g}, {hi:.3g}]" for ax, (v, lo, hi) in g.gains.items())
+    shown = g.text()
     where = (f"the chosen model uses it on {', '.join(used)}" if used else
              "the chosen model uses it on no axis (the ladder did not take the torque rung)")
-    return [f"torque gains, the motors' torque over the body's inertia ({g.unit}; the torque rung's model fitted "
-            f"at the equation level, a trim per in-flight stretch; 95 % interval: the hull of the (flight, block) "
-            f"bootstrap and the between-flight interval): {shown}; {where}",
-            *filter(None, [constancy_line(g.constancy), _tested_line(g)])]
+    return [f"torque gains, the motors' torque over the body's inertia ({g.unit}; the torque rung's terms fitted "
+            f"at the equation level, a trim per in-flight stretch, each flight at its own alignment and band; 95 % "
+            f"interval: the hull of the (flight, block) bootstrap and the between-flight interval): {shown}; {where}",
+            *filter(None, [constancy_line(g.constancy), _tested_line(g), _conditions_line(g)])]
+
+
+def _conditions_line(g) -> str:
+    """Each flight's own conditions of the torque gains (:func:`droneid.rotation.gains.flight_conditions`)."""
+    if not g.conditions:
+        return ""
+    parts = [f"{f} {1000 * a:.0f} ms, " + ("all of it" if b is None else f"less its ±{b:g} s average")
+             for f, (a, b) in g.conditions.items()]
+    return ("  each flight's conditions of its gains, chosen on that flight alone where the torque pattern explains "
+            "most (the motor stream read that much earlier; the band: the slow part the controller spends on "
+            "moments the model lacks taken off both sides): " + "; ".join(parts))
 
 
 def _tested_line(g) -> str:

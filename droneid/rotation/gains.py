@@ -1,14 +1,24 @@
 """The vehicle's torque gains (issue 37.4): how hard each body axis answers its motors, as a
 constant of the vehicle, with its interval and its test across flights.
 
-The torque rung's model (:data:`droneid.rotation.choice.DEFAULT_CANDIDATES`: its terms and input
-conditioning), fitted at the equation level on the training flights, ``ω̇_k = a_k (P s)_k + … +
-b_k,flight``, gives per body axis the gain ``a_k``: the rotors' torque over the body's inertia, in
+The torque rung's terms (:data:`droneid.rotation.choice.DEFAULT_CANDIDATES`), fitted at the equation
+level on the training flights, ``ω̇_k = a_k (P s)_k + … + b_k,flight``, give per body axis the gain ``a_k``: the rotors' torque over the body's inertia, in
 rad/s² per unit of ``(P s)_k`` (``s_i = (ω_i / 1000 rad/s)²``, ``P`` the layout's torque patterns;
 on a command-driven vehicle ``s_i`` is the rotor's thrust as a fraction of full thrust). Whether an
 axis's open-loop model uses it is the ladder's decision (:mod:`droneid.rotation.choice`); the gain
 is what a controller designer needs either way, and like the v̇ constants
 (:mod:`droneid.fitting.constancy`, the same functions) it must hold from flight to flight:
+
+Two conditions of each flight are estimated on that flight alone (:func:`flight_conditions`), as
+a clock offset is: the **alignment** of its motor stream (0-60 ms: the rotor speeds read that much
+earlier) and the **band** its gain is read in (the moving average over ± 0.05-1 s taken off both
+sides of the equation, or none). The slow part of a flight's motor differences is the controller
+holding moments the model lacks (the rotor drag moment off its linear law, the centre of gravity,
+a trim that wanders within a flight), which move with the trajectory and pull an equation-error
+gain towards zero; a filter applied to both sides keeps the equation for what is left. Each flight
+takes the (alignment, band) where the torque pattern explains most of its rate changes (the
+largest partial R² of the pattern, summed over the axes). The rotor speeds are read as logged (no
+low-pass: a filter on one side only would inflate a gain read at high frequency).
 
 - **pooled**: one fit of every training flight, a trim per in-flight stretch (a flight condition:
   balance point, battery); its 95 % interval is the percentile block bootstrap over (flight, time
@@ -20,7 +30,8 @@ is what a controller designer needs either way, and like the v̇ constants
   :data:`~droneid.fitting.constancy.MIN_TAU_REL` of the gain (:func:`~droneid.fitting.constancy.constancies`);
 - **the reported interval**: the hull of the pooled bootstrap's and the between-flight
   (random-effects, HKSJ) one, so it counts how much the flights disagree;
-- **on the test flights** (:func:`check_gains`; reported, never chosen on): each flight's own gain
+- **on the test flights** (:func:`check_gains`; reported, never chosen on): each flight's own gain,
+  at its own alignment and band,
   against what a new flight of the vehicle should give, the rule of ``predict``'s check of the v̇
   constants (:func:`droneid.fitting.constancy.new_flight_expectation`, two-sided p, Holm over the
   axes, the spread rule).
@@ -52,12 +63,17 @@ from droneid.rotation.model import (AXIS_NAMES, RotationModel, fit_rotation, rot
                                     rotation_rows)
 from droneid.simulation.openloop import StateLog
 
-__all__ = ["TorqueGains", "torque_gains", "check_gains", "N_BOOT", "IDENTIFIABLE_REL"]
+__all__ = ["TorqueGains", "torque_gains", "check_gains", "flight_conditions", "N_BOOT", "IDENTIFIABLE_REL",
+           "MAX_ALIGN_S", "BANDS_S"]
 
 #: bootstrap replicates of the pooled gain
 N_BOOT = 200
 #: a flight's gain whose 95 % interval is wider than ± this fraction of it is not identifiable there
 IDENTIFIABLE_REL = 0.5
+#: the alignments of a flight's motor stream tried (s; whole grid steps up to this)
+MAX_ALIGN_S = 0.06
+#: the bands tried: the half-width (s) of the moving average taken off both sides, None: none
+BANDS_S = (None, 0.05, 0.1, 0.2, 0.5, 1.0)
 
 
 @dataclass(frozen=True)
@@ -68,10 +84,12 @@ class TorqueGains:
     gains : {axis: (value, low, high)} the pooled gain and its reported 95 % interval (the hull of
         the pooled block bootstrap and the between-flight interval); pooled_interval : {axis:
         (low, high)} the bootstrap's alone; constancy : {axis: :class:`Constancy`} (empty with
-        fewer than two flights long enough to fit alone); model : the torque rung's model fitted on
-        every training flight (its coefficients and input conditioning: what the test flights are
-        read through; ``commands`` set on a command-driven vehicle); tested : {test flight: {axis:
-        (value, low, high, p, holds)}} from :func:`check_gains` (holds None: not identifiable there)
+        fewer than two flights long enough to fit alone); model : the torque rung's terms fitted on
+        every training flight with the rotor speeds as logged (what the test flights are read
+        through; ``commands`` set on a command-driven vehicle); tested : {test flight: {axis:
+        (value, low, high, p, holds)}} from :func:`check_gains` (holds None: not identifiable there);
+        conditions : {flight: (alignment s, band half-width s or None)} of every flight read, training
+        and test (:func:`flight_conditions`)
     """
     unit: str
     terms: tuple[str, ...]
@@ -80,6 +98,7 @@ class TorqueGains:
     constancy: Mapping[str, Constancy] = field(default_factory=dict)
     model: RotationModel | None = None
     tested: Mapping[str, Mapping[str, tuple]] = field(default_factory=dict)
+    conditions: Mapping[str, tuple[float, float | None]] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return to_jsonable({"unit": self.unit, "terms": list(self.terms),
@@ -87,7 +106,22 @@ class TorqueGains:
                             "pooled_interval": {k: list(v) for k, v in self.pooled_interval.items()},
                             "constancy": {k: c.to_dict() for k, c in self.constancy.items()},
                             "model": None if self.model is None else self.model.to_dict(),
-                            "tested": {f: {a: list(v) for a, v in per.items()} for f, per in self.tested.items()}})
+                            "tested": {f: {a: list(v) for a, v in per.items()} for f, per in self.tested.items()},
+                            "conditions": {f: {"align_s": a, "band_s": b} for f, (a, b) in self.conditions.items()}})
+
+    def text(self) -> str:
+        """Each axis's gain and its 95 % interval, for people: "roll 52.7 [47.3, 58.7], …"."""
+        return ", ".join(f"{ax} {v:.3g} [{lo:.3g}, {hi:.3g}]" for ax, (v, lo, hi) in self.gains.items())
+
+    def verdict(self) -> str:
+        """Whether the gains hold across the training flights and on the test flights, in words."""
+        moved = [ax for ax, c in self.constancy.items() if c.constant is False]
+        bad = sorted({ax for per in self.tested.values() for ax, v in per.items() if v[4] is False})
+        said = (f"NOT constant over the training flights on {', '.join(moved)}" if moved else
+                "constant over the training flights" if self.constancy else "untested across flights")
+        if self.tested:
+            said += f"; DO NOT HOLD on the test flights on {', '.join(bad)}" if bad else "; hold on the test flights"
+        return said
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "TorqueGains":
@@ -98,7 +132,9 @@ class TorqueGains:
                        {k: nums(v) for k, v in d["pooled_interval"].items()},
                        {k: Constancy.from_dict(c) for k, c in (d.get("constancy") or {}).items()},
                        None if d.get("model") is None else RotationModel.from_dict(d["model"]),
-                       {f: {a: (*nums(v[:4]), v[4]) for a, v in per.items()} for f, per in (d.get("tested") or {}).items()})
+                       {f: {a: (*nums(v[:4]), v[4]) for a, v in per.items()} for f, per in (d.get("tested") or {}).items()},
+                       {f: (float(c["align_s"]), None if c["band_s"] is None else float(c["band_s"]))
+                        for f, c in (d.get("conditions") or {}).items()})
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(f"the result's torque gains are damaged: {exc}") from None
 
@@ -111,9 +147,11 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
     motor model they came through) under the torque ``candidate`` (keywords of
     :func:`droneid.rotation.model.fit_rotation`); see the module docstring. DataError without a
     row in flight."""
-    shell = fit_rotation(logs, layout, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm, **dict(candidate))
+    cand = {**dict(candidate), "lowpass_tau_s": None, "balance_weight_s": None, "delay_steps": 0}
+    shell = fit_rotation(logs, layout, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm, **cand)
     terms = shell.terms
-    rows = _rows(logs, shell, window_s)
+    conditions = flight_conditions(logs, shell, window_s)
+    rows = _rows(logs, shell, window_s, conditions)
     flight, group, t = rows["flight"], rows["group"], rows["t"]
     names = rows["names"]
     blocks = time_blocks(t, flight)
@@ -138,7 +176,8 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         if c is not None and c.between is not None:
             lo_, hi_ = min(lo_, c.between[0]), max(hi_, c.between[1])
         gains[axis] = (pooled[axis], max(lo_, 0.0), hi_)
-    return TorqueGains(unit, tuple(terms), gains, boot, const, model=dataclasses.replace(shell, commands=commands))
+    return TorqueGains(unit, tuple(terms), gains, boot, const, model=dataclasses.replace(shell, commands=commands),
+                       conditions={n: (c[0] * _dt(logs), c[1]) for n, c in conditions.items()})
 
 
 def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0.05, seed: int = 0) -> TorqueGains:
@@ -154,7 +193,8 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
         return g
     if shell.commands is not None:
         logs = [shell.commands.speed_log(log) for log in logs]
-    rows = _rows(logs, shell, window_s)
+    conditions = flight_conditions(logs, shell, window_s)
+    rows = _rows(logs, shell, window_s, conditions)
     tested = {}
     for f, name in enumerate(rows["names"]):
         sel = rows["flight"] == f
@@ -176,7 +216,8 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
         tested[name] = {axis: (*res[axis][:3], ps[axis], not moved(flags[axis], abs(res[axis][0] - res[axis][3]),
                                                                     res[axis][3]))
                         if axis in ps else (*res[axis], math.nan, None) for axis in AXIS_NAMES}
-    return dataclasses.replace(g, tested=tested)
+    return dataclasses.replace(g, tested=tested, conditions={**g.conditions, **{
+        n: (c[0] * _dt(logs), c[1]) for n, c in conditions.items()}})
 
 
 #: the smoothing applied alike to the target and to every regressor (a linear filter on both sides
@@ -184,10 +225,81 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
 _KERNEL = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
 
 
-def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float) -> dict:
-    """Every axis's design and target over ``logs`` with ``shell``'s conditioning, and per row its
-    flight (index into ``names``: stretches of one flight share its name), stretch (``group``) and
-    a time index (``t``, steps; stretches far apart).
+def _dt(logs: Sequence[StateLog]) -> float:
+    return float(np.median([log.dt_s for log in logs]))
+
+
+def flight_conditions(logs: Sequence[StateLog], shell: RotationModel, window_s: float) -> dict[str, tuple[int, float | None]]:
+    """{flight: (alignment in steps, band half-width in s or None)} of each flight of ``logs``
+    (stretches of one flight share its name), chosen on that flight alone (module docstring):
+    the pair where the torque pattern's partial R² (ordinary least squares with a trim per
+    stretch, with and without the pattern), summed over the axes, is largest."""
+    dt = _dt(logs)
+    delays = range(0, int(round(MAX_ALIGN_S / dt)) + 1)
+    per_delay = {d: [_log_rows(log, dataclasses.replace(shell, delay_steps=d), window_s) for log in logs] for d in delays}
+    out = {}
+    for name in dict.fromkeys(log.name for log in logs):
+        which = [j for j, log in enumerate(logs) if log.name == name]
+        best = None
+        for d in delays:
+            for band in BANDS_S:
+                parts = [_filtered(per_delay[d][j], band, logs[j].dt_s) for j in which]
+                score = sum(_partial_r2(np.vstack([p[0][k] for p in parts]), np.concatenate([p[1][k] for p in parts]),
+                                        np.concatenate([np.full(p[1][k].size, i) for i, p in enumerate(parts)]))
+                            for k in range(3))
+                if best is None or score > best[0]:
+                    best = (score, d, band)
+        out[name] = (best[1], best[2])
+    return out
+
+
+def _partial_r2(A: np.ndarray, y: np.ndarray, group: np.ndarray) -> float:
+    """The share of the residual sum of squares the first column of ``A`` removes, in an ordinary
+    least squares with a free intercept per ``group`` (0 without rows)."""
+    if y.size <= A.shape[1] + 2:
+        return 0.0
+    D = (group[:, None] == np.unique(group)[None]).astype(float)
+    full = np.column_stack([A, D])
+    rss = [float(np.sum((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2)) for X in (full, full[:, 1:])]
+    return 1.0 - rss[0] / rss[1] if rss[1] > 0 else 0.0
+
+
+def _log_rows(log: StateLog, shell: RotationModel, window_s: float) -> tuple[np.ndarray, list, list]:
+    """One stretch's rows before the band filter: the rows kept (in flight, the kernel inside the
+    stretch), each axis's smoothed design at every step midpoint and its smoothed rate change
+    over the step (module docstring)."""
+    P = shell.layout.patterns()
+    r = rotation_rows(log, shell, window_s)
+    every = (np.ones_like(r[0]), *r[1:])
+    keep = np.flatnonzero(np.convolve(r[0].astype(float), np.ones(_KERNEL.size), mode="same") >= _KERNEL.size - 1e-9)
+    dw = np.diff(log.state[:, 10:13], axis=0) / log.dt_s
+    return keep, [_smooth(rotation_design(k, P, shell.terms, every)) for k in range(3)], \
+        [_smooth(dw[:, k:k + 1])[:, 0] for k in range(3)]
+
+
+def _filtered(rows: tuple, band: float | None, dt_s: float) -> tuple[list, list]:
+    """(designs, targets) per axis of :func:`_log_rows`'s rows at the kept rows, with the moving
+    average over ± ``band`` seconds taken off both sides (None: as they are)."""
+    keep, A, y = rows
+    return [_highpass(a, band, dt_s)[keep] for a in A], [_highpass(v[:, None], band, dt_s)[keep, 0] for v in y]
+
+
+def _highpass(x: np.ndarray, band: float | None, dt_s: float) -> np.ndarray:
+    """``x`` (N, K) less its centred moving average over ± ``band`` s (shortened to fit the
+    stretch); ``x`` itself for None."""
+    if band is None or x.shape[0] < 3:
+        return x
+    n = min(max(int(round(band / dt_s)), 1), (x.shape[0] - 1) // 2)
+    kernel = np.ones(2 * n + 1) / (2 * n + 1)
+    return x - np.column_stack([np.convolve(x[:, c], kernel, mode="same") for c in range(x.shape[1])])
+
+
+def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float,
+          conditions: Mapping[str, tuple[int, float | None]]) -> dict:
+    """Every axis's design and target over ``logs``, each flight at its ``conditions``
+    (:func:`flight_conditions`), and per row its flight (index into ``names``: stretches of one
+    flight share its name), stretch (``group``) and a time index (``t``, steps; stretches far
+    apart).
 
     The target is each step's rate change over the step, ``(ω_{k+1} − ω_k) / dt``, at the step's
     midpoint where the regressors sit (the input held over the step, the states at the midpoint):
@@ -196,18 +308,17 @@ def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float) -> di
     which keeps the equation. (A Savitzky-Golay derivative of the rates against unsmoothed
     regressors, as the open-loop fit takes it, attenuates the gains: 1 % on the planted flights of
     tests/unit/test_torque_gains.py, more than their intervals.)"""
-    P = shell.layout.patterns()
     names = list(dict.fromkeys(log.name for log in logs))
     A, y = [[], [], []], [[], [], []]
     flight, group, t = [], [], []
     for j, log in enumerate(logs):
-        r = rotation_rows(log, shell, window_s)
-        every = (np.ones_like(r[0]), *r[1:])
-        keep = np.flatnonzero(np.convolve(r[0].astype(float), np.ones(_KERNEL.size), mode="same") >= _KERNEL.size - 1e-9)
-        dw = np.diff(log.state[:, 10:13], axis=0) / log.dt_s
+        d, band = conditions[log.name]
+        rows = _log_rows(log, dataclasses.replace(shell, delay_steps=d), window_s)
+        keep = rows[0]
+        Aj, yj = _filtered(rows, band, log.dt_s)
         for k in range(3):
-            A[k].append(_smooth(rotation_design(k, P, shell.terms, every))[keep])
-            y[k].append(_smooth(dw[:, k:k + 1])[keep, 0])
+            A[k].append(Aj[k])
+            y[k].append(yj[k])
         flight.append(np.full(keep.size, names.index(log.name)))
         group.append(np.full(keep.size, j))
         t.append(keep + 1e7 * j)

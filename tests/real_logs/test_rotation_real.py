@@ -138,12 +138,13 @@ def test_the_refused_torque_model_turns_the_right_way_under_differential_thrust(
     assert np.all(turn([2, 3], chosen) == 0.0) and chosen.unsteerable_axes() == ("roll", "pitch", "yaw")
 
 
-@pytest.mark.slow   # about 3 s
-def test_torque_gains_hold_over_the_squares_and_not_on_the_melon_runs(squares):
+@pytest.mark.slow   # about 5 s
+def test_torque_gains_read_at_each_flights_alignment_and_band_hold_on_the_melon_runs(squares):
     """The torque rung's gains as vehicle constants (droneid.rotation.gains): measured 2026-11-28,
-    roll 47.2 [45.2, 50.7], pitch 37.1 [34.6, 42.2] rad/s² per unit over the five squares, each
-    square's own within its noise (roll 45.4-50.1, p 0.26); on the melon runs 9.5-11 and 8.7-10.2:
-    not the vehicle's constants under this model, which is why it does not transfer."""
+    roll 52.7 [47.3, 58.7], pitch 47.0 [42.0, 54.4] rad/s² per unit over the five squares, which
+    differ by 8-10 % (NOT constant by the test); the melon runs' own (49-53) hold. Read without the
+    band (the whole of each flight's motor differences), melon's came out 9.5-11: the slow part
+    is the controller holding moments the model lacks."""
     from droneid.rotation.choice import DEFAULT_CANDIDATES
     from droneid.rotation.gains import check_gains, torque_gains
     from droneid.simulation.openloop import CRAZYFLIE_RAD_S_PER_ERPM
@@ -152,10 +153,11 @@ def test_torque_gains_hold_over_the_squares_and_not_on_the_melon_runs(squares):
                      unit="rad/s²")
     for axis in ("roll", "pitch"):
         v, lo, hi = g.gains[axis]
-        assert 30 < lo < v < hi < 60, (axis, g.gains[axis])
-        assert g.constancy[axis].constant is True and len(g.constancy[axis].per_unit) == 5
+        assert 40 < lo < v < hi < 65, (axis, g.gains[axis])
+        assert len(g.constancy[axis].per_unit) == 5
+    assert set(g.conditions) == set(SQUARES) and all(0 <= a <= 0.06 for a, _ in g.conditions.values())
     tested = check_gains(g, _flights(["melon_run1", "melon_run4"])).tested
     assert set(tested) == {"melon_run1", "melon_run4"}
     for per in tested.values():
-        assert per["roll"][4] is False and per["pitch"][4] is False
-        assert per["roll"][0] < 0.5 * g.gains["roll"][0]
+        assert per["roll"][4] is True and per["pitch"][4] is True, per
+        assert 40 < per["roll"][0] < 65

@@ -2,7 +2,8 @@
 body driven by its rotors through the layout, a rotor drag moment and a decay, a balance point of
 its own per flight, gyro noise on the logged rates. The gain of each axis must come back inside
 its interval, be called constant when every flight has it, NOT constant when one flight's differs,
-and a test flight with another gain must be said not to hold it."""
+and a test flight with another gain must be said not to hold it; a flight whose motor stream is
+stamped early is read at its own alignment (a flight condition)."""
 from __future__ import annotations
 
 import numpy as np
@@ -22,7 +23,10 @@ COEF = (np.array([6.0, 3.0, 2.0]), np.array([5.0, 3.0, 1.5]), np.array([1.5, 3.0
 CANDIDATE = {"terms": TERMS}
 
 
-def _flight(seed: int, coef=COEF, n: int = 1500, noise: float = 0.02, name: str | None = None) -> StateLog:
+def _flight(seed: int, coef=COEF, n: int = 1500, noise: float = 0.02, name: str | None = None,
+            early_steps: int = 0) -> StateLog:
+    """A planted flight; ``early_steps``: its motor stream is stamped that many steps early (a
+    clock offset: the rotor speed logged at t turned at t + early_steps·dt)."""
     rng = np.random.default_rng(seed)
     rpm = 95000.0 + rng.normal(0, 300, 4) + _smooth_noise(rng, n, 4, 2500.0)
     shell = RotationModel(LAYOUT, TERMS, coef, np.zeros(3))
@@ -34,6 +38,8 @@ def _flight(seed: int, coef=COEF, n: int = 1500, noise: float = 0.02, name: str 
     x0 = np.array([0, 0, 100.0, 0.5, -0.3, 0, 1, 0, 0, 0, 0.2, -0.1, 0.0])
     states = np.vstack([x0, simulate(truth, x0[None], truth.inputs(dummy)[None, :-1], DT)[0]])
     states[:, 10:13] += noise * rng.standard_normal((n, 3))
+    if early_steps:
+        rpm = np.concatenate([rpm[early_steps:], np.repeat(rpm[-1:], early_steps, axis=0)])
     return StateLog(dummy.name, dummy.t_s, states, rpm, DT)
 
 
@@ -68,3 +74,13 @@ def test_a_flight_whose_gain_differs_is_flagged_in_training_and_as_a_test_flight
     assert tested["odd"]["roll"][4] is False and tested["odd"]["roll"][0] == pytest.approx(9.6, rel=0.05)
     assert all(v[4] is True for v in tested["alike"].values()), tested["alike"]
     assert tested["odd"]["pitch"][4] is True
+
+
+@pytest.mark.slow
+def test_each_flight_is_read_at_its_own_alignment_of_the_motor_stream(same):
+    g = _gains([*same[:2], _flight(27, early_steps=3, name="late_clock")])
+    assert g.conditions["late_clock"][0] == pytest.approx(0.03)
+    assert g.conditions["flight21"][0] == pytest.approx(0.0)
+    for k, axis in enumerate(("roll", "pitch", "yaw")):
+        assert g.constancy[axis].per_unit["late_clock"][0] == pytest.approx(COEF[k][0], rel=0.05), axis
+        assert g.constancy[axis].constant is True, axis
