@@ -17,6 +17,7 @@ _predict = lazy_module("droneid.use.predict")
 _vehicle_export = lazy_module("droneid.use.vehicle_export")
 _rotation = lazy_module("droneid.rotation.model")
 _motor = lazy_module("droneid.simulation.motor_model")
+_gains = lazy_module("droneid.rotation.gains")
 
 
 def register(sub) -> None:
@@ -156,6 +157,7 @@ def _vehicle(args) -> str:
                         f"({'; '.join(f'{t}: ' + _verdict_words(models[t]) for t in kept_other)}), so the vehicle "
                         f"built from it is not the one to use; --identified exports it anyway")
     stuck = _rotation.unsteerable(models.get("_rotation"))
+    gains = _gains_note(doc)
     replay = "logged motor commands" if motor is not None else "logged motor speeds"
     if stuck and not args.allow_unsteerable:
         if motor is not None and models.get("_rotation") is None:
@@ -169,7 +171,7 @@ def _vehicle(args) -> str:
             refusals.append(f"the identified rotational model does not answer the motors on {', '.join(stuck)} "
                             f"(decay-only or held: differential thrust does not turn it), so the exported vehicle "
                             f"cannot be steered; --allow-unsteerable exports it anyway (for open-loop replay of "
-                            f"{replay}, not for controller design)")
+                            f"{replay}, not for controller design)" + (f"; {gains}" if gains else ""))
     if refusals:
         raise DataError(f"{args.result}: " + (refusals[0] if len(refusals) == 1 else
                                               " ".join(f"({k}) {r}." for k, r in enumerate(refusals, 1))))
@@ -177,9 +179,20 @@ def _vehicle(args) -> str:
     try:
         return _vehicle_export.export_vehicle(finals, models.get("_rotation"), args.to, source=_source(args.result, models),
                                       dt_s=dt, inputs=_export.input_sources(doc.get("provenance")),
-                                      dt_note=note, motor=motor)
+                                      dt_note=note, motor=motor, gains_note=gains)
     except ConfigError as exc:
         raise ConfigError(f"{args.result}: {exc}") from None
+
+
+def _gains_note(doc: dict) -> str:
+    """One sentence on the vehicle's torque gains of the result (rotation.torque_gains), for a
+    controller designer when the exported vehicle cannot be steered; "" without them."""
+    record = (doc.get("rotation") or {}).get("torque_gains") if isinstance(doc.get("rotation"), dict) else None
+    if not record:
+        return ""
+    g = _gains.TorqueGains.from_dict(record)
+    return (f"the vehicle's torque gains for a controller design of your own are in the result "
+            f"(rotation.torque_gains; {g.unit}): {g.text()}; {g.verdict()}")
 
 
 def _step(args, doc) -> tuple[float, str]:

@@ -12,6 +12,7 @@ q (qw, qx, qy, qz; FLU body to ENU world) 6:10, ω (rad/s, body FLU) 10:13.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Mapping
 
 import numpy as np
@@ -385,7 +386,7 @@ def _logged_width(rotation: RotationModel | None, logged: list, read: int) -> in
 
 
 def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float = 0.01, *,
-                   inputs: dict | None = None, dt_note: str = "", motor=None) -> str:
+                   inputs: dict | None = None, dt_note: str = "", motor=None, gains_note: str = "") -> str:
     """The text of one file with the full 6-DOF model in ``to`` (``"python"`` or ``"c"``).
 
     ``translation``: a :class:`droneid.rotation.model.TranslationModel`, or identify's final v̇ models
@@ -394,7 +395,8 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
     :class:`droneid.rotation.model.RotationModel`, or None for the body rates held (ω̇ = 0).
     ``dt_s``: the step (s) the motor speeds are fed at: the delays and the rotational model's
     conditioning are in steps of it, so it must be the grid the models were identified on;
-    ``dt_note`` says in the header where it came from; ``inputs``: :func:`input_sources` for the
+    ``dt_note`` says in the header where it came from; ``gains_note``: a header line on the
+    vehicle's torque gains, shown when an axis does not answer the motors; ``inputs``: :func:`input_sources` for the
     header; ``motor``: the :class:`droneid.simulation.motor_model.MotorModel` of a command-driven
     vehicle (the result's thrust curve and motor lag; default: that of ``translation`` if it is an
     IdentifiedTranslation): its file is fed the logged commands and battery voltage (``push(inputs)``,
@@ -453,6 +455,7 @@ def export_vehicle(translation, rotation, to: str, source: str = "", dt_s: float
         *tpart.header, *rpart.header,
         steering_line(rotation),
         *filter(None, [unsteerable_sentence(unsteerable(rotation), "motor commands" if logged else "motor speeds")]),
+        *(textwrap.wrap(gains_note[:1].upper() + gains_note[1:] + ".", 96) if gains_note and unsteerable(rotation) else []),
         "Integration: classical RK4, the quaternion renormalised at every stage and after the step",
         "(as droneid.simulation.openloop.simulate)."]
     build = vehicle_python if to == "python" else vehicle_c

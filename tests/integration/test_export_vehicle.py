@@ -231,3 +231,24 @@ def test_cli_refuses_with_one_line(tmp_path, capsys, case, expect):
                  "--to", to]) == 2
     err = capsys.readouterr().err.strip()
     assert expect in err and len(err.splitlines()) == 1 and "Traceback" not in err, err
+
+
+def test_an_unsteerable_vehicle_points_to_the_vehicles_torque_gains(tmp_path, capsys):
+    """The exported vehicle cannot be steered, but identify measured the torque gains: the refusal
+    and the header give them (with whether they hold across flights) for a controller of one's own."""
+    from droneid.rotation.gains import TorqueGains
+    path = _result(tmp_path, _translation(), "held")
+    doc = json.loads(Path(path).read_text())
+    doc["rotation"]["torque_gains"] = TorqueGains(
+        "rad/s² per unit of (P s)", ("damping",), {"roll": (52.7, 47.3, 58.7), "pitch": (47.0, 42.0, 54.4),
+                                                   "yaw": (3.68, 1.89, 7.11)},
+        {"roll": (51.8, 53.5), "pitch": (45.6, 48.0), "yaw": (2.9, 4.6)}).to_dict()
+    Path(path).write_text(json.dumps(doc))
+    assert main(["export", path, "--vehicle", "--to", "python"]) == 2
+    err = capsys.readouterr().err
+    assert "torque gains for a controller design of your own" in err and "roll 52.7 [47.3, 58.7]" in err
+    assert len(err.strip().splitlines()) == 1
+    assert main(["export", path, "--vehicle", "--allow-unsteerable", "--to", "python"]) == 0
+    text = capsys.readouterr().out
+    assert "The vehicle's torque gains for a controller design of your own" in text
+    assert "untested across flights" in text
