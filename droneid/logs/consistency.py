@@ -430,7 +430,8 @@ def _judge(flight, checks, findings) -> None:
                                             f"map the velocity columns to the position's axes (--column v{q}=COLUMN)"))
         moving = [v for p, v in axes if abs(res[v][p][1]) >= STRONG_CORR]
         detail = ", ".join(f"{v} = {_fmt_slope(res[v][p][0])} x d({p})/dt (r {res[v][p][1]:.2f}"
-                           + (f", {vp['lags'][v]:.3g} s behind)" if abs(res[v][p][1]) >= STRONG_CORR else ")")
+                           + (f", {vp['lags'][v]:.3g} s behind)" if abs(res[v][p][1]) >= STRONG_CORR else
+                              ": too weak to judge)")
                            for p, v in axes if math.isfinite(res[v][p][0]))
         if not moving:
             checks.append(Check("velocity vs position", "skipped",
