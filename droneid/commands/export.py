@@ -157,7 +157,7 @@ def _vehicle(args) -> str:
                         f"({'; '.join(f'{t}: ' + _verdict_words(models[t]) for t in kept_other)}), so the vehicle "
                         f"built from it is not the one to use; --identified exports it anyway")
     stuck = _rotation.unsteerable(models.get("_rotation"))
-    gains = _gains_note(doc)
+    gains = _gains_note(doc) if stuck else ""
     replay = "logged motor commands" if motor is not None else "logged motor speeds"
     if stuck and not args.allow_unsteerable:
         if motor is not None and models.get("_rotation") is None:
@@ -190,7 +190,10 @@ def _gains_note(doc: dict) -> str:
     record = (doc.get("rotation") or {}).get("torque_gains") if isinstance(doc.get("rotation"), dict) else None
     if not record:
         return ""
-    g = _gains.TorqueGains.from_dict(record)
+    try:
+        g = _gains.TorqueGains.from_dict(record)
+    except DataError:
+        return ""          # a damaged record of what is only a pointer: the export itself stands
     return (f"the vehicle's torque gains for a controller design of your own are in the result "
             f"(rotation.torque_gains; {g.unit}): {g.text()}; {g.verdict()}")
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special    # chdtrc, stdtrit: scipy.stats' chi2.sf and t.ppf, without its 0.5 s import
 
-from droneid.core.regression import bootstrap_draws, robust_fit
+from droneid.core.regression import RobustFit, bootstrap_draws, robust_fit
 
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
@@ -116,8 +116,9 @@ def heterogeneity(values, se) -> dict:
 
 
 def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None, *,
-                  seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One unit's own fit (a flight or a stretch): ``(β, se, pct)``, its robust fit, the standard
+                  seed: int = 0) -> tuple["RobustFit", np.ndarray, np.ndarray]:
+    """One unit's own fit (a flight or a stretch): ``(fit, se, pct)``, its robust fit
+    (:class:`droneid.core.regression.RobustFit`), the standard
     error of each coefficient over the block bootstrap of its own time ``blocks`` (inflated by
     ``B/(B − 1)`` for B blocks: the block bootstrap's small-sample shrinkage) and the (2, k)
     percentile 95 % interval of the draws."""
@@ -125,7 +126,7 @@ def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=
     b = np.unique(blocks).size
     draws = bootstrap_draws(A, y, blocks, f, lo, hi, seed=seed)
     se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
-    return f.beta, se, np.percentile(draws, [2.5, 97.5], axis=0)
+    return f, se, np.percentile(draws, [2.5, 97.5], axis=0)
 
 
 def constancies(kind: str, names: Sequence[str], vals, ses, ivs, labels: Mapping[int, str],

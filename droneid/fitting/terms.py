@@ -362,8 +362,8 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
             continue
         sub = {n: np.asarray(v)[rows] for n, v in columns.items()}
         A, yy, _, _ = model._problem(sub, np.asarray(y, float)[rows])
-        beta, se, pct = unit_estimate(A, yy, time_blocks(t[rows], np.zeros(rows.size, int)), lo, hi, seed=seed)
-        vals.append(beta)
+        fit, se, pct = unit_estimate(A, yy, time_blocks(t[rows], np.zeros(rows.size, int)), lo, hi, seed=seed)
+        vals.append(fit.beta)
         ses.append(se)
         ivs.append(pct)
         used.append(name)

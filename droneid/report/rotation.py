@@ -139,39 +139,30 @@ def _model_line(rot: RotationResult) -> str:
 
 
 def gains_lines(rot: RotationResult) -> list[str]:
-    """The vehicle's torque gains (:mod:`droneid.rotation.gains`): each axis's gain with its 95 %
-    interval, which axes of the chosen model use it, and their constancy over the training flights."""
+    """The vehicle's torque gains (:mod:`droneid.rotation.gains`), the verdict first: each axis's
+    gain with its 95 % interval, which axes of the chosen model have a torque term, their
+    constancy over the training flights, on the test flights, and each flight's conditions."""
     g = rot.torque_gains
     if g is None:
         return []
     used = [ax for k, ax in enumerate(AXIS_NAMES) if rot.axes[k].rung == "torque"]
-    shown = g.text()
-    where = (f"the chosen model uses it on {', '.join(used)}" if used else
-             "the chosen model uses it on no axis (the ladder did not take the torque rung)")
-    return [f"torque gains, the motors' torque over the body's inertia ({g.unit}; the torque rung's terms fitted "
-            f"at the equation level, a trim per in-flight stretch, each flight at its own alignment and band; 95 % "
-            f"interval: the hull of the (flight, block) bootstrap and the between-flight interval): {shown}; {where}",
+    where = (f"the chosen model has a torque term on {', '.join(used)} (its own coefficient, fitted for open-loop "
+             f"prediction)" if used else "the chosen model has no torque term (the ladder did not take the torque rung)")
+    return [f"torque gains, {g.verdict()}: {g.text()} ({g.unit}: the motors' torque over the body's inertia; the "
+            f"torque rung's terms fitted at the equation level, a trim per in-flight stretch, each flight at its own "
+            f"alignment and band; 95 % interval: the hull of the (flight, block) bootstrap and the between-flight "
+            f"interval); {where}",
             *filter(None, [constancy_line(g.constancy), _tested_line(g), _conditions_line(g)])]
-
-
-def _conditions_line(g) -> str:
-    """Each flight's own conditions of the torque gains (:func:`droneid.rotation.gains.flight_conditions`)."""
-    if not g.conditions:
-        return ""
-    parts = [f"{f} {1000 * a:.0f} ms, " + ("all of it" if b is None else f"less its ±{b:g} s average")
-             for f, (a, b) in g.conditions.items()]
-    return ("  each flight's conditions of its gains, chosen on that flight alone where the torque pattern explains "
-            "most (the motor stream read that much earlier; the band: the slow part the controller spends on "
-            "moments the model lacks taken off both sides): " + "; ".join(parts))
 
 
 def _tested_line(g) -> str:
     """The torque gains on the test flights (reported, never chosen on): the verdict first."""
     if not g.tested:
         return ""
-    bad = [f"{f} {ax}" for f, per in g.tested.items() for ax, v in per.items() if v[4] is False]
+    bad = g.failing()
+    judged = any(v[4] is not None for per in g.tested.values() for v in per.values())
     head = (f"DO NOT HOLD on the test flights ({', '.join(bad)}): not the vehicle's constants under this model"
-            if bad else "hold on the test flights")
+            if bad else "hold on the test flights" if judged else "cannot be tested on the test flights")
     parts = []
     for f, per in g.tested.items():
         cells = []
@@ -181,6 +172,17 @@ def _tested_line(g) -> str:
         parts.append(f"{f}: " + ", ".join(cells))
     rule = rule_text("each flight fitted alone, against what a new flight of the vehicle should give; two-sided p")
     return f"  the torque gains {head} ({rule}; reported, never chosen on): " + "; ".join(parts)
+
+
+def _conditions_line(g) -> str:
+    """Each flight's own conditions of the torque gains (:func:`droneid.rotation.gains.flight_conditions`)."""
+    if not g.conditions:
+        return ""
+    parts = [f"{f} {1000 * a:.3g} ms, " + ("all of it" if b is None else f"less its ±{b:g} s average")
+             for f, (a, b) in g.conditions.items()]
+    return ("  each flight's conditions of its gains, chosen on that flight alone where the torque pattern explains "
+            "most (the motor stream read that much earlier; the band: the slow part the controller spends on "
+            "moments the model lacks taken off both sides): " + "; ".join(parts))
 
 
 def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:
@@ -261,7 +263,7 @@ def rotation_section(doc: Document, rot: RotationResult | None) -> None:
     doc.paragraph(f"Rotor layout {rot.layout}: {rot.layout_source}; {rot.speed_note}.")
     doc.code(_model_line(rot))
     for line in gains_lines(rot):
-        doc.paragraph(line.strip())
+        doc.paragraph(line.strip()[:1].upper() + line.strip()[1:])
     header, rows = _axes_table(rot)
     doc.table(header, rows)
     doc.paragraph("Body-rate SimErr per axis: Σ over 1..50 steps of the mean |Δω| (rad/s), simulated open loop "

@@ -69,10 +69,17 @@ __all__ = ["TorqueGains", "torque_gains", "check_gains", "flight_conditions", "N
 #: bootstrap replicates of the pooled gain
 N_BOOT = 200
 #: a flight's gain whose 95 % interval is wider than ± this fraction of it is not identifiable there
+#: (the v̇ constants' rule, :data:`droneid.fitting.terms.IDENTIFIABLE_REL`, floors the half-width's
+#: scale at 1 because those are scales near 1; a gain has its own scale, and its bound is 0, so a
+#: gain at its bound is one that is not positive)
 IDENTIFIABLE_REL = 0.5
-#: the alignments of a flight's motor stream tried (s; whole grid steps up to this)
+#: the alignments of a flight's motor stream tried: 0 to MAX_ALIGN_S in steps of 1/ALIGN_SUBSTEPS
+#: of the grid step (the rotor speeds interpolated linearly between samples: one whole step moves a
+#: flight's gain by 10-25 % on the shared squares)
 MAX_ALIGN_S = 0.06
+ALIGN_SUBSTEPS = 4
 #: the bands tried: the half-width (s) of the moving average taken off both sides, None: none
+#: (±0.05 s is the narrowest above the smoothing kernel's ±2 steps at 100 Hz)
 BANDS_S = (None, 0.05, 0.1, 0.2, 0.5, 1.0)
 
 
@@ -84,9 +91,10 @@ class TorqueGains:
     gains : {axis: (value, low, high)} the pooled gain and its reported 95 % interval (the hull of
         the pooled block bootstrap and the between-flight interval); pooled_interval : {axis:
         (low, high)} the bootstrap's alone; constancy : {axis: :class:`Constancy`} (empty with
-        fewer than two flights long enough to fit alone); model : the torque rung's terms fitted on
-        every training flight with the rotor speeds as logged (what the test flights are read
-        through; ``commands`` set on a command-driven vehicle); tested : {test flight: {axis:
+        fewer than two flights long enough to fit alone); model : how the rotor speeds are read (the
+        layout, the torque rung's terms, ``commands`` on a command-driven vehicle; its
+        coefficients are zero: the gains are ``gains``, and a chosen torque rung has its own,
+        fitted for open-loop prediction); tested : {test flight: {axis:
         (value, low, high, p, holds)}} from :func:`check_gains` (holds None: not identifiable there);
         conditions : {flight: (alignment s, band half-width s or None)} of every flight read, training
         and test (:func:`flight_conditions`)
@@ -101,6 +109,7 @@ class TorqueGains:
     conditions: Mapping[str, tuple[float, float | None]] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """JSON-able (docs/result-json.md, ``rotation.torque_gains``)."""
         return to_jsonable({"unit": self.unit, "terms": list(self.terms),
                             "gains": {k: list(v) for k, v in self.gains.items()},
                             "pooled_interval": {k: list(v) for k, v in self.pooled_interval.items()},
@@ -113,14 +122,22 @@ class TorqueGains:
         """Each axis's gain and its 95 % interval, for people: "roll 52.7 [47.3, 58.7], …"."""
         return ", ".join(f"{ax} {v:.3g} [{lo:.3g}, {hi:.3g}]" for ax, (v, lo, hi) in self.gains.items())
 
+    def failing(self) -> list[str]:
+        """"flight axis" of every test flight's gain that does not hold."""
+        return [f"{f} {ax}" for f, per in self.tested.items() for ax, v in per.items() if v[4] is False]
+
     def verdict(self) -> str:
-        """Whether the gains hold across the training flights and on the test flights, in words."""
-        moved = [ax for ax, c in self.constancy.items() if c.constant is False]
-        bad = sorted({ax for per in self.tested.values() for ax, v in per.items() if v[4] is False})
-        said = (f"NOT constant over the training flights on {', '.join(moved)}" if moved else
-                "constant over the training flights" if self.constancy else "untested across flights")
+        """Whether the gains hold across the training flights and on the test flights, in words
+        (an axis that could not be tested is said so, never counted as holding)."""
+        flagged = [ax for ax, c in self.constancy.items() if c.constant is False]
+        tested = [ax for ax, c in self.constancy.items() if c.constant is not None]
+        said = (f"NOT constant over the training flights on {', '.join(flagged)}" if flagged else
+                "constant over the training flights" if tested else "untested across flights")
         if self.tested:
-            said += f"; DO NOT HOLD on the test flights on {', '.join(bad)}" if bad else "; hold on the test flights"
+            judged = [v for per in self.tested.values() for v in per.values() if v[4] is not None]
+            bad = self.failing()
+            said += (f"; DO NOT HOLD on the test flights ({', '.join(bad)})" if bad else
+                     "; hold on the test flights" if judged else "; not identifiable on the test flights")
         return said
 
     @classmethod
@@ -144,9 +161,10 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
                  commands: CommandSpeeds | None = None) -> TorqueGains:
     """The torque gains of ``logs`` (training flights' in-flight stretches; stretches of one flight
     share its name; a command-driven vehicle's already its commands' speeds, ``commands`` the
-    motor model they came through) under the torque ``candidate`` (keywords of
-    :func:`droneid.rotation.model.fit_rotation`); see the module docstring. DataError without a
-    row in flight."""
+    motor model they came through) under the torque ``candidate``'s terms (keywords of
+    :func:`droneid.rotation.model.fit_rotation`; its input conditioning is not used); see the
+    module docstring. ``window_s``: the Savitzky-Golay window (s) of the rows' screening.
+    DataError without a row in flight."""
     cand = {**dict(candidate), "lowpass_tau_s": None, "balance_weight_s": None, "delay_steps": 0}
     shell = fit_rotation(logs, layout, window_s=window_s, rad_s_per_rpm=rad_s_per_rpm, **cand)
     terms = shell.terms
@@ -176,8 +194,9 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         if c is not None and c.between is not None:
             lo_, hi_ = min(lo_, c.between[0]), max(hi_, c.between[1])
         gains[axis] = (pooled[axis], max(lo_, 0.0), hi_)
-    return TorqueGains(unit, tuple(terms), gains, boot, const, model=dataclasses.replace(shell, commands=commands),
-                       conditions={n: (c[0] * _dt(logs), c[1]) for n, c in conditions.items()})
+    zero = dataclasses.replace(shell, coef=tuple(np.zeros_like(c) for c in shell.coef), trim=np.zeros(3),
+                               flight_trims=np.zeros((0, 3)), commands=commands)
+    return TorqueGains(unit, tuple(terms), gains, boot, const, model=zero, conditions=conditions)
 
 
 def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0.05, seed: int = 0) -> TorqueGains:
@@ -187,7 +206,8 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
     flight of the vehicle should give (:func:`droneid.fitting.constancy.new_flight_expectation` of
     the reported gain and its constancy), two-sided p, Holm over the axes at ALPHA, the spread rule;
     a gain at its bound or with an interval wider than ±:data:`IDENTIFIABLE_REL` of it is not
-    identifiable there (holds None). Reported, never chosen on."""
+    identifiable there (holds None, as when its p is not finite). Reported, never chosen on.
+    ``window_s`` as :func:`torque_gains`."""
     shell = g.model
     if shell is None or not logs:
         return g
@@ -209,15 +229,15 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
             expected = new_flight_expectation(g.gains[axis][0], *g.pooled_interval[axis],
                                               None if c is None else c.to_dict())
             res[axis] = (v, low, high)
-            if v > 0 and (high - low) / 2 <= IDENTIFIABLE_REL * v:
-                ps[axis] = new_flight_p(v, float(se[0]), expected)
+            p = new_flight_p(v, float(se[0]), expected)
+            if v > 0 and (high - low) / 2 <= IDENTIFIABLE_REL * v and math.isfinite(p):
+                ps[axis] = p
                 res[axis] += (expected["value"],)
         flags = holm_flags(ps, ALPHA)
         tested[name] = {axis: (*res[axis][:3], ps[axis], not moved(flags[axis], abs(res[axis][0] - res[axis][3]),
                                                                     res[axis][3]))
                         if axis in ps else (*res[axis], math.nan, None) for axis in AXIS_NAMES}
-    return dataclasses.replace(g, tested=tested, conditions={**g.conditions, **{
-        n: (c[0] * _dt(logs), c[1]) for n, c in conditions.items()}})
+    return dataclasses.replace(g, tested=tested, conditions={**g.conditions, **conditions})
 
 
 #: the smoothing applied alike to the target and to every regressor (a linear filter on both sides
@@ -226,29 +246,33 @@ _KERNEL = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
 
 
 def _dt(logs: Sequence[StateLog]) -> float:
+    """The logs' grid step (s): their median."""
     return float(np.median([log.dt_s for log in logs]))
 
 
-def flight_conditions(logs: Sequence[StateLog], shell: RotationModel, window_s: float) -> dict[str, tuple[int, float | None]]:
-    """{flight: (alignment in steps, band half-width in s or None)} of each flight of ``logs``
+def flight_conditions(logs: Sequence[StateLog], shell: RotationModel, window_s: float
+                      ) -> dict[str, tuple[float, float | None]]:
+    """{flight: (alignment in s, band half-width in s or None)} of each flight of ``logs``
     (stretches of one flight share its name), chosen on that flight alone (module docstring):
     the pair where the torque pattern's partial R² (ordinary least squares with a trim per
-    stretch, with and without the pattern), summed over the axes, is largest."""
+    stretch, with and without the pattern), summed over the axes, is largest. Alignments from 0
+    to :data:`MAX_ALIGN_S` in 1/:data:`ALIGN_SUBSTEPS` of the grid step."""
     dt = _dt(logs)
-    delays = range(0, int(round(MAX_ALIGN_S / dt)) + 1)
-    per_delay = {d: [_log_rows(log, dataclasses.replace(shell, delay_steps=d), window_s) for log in logs] for d in delays}
+    aligns = [round(i * dt / ALIGN_SUBSTEPS, 6) for i in range(int(round(MAX_ALIGN_S / dt)) * ALIGN_SUBSTEPS + 1)]
     out = {}
     for name in dict.fromkeys(log.name for log in logs):
-        which = [j for j, log in enumerate(logs) if log.name == name]
+        which = [log for log in logs if log.name == name]
+        bases = [_base(log, shell, window_s) for log in which]
         best = None
-        for d in delays:
+        for a in aligns:
+            rows = [_log_rows(log, shell, b, a) for log, b in zip(which, bases)]
             for band in BANDS_S:
-                parts = [_filtered(per_delay[d][j], band, logs[j].dt_s) for j in which]
+                parts = [_filtered(r, band, log.dt_s) for r, log in zip(rows, which)]
                 score = sum(_partial_r2(np.vstack([p[0][k] for p in parts]), np.concatenate([p[1][k] for p in parts]),
                                         np.concatenate([np.full(p[1][k].size, i) for i, p in enumerate(parts)]))
                             for k in range(3))
                 if best is None or score > best[0]:
-                    best = (score, d, band)
+                    best = (score, a, band)
         out[name] = (best[1], best[2])
     return out
 
@@ -259,29 +283,52 @@ def _partial_r2(A: np.ndarray, y: np.ndarray, group: np.ndarray) -> float:
     if y.size <= A.shape[1] + 2:
         return 0.0
     D = (group[:, None] == np.unique(group)[None]).astype(float)
-    full = np.column_stack([A, D])
-    rss = [float(np.sum((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2)) for X in (full, full[:, 1:])]
-    return 1.0 - rss[0] / rss[1] if rss[1] > 0 else 0.0
+    X = np.column_stack([A, D])
+    scale = np.maximum(np.sqrt(np.sum(X * X, axis=0)), 1e-300)       # the normal equations, columns scaled
+    X = X / scale
+    G, c, yy = X.T @ X, X.T @ y, float(y @ y)
+
+    def rss(cols):
+        b = np.linalg.lstsq(G[np.ix_(cols, cols)], c[cols], rcond=1e-12)[0]
+        return max(yy - float(b @ c[cols]), 0.0)
+    full, without = rss(np.arange(X.shape[1])), rss(np.arange(1, X.shape[1]))
+    return 1.0 - full / without if without > 0 else 0.0
 
 
-def _log_rows(log: StateLog, shell: RotationModel, window_s: float) -> tuple[np.ndarray, list, list]:
+def _base(log: StateLog, shell: RotationModel, window_s: float) -> tuple:
+    """What of one stretch's rows does not depend on the alignment: :func:`rotation_rows` of it
+    and each axis's smoothed rate change over each step (module docstring)."""
+    dw = np.diff(log.state[:, 10:13], axis=0) / log.dt_s
+    return rotation_rows(log, shell, window_s), [_smooth(dw[:, k:k + 1])[:, 0] for k in range(3)]
+
+
+def _log_rows(log: StateLog, shell: RotationModel, base: tuple, align_s: float = 0.0
+              ) -> tuple[np.ndarray, list, list]:
     """One stretch's rows before the band filter: the rows kept (in flight, the kernel inside the
-    stretch), each axis's smoothed design at every step midpoint and its smoothed rate change
-    over the step (module docstring)."""
-    P = shell.layout.patterns()
-    r = rotation_rows(log, shell, window_s)
+    stretch, none whose aligned rotor speeds would start before the stretch), each axis's smoothed
+    design at every step midpoint and its smoothed rate change over the step (``base``:
+    :func:`_base` of the stretch). ``align_s``: the rotor speeds read that much earlier (s; linear
+    between samples)."""
+    r, dw = base
+    if align_s > 0 and log.rpm.shape[0]:
+        t = np.asarray(log.t_s, float)
+        rpm = np.column_stack([np.interp(t - align_s, t, log.rpm[:, m]) for m in range(log.rpm.shape[1])])
+        s, rate = shell.conditioned(rpm, log.dt_s)
+        r = (r[0], s[:-1], r[2], rate[:-1], *r[4:])
     every = (np.ones_like(r[0]), *r[1:])
     keep = np.flatnonzero(np.convolve(r[0].astype(float), np.ones(_KERNEL.size), mode="same") >= _KERNEL.size - 1e-9)
-    dw = np.diff(log.state[:, 10:13], axis=0) / log.dt_s
-    return keep, [_smooth(rotation_design(k, P, shell.terms, every)) for k in range(3)], \
-        [_smooth(dw[:, k:k + 1])[:, 0] for k in range(3)]
+    keep = keep[keep >= math.ceil(align_s / log.dt_s - 1e-9) + _KERNEL.size // 2]
+    P = shell.layout.patterns()
+    return keep, [_smooth(rotation_design(k, P, shell.terms, every)) for k in range(3)], dw
 
 
 def _filtered(rows: tuple, band: float | None, dt_s: float) -> tuple[list, list]:
     """(designs, targets) per axis of :func:`_log_rows`'s rows at the kept rows, with the moving
     average over ± ``band`` seconds taken off both sides (None: as they are)."""
     keep, A, y = rows
-    return [_highpass(a, band, dt_s)[keep] for a in A], [_highpass(v[:, None], band, dt_s)[keep, 0] for v in y]
+    widths = np.cumsum([0, *(a.shape[1] for a in A)])
+    both = _highpass(np.column_stack([*A, *y]), band, dt_s)[keep]           # one pass over every column
+    return [both[:, widths[k]:widths[k + 1]] for k in range(3)], [both[:, widths[-1] + k] for k in range(3)]
 
 
 def _highpass(x: np.ndarray, band: float | None, dt_s: float) -> np.ndarray:
@@ -290,12 +337,14 @@ def _highpass(x: np.ndarray, band: float | None, dt_s: float) -> np.ndarray:
     if band is None or x.shape[0] < 3:
         return x
     n = min(max(int(round(band / dt_s)), 1), (x.shape[0] - 1) // 2)
-    kernel = np.ones(2 * n + 1) / (2 * n + 1)
-    return x - np.column_stack([np.convolve(x[:, c], kernel, mode="same") for c in range(x.shape[1])])
+    cs = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])   # moving sums from cumulative sums
+    i = np.arange(x.shape[0])
+    lo, hi = np.maximum(i - n, 0), np.minimum(i + n + 1, x.shape[0])  # the average over what lies inside
+    return x - (cs[hi] - cs[lo]) / (hi - lo)[:, None]
 
 
 def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float,
-          conditions: Mapping[str, tuple[int, float | None]]) -> dict:
+          conditions: Mapping[str, tuple[float, float | None]]) -> dict:
     """Every axis's design and target over ``logs``, each flight at its ``conditions``
     (:func:`flight_conditions`), and per row its flight (index into ``names``: stretches of one
     flight share its name), stretch (``group``) and a time index (``t``, steps; stretches far
@@ -312,8 +361,8 @@ def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float,
     A, y = [[], [], []], [[], [], []]
     flight, group, t = [], [], []
     for j, log in enumerate(logs):
-        d, band = conditions[log.name]
-        rows = _log_rows(log, dataclasses.replace(shell, delay_steps=d), window_s)
+        align, band = conditions[log.name]
+        rows = _log_rows(log, shell, _base(log, shell, window_s), align)
         keep = rows[0]
         Aj, yj = _filtered(rows, band, log.dt_s)
         for k in range(3):
@@ -333,12 +382,13 @@ def _smooth(x: np.ndarray) -> np.ndarray:
 
 def _alone(A: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray, lo: np.ndarray,
            seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`droneid.fitting.constancy.unit_estimate` of the rows ``sel`` (one flight), a trim per
-    stretch of it, bootstrapped over its own time blocks."""
+    """``(β, se, pct)`` of :func:`droneid.fitting.constancy.unit_estimate` of the rows ``sel`` (one
+    flight), a trim per stretch of it, bootstrapped over its own time blocks."""
     stretches = np.unique(group[sel])
     A1 = np.column_stack([A[sel], (group[sel][:, None] == stretches[None]).astype(float)])
     lo1 = np.concatenate([lo, np.full(stretches.size, -np.inf)])
-    return unit_estimate(A1, y[sel], time_blocks(t[sel], np.zeros(int(sel.sum()), int)), lo1, seed=seed)
+    fit, se, pct = unit_estimate(A1, y[sel], time_blocks(t[sel], np.zeros(int(sel.sum()), int)), lo1, seed=seed)
+    return fit.beta, se, pct
 
 
 def _grouped_draws(A: np.ndarray, y: np.ndarray, group: np.ndarray, blocks: np.ndarray, w: np.ndarray,

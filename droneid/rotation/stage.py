@@ -214,9 +214,6 @@ def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Map
     IdentifiedModel} as the translation (``motor``: the motor model of a command-driven vehicle's
     models), against the rates held (a note when they cannot be scored)."""
     commands = None if rot.model is None else rot.model.commands
-    gains = rot.torque_gains
-    if commands is None and gains is not None and gains.model is not None:
-        commands = gains.model.commands
     try:
         tr = IdentifiedTranslation(translation, motor if motor is not None or commands is None else commands.motor)
         signals = tuple(dict.fromkeys([*tr.signals(), *(commands.signals() if commands is not None else ())]))
@@ -225,13 +222,21 @@ def score_rotation(rot: RotationResult, test_flights: Sequence, translation: Map
         model = _axis_simerr(IdentifiedVehicle(tr, rot.model), test) if rot.model is not None else held
     except DroneIdError as exc:
         return replace(rot, notes=(*rot.notes, f"rotation not scored on the test flights: {exc}"))
-    if gains is not None:
-        try:
-            gains = check_gains(gains, test)
-        except DroneIdError as exc:
-            rot = replace(rot, notes=(*rot.notes, f"the torque gains not checked on the test flights: {exc}"))
-    return replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model, rot.model),
-                   torque_gains=gains)
+    rot = replace(rot, axes=_axes(rot.choice, [a.validation_model for a in rot.axes], held, model, rot.model))
+    return _check_gains(rot, test_flights)
+
+
+def _check_gains(rot: RotationResult, test_flights: Sequence) -> RotationResult:
+    """``rot`` with its torque gains checked on the test flights (:func:`check_gains`; their own
+    read of the flights: a command-driven vehicle's needs its command signals), or a note why not."""
+    gains = rot.torque_gains
+    if gains is None or gains.model is None:
+        return rot
+    try:
+        signals = gains.model.commands.signals() if gains.model.commands is not None else ()
+        return replace(rot, torque_gains=check_gains(gains, flight_state_logs(test_flights, signals=signals)))
+    except DroneIdError as exc:
+        return replace(rot, notes=(*rot.notes, f"the torque gains not checked on the test flights: {exc}"))
 
 
 @dataclass(frozen=True)

@@ -37,11 +37,10 @@ import numpy as np
 from scipy import special
 
 from droneid.core.expressions import parse_expression
-from droneid.core.regression import bootstrap_draws, robust_fit
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DroneIdError
 from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved,
-                                       new_flight_expectation, new_flight_p, rule_text)
+                                       new_flight_expectation, new_flight_p, rule_text, unit_estimate)
 from droneid.fitting.terms import IDENTIFIABLE_REL, evaluate_expr
 
 __all__ = ["ConstantCheck", "identified_constants", "check_constants", "constants_line"]
@@ -162,12 +161,8 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
             out += unchecked(f"{rows.size} rows, fewer than {MIN_UNIT_ROWS}")
             continue
         Ai, zi = A[rows], z[rows]
-        fit = robust_fit(Ai, zi, lo, hi)
-        blocks = time_blocks(np.asarray(t, float)[rows], np.zeros(rows.size, int))
-        b = np.unique(blocks).size
-        draws = bootstrap_draws(Ai, zi, blocks, fit, lo, hi, seed=seed)
-        se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
-        pct = np.percentile(draws, [2.5, 97.5], axis=0)
+        fit, se, pct = unit_estimate(Ai, zi, time_blocks(np.asarray(t, float)[rows], np.zeros(rows.size, int)), lo, hi,
+                                     seed=seed)
         res, ps = {}, {}
         for j, lab in enumerate(labs):
             c = constants[lab]
