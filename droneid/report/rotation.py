@@ -147,11 +147,15 @@ def gains_lines(rot: RotationResult) -> list[str]:
         return []
     used = [ax for k, ax in enumerate(AXIS_NAMES) if rot.axes[k].rung == "torque"]
     where = (f"the chosen model has a torque term on {', '.join(used)} (its own coefficient, fitted for open-loop "
-             f"prediction)" if used else "the chosen model has no torque term (the ladder did not take the torque rung)")
-    return [f"torque gains, {g.verdict()}: {g.text()} ({g.unit}: the motors' torque over the body's inertia; the "
-            f"torque rung's terms fitted at the equation level, a trim per in-flight stretch, each flight at its own "
-            f"alignment and band; 95 % interval: the hull of the (flight, block) bootstrap and the between-flight "
-            f"interval); {where}",
+             f"prediction)" if used else "the chosen model has no torque term (the ladder did not take the torque "
+             "rung: integrated open loop, the torque model drifts in calm flight; the gains are what the motors do "
+             "at the equation level)")
+    floor = (" (a lower bound of 0 is the physics bound: the interval reached below it)"
+             if any(lo <= 0.0 for _, lo, _ in g.gains.values()) else "")
+    return [f"torque gains, {g.verdict()}: {g.text()}{floor} ({g.unit}, P the layout's torque pattern: per rotor "
+            f"its y, −x and spin ±1: the motors' torque over the body's inertia; the torque rung's terms fitted at "
+            f"the equation level, a trim per in-flight stretch, each flight at its own alignment and band; 95 % "
+            f"interval: the hull of the (flight, block) bootstrap and the between-flight interval); {where}",
             *filter(None, [constancy_line(g.constancy), _tested_line(g), _conditions_line(g)])]
 
 
@@ -161,8 +165,10 @@ def _tested_line(g) -> str:
         return ""
     bad = g.failing()
     judged = any(v[4] is not None for per in g.tested.values() for v in per.values())
+    spread = any(c.constant is False for c in g.constancy.values())
     head = (f"DO NOT HOLD on the test flights ({', '.join(bad)}): not the vehicle's constants under this model"
-            if bad else "hold on the test flights" if judged else "cannot be tested on the test flights")
+            if bad else ("lie within the training flights' spread on the test flights" if spread else
+                         "hold on the test flights") if judged else "cannot be tested on the test flights")
     parts = []
     for f, per in g.tested.items():
         cells = []
@@ -178,11 +184,11 @@ def _conditions_line(g) -> str:
     """Each flight's own conditions of the torque gains (:func:`droneid.rotation.gains.flight_conditions`)."""
     if not g.conditions:
         return ""
-    parts = [f"{f} {1000 * a:.3g} ms, " + ("all of it" if b is None else f"less its ±{b:g} s average")
+    parts = [f"{f} {1000 * a:.3g} ms, " + ("all of it" if b is None else f"minus its ±{b:g} s moving average")
              for f, (a, b) in g.conditions.items()]
     return ("  each flight's conditions of its gains, chosen on that flight alone where the torque pattern explains "
-            "most (the motor stream read that much earlier; the band: the slow part the controller spends on "
-            "moments the model lacks taken off both sides): " + "; ".join(parts))
+            "most (the motor stream read that much earlier; the band, a high-pass: the slow part the controller "
+            "spends on moments the model lacks taken off both sides): " + "; ".join(parts))
 
 
 def open_loop_table(ol: Mapping) -> tuple[list[str], list[list[str]]]:

@@ -137,7 +137,8 @@ class TorqueGains:
             judged = [v for per in self.tested.values() for v in per.values() if v[4] is not None]
             bad = self.failing()
             said += (f"; DO NOT HOLD on the test flights ({', '.join(bad)})" if bad else
-                     "; hold on the test flights" if judged else "; not identifiable on the test flights")
+                     ("; the test flights lie within the training flights' spread" if flagged else
+                      "; hold on the test flights") if judged else "; not identifiable on the test flights")
         return said
 
     @classmethod

@@ -155,7 +155,8 @@ def speed_scale(flight) -> tuple[float, str]:
     if unit == "erpm":
         return CRAZYFLIE_RAD_S_PER_ERPM, ("motor speeds in electrical rpm, converted with 6 electrical "
                                           "rpm per mechanical revolution (Crazyflie 2.1 Brushless); the "
-                                          "coefficients scale with it, the predictions do not")
+                                          "coefficients scale with it (the torque gains with its square), "
+                                          "the predictions do not")
     raise DataError(f"{flight.name}: the rotational model needs rotor speeds (rpm1..); "
                     f"rpm1 is in {unit or 'no unit'}")
 
@@ -203,7 +204,8 @@ def rotation_job(train_flights: Sequence, frame: str = "auto", commands: Command
         train = tuple(flight_state_logs(train_flights))
     if len({log.name for log in train}) < 2:
         raise DataError("the rotational model is chosen by holding each training flight out in turn: "
-                        "it needs at least two training flights with an in-flight stretch")
+                        "it needs at least two training flights with an in-flight stretch (the torque gains, "
+                        "which come with it, are not reported either)")
     return RotationJob(train, scale, why, frame, commands=commands)
 
 
