@@ -193,9 +193,16 @@ class EffectContext:
 
 @dataclass(frozen=True)
 class Interpretation:
-    """Fitted coefficients of one effect in physical terms: a sentence and named values."""
+    """Fitted coefficients of one effect in physical terms: a sentence and named values.
+
+    ``size``: for an effect judged on its own rows (``assess_fn``), its physical size as a fraction
+    (per-motor thrust: the largest ``|r_i − 1|``), held to the rule's size floor
+    (``DiagnoseConfig.min_rel_improvement``) where the relative drop of its residuals has no
+    meaning; ``size_what`` names it for the evidence line. None: no such size."""
     text: str
     values: dict
+    size: float | None = None
+    size_what: str = ""
 
 
 @dataclass(frozen=True)

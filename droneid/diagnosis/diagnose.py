@@ -343,6 +343,18 @@ def _best_first(scores) -> list:
     return sorted(scores, key=lambda s: (bool(s[4].get("implausible")), s[4]["cv_rmse_after"]))
 
 
+
+def _held_to_size(ev: dict, interp, floor: float) -> dict:
+    """``ev`` of an effect judged on its own rows, rejected when its physical size
+    (``interp.size``, a fraction) is under the rule's size floor ``floor``: the relative drop of
+    such residuals measures nothing physical (docstring of priors/effect_catalogue/motor_thrust)."""
+    if interp.size is None or interp.size >= floor:
+        return ev
+    why = f"{interp.size_what or 'its size is'} {100 * interp.size:.2g} % (< {100 * floor:g} %)"
+    text = ev["text"].replace(": accepted", f": rejected ({why})") if ev["passed"] else \
+        ev["text"][:-1] + f"; {why})" if ev["text"].endswith(")") else ev["text"]
+    return {**ev, "passed": False, "reasons": [*ev["reasons"], why], "text": text}
+
 class _Search:
     """The forward search's state: the model so far (``terms``, ``test_terms``, ``fit``), the
     steps taken, the effects ``added``, every decision (``log``), the plots' step data and the
@@ -377,6 +389,7 @@ class _Search:
                 e0, e1, rows, alpha=cfg.alpha, family_size=self.family,
                 rank=min(len(self.added) + 1, self.family),
                 min_effect_pct=100 * cfg.min_rel_improvement, what=e.id)), None, None)
+            ev = _held_to_size(ev, interp, cfg.min_rel_improvement)
             entry = {"step": 0, "assessed": e.id, "added": [],
                      "scores": [{"effect": e.id, **{k: ev[k] for k in _LOGGED}}]}
             self.log.append(entry)
