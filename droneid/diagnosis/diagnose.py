@@ -64,7 +64,7 @@ from priors.registry import resolve_prior
 from droneid.dataset.data import Dataset
 from droneid.fitting.decide import decide
 from droneid.diagnosis.result import (NO_FURTHER, DiagnoseConfig, DiagnosisResult, evidence_of,
-                               fold_into_prior, folded_feature, with_test_errors)
+                               fold_into_prior, folded_feature, held_to_size, with_test_errors)
 from droneid.diagnosis.effect_model import (EffectModel, air_jacobians, diagnose_blocks, drop_stand_ins, fold_features,
                            linear_drag_of, make_part, physical_terms, prior_terms,
                            refine_contexts, score_candidates, strip_effect_id, uses_derivative)
@@ -344,17 +344,6 @@ def _best_first(scores) -> list:
 
 
 
-def _held_to_size(ev: dict, interp, floor: float) -> dict:
-    """``ev`` of an effect judged on its own rows, rejected when its physical size
-    (``interp.size``, a fraction) is under the rule's size floor ``floor``: the relative drop of
-    such residuals measures nothing physical (docstring of priors/effect_catalogue/motor_thrust)."""
-    if interp.size is None or interp.size >= floor:
-        return ev
-    why = f"{interp.size_what or 'its size is'} {100 * interp.size:.2g} % (< {100 * floor:g} %)"
-    text = ev["text"].replace(": accepted", f": rejected ({why})") if ev["passed"] else \
-        ev["text"][:-1] + f"; {why})" if ev["text"].endswith(")") else ev["text"]
-    return {**ev, "passed": False, "reasons": [*ev["reasons"], why], "text": text}
-
 class _Search:
     """The forward search's state: the model so far (``terms``, ``test_terms``, ``fit``), the
     steps taken, the effects ``added``, every decision (``log``), the plots' step data and the
@@ -389,7 +378,7 @@ class _Search:
                 e0, e1, rows, alpha=cfg.alpha, family_size=self.family,
                 rank=min(len(self.added) + 1, self.family),
                 min_effect_pct=100 * cfg.min_rel_improvement, what=e.id)), None, None)
-            ev = _held_to_size(ev, interp, cfg.min_rel_improvement)
+            ev = held_to_size(ev, interp, cfg.min_rel_improvement)
             entry = {"step": 0, "assessed": e.id, "added": [],
                      "scores": [{"effect": e.id, **{k: ev[k] for k in _LOGGED}}]}
             self.log.append(entry)

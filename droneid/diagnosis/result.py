@@ -20,8 +20,8 @@ from droneid.core.differentiation import DIFFERENTIATORS
 from droneid.errors import ConfigError, DataError, check_choice
 from droneid.core.io_util import to_jsonable
 
-__all__ = ["DiagnoseConfig", "DiagnosisResult", "NO_FURTHER", "evidence_of", "with_test_errors", "folded_feature",
-           "fold_into_prior"]
+__all__ = ["DiagnoseConfig", "DiagnosisResult", "NO_FURTHER", "evidence_of", "with_test_errors", "held_to_size",
+           "folded_feature", "fold_into_prior"]
 
 NO_FURTHER = "no further effect is detectable from these signals"
 
@@ -191,6 +191,18 @@ def with_test_errors(ev: dict, test_before: float | None, test_after: float | No
         if test_before is not None and test_after is not None else None
     return {**ev, "test_rmse_before": test_before, "test_rmse_after": test_after,
             "test_rel_improvement": rel}
+
+
+def held_to_size(ev: dict, interp, floor: float) -> dict:
+    """``ev`` of an effect judged on its own rows, rejected when its physical size
+    (``interp.size``, a fraction) is under the rule's size floor ``floor``: the relative drop of
+    such residuals measures nothing physical (docstring of priors/effect_catalogue/motor_thrust)."""
+    if interp.size is None or interp.size >= floor:
+        return ev
+    why = f"{interp.size_what or 'its size is'} {100 * interp.size:.2g} % (< {100 * floor:g} %)"
+    text = ev["text"].replace(": accepted", f": rejected ({why})") if ev["passed"] else \
+        ev["text"][:-1] + f"; {why})" if ev["text"].endswith(")") else ev["text"]
+    return {**ev, "passed": False, "reasons": [*ev["reasons"], why], "text": text}
 
 
 def folded_feature(effect: str, feature: Mapping, physical: str = "") -> PriorFeature:

@@ -245,8 +245,10 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
         results[t] = summarise_target(problems[t], cfg, runs, errors)
     results, shared = shared_constants(results, problems)
     notes = [*plan.lines(), *_data_notes(fitness), *notes_early, *(c.note() for c in shared.values())]
-    if outcome.interrupted:
-        notes.append(f"interrupted: {outcome.n_done} of {len(jobs)} runs finished and are reported")
+    if outcome.interrupted:     # the SNGP runs (the rotational job is not a run)
+        sngp = [i for i, j in enumerate(jobs) if not isinstance(j, RotationJob)]
+        notes.append(f"interrupted: {sum(outcome.results[i] is not None for i in sngp)} of {len(sngp)} runs "
+                     "finished and are reported")
     prov = {"train": flight_provenance(train_flights), "test": flight_provenance(test_flights or [])}
     record = PlanRecord(
         **plan.record(), validation=next(iter(problems.values())).validation,

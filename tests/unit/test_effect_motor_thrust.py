@@ -53,14 +53,14 @@ def test_not_applicable_without_motor_speeds():
 
 def test_size_floor_rejects_a_proved_but_tiny_difference():
     # the rule's size floor is held to the motors' thrust ratios, not to the share residuals
-    from droneid.diagnosis.diagnose import _held_to_size
+    from droneid.diagnosis.result import held_to_size
     from priors.effects import Interpretation
     ev = {"passed": True, "reasons": [], "text": "motor_thrust: CV RMSE 0.0017 -> 0.0016 (-5.9 %) ...: accepted"}
     tiny = Interpretation("", {}, size=0.0047, size_what="the largest motor's thrust differs from the others' by")
-    out = _held_to_size(ev, tiny, 0.01)
+    out = held_to_size(ev, tiny, 0.01)
     assert not out["passed"] and out["text"].endswith("by 0.47 % (< 1 %))") and len(out["reasons"]) == 1
-    assert _held_to_size(ev, Interpretation("", {}, size=0.15), 0.01) == ev
-    assert _held_to_size(ev, Interpretation("", {}), 0.01) == ev
+    assert held_to_size(ev, Interpretation("", {}, size=0.15), 0.01) == ev
+    assert held_to_size(ev, Interpretation("", {}), 0.01) == ev
 
 
 @pytest.mark.slow
