@@ -155,9 +155,8 @@ def gains_lines(rot: RotationResult) -> list[str]:
     return [f"torque gains, {g.verdict()}: {g.text()}{floor} ({g.unit}, P the layout's torque pattern: per rotor "
             f"its y, −x and spin ±1: the motors' torque over the body's inertia; the torque rung's terms fitted at "
             f"the equation level, a trim per in-flight stretch, each flight at its own alignment and band; 95 % "
-            f"interval: the hull of the (flight, block) bootstrap and the between-flight interval; roll and pitch "
-            f"read through instruments, the rotor speeds 5-9 steps earlier, as noise on the logged speeds would pull "
-            f"them towards zero; yaw is not, and may be low: docs/use-the-model.md); {where}",
+            f"interval: the hull of the (flight, block) bootstrap and the between-flight interval; noise on the "
+            f"logged motor speeds pulls such a gain towards zero, not corrected: docs/use-the-model.md); {where}",
             *filter(None, [constancy_line(g.constancy), _tested_line(g), _conditions_line(g)])]
 
 

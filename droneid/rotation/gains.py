@@ -20,20 +20,11 @@ takes the (alignment, band) where the torque pattern explains most of its rate c
 largest partial R² of the pattern, summed over the axes). The rotor speeds are read as logged (no
 low-pass: a filter on one side only would inflate a gain read at high frequency).
 
-- **the estimator**: noise on the logged rotor speeds is noise in the regressor, which pulls an
-  equation-error gain towards zero (droneid's simulator, 30 rpm of noise where the controller's
-  differential speeds are tens of rpm: 16 for a planted 38). Roll and pitch are therefore fitted
-  by two-stage least squares, each rotor-speed column instrumented by itself
-  :data:`IV_LAGS` steps earlier (white noise of one sample reaches rows up to 4 steps apart
-  through the smoothing; the signal, the controller's, lasts longer), the other columns their
-  own instruments, unweighted (:func:`_weights`). Yaw is not instrumented
-  (:data:`INSTRUMENTED`): ordinary least squares with the robust fit's weights;
 - **pooled**: one fit of every training flight, a trim per in-flight stretch (a flight condition:
   balance point, battery); its 95 % interval is the percentile block bootstrap over (flight, time
   block) units (:func:`droneid.dataset.validation.time_blocks`), each replicate refit with its
   trims;
-- **per flight**: each flight alone (its own trims), with its block-bootstrap standard error
-  (inflated by B/(B − 1), as :func:`droneid.fitting.constancy.unit_estimate` for the v̇ constants);
+- **per flight**: each flight alone (its own trims), with its block-bootstrap standard error;
 - **constancy**: Cochran's Q over the flights, Holm over the three axes at
   :data:`droneid.fitting.constancy.ALPHA`, and a spread τ of at least
   :data:`~droneid.fitting.constancy.MIN_TAU_REL` of the gain (:func:`~droneid.fitting.constancy.constancies`);
@@ -62,11 +53,11 @@ import numpy as np
 from priors.torque import RotorLayout
 
 from droneid.core.io_util import to_jsonable
-from droneid.core.regression import robust_fit_grouped
+from droneid.core.regression import (gram_bounded_lstsq_many, group_grams, robust_fit_grouped, within_gram)
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DataError
 from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, Constancy, constancies, holm_flags, moved,
-                                       new_flight_expectation, new_flight_p)
+                                       new_flight_expectation, new_flight_p, unit_estimate)
 from droneid.rotation.commands import CommandSpeeds
 from droneid.rotation.model import (AXIS_NAMES, RotationModel, fit_rotation, rotation_bounds, rotation_design,
                                     rotation_rows)
@@ -87,17 +78,6 @@ IDENTIFIABLE_REL = 0.5
 #: flight's gain by 10-25 % on the shared squares)
 MAX_ALIGN_S = 0.06
 ALIGN_SUBSTEPS = 4
-#: the instruments of :func:`_iv_draws`: the design these many steps earlier. A row's design reads
-#: the rotor speeds at its step, smoothed over ± 2 steps, so a sample's white noise reaches rows up
-#: to 4 apart; 5 steps and more share none of it. Five lags, not one: one alone is a weak instrument
-#: of a band-limited design (a square's gain came out 52.6 ± 57 with the design 6 steps earlier,
-#: 59.0 ± 1.0 with 5-9)
-IV_LAGS = (5, 6, 7, 8, 9)
-#: the axes whose rotor-speed columns are instrumented (roll, pitch). Not yaw: a rotor's reaction
-#: to its own spin-up turns the body about z, so the speeds of the steps before act on yaw
-#: directly and are no instrument there; yaw is ordinary least squares (its design its own
-#: instrument), and motor-speed noise attenuates it (docs/use-the-model.md)
-INSTRUMENTED = (0, 1)
 #: the bands tried: the half-width (s) of the moving average taken off both sides, None: none
 #: (±0.05 s is the narrowest above the smoothing kernel's ±2 steps at 100 Hz)
 BANDS_S = (None, 0.05, 0.1, 0.2, 0.5, 1.0)
@@ -198,12 +178,14 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
     pooled, boot, vals, ses, ivs = {}, {}, np.zeros((len(used), 3)), np.zeros((len(used), 3)), \
         [np.zeros((2, 3)) for _ in used]
     for k, axis in enumerate(AXIS_NAMES):
-        A, Z, y = rows["A"][k], rows["Z"][k], rows["y"][k]
-        beta, draws = _iv_draws(A, Z, y, group, blocks, _weights(k, A, y, group, terms), n_boot, seed)
-        pooled[axis] = float(beta[0])
-        boot[axis] = tuple(float(x) for x in np.percentile(draws[:, 0], [2.5, 97.5]))
+        A, y = rows["A"][k], rows["y"][k]
+        lo = rotation_bounds(k, terms, A.shape[1])
+        fit = robust_fit_grouped(A, y, group, lo=lo)
+        pooled[axis] = float(fit.beta[0])
+        draws = _grouped_draws(A, y, group, blocks, fit.weights, lo, n_boot, seed)[:, 0]
+        boot[axis] = tuple(float(x) for x in np.percentile(draws, [2.5, 97.5]))
         for i, f in enumerate(used):
-            beta, se, pct = _alone(k, A, Z, y, group, t, flight == f, terms, seed)
+            beta, se, pct = _alone(A, y, group, t, flight == f, lo, seed)
             vals[i, k], ses[i, k], ivs[i][:, k] = beta[0], se[0], pct[:, 0]
     const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)))
     gains = {}
@@ -212,7 +194,7 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         c = const.get(axis)
         if c is not None and c.between is not None:
             lo_, hi_ = min(lo_, c.between[0]), max(hi_, c.between[1])
-        gains[axis] = (max(pooled[axis], 0.0), max(lo_, 0.0), max(hi_, 0.0))     # the physics bound: ≥ 0
+        gains[axis] = (pooled[axis], max(lo_, 0.0), hi_)
     zero = dataclasses.replace(shell, coef=tuple(np.zeros_like(c) for c in shell.coef), trim=np.zeros(3),
                                flight_trims=np.zeros((0, 3)), commands=commands)
     return TorqueGains(unit, tuple(terms), gains, boot, const, model=zero, conditions=conditions)
@@ -241,8 +223,8 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
             continue
         res, ps = {}, {}
         for k, axis in enumerate(AXIS_NAMES):
-            beta, se, pct = _alone(k, rows["A"][k], rows["Z"][k], rows["y"][k], rows["group"], rows["t"], sel,
-                                   shell.terms, seed)
+            lo = rotation_bounds(k, shell.terms, rows["A"][k].shape[1])
+            beta, se, pct = _alone(rows["A"][k], rows["y"][k], rows["group"], rows["t"], sel, lo, seed)
             v, low, high = float(beta[0]), float(pct[0, 0]), float(pct[1, 0])
             c = g.constancy.get(axis)
             expected = new_flight_expectation(g.gains[axis][0], *g.pooled_interval[axis],
@@ -341,25 +323,13 @@ def _log_rows(log: StateLog, shell: RotationModel, base: tuple, align_s: float =
     return keep, [_smooth(rotation_design(k, P, shell.terms, every)) for k in range(3)], dw
 
 
-def _filtered(rows: tuple, band: float | None, dt_s: float, lags: Sequence[int] = (),
-              noisy: Sequence[np.ndarray] | None = None) -> tuple[list, list, list, np.ndarray]:
-    """(designs, targets, instruments, rows) per axis of :func:`_log_rows`'s rows, with the moving
-    average over ± ``band`` seconds taken off both sides (None: as they are), at the kept rows
-    whose rows ``lags`` steps earlier are kept too. The instruments: each column of ``noisy[k]``
-    (axis k's columns read from the rotor speeds) at ``lags`` steps earlier, the other columns as
-    they are (no ``lags``: the design itself, ordinary least squares)."""
+def _filtered(rows: tuple, band: float | None, dt_s: float) -> tuple[list, list]:
+    """(designs, targets) per axis of :func:`_log_rows`'s rows at the kept rows, with the moving
+    average over ± ``band`` seconds taken off both sides (None: as they are)."""
     keep, A, y = rows
     widths = np.cumsum([0, *(a.shape[1] for a in A)])
-    full = _highpass(np.column_stack([*A, *y]), band, dt_s)            # one pass over every column
-    for lag in lags:
-        keep = keep[np.isin(keep - lag, keep)]
-    both = full[keep]
-    design = [both[:, widths[k]:widths[k + 1]] for k in range(3)]
-    inst = design
-    if lags:
-        inst = [np.hstack([design[k][:, ~noisy[k]], *(full[keep - lag, widths[k]:widths[k + 1]][:, noisy[k]]
-                                                      for lag in lags)]) for k in range(3)]
-    return design, [both[:, widths[-1] + k] for k in range(3)], inst, keep
+    both = _highpass(np.column_stack([*A, *y]), band, dt_s)[keep]           # one pass over every column
+    return [both[:, widths[k]:widths[k + 1]] for k in range(3)], [both[:, widths[-1] + k] for k in range(3)]
 
 
 def _highpass(x: np.ndarray, band: float | None, dt_s: float) -> np.ndarray:
@@ -389,23 +359,21 @@ def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float,
     regressors, as the open-loop fit takes it, attenuates the gains: 1 % on the planted flights of
     tests/unit/test_torque_gains.py, more than their intervals.)"""
     names = list(dict.fromkeys(log.name for log in logs))
-    noisy = [np.isin(shell.columns(k), RotationModel.MOTOR_TERMS) & (k in INSTRUMENTED) for k in range(3)]
-    A, Z, y = [[], [], []], [[], [], []], [[], [], []]
+    A, y = [[], [], []], [[], [], []]
     flight, group, t = [], [], []
     for j, log in enumerate(logs):
         align, band = conditions[log.name]
-        Aj, yj, Zj, keep = _filtered(_log_rows(log, shell, _base(log, shell, window_s), align), band, log.dt_s,
-                                     IV_LAGS, noisy)
+        rows = _log_rows(log, shell, _base(log, shell, window_s), align)
+        keep = rows[0]
+        Aj, yj = _filtered(rows, band, log.dt_s)
         for k in range(3):
             A[k].append(Aj[k])
-            Z[k].append(Zj[k])
             y[k].append(yj[k])
         flight.append(np.full(keep.size, names.index(log.name)))
         group.append(np.full(keep.size, j))
         t.append(keep + 1e7 * j)
     return {"names": names, "flight": np.concatenate(flight), "group": np.concatenate(group),
-            "t": np.concatenate(t).astype(float), "A": [np.vstack(a) for a in A], "Z": [np.vstack(z) for z in Z],
-            "y": [np.concatenate(v) for v in y]}
+            "t": np.concatenate(t).astype(float), "A": [np.vstack(a) for a in A], "y": [np.concatenate(v) for v in y]}
 
 
 def _smooth(x: np.ndarray) -> np.ndarray:
@@ -413,64 +381,33 @@ def _smooth(x: np.ndarray) -> np.ndarray:
     return np.column_stack([np.convolve(x[:, c], _KERNEL, mode="same") for c in range(x.shape[1])])
 
 
-def _weights(k: int, A: np.ndarray, y: np.ndarray, group: np.ndarray, terms: tuple[str, ...]) -> np.ndarray:
-    """The rows' weights of axis ``k``'s fit: none (ones) where its rotor-speed columns are
-    instrumented (:data:`INSTRUMENTED`): a robust weight reads the row's residual, which carries
-    the row's motor-speed noise, and brings back part of the bias the instruments remove (the
-    simulator's five eights: roll 33.5 with Huber weights, 36.4 without, 37.7 from noise-free rotor
-    speeds); elsewhere the Huber weights of the robust fit (a yaw gain of the squares read without
-    them ranges 2.1-21 from flight to flight, with them 1.9-8.2)."""
-    if k in INSTRUMENTED:
-        return np.ones(y.size)
-    return robust_fit_grouped(A, y, group, lo=rotation_bounds(k, terms, A.shape[1])).weights
+def _alone(A: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray, lo: np.ndarray,
+           seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(β, se, pct)`` of :func:`droneid.fitting.constancy.unit_estimate` of the rows ``sel`` (one
+    flight), a trim per stretch of it, bootstrapped over its own time blocks."""
+    stretches = np.unique(group[sel])
+    A1 = np.column_stack([A[sel], (group[sel][:, None] == stretches[None]).astype(float)])
+    lo1 = np.concatenate([lo, np.full(stretches.size, -np.inf)])
+    fit, se, pct = unit_estimate(A1, y[sel], time_blocks(t[sel], np.zeros(int(sel.sum()), int)), lo1, seed=seed)
+    return fit.beta, se, pct
 
 
-def _alone(k: int, A: np.ndarray, Z: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray,
-           terms: tuple[str, ...], seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(β, se, pct)`` of axis ``k``'s rows ``sel`` (one flight) alone, a trim per stretch of it:
-    the fit of :func:`_iv_draws` (weighted by :func:`_weights` of those rows), the standard error
-    over the block bootstrap of its own time blocks (inflated by
-    ``B/(B − 1)`` for B blocks, as :func:`droneid.fitting.constancy.unit_estimate`) and the
-    percentile 95 % interval (2, k)."""
-    blocks = time_blocks(t[sel], np.zeros(int(sel.sum()), int))
-    g = group[sel]
-    beta, draws = _iv_draws(A[sel], Z[sel], y[sel], g, blocks, _weights(k, A[sel], y[sel], g, terms), N_BOOT, seed)
-    b = np.unique(blocks).size
-    se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
-    return beta, se, np.percentile(draws, [2.5, 97.5], axis=0)
-
-
-def _iv_draws(A: np.ndarray, Z: np.ndarray, y: np.ndarray, group: np.ndarray, blocks: np.ndarray, w: np.ndarray,
-              n_boot: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(β, draws (n_boot, k))`` of ``y ≈ A β + b_group`` by two-stage least squares with the
-    instruments ``Z`` (:func:`_filtered`; ``Z`` = ``A``: weighted least squares), the rows
-    weighted by ``w``, the intercepts (one per ``group``) profiled out; the draws refit on
-    block-bootstrap replicates (the (flight, block) units ``blocks`` resampled with replacement)."""
+def _grouped_draws(A: np.ndarray, y: np.ndarray, group: np.ndarray, blocks: np.ndarray, w: np.ndarray,
+                   lo: np.ndarray, n_boot: int, seed: int) -> np.ndarray:
+    """(n_boot, k) coefficients of ``y ≈ A β + b_group`` refit on block-bootstrap replicates: the
+    (flight, block) units ``blocks`` resampled with replacement, the rows keeping the full fit's
+    robust weights ``w``, each replicate's intercepts (one per ``group``) profiled out."""
     g_ids, g_inv = np.unique(group, return_inverse=True)
     b_ids, b_inv = np.unique(blocks, return_inverse=True)
     cell = b_inv * g_ids.size + g_inv                     # a unit cut where it spans two stretches
-    c_ids, inv = np.unique(cell, return_inverse=True)
-    sums = []                                             # per cell: n, Σz, Σa, Σy, Σzzᵀ, Σzaᵀ, Σzy (weighted)
-    for c in range(c_ids.size):
-        m = inv == c
-        wz, a, yy = w[m, None] * Z[m], A[m], y[m]
-        sums.append((w[m].sum(), wz.sum(0), w[m] @ a, w[m] @ yy, wz.T @ Z[m], wz.T @ a, wz.T @ yy))
-    sums = [np.stack(x) for x in zip(*sums)]
+    c_ids, S = group_grams(A, y, w, cell)
     c_block, c_group = c_ids // g_ids.size, c_ids % g_ids.size
-
-    def solve(cw: np.ndarray) -> np.ndarray:
-        n, sz, sa, sy, zz, za, zy = (np.zeros((g_ids.size, *x.shape[1:])) for x in sums)
-        for acc, x in zip((n, sz, sa, sy, zz, za, zy), sums):
-            np.add.at(acc, c_group, cw.reshape(-1, *([1] * (x.ndim - 1))) * x)
-        ok = n > 0
-        mz, ma, my = sz[ok] / n[ok, None], sa[ok] / n[ok, None], sy[ok] / n[ok]
-        Szz = zz[ok].sum(0) - np.einsum("g,gi,gj->ij", n[ok], mz, mz)
-        Sza = za[ok].sum(0) - np.einsum("g,gi,gj->ij", n[ok], mz, ma)
-        Szy = zy[ok].sum(0) - np.einsum("g,gi,g->i", n[ok], mz, my)
-        proj = np.linalg.lstsq(Szz, np.column_stack([Sza, Szy]), rcond=None)[0]
-        return np.linalg.lstsq(Sza.T @ proj[:, :-1], Sza.T @ proj[:, -1], rcond=None)[0]
-
     rng = np.random.default_rng(seed)
     counts = np.stack([np.bincount(d, minlength=b_ids.size)
                        for d in rng.integers(0, b_ids.size, (n_boot, b_ids.size))]).astype(float)
-    return solve(np.ones(c_ids.size)), np.stack([solve(counts[r, c_block]) for r in range(n_boot)])
+    within = np.empty((n_boot, A.shape[1] + 1, A.shape[1] + 1))
+    for r in range(n_boot):
+        Sg = np.zeros((g_ids.size, *S.shape[1:]))
+        np.add.at(Sg, c_group, counts[r, c_block][:, None, None] * S)
+        within[r] = within_gram(Sg)
+    return gram_bounded_lstsq_many(within, lo)

@@ -84,19 +84,3 @@ def test_each_flight_is_read_at_its_own_alignment_of_the_motor_stream(same):
     for k, axis in enumerate(("roll", "pitch", "yaw")):
         assert g.constancy[axis].per_unit["late_clock"][0] == pytest.approx(COEF[k][0], rel=0.05), axis
         assert g.constancy[axis].constant is True, axis
-
-
-@pytest.mark.slow   # three simulated flights, about 4 s
-def test_noise_on_the_logged_rotor_speeds_does_not_pull_roll_and_pitch_down():
-    # white noise on the logged rotor speeds is noise in the regressor: ordinary least squares
-    # read the planted 6 and 5 as 5.78 and 4.82 (20 sets, the intervals covering them in 6 and 8
-    # of 20); through the instruments (the rotor speeds 5-9 steps earlier) they come back
-    from droneid.rotation.gains import INSTRUMENTED
-    rng = np.random.default_rng(5)
-    logs = [_flight(s) for s in (31, 32, 33)]
-    noisy = [StateLog(f.name, f.t_s, f.state, f.rpm + 1000.0 * rng.standard_normal(f.rpm.shape), f.dt_s) for f in logs]
-    g = _gains(noisy)
-    assert INSTRUMENTED == (0, 1)
-    for k, axis in ((0, "roll"), (1, "pitch")):
-        v, lo, hi = g.gains[axis]
-        assert lo <= COEF[k][0] <= hi and abs(v - COEF[k][0]) < 0.03 * COEF[k][0], (axis, g.gains[axis])
