@@ -19,13 +19,19 @@ narrow around a value that holds nowhere. This module tests that and widens the 
    standard error (the spread of :func:`droneid.core.regression.bootstrap_draws` over the unit's
    own time blocks).
 2. **Constancy test** (:func:`heterogeneity`): Cochran's Q, ``Q = Σ w_i (θ_i − θ̄)²`` with
-   ``w_i = 1/se_i²`` and θ̄ their weighted mean; under "one value, the flights differ by their
-   noise only", Q ~ χ²(k − 1). A coefficient whose ``p`` falls below :data:`ALPHA` (Holm over
-   the target's vehicle constants) and whose between-unit spread τ (below) is at least
-   :data:`MIN_TAU_REL` of its value is **not constant**: not a property of this vehicle under
-   this model. The bootstrap's standard errors are inflated by ``B/(B − 1)`` (B blocks) to
-   undo the block bootstrap's known small-sample shrinkage; the test's size is measured on
-   simulated flights with the model right (benchmarks/bench_intervals.py).
+   ``w_i = 1/se_i²`` and θ̄ their weighted mean, read as Welch's (1951) test for means with
+   unequal variances: each ``se_i`` is itself estimated, from the unit's B_i time blocks, so it
+   carries ``ν_i = B_i − 1`` degrees of freedom (as batch means do), and under "one value, the
+   flights differ by their noise only" ``F = Q / (k − 1) / (1 + 2(k − 2) Λ / (k² − 1))`` with
+   ``Λ = Σ (1 − w_i/W)² / ν_i`` is F(k − 1, (k² − 1) / (3 Λ)) (χ²(k − 1) / (k − 1) when the
+   standard errors are known). Reading Q as χ²(k − 1) with ten-block standard errors called 3-4
+   times as many constants NOT constant as its level on planted flights (docs/estimates.md). A
+   coefficient whose ``p`` falls below :data:`ALPHA` (Holm over the target's vehicle constants)
+   and whose between-unit spread τ (below) is at least :data:`MIN_TAU_REL` of its value is
+   **not constant**: not a property of this vehicle under this model. The bootstrap's standard
+   errors are inflated by ``B/(B − 1)`` (B blocks) to undo the block bootstrap's known
+   small-sample shrinkage; the test's size is measured on simulated flights with the model right
+   (benchmarks/bench_intervals.py).
 3. **Between-flight interval** (:func:`heterogeneity`): the random-effects mean of the
    per-flight values (DerSimonian-Laird τ²) with the Hartung-Knapp-Sidik-Jonkman interval,
    ``μ ± t(k−1) · √(max(q, 1) / Σ w*)``, ``w* = 1/(se² + τ²)``: an interval for the constant
@@ -89,11 +95,13 @@ def units_of(t: np.ndarray, flight: np.ndarray, sources: Sequence[str]) -> tuple
     return unit, names, "stretch"
 
 
-def heterogeneity(values, se) -> dict:
-    """Cochran's Q test and the random-effects (HKSJ) interval of per-unit estimates ``values``
-    with standard errors ``se`` (see the module docstring). Returns ``{"p", "q", "tau",
-    "mean", "low", "high"}``; ``p`` is NaN with fewer than 2 units. A zero standard error (a
-    coefficient pinned to its bound in a unit) is floored at 1e-9 of the values' scale."""
+def heterogeneity(values, se, df=None) -> dict:
+    """The constancy test (Cochran's Q read as Welch's test) and the random-effects (HKSJ)
+    interval of per-unit estimates ``values`` with standard errors ``se`` on ``df`` degrees of
+    freedom each (None: known standard errors, Q ~ χ²(k − 1)); see the module docstring. Returns
+    ``{"p", "q", "tau", "mean", "low", "high"}``; ``p`` is NaN with fewer than 2 units. A zero
+    standard error (a coefficient pinned to its bound in a unit) is floored at 1e-9 of the values'
+    scale."""
     v = np.asarray(values, float)
     s = np.asarray(se, float)
     k = v.size
@@ -105,7 +113,7 @@ def heterogeneity(values, se) -> dict:
     w = 1.0 / var
     fixed = float(np.sum(w * v) / np.sum(w))
     q = float(np.sum(w * (v - fixed) ** 2))
-    p = float(special.chdtrc(k - 1, q))
+    p = _welch_p(q, w, df)
     c = float(np.sum(w) - np.sum(w * w) / np.sum(w))
     tau2 = max(0.0, (q - (k - 1)) / c) if c > 0 else 0.0
     ws = 1.0 / (var + tau2)
@@ -115,31 +123,45 @@ def heterogeneity(values, se) -> dict:
     return {"p": p, "q": q, "tau": math.sqrt(tau2), "mean": mu, "low": mu - half, "high": mu + half}
 
 
+def _welch_p(q: float, w: np.ndarray, df) -> float:
+    """p of Cochran's ``q`` over units of weights ``w`` (1/se²) whose standard errors have ``df``
+    degrees of freedom (None or all infinite: χ²(k − 1)), by Welch's approximation (module
+    docstring)."""
+    k = w.size
+    nu = np.full(k, math.inf) if df is None else np.broadcast_to(np.asarray(df, float), (k,))
+    lam = float(np.sum((1.0 - w / np.sum(w)) ** 2 / np.maximum(nu, 1.0)))
+    if lam <= 0.0:
+        return float(special.chdtrc(k - 1, q))
+    f = q / (k - 1) / (1.0 + 2.0 * (k - 2) / (k * k - 1) * lam)
+    return float(special.fdtrc(k - 1, (k * k - 1) / (3.0 * lam), f))
+
+
 def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None, *,
-                  seed: int = 0) -> tuple["RobustFit", np.ndarray, np.ndarray]:
-    """One unit's own fit (a flight or a stretch): ``(fit, se, pct)``, its robust fit
+                  seed: int = 0) -> tuple["RobustFit", np.ndarray, np.ndarray, float]:
+    """One unit's own fit (a flight or a stretch): ``(fit, se, pct, df)``, its robust fit
     (:class:`droneid.core.regression.RobustFit`), the standard
     error of each coefficient over the block bootstrap of its own time ``blocks`` (inflated by
-    ``B/(B − 1)`` for B blocks: the block bootstrap's small-sample shrinkage) and the (2, k)
-    percentile 95 % interval of the draws."""
+    ``B/(B − 1)`` for B blocks: the block bootstrap's small-sample shrinkage), the (2, k)
+    percentile 95 % interval of the draws and the standard errors' degrees of freedom, B − 1."""
     f = robust_fit(A, y, lo, hi)
     b = np.unique(blocks).size
     draws = bootstrap_draws(A, y, blocks, f, lo, hi, seed=seed)
     se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
-    return f, se, np.percentile(draws, [2.5, 97.5], axis=0)
+    return f, se, np.percentile(draws, [2.5, 97.5], axis=0), float(max(b - 1, 1))
 
 
 def constancies(kind: str, names: Sequence[str], vals, ses, ivs, labels: Mapping[int, str],
-                physical: Mapping[int, tuple[float, str] | None] | None = None) -> dict[str, "Constancy"]:
+                physical: Mapping[int, tuple[float, str] | None] | None = None, dfs=None) -> dict[str, "Constancy"]:
     """{label: :class:`Constancy`} of the coefficients ``labels`` (column index: name) from the
-    per-unit estimates of :func:`unit_estimate` (``vals``, ``ses`` (U, k), ``ivs`` U × (2, k)) of
+    per-unit estimates of :func:`unit_estimate` (``vals``, ``ses`` (U, k), ``ivs`` U × (2, k),
+    ``dfs`` (U,) the standard errors' degrees of freedom, None: known) of
     the units ``names`` of ``kind``: each tested and combined by :func:`heterogeneity`, flagged by
     Holm over ``labels`` (:func:`holm_flags`) and the spread rule (:func:`moved`); {} with fewer
     than two units."""
     if len(names) < 2:
         return {}
     vals, ses = np.asarray(vals, float), np.asarray(ses, float)
-    het = {lab: heterogeneity(vals[:, i], ses[:, i]) for i, lab in labels.items()}
+    het = {lab: heterogeneity(vals[:, i], ses[:, i], dfs) for i, lab in labels.items()}
     flags = holm_flags({lab: h["p"] for lab, h in het.items()})
     out = {}
     for i, lab in labels.items():
@@ -170,14 +192,18 @@ def new_flight_expectation(value: float, low: float, high: float, constancy: Map
     return out
 
 
-def new_flight_p(value: float, se: float, expected: Mapping) -> float:
-    """Two-sided p of a flight's own estimate ``value`` ± ``se`` against :func:`new_flight_expectation`'s
-    ``expected``: ``t = (θ − μ) / √(se² + se_new²)`` on its degrees of freedom (NaN: no test)."""
-    t = (float(value) - expected["value"]) / math.hypot(float(se), expected["se"])
+def new_flight_p(value: float, se: float, expected: Mapping, df: float = math.inf) -> float:
+    """Two-sided p of a flight's own estimate ``value`` ± ``se`` (on ``df`` degrees of freedom, as
+    :func:`unit_estimate` gives them) against :func:`new_flight_expectation`'s ``expected``:
+    ``t = (θ − μ) / √(se² + se_new²)`` on the Welch-Satterthwaite degrees of freedom of the two
+    (NaN: no test)."""
+    se, se_new = float(se), float(expected["se"])
+    t = (float(value) - expected["value"]) / math.hypot(se, se_new)
     if not math.isfinite(t):
         return math.nan
-    df = expected["df"]
-    return float(special.erfc(abs(t) / math.sqrt(2))) if math.isinf(df) else float(2 * special.stdtr(df, -abs(t)))
+    parts = [x ** 4 / d for x, d in ((se, float(df)), (se_new, float(expected["df"]))) if math.isfinite(d) and x > 0]
+    dof = (se * se + se_new * se_new) ** 2 / sum(parts) if parts else math.inf
+    return float(special.erfc(abs(t) / math.sqrt(2))) if math.isinf(dof) else float(2 * special.stdtr(dof, -abs(t)))
 
 
 def moved(flagged: bool, spread: float, value: float) -> bool:
@@ -219,7 +245,7 @@ class Constancy:
 
     unit : "flight" (one estimate per training flight) or "stretch" (one training flight, cut in
         contiguous stretches of time); per_unit : {unit name: (value, low, high)}, each unit's own
-        fit with its 95 % block-bootstrap interval; p : Cochran's Q p-value (NaN: untestable);
+        fit with its 95 % block-bootstrap interval; p : the constancy test's p-value (Cochran's Q read as Welch's test; NaN: untestable);
     constant : False when the test flags it (Holm at :data:`ALPHA` over the target's vehicle
         constants, τ ≥ :data:`MIN_TAU_REL` of the value), True otherwise, None when untestable; between : (low, high) the
         random-effects (HKSJ) 95 % interval of the constant over the flights (None for
@@ -293,7 +319,7 @@ def constancy_line(constancy: Mapping[str, Constancy]) -> str:
         if c.constant and rel >= 100 * MIN_TAU_REL:     # a wide spread the test does not flag
             verdict = "constant within its noise"
         parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}, spread τ {spread_text(rel)}: {verdict}")
-    return (f"  constancy over {where} (each fitted alone; Cochran's Q, Holm at α = {ALPHA:g}, "
+    return (f"  constancy over {where} (each fitted alone; Cochran's Q as Welch's test, Holm at α = {ALPHA:g}, "
             f"and a spread τ of {100 * MIN_TAU_REL:g} % or more): "
             + "; ".join(parts))
 

@@ -355,20 +355,21 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
         return {}
     unit, names, kind = units_of(t, flight, sources)
     lo, hi = model.bounds()
-    vals, ses, ivs, used = [], [], [], []
+    vals, ses, ivs, dfs, used = [], [], [], [], []
     for u, name in enumerate(names):
         rows = np.flatnonzero(unit == u)
         if rows.size < MIN_UNIT_ROWS:
             continue
         sub = {n: np.asarray(v)[rows] for n, v in columns.items()}
         A, yy, _, _ = model._problem(sub, np.asarray(y, float)[rows])
-        fit, se, pct = unit_estimate(A, yy, time_blocks(t[rows], np.zeros(rows.size, int)), lo, hi, seed=seed)
+        fit, se, pct, dof = unit_estimate(A, yy, time_blocks(t[rows], np.zeros(rows.size, int)), lo, hi, seed=seed)
         vals.append(fit.beta)
         ses.append(se)
         ivs.append(pct)
+        dfs.append(dof)
         used.append(name)
     return constancies(kind, used, vals, ses, ivs, {i: model.labels[i] for i in which},
-                       {i: _physical_scale(model.terms[i]) for i in which})
+                       {i: _physical_scale(model.terms[i]) for i in which}, dfs)
 
 
 def _physical_scale(term: sp.Expr) -> tuple[float, str] | None:

@@ -25,7 +25,8 @@ low-pass: a filter on one side only would inflate a gain read at high frequency)
   block) units (:func:`droneid.dataset.validation.time_blocks`), each replicate refit with its
   trims;
 - **per flight**: each flight alone (its own trims), with its block-bootstrap standard error;
-- **constancy**: Cochran's Q over the flights, Holm over the three axes at
+- **constancy**: Cochran's Q over the flights read as Welch's test (each flight's standard error on
+  its blocks' degrees of freedom), Holm over the three axes at
   :data:`droneid.fitting.constancy.ALPHA`, and a spread τ of at least
   :data:`~droneid.fitting.constancy.MIN_TAU_REL` of the gain (:func:`~droneid.fitting.constancy.constancies`);
 - **the reported interval**: the hull of the pooled bootstrap's and the between-flight
@@ -175,8 +176,8 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
     names = rows["names"]
     blocks = time_blocks(t, flight)
     used = [f for f in range(len(names)) if np.count_nonzero(flight == f) >= MIN_UNIT_ROWS]
-    pooled, boot, vals, ses, ivs = {}, {}, np.zeros((len(used), 3)), np.zeros((len(used), 3)), \
-        [np.zeros((2, 3)) for _ in used]
+    pooled, boot, vals, ses, dfs, ivs = {}, {}, np.zeros((len(used), 3)), np.zeros((len(used), 3)), \
+        np.zeros(len(used)), [np.zeros((2, 3)) for _ in used]
     for k, axis in enumerate(AXIS_NAMES):
         A, y = rows["A"][k], rows["y"][k]
         lo = rotation_bounds(k, terms, A.shape[1])
@@ -185,9 +186,9 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         draws = _grouped_draws(A, y, group, blocks, fit.weights, lo, n_boot, seed)[:, 0]
         boot[axis] = tuple(float(x) for x in np.percentile(draws, [2.5, 97.5]))
         for i, f in enumerate(used):
-            beta, se, pct = _alone(A, y, group, t, flight == f, lo, seed)
+            beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, lo, seed)
             vals[i, k], ses[i, k], ivs[i][:, k] = beta[0], se[0], pct[:, 0]
-    const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)))
+    const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)), dfs=dfs)
     gains = {}
     for axis in AXIS_NAMES:
         lo_, hi_ = boot[axis]
@@ -224,13 +225,13 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
         res, ps = {}, {}
         for k, axis in enumerate(AXIS_NAMES):
             lo = rotation_bounds(k, shell.terms, rows["A"][k].shape[1])
-            beta, se, pct = _alone(rows["A"][k], rows["y"][k], rows["group"], rows["t"], sel, lo, seed)
+            beta, se, pct, dof = _alone(rows["A"][k], rows["y"][k], rows["group"], rows["t"], sel, lo, seed)
             v, low, high = float(beta[0]), float(pct[0, 0]), float(pct[1, 0])
             c = g.constancy.get(axis)
             expected = new_flight_expectation(g.gains[axis][0], *g.pooled_interval[axis],
                                               None if c is None else c.to_dict())
             res[axis] = (v, low, high)
-            p = new_flight_p(v, float(se[0]), expected)
+            p = new_flight_p(v, float(se[0]), expected, dof)
             if v > 0 and (high - low) / 2 <= IDENTIFIABLE_REL * v and math.isfinite(p):
                 ps[axis] = p
                 res[axis] += (expected["value"],)
@@ -382,14 +383,14 @@ def _smooth(x: np.ndarray) -> np.ndarray:
 
 
 def _alone(A: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray, lo: np.ndarray,
-           seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(β, se, pct)`` of :func:`droneid.fitting.constancy.unit_estimate` of the rows ``sel`` (one
+           seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(β, se, pct, df)`` of :func:`droneid.fitting.constancy.unit_estimate` of the rows ``sel`` (one
     flight), a trim per stretch of it, bootstrapped over its own time blocks."""
     stretches = np.unique(group[sel])
     A1 = np.column_stack([A[sel], (group[sel][:, None] == stretches[None]).astype(float)])
     lo1 = np.concatenate([lo, np.full(stretches.size, -np.inf)])
-    fit, se, pct = unit_estimate(A1, y[sel], time_blocks(t[sel], np.zeros(int(sel.sum()), int)), lo1, seed=seed)
-    return fit.beta, se, pct
+    fit, se, pct, dof = unit_estimate(A1, y[sel], time_blocks(t[sel], np.zeros(int(sel.sum()), int)), lo1, seed=seed)
+    return fit.beta, se, pct, dof
 
 
 def _grouped_draws(A: np.ndarray, y: np.ndarray, group: np.ndarray, blocks: np.ndarray, w: np.ndarray,

@@ -161,7 +161,7 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
             out += unchecked(f"{rows.size} rows, fewer than {MIN_UNIT_ROWS}")
             continue
         Ai, zi = A[rows], z[rows]
-        fit, se, pct = unit_estimate(Ai, zi, time_blocks(np.asarray(t, float)[rows], np.zeros(rows.size, int)), lo, hi,
+        fit, se, pct, dof = unit_estimate(Ai, zi, time_blocks(np.asarray(t, float)[rows], np.zeros(rows.size, int)), lo, hi,
                                      seed=seed)
         res, ps = {}, {}
         for j, lab in enumerate(labs):
@@ -174,7 +174,7 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
                                          math.nan, None, "not identifiable on this flight: at its bound, or its "
                                          f"interval wider than ±{100 * IDENTIFIABLE_REL:.0f} %", c["flights"])
                 continue
-            ps[lab] = new_flight_p(v, float(se[j]), c)
+            ps[lab] = new_flight_p(v, float(se[j]), c, dof)
             res[lab] = (v, float(pct[0, j]), float(pct[1, j]), expected)
         flags = holm_flags(ps, ALPHA)
         for lab in labs:

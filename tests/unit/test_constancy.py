@@ -32,6 +32,23 @@ def test_the_q_test_has_its_size_on_units_that_differ_by_their_noise_only():
     assert np.mean(ps < ALPHA) < 0.02
 
 
+def test_the_test_keeps_its_size_when_each_standard_error_is_estimated_from_ten_blocks():
+    """Standard errors from ten time blocks are estimates on 9 degrees of freedom: read as known
+    (Cochran's Q against χ²), five such units are called different several times as often as the
+    level says; read as Welch's test, about as often as it says."""
+    rng = np.random.default_rng(2)
+    sigma = np.array([0.01, 0.02, 0.015, 0.03, 0.01])
+    known, welch = [], []
+    for _ in range(6000):
+        v = 1.0 + sigma * rng.standard_normal(5)
+        se = sigma * np.sqrt(rng.chisquare(9, 5) / 9)
+        known.append(heterogeneity(v, se)["p"])
+        welch.append(heterogeneity(v, se, [9.0] * 5)["p"])
+    assert np.mean(np.array(known) < ALPHA) > 3 * ALPHA
+    assert np.mean(np.array(welch) < ALPHA) < 1.6 * ALPHA
+    assert abs(np.mean(np.array(welch) < 0.05) - 0.05) < 0.012
+
+
 def test_random_effects_interval_covers_the_mean_of_heterogeneous_flights():
     """Flights whose constants scatter around μ with spread τ (noise se): the HKSJ interval from
     the flights covers μ in about 95 % of draws (the point of counting flight-to-flight variation)."""
