@@ -62,6 +62,7 @@ from priors.effects import CATALOGUE, is_measured_derivative
 from priors.registry import resolve_prior
 
 from droneid.dataset.data import Dataset
+from droneid.logs.flight import distinct_flights
 from droneid.fitting.decide import decide
 from droneid.diagnosis.result import (NO_FURTHER, DiagnoseConfig, DiagnosisResult, evidence_of,
                                fold_into_prior, folded_feature, held_to_size, with_test_errors)
@@ -96,7 +97,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     """
     cfg = (config or DiagnoseConfig()).validate()
     _select_effects(user_effects, cfg.effects)      # an unknown effect id is refused before any work
-    train_flights = list(train_flights)
+    train_flights, test_flights, repeated = distinct_flights(train_flights, test_flights or ())
     icfg = _plan_config(prior, targets, cfg)
     pr, _ = resolve_plan_prior(icfg, train_flights)
     tg = targets_for(pr, icfg.targets)
@@ -108,7 +109,7 @@ def diagnose(train_flights, test_flights=None, prior="tilt-drag", targets=None, 
     test = diagnosis_datasets(plan, test_flights, icfg)[0] if test_flights else None
     res = diagnose_datasets(train, test, prior=plan.prior, prior_label=_prior_label(prior, plan), config=cfg,
                             user_effects=user_effects, progress=progress, decided=decided)
-    return replace(res, plan={"lines": plan.lines(), **plan.record()})
+    return replace(res, plan={"lines": [*repeated, *plan.lines()], **plan.record()})
 
 
 def diagnose_plan(train_flights, prior="auto", targets=None, config: DiagnoseConfig | None = None,

@@ -32,6 +32,7 @@ import numpy as np
 
 from droneid.engine import runner
 from droneid.dataset.builder import reuse_datasets
+from droneid.logs.flight import distinct_flights
 from droneid.errors import ConfigError, DataError
 from droneid.dataset.suitability import check_prior_data
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel
@@ -202,12 +203,13 @@ def identify(train_flights: Sequence, test_flights: Sequence | None = None,
     cfg = (config or IdentifyConfig()).validated()
     if not train_flights:
         raise DataError("no training flights")
+    train, test, repeated = distinct_flights(train_flights, test_flights or ())
     with reuse_datasets():      # each dataset built once, shared by every stage
-        return _identify(list(train_flights), list(test_flights) if test_flights else None, cfg, progress)
+        return _identify(train, test or None, cfg, progress, repeated)
 
 
 def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfig,
-              progress: Callable | None) -> IdentificationResult:
+              progress: Callable | None, repeated: Sequence[str] = ()) -> IdentificationResult:
     t0 = time.perf_counter()
     prior, _ = resolve_plan_prior(cfg, train_flights)
     targets = targets_for(prior, cfg.targets)
@@ -244,7 +246,7 @@ def _identify(train_flights: list, test_flights: list | None, cfg: IdentifyConfi
             raise DataError(f"every SNGP run for {t} failed; the first: {first}")
         results[t] = summarise_target(problems[t], cfg, runs, errors)
     results, shared = shared_constants(results, problems)
-    notes = [*plan.lines(), *_data_notes(fitness), *notes_early, *(c.note() for c in shared.values())]
+    notes = [*repeated, *plan.lines(), *_data_notes(fitness), *notes_early, *(c.note() for c in shared.values())]
     if outcome.interrupted:     # the SNGP runs (the rotational job is not a run)
         sngp = [i for i, j in enumerate(jobs) if not isinstance(j, RotationJob)]
         notes.append(f"interrupted: {sum(outcome.results[i] is not None for i in sngp)} of {len(sngp)} runs "

@@ -7,6 +7,7 @@ users type on the command line.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 from collections.abc import Iterable, Mapping
@@ -20,7 +21,7 @@ from droneid.errors import DataError, MissingSignalError
 
 __all__ = [
     "CANONICAL_SIGNALS", "ROTOR_SIGNALS", "VEHICLE_TYPES", "MAX_GAP_S", "TIME_UNITS", "MAV_TYPES", "VEHICLE_PARAMETERS", "vehicle_from_mav_type", "Signal", "Provenance", "Diagnostics", "Event", "Flight",
-    "canonical_unit", "is_canonical",
+    "canonical_unit", "is_canonical", "fingerprint", "distinct_flights",
 ]
 
 #: Canonical signal names -> (unit, meaning). Per-motor signals (``motor1`` .. ``motor16``,
@@ -464,3 +465,48 @@ def _signal_order(s: Signal):
     if r:
         return (len(_ORDER) + list(ROTOR_SIGNALS).index(r[0]), r[1], s.name)
     return (_ORDER.get(s.name, len(_ORDER) + len(ROTOR_SIGNALS)), 0, s.name)
+
+
+def fingerprint(flight: Flight) -> str:
+    """A digest of a flight's data: every signal's name, time stamps (s) and values as read. Two
+    flights with one fingerprint are the same data (one file given twice, or a copy of it)."""
+    h = hashlib.blake2b(digest_size=16)
+    for name in sorted(flight.signals):
+        s = flight.signals[name]
+        h.update(name.encode() + b"\0")
+        h.update(np.ascontiguousarray(s.t).tobytes())
+        h.update(np.ascontiguousarray(s.values).tobytes())
+    return h.hexdigest()
+
+
+def distinct_flights(train: Iterable[Flight], test: Iterable[Flight] = ()) -> tuple[list, list, list[str]]:
+    """``(train, test, notes)``: each list with a flight whose data repeat an earlier one's
+    (:func:`fingerprint`) kept once, and a note per flight left out. The same flight twice is one
+    flight: counted twice it would double its blocks in every test and show "constant" across
+    flights that are one. DataError when a test flight is the data of a training flight: it
+    would test the model on what it was fitted to."""
+    notes: list[str] = []
+
+    def once(flights, what):
+        kept, seen = [], {}
+        for f in flights:
+            key = fingerprint(f)
+            if key in seen:
+                notes.append(f"{_where(f)}: the same data as the {what} flight {_where(seen[key])}: read once")
+                continue
+            seen[key] = f
+            kept.append(f)
+        return kept, seen
+    train, by_key = once(train, "training")
+    test, _ = once(test, "test")
+    for f in test:
+        twin = by_key.get(fingerprint(f))
+        if twin is not None:
+            raise DataError(f"{_where(f)}: this test flight is the same data as the training flight "
+                            f"{_where(twin)}; a test flight must be one the model is not fitted to")
+    return train, test, notes
+
+
+def _where(flight: Flight) -> str:
+    """The flight's first file, else its name."""
+    return flight.provenance.files[0] if flight.provenance.files else flight.name

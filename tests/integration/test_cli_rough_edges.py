@@ -221,3 +221,14 @@ def test_an_unknown_option_is_refused_with_the_nearest_one_named(argv, said, cap
         main(argv)
     assert e.value.code == 2
     assert said in capsys.readouterr().err
+
+
+def test_a_test_flight_that_is_a_training_flight_is_one_line_exit_2(tmp_path, capsys):
+    """The same flight as training and test data (a copy of the file) would test the model on what
+    it was fitted to: refused before any work, naming both files."""
+    log = ROOT / "sample_logs" / "paper_test_square.tlog"
+    copy = tmp_path / "renamed.tlog"
+    copy.write_bytes(log.read_bytes())
+    assert main(["identify", str(log), "--test", str(copy), "--quick", "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "renamed.tlog: this test flight is the same data as the training flight" in err[0], err

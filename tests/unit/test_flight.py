@@ -109,3 +109,18 @@ def test_a_flight_survives_pickling_for_a_worker_process():
                 assert np.array_equal(a, b), fl.name
             elif fl.name != "signals":
                 assert a == b, fl.name
+
+
+def test_a_flight_given_twice_is_read_once_and_a_test_flight_may_not_be_a_training_flight():
+    from droneid.logs.flight import distinct_flights, fingerprint
+    a = _flight()
+    copy = Flight(a.signals, Provenance(files=("copy_of_a.bin",), format="test"))   # the same data, another file
+    t = a["vx"].t
+    other = a.with_signals(Signal("vx", t, np.sin(t) + np.where(t == t[50], 1e-9, 0.0), "m/s"))  # one sample differs
+    assert fingerprint(a) == fingerprint(copy) != fingerprint(other)
+    train, test, notes = distinct_flights([a, copy, other], [])
+    assert train == [a, other] and test == []
+    assert notes == ["copy_of_a.bin: the same data as the training flight a.bin: read once"]
+    with pytest.raises(DataError, match="copy_of_a.bin: this test flight is the same data as the training flight a.bin"):
+        distinct_flights([a], [copy])
+    assert distinct_flights([a], [other])[1] == [other]
