@@ -24,8 +24,11 @@ narrow around a value that holds nowhere. This module tests that and widens the 
    carries ``ν_i = B_i − 1`` degrees of freedom (as batch means do), and under "one value, the
    flights differ by their noise only" ``F = Q / (k − 1) / (1 + 2(k − 2) Λ / (k² − 1))`` with
    ``Λ = Σ (1 − w_i/W)² / ν_i`` is F(k − 1, (k² − 1) / (3 Λ)) (χ²(k − 1) / (k − 1) when the
-   standard errors are known). Reading Q as χ²(k − 1) with ten-block standard errors called 3-4
-   times as many constants NOT constant as its level on planted flights (docs/estimates.md). A
+   standard errors are known). Read as χ²(k − 1), five units with ten-block standard errors
+   exact in expectation were called NOT constant 4 % of the time at a 1 % level (Welch: 1.1 %),
+   and 3 of 40 planted torque-gain sets (Welch: 1); B − 1 is a ceiling on a regression
+   coefficient's bootstrap degrees of freedom (the planted torque gains' behave like 4-8 of 9),
+   so the test stays somewhat liberal (docs/estimates.md). A
    coefficient whose ``p`` falls below :data:`ALPHA` (Holm over the target's vehicle constants)
    and whose between-unit spread τ (below) is at least :data:`MIN_TAU_REL` of its value is
    **not constant**: not a property of this vehicle under this model. The bootstrap's standard
@@ -195,14 +198,19 @@ def new_flight_expectation(value: float, low: float, high: float, constancy: Map
 def new_flight_p(value: float, se: float, expected: Mapping, df: float = math.inf) -> float:
     """Two-sided p of a flight's own estimate ``value`` ± ``se`` (on ``df`` degrees of freedom, as
     :func:`unit_estimate` gives them) against :func:`new_flight_expectation`'s ``expected``:
-    ``t = (θ − μ) / √(se² + se_new²)`` on the Welch-Satterthwaite degrees of freedom of the two
-    (NaN: no test)."""
+    ``t = (θ − μ) / √(se² + se_new²)`` on the Welch-Satterthwaite degrees of freedom of the two,
+    at most the expectation's own (k − 1 flights: its spread τ, from k flights, is noisier than
+    that count says, so the combination may not claim more) (NaN: no test)."""
     se, se_new = float(se), float(expected["se"])
+    if not se > 0 and not se_new > 0:
+        return math.nan
     t = (float(value) - expected["value"]) / math.hypot(se, se_new)
     if not math.isfinite(t):
         return math.nan
-    parts = [x ** 4 / d for x, d in ((se, float(df)), (se_new, float(expected["df"]))) if math.isfinite(d) and x > 0]
+    parts = [x ** 4 / max(d, 1.0) for x, d in ((se, float(df)), (se_new, float(expected["df"])))
+             if math.isfinite(d) and x > 0]
     dof = (se * se + se_new * se_new) ** 2 / sum(parts) if parts else math.inf
+    dof = min(dof, float(expected["df"]))       # the spread τ is the noisier part: never past its k − 1
     return float(special.erfc(abs(t) / math.sqrt(2))) if math.isinf(dof) else float(2 * special.stdtr(dof, -abs(t)))
 
 
@@ -398,8 +406,9 @@ _SHARED_WORDS = {"thrust": ("THRUST", "thrust scale", "thrust per unit mass"),
 @dataclass(frozen=True)
 class SharedConstant:
     """One vehicle constant as several targets' terms estimate it (the thrust scale along world x,
-    y and z): the same Cochran's Q test as :class:`Constancy`, with each term's 95 % interval
-    as its estimate's noise (:func:`se_of_interval`).
+    y and z): Cochran's Q, as in :class:`Constancy`, but read as χ²(k − 1) with each term's
+    95 % interval as its estimate's known noise (:func:`se_of_interval`: no degrees of freedom to
+    count).
 
     role : the terms' role (:data:`SHARED_ROLES`); per_term : {term label: (value, low, high)};
     p : Cochran's Q p-value; tau : the between-term spread (DerSimonian-Laird), in the
