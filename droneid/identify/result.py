@@ -317,7 +317,16 @@ def versions() -> dict:
 
 
 def flight_provenance(flights: Sequence) -> list:
-    """Each flight's provenance (files, reader, options) as plain data."""
-    provs = [getattr(f, "provenance", None) for f in flights]
-    return [asdict(p) if hasattr(p, "__dataclass_fields__") else dict(p) for p in provs if p is not None]
+    """Each flight's provenance (files, reader, options) as plain data, with the ``fingerprint`` of
+    its data (:func:`droneid.logs.flight.fingerprint`: ``predict`` knows a training flight by it,
+    whatever its file is called)."""
+    from droneid.logs.flight import Flight, fingerprint
+    out = []
+    for f in flights:
+        p = getattr(f, "provenance", None)
+        if p is None:
+            continue
+        d = asdict(p) if hasattr(p, "__dataclass_fields__") else dict(p)
+        out.append({**d, "fingerprint": fingerprint(f)} if isinstance(f, Flight) else d)
+    return out
 

@@ -27,7 +27,7 @@ from droneid.dataset.builder import DatasetBuilder
 from droneid.fitting.verdict import model_to_use
 from droneid.errors import ConfigError, DataError, DroneIdError, check_choice
 from droneid.core.expressions import compile_expression
-from droneid.logs.flight import Flight
+from droneid.logs.flight import Flight, fingerprint
 from droneid.dataset.suitability import assess
 from droneid.fitting.closed_form import IdentifiedModel, check_schema
 from droneid.core.targets import TARGETS, state_of
@@ -89,7 +89,15 @@ def models_from_document(doc: dict, targets: Sequence[str] | None = None, where:
     out["_reader_options"] = _reader_options(where, doc.get("reader_options"))
     out["_rotation"] = _rotation_model(where, doc.get("rotation"))
     out["_trained"] = trained_names(doc.get("provenance"))
+    out["_trained_data"] = trained_fingerprints(doc.get("provenance"))
     return out
+
+
+def trained_fingerprints(provenance) -> frozenset[str]:
+    """The data fingerprints (:func:`droneid.logs.flight.fingerprint`) of a result's training
+    flights, from its ``provenance.train`` (empty for a result that did not record them)."""
+    train = (provenance or {}).get("train") if isinstance(provenance, dict) else None
+    return frozenset(str(p["fingerprint"]) for p in train or [] if isinstance(p, dict) and p.get("fingerprint"))
 
 
 def trained_names(provenance) -> tuple[str, ...]:
@@ -252,6 +260,14 @@ def open_loop_section(models: dict, flights: Sequence, horizons: Sequence[int] =
                      horizons=tuple(h for h in horizons if h <= 50)).to_dict()
 
 
+def _trained(models: dict, sources: Sequence[str], flights: Sequence) -> tuple[str, ...]:
+    """The names among ``sources`` (one per flight of ``flights``) of the result's training
+    flights: by name, or by their data under another name (a copy of a training log)."""
+    data = models.get("_trained_data") or frozenset()
+    copies = [s for s, f in zip(sources, flights) if data and isinstance(f, Flight) and fingerprint(f) in data]
+    return (*models.get("_trained", ()), *copies)
+
+
 def flight_list(flights) -> list:
     """``flights`` (a Flight or a sequence of them) as a list."""
     return [flights] if isinstance(flights, Flight) else list(flights)
@@ -309,7 +325,8 @@ def predict_flights(models: dict, flights: Sequence, *, ts: float | None = None,
             notes.append(f"{int((~ok).sum())} of {ok.size} samples left out: a model is not finite there "
                          f"(e.g. a delayed input read before its signal starts)")
         checks = check_constants(models[target].get("constants") or {}, ds.columns(), ds.y, preds["identified"],
-                                 ds.t, ds.flight, ds.sources, models.get("_trained", ())) if "identified" in preds else ()
+                                 ds.t, ds.flight, ds.sources, _trained(models, ds.sources, flights)) \
+            if "identified" in preds else ()
         results[target] = TargetScore(models[target].get("equation"), tuple(ds.input_names), tuple(ds.sources), per,
                                       _screened(flights, ds, [*ds.input_names, state_of(target)]),
                                       _out_of_range(ds, models[target].get("input_ranges") or {}), tuple(notes),

@@ -124,3 +124,18 @@ def test_a_flight_given_twice_is_read_once_and_a_test_flight_may_not_be_a_traini
     with pytest.raises(DataError, match="copy_of_a.bin: this test flight is the same data as the training flight a.bin"):
         distinct_flights([a], [copy])
     assert distinct_flights([a], [other])[1] == [other]
+
+
+def test_predict_knows_a_training_flight_by_its_data_whatever_its_file_is_called():
+    from droneid.identify.result import flight_provenance
+    from droneid.logs.flight import fingerprint
+    from droneid.use.predict import _trained, trained_fingerprints
+    a = _flight()
+    prov = {"train": flight_provenance([a])}
+    assert prov["train"][0]["fingerprint"] == fingerprint(a) and prov["train"][0]["files"] == ("a.bin",)
+    models = {"_trained": ("a",), "_trained_data": trained_fingerprints(prov)}
+    copy = Flight(a.signals, Provenance(files=("renamed.bin",), format="test"))
+    t = a["vx"].t
+    new = a.with_signals(Signal("vx", t, np.cos(t), "m/s"))
+    assert _trained(models, ["renamed", "new"], [copy, new]) == ("a", "renamed")
+    assert trained_fingerprints({"train": [{"files": ["old.bin"]}]}) == frozenset()   # a result before fingerprints
