@@ -141,7 +141,7 @@ def test_the_refused_torque_model_turns_the_right_way_under_differential_thrust(
 @pytest.mark.slow   # about 5 s
 def test_torque_gains_read_at_each_flights_alignment_and_band_hold_on_the_melon_runs(squares):
     """The torque rung's gains as vehicle constants (droneid.rotation.gains): measured 2026-11-28,
-    roll 53.5 [49.7, 58.7], pitch 47.5 [43.4, 55.0] rad/s² per unit over the five squares, which
+    roll 53.5 [49.7, 58.8], pitch 47.5 [43.4, 55.1] rad/s² per unit over the five squares, which
     differ by 6-9 % (NOT constant by the test); the melon runs' own (51-53) hold. Read without the
     band and the alignment, melon's came out 13.6-16.8: the slow part of the motor differences is
     the controller holding moments the model lacks."""
