@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["bootstrap_span", "RobustFit", "robust_fit", "robust_fit_grouped", "weighted_bounded_lstsq", "gram", "gram_bounded_lstsq",
-           "unit_grams", "group_grams", "within_gram", "group_intercepts", "blocked_cv", "bootstrap_draws", "block_bootstrap",
+           "unit_grams", "group_grams", "within_gram", "group_intercepts", "blocked_cv", "bootstrap_draws", "block_bootstrap", "held_factor",
            "HUBER_C", "LOSS", "N_BOOT", "huber_factor"]
 
 #: Huber's tuning constant, in robust scales of the residuals (95 % Gaussian efficiency)
@@ -272,13 +272,23 @@ def bootstrap_draws(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, fit: Robus
     """(n_boot, k) coefficients refit on block-bootstrap replicates: whole blocks (units: one
     per (flight, time block), :func:`droneid.dataset.validation.block_ids`) resampled with replacement,
     each replicate refit with the full fit's robust weights (one bounded least squares each,
-    from the sum of the drawn units' statistics)."""
+    from the sum of the drawn units' statistics), their spread about ``fit`` scaled by
+    :func:`huber_factor` (a refit with the weights held understates the Huber estimate's spread)
+    and kept inside the bounds."""
     A = np.asarray(A, float)
     ids, S, _ = unit_grams(A, np.asarray(y, float), fit.weights, np.asarray(blocks))
     rng = np.random.default_rng(seed)
     draws = rng.integers(0, ids.size, (n_boot, ids.size))     # replicate by replicate, as drawn one at a time
     counts = np.stack([np.bincount(d, minlength=ids.size) for d in draws]).astype(float)
-    return gram_bounded_lstsq_many((counts @ S.reshape(ids.size, -1)).reshape(n_boot, *S.shape[1:]), lo, hi)
+    beta = gram_bounded_lstsq_many((counts @ S.reshape(ids.size, -1)).reshape(n_boot, *S.shape[1:]), lo, hi)
+    return held_factor(beta, fit.beta, huber_factor(fit), lo, hi)
+
+
+def held_factor(draws: np.ndarray, beta: np.ndarray, factor: float, lo=None, hi=None) -> np.ndarray:
+    """Bootstrap ``draws`` (n, k) with their spread about the estimate ``beta`` scaled by
+    ``factor`` (:func:`huber_factor`), clipped to the bounds ``lo``/``hi``."""
+    lo, hi = _bounds(np.asarray(beta).size, lo, hi)
+    return np.clip(beta + factor * (draws - beta), lo, hi)
 
 
 def huber_factor(fit: RobustFit) -> float:
@@ -286,9 +296,9 @@ def huber_factor(fit: RobustFit) -> float:
     estimate's spread: ``Σ w_i / #{w_i = 1}`` over the rows that weigh (≥ 1). The M-estimate's
     sandwich variance has ``Σ ψ'(r_i) x_i²`` where a fixed-weight refit has ``Σ w_i x_i²``; Huber's
     ψ' is 1 inside ``HUBER_C`` robust scales (weight 1) and 0 outside (Huber 1981, §7.6). On
-    Gaussian noise about 1.17: a block bootstrap that refits with the weights held (as
-    :func:`bootstrap_draws` does) gave standard errors 0.85-0.89 of the estimates' spread on
-    simulated flights, 1.00-1.04 times this factor (docs/estimates.md)."""
+    Gaussian noise about 1.17: a block bootstrap that refits with the weights held gave standard
+    errors 0.85-0.89 of the estimates' spread on simulated flights, 0.99-1.04 with this factor
+    (docs/estimates.md); :func:`bootstrap_draws` applies it."""
     w = np.asarray(fit.weights, float)
     full = int(np.count_nonzero(w >= 1.0))
     return float(np.sum(w[w > 0]) / full) if full else 1.0

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special    # chdtrc, stdtrit: scipy.stats' chi2.sf and t.ppf, without its 0.5 s import
 
-from droneid.core.regression import RobustFit, bootstrap_draws, huber_factor, robust_fit
+from droneid.core.regression import RobustFit, bootstrap_draws, robust_fit
 
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
@@ -143,18 +143,13 @@ def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=
                   seed: int = 0) -> tuple["RobustFit", np.ndarray, np.ndarray, float]:
     """One unit's own fit (a flight or a stretch): ``(fit, se, pct, df)``, its robust fit
     (:class:`droneid.core.regression.RobustFit`), the standard
-    error of each coefficient over the block bootstrap of its own time ``blocks`` (the draws'
-    spread about the fit scaled by :func:`~droneid.core.regression.huber_factor`, as the
-    bootstrap refits with the Huber weights held, and inflated by ``B/(B − 1)`` for B blocks: the
-    block bootstrap's small-sample shrinkage), the (2, k) percentile 95 % interval of those draws
+    error of each coefficient over the block bootstrap of its own time ``blocks``
+    (:func:`~droneid.core.regression.bootstrap_draws`, Huber's factor included, inflated by
+    ``B/(B − 1)`` for B blocks: the block bootstrap's small-sample shrinkage), the (2, k) percentile 95 % interval of those draws
     and the standard errors' degrees of freedom, B − 1."""
     f = robust_fit(A, y, lo, hi)
     b = np.unique(blocks).size
-    draws = f.beta + huber_factor(f) * (bootstrap_draws(A, y, blocks, f, lo, hi, seed=seed) - f.beta)
-    if lo is not None:
-        draws = np.maximum(draws, np.asarray(lo, float))
-    if hi is not None:
-        draws = np.minimum(draws, np.asarray(hi, float))
+    draws = bootstrap_draws(A, y, blocks, f, lo, hi, seed=seed)
     se = np.std(draws, axis=0, ddof=1) * math.sqrt(b / max(b - 1, 1))
     return f, se, np.percentile(draws, [2.5, 97.5], axis=0), float(max(b - 1, 1))
 

@@ -54,7 +54,8 @@ import numpy as np
 from priors.torque import RotorLayout
 
 from droneid.core.io_util import to_jsonable
-from droneid.core.regression import (gram_bounded_lstsq_many, group_grams, robust_fit_grouped, within_gram)
+from droneid.core.regression import (gram_bounded_lstsq_many, group_grams, held_factor, huber_factor,
+                                     robust_fit_grouped, within_gram)
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DataError
 from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, Constancy, constancies, holm_flags, moved,
@@ -183,7 +184,8 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         lo = rotation_bounds(k, terms, A.shape[1])
         fit = robust_fit_grouped(A, y, group, lo=lo)
         pooled[axis] = float(fit.beta[0])
-        draws = _grouped_draws(A, y, group, blocks, fit.weights, lo, n_boot, seed)[:, 0]
+        draws = held_factor(_grouped_draws(A, y, group, blocks, fit.weights, lo, n_boot, seed),
+                            fit.beta[:A.shape[1]], huber_factor(fit), lo)[:, 0]
         boot[axis] = tuple(float(x) for x in np.percentile(draws, [2.5, 97.5]))
         for i, f in enumerate(used):
             beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, lo, seed)
