@@ -43,7 +43,7 @@ from droneid.logs.flight import VEHICLE_PARAMETERS
 from droneid.fitting.decide import decide
 from droneid.errors import ConfigError
 from droneid.core.differentiation import averaging_window
-from droneid.core.regression import blocked_cv, bootstrap_span, gram, gram_bounded_lstsq, robust_fit
+from droneid.core.regression import blocked_cv, bootstrap_span, gram, gram_bounded_lstsq, held_factor, huber_factor, robust_fit
 from droneid.fitting.command_thrust import FINE_STEPS, CommandThrust, LinearThrust, lagged, window_rows
 from droneid.fitting.terms import prior_terms, split_terms
 from droneid.dataset.validation import time_blocks
@@ -335,9 +335,10 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     (95 %), "scale" (a at e), "scale_interval", "profile" {e: RSS / min RSS at the chosen lag},
     "n_units", "lag_s", "lag_interval", "thrust" (the thrust column at the chosen (τ, e))}: (τ, e)
     from the least residual sum of squares (:func:`_surface_min`: between grid points where the
-    profile curves); over ``n_boot`` block-bootstrap replicates of the units (each re-profiled
-    over the whole grid), e's and τ's intervals :func:`~droneid.core.regression.bootstrap_span` of
-    their minima, the scale's the percentiles of the scales at the replicates' grid minima."""
+    profile curves); over ``n_boot`` block-bootstrap replicates of the units (each re-profiled over the whole grid,
+    the weights held: spreads about e, τ and the scales' median times Huber's factor, regression.huber_factor),
+    e's and τ's intervals :func:`~droneid.core.regression.bootstrap_span` of their minima, the scale's the
+    percentiles of the scales at the replicates' grid minima."""
     grid, taus = np.asarray(grid, float), np.asarray(lags, float)
     drag, y, units = np.asarray(drag, float), np.asarray(y, float), np.asarray(units)
     cols = [np.asarray(thrust(grid, float(tau)), float) for tau in taus]     # T x (rows, E)
@@ -363,7 +364,7 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     A0 = np.column_stack([F0, drag])
     good = ok & np.isfinite(F0)
     weights = np.zeros(y.size)
-    weights[good] = robust_fit(A0[good], y[good], _LO, _HI).weights
+    weights[good] = (fit0 := robust_fit(A0[good], y[good], _LO, _HI)).weights
     unit_stats = stats(weights)
     R, _, _ = _nnls2(*(s.sum(axis=0) for s in unit_stats))
     tau_hat, e = (float(v) for v in _surface_min(taus, grid, R))
@@ -384,6 +385,7 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     lags_b, es = _surface_min(taus, grid, Rb)
     kb = np.argmin(np.where(np.isfinite(Rb), Rb, np.inf).reshape(n_boot, -1), axis=1)
     scales = xb.reshape(n_boot, -1)[np.arange(n_boot), kb]
+    es, lags_b, scales = (held_factor(v, c, huber_factor(fit0), 0.0) for v, c in ((es, e), (lags_b, tau_hat), (scales, np.median(scales))))
     lo, hi = bootstrap_span(es, e, min(grid[0], EXPO_GRID[0]), max(grid[-1], EXPO_GRID[-1]))
     # the replicates' scales are at their grid minimum, a_hat at the refined (τ, e): not one estimator
     # to reflect about, so the scale keeps the percentile interval
@@ -579,8 +581,7 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
             lag_decision = None
         if lag_decision is not None and lag_decision.accepted:
             prof = prof_lag
-    # the logged velocity as it is, or as the least-squares slope it may itself be (where the
-    # log smoothed it): the intervals span every slope the data admit
+    # the logged velocity as it is, or as the least-squares slope it may itself be (where the log smoothed it)
     prof, smooth = _over_smoothings(prof, prior.with_params(v_ref=v_ref if keep else None), ds, fine, cfg, blocks,
                                     LAG_GRID_S if prof is prof_lag else (0.0,), seed=seed)
     motors = int(prior.params.get("motors", 1)) if source == "motor" else 1
@@ -589,8 +590,7 @@ def choose_thrust_curve(train_flights, prior, cfg, cuts=None, delays=None, *, se
     # the thrust at full command on every motor, m/s²: the fitted scale times the nominal k_T per
     # unit of f_e, times N
     full = lambda s: s * k_nom * motors   # noqa: E731
-    hover = g / full(prof["scale"]) if prof["scale"] > 0 else math.nan
-    slo, shi = prof["scale_interval"]
+    hover, (slo, shi) = g / full(prof["scale"]) if prof["scale"] > 0 else math.nan, prof["scale_interval"]
     h_iv = (g / full(shi) if shi > 0 else math.nan, g / full(slo) if slo > 0 else math.inf)
     return ThrustCurve(source, prof["expo"], prof["interval"], prof["profile"], hover, h_iv,
                        keep, v_ref, v_from, decision, why_not, declared, prof["n_units"], prof["free_expo"],

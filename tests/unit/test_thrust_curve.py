@@ -322,3 +322,25 @@ def test_a_kept_lag_says_where_it_applies_and_where_the_offset_does():
     text = c.text()
     assert "49 ms [43, 54] ms kept" in text and "e = 0.500 [0.495, 0.503]" in text
     assert "the one-step v̇ models read the commands at the plan's offset" in text and "never both at once" in text
+
+
+def test_the_curve_s_bootstrap_takes_huber_s_factor(monkeypatch):
+    """The replicates refit with the robust weights held, which understates an M-estimate's
+    spread (regression.huber_factor): the shape's and the scale's intervals widen with the factor
+    about the estimate, and a factor of 1 gives the held-weights intervals back."""
+    import droneid.fitting.thrust_curve as tc
+    data = _planted(0.5, noise=0.05)
+    monkeypatch.setattr(tc, "huber_factor", lambda fit: 1.0)
+    held = profile_expo(*data)
+    monkeypatch.setattr(tc, "huber_factor", lambda fit: 2.0)
+    wide = profile_expo(*data)
+    assert wide["expo"] == held["expo"] and wide["scale"] == held["scale"]
+    for key in ("interval", "scale_interval"):
+        assert np.diff(wide[key])[0] == pytest.approx(2 * np.diff(held[key])[0], rel=0.05)
+    # with heavy tails the real factor is above 1: the outliers weigh less than 1
+    from droneid.core.regression import huber_factor, robust_fit
+    rng = np.random.default_rng(1)
+    thrust, drag, y, _ = data
+    y = y + np.where(rng.random(y.size) < 0.05, rng.normal(0, 2.0, y.size), 0.0)
+    fit = robust_fit(np.column_stack([thrust(np.array([0.5]), 0.0)[:, 0], drag]), y, np.zeros(2), np.full(2, np.inf))
+    assert huber_factor(fit) > 1.05
