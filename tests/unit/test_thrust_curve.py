@@ -58,6 +58,20 @@ def _planted(e, n=4000, noise=0.05, seed=0, spread=0.25, jitter=0.02):
     return LinearThrust(lin, quad), drag, y, units
 
 
+def _planted_lag(tau, n=4000, e=0.5, noise=0.05, seed=0):
+    """:func:`_planted` with the commands through a first-order motor lag ``tau`` (s): a thrust
+    callable of (shapes, τ) as :class:`CommandThrust` is."""
+    from droneid.fitting.thrust_curve import lagged
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    u = 0.5 + 0.25 * np.sin(0.7 * t) * np.sin(0.13 * t + 1) + 0.05 * rng.standard_normal(n)
+    seg = np.zeros(n, int)
+    thrust = lambda es, lag: LinearThrust(4 * lagged(t, u, seg, lag), 4 * lagged(t, u * u, seg, lag))(es)  # noqa: E731
+    drag = -0.28 * np.cos(0.5 * t)
+    y = 2.5 * thrust([e], tau)[:, 0] + 0.8 * drag + noise * rng.standard_normal(n)
+    return thrust, drag, y, np.repeat(np.arange(n // 200), 200)
+
+
 @pytest.mark.parametrize("e", [0.3, 0.7])
 def test_profile_recovers_a_planted_expo_within_its_interval(e):
     prof = profile_expo(*_planted(e))
@@ -337,6 +351,18 @@ def test_the_curve_s_bootstrap_takes_huber_s_factor(monkeypatch):
     assert wide["expo"] == held["expo"] and wide["scale"] == held["scale"]
     for key in ("interval", "scale_interval"):
         assert np.diff(wide[key])[0] == pytest.approx(2 * np.diff(held[key])[0], rel=0.05)
+    # the motor lag's replicates too, kept on the lag grid however wide the factor
+    lagged_data = _planted_lag(0.03)
+    monkeypatch.setattr(tc, "huber_factor", lambda fit: 1.0)
+    held = profile_expo(*lagged_data, lags=tc.LAG_GRID_S)
+    monkeypatch.setattr(tc, "huber_factor", lambda fit: 2.0)
+    wide = profile_expo(*lagged_data, lags=tc.LAG_GRID_S)
+    assert wide["lag_s"] == held["lag_s"] and abs(held["lag_s"] - 0.03) < 0.003
+    assert np.diff(wide["lag_interval"])[0] == pytest.approx(2 * np.diff(held["lag_interval"])[0], rel=0.1)
+    monkeypatch.setattr(tc, "huber_factor", lambda fit: 1e3)
+    huge = profile_expo(*lagged_data, lags=tc.LAG_GRID_S)
+    assert tc.LAG_GRID_S[0] <= huge["lag_interval"][0] < huge["lag_interval"][1] <= tc.LAG_GRID_S[-1]
+    assert 0.0 <= huge["interval"][0] < huge["interval"][1] <= 1.0
     # with heavy tails the real factor is above 1: the outliers weigh less than 1
     from droneid.core.regression import huber_factor, robust_fit
     rng = np.random.default_rng(1)
