@@ -320,12 +320,15 @@ class Constancy:
 
 
 def _span(c: Constancy) -> str:
+    """The units' range ("0.2-1.3 (= 0.055-0.38 1/s)"), or the one value of the one unit that
+    identifies it ("0.421 on 1.9-19.0 s alone")."""
     lo, hi = c.spread()
-    text = f"{lo:.3g}-{hi:.3g}"
+    one = len(c.per_unit) == 1
+    text = f"{lo:.3g}" if one else f"{lo:.3g}-{hi:.3g}"
     if c.physical is not None:
         k, unit = c.physical
-        text += f" (= {k * lo:.3g}-{k * hi:.3g} {unit})"
-    return text
+        text += f" (= {k * lo:.3g} {unit})" if one else f" (= {k * lo:.3g}-{k * hi:.3g} {unit})"
+    return text + (f" on {next(iter(c.per_unit))} alone" if one else "")
 
 
 def spread_text(rel_pct: float) -> str:

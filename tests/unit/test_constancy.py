@@ -166,6 +166,11 @@ def test_a_flight_that_does_not_identify_a_constant_is_left_out_of_its_test_and_
     ivs = [np.array([[v[1]], [v[2]]]) for v in {**c.per_unit, **c.unidentified}.values()]
     every = constancies("flight", names, vals, ses, ivs, {0: "k"}, dfs=[9] * 6)["k"]
     assert every.constant is False and every.p < 1e-6
+    # one flight left that identifies it: its value, named, and no test
+    one = constancies("flight", names[3:], vals[3:], ses[3:], ivs[3:], {0: "k"}, dfs=[9] * 3,
+                      identified=[[True], [False], [False]])["k"]
+    assert one.constant is None and one.between is None
+    assert f"k {vals[3][0]:.3g} on d alone, p = nan" in constancy_line({"k": one})
 
 
 def test_a_tiny_spread_is_not_a_finding():
