@@ -57,7 +57,7 @@ from droneid.core.regression import RobustFit, bootstrap_draws, robust_fit
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
            "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text",
-           "unit_estimate", "constancies", "new_flight_expectation", "new_flight_p", "IDENTIFIABLE_REL", "identifiable"]
+           "unit_estimate", "constancies", "new_flight_expectation", "new_flight_p"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -69,21 +69,6 @@ MIN_UNIT_ROWS = 40
 #: decision rule's minimum effect (:mod:`droneid.fitting.decide`), a consistent but negligible spread
 #: (long flights make any difference significant) is not a finding
 MIN_TAU_REL = 0.01
-#: a unit's estimate whose 95 % interval is wider than ± this fraction of it (of max(|value|,
-#: ``floor``): :func:`identifiable`) is not identifiable on that unit
-IDENTIFIABLE_REL = 0.5
-
-
-def identifiable(value: float, low: float, high: float, at_bound: bool, floor: float = 1.0) -> bool:
-    """Does a unit (a flight, a stretch) identify a coefficient it estimated as ``value`` [``low``,
-    ``high``] (95 %)? Not when the estimate sits at its physics bound ``at_bound`` or its interval's
-    half-width exceeds :data:`IDENTIFIABLE_REL` of max(|value|, ``floor``) (1 for the v̇ terms'
-    scales, which are near 1; 0 for a gain with its own scale). One rule for every test of a vehicle
-    constant: the constancy test over the training flights, a test flight's check and the
-    pooled term's own (a flight that does not excite a term says nothing of its value)."""
-    half = (float(high) - float(low)) / 2
-    return (not at_bound and math.isfinite(half) and math.isfinite(float(value))
-            and half <= IDENTIFIABLE_REL * max(abs(float(value)), floor))
 
 
 def n_stretches(n_rows: int) -> int:
@@ -170,32 +155,25 @@ def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=
 
 
 def constancies(kind: str, names: Sequence[str], vals, ses, ivs, labels: Mapping[int, str],
-                physical: Mapping[int, tuple[float, str] | None] | None = None, dfs=None,
-                identified=None) -> dict[str, "Constancy"]:
+                physical: Mapping[int, tuple[float, str] | None] | None = None, dfs=None) -> dict[str, "Constancy"]:
     """{label: :class:`Constancy`} of the coefficients ``labels`` (column index: name) from the
     per-unit estimates of :func:`unit_estimate` (``vals``, ``ses`` (U, k), ``ivs`` U × (2, k),
     ``dfs`` (U,) the standard errors' degrees of freedom, None: known) of
-    the units ``names`` of ``kind``: each tested and combined by :func:`heterogeneity` over the
-    units that identify it (``identified`` (U, k) booleans, :func:`identifiable`; None: all; the
-    others are listed in :attr:`Constancy.unidentified`, not tested), flagged by Holm over
-    ``labels`` (:func:`holm_flags`) and the spread rule (:func:`moved`); {} with fewer than two units."""
+    the units ``names`` of ``kind``: each tested and combined by :func:`heterogeneity`, flagged by
+    Holm over ``labels`` (:func:`holm_flags`) and the spread rule (:func:`moved`); {} with fewer
+    than two units."""
     if len(names) < 2:
         return {}
     vals, ses = np.asarray(vals, float), np.asarray(ses, float)
-    ok = np.ones(vals.shape, bool) if identified is None else np.asarray(identified, bool)
-    dfs = None if dfs is None else np.broadcast_to(np.asarray(dfs, float), (len(names),))
-    het = {lab: heterogeneity(vals[ok[:, i], i], ses[ok[:, i], i], None if dfs is None else dfs[ok[:, i]])
-           for i, lab in labels.items()}
+    het = {lab: heterogeneity(vals[:, i], ses[:, i], dfs) for i, lab in labels.items()}
     flags = holm_flags({lab: h["p"] for lab, h in het.items()})
     out = {}
     for i, lab in labels.items():
         h = het[lab]
-        per = {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(names)}
         out[lab] = Constancy(
-            kind, {n: v for j, (n, v) in enumerate(per.items()) if ok[j, i]},
+            kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(names)},
             h["p"], (not moved(flags[lab], h["tau"], h["mean"])) if math.isfinite(h["p"]) else None,
-            (h["low"], h["high"]) if kind == "flight" and math.isfinite(h["low"]) else None, h["tau"],
-            (physical or {}).get(i), {n: v for j, (n, v) in enumerate(per.items()) if not ok[j, i]})
+            (h["low"], h["high"]) if kind == "flight" else None, h["tau"], (physical or {}).get(i))
     return out
 
 
@@ -283,8 +261,7 @@ class Constancy:
         stretches: one flight cannot show flight-to-flight variation); tau : the between-unit
         standard deviation (DerSimonian-Laird), in the coefficient's units; physical : (factor,
         unit) turning the coefficient (a scale on nominal) into a physical value, e.g. (0.28,
-        "1/s") for a linear drag, or None; unidentified : {unit name: (value, low, high)} the units
-        that do not identify it (:func:`identifiable`), left out of the test and the interval
+        "1/s") for a linear drag, or None
     """
     unit: str
     per_unit: Mapping[str, tuple[float, float, float]]
@@ -293,7 +270,6 @@ class Constancy:
     between: tuple[float, float] | None = None
     tau: float = math.nan
     physical: tuple[float, str] | None = field(default=None)
-    unidentified: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
 
     def spread(self) -> tuple[float, float]:
         """(lowest, highest) per-unit value."""
@@ -305,8 +281,7 @@ class Constancy:
                 {k: list(v) for k, v in self.per_unit.items()},
                 "p": self.p, "constant": self.constant,
                 "between": list(self.between) if self.between is not None else None,
-                "tau": self.tau, "physical": list(self.physical) if self.physical is not None else None,
-                "not_identifiable": {k: list(v) for k, v in self.unidentified.items()}}
+                "tau": self.tau, "physical": list(self.physical) if self.physical is not None else None}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Constancy":
@@ -315,20 +290,16 @@ class Constancy:
                    float(d["p"]) if d["p"] is not None else math.nan, d["constant"],
                    tuple(d["between"]) if d["between"] is not None else None,
                    float(d["tau"]) if d["tau"] is not None else math.nan,
-                   (float(d["physical"][0]), str(d["physical"][1])) if d["physical"] is not None else None,
-                   {k: tuple(float(x) for x in v) for k, v in (d.get("not_identifiable") or {}).items()})
+                   (float(d["physical"][0]), str(d["physical"][1])) if d["physical"] is not None else None)
 
 
 def _span(c: Constancy) -> str:
-    """The units' range ("0.2-1.3 (= 0.055-0.38 1/s)"), or the one value of the one unit that
-    identifies it ("0.421 on 1.9-19.0 s alone")."""
     lo, hi = c.spread()
-    one = len(c.per_unit) == 1
-    text = f"{lo:.3g}" if one else f"{lo:.3g}-{hi:.3g}"
+    text = f"{lo:.3g}-{hi:.3g}"
     if c.physical is not None:
         k, unit = c.physical
-        text += f" (= {k * lo:.3g} {unit})" if one else f" (= {k * lo:.3g}-{k * hi:.3g} {unit})"
-    return text + (f" on {next(iter(c.per_unit))} alone" if one else "")
+        text += f" (= {k * lo:.3g}-{k * hi:.3g} {unit})"
+    return text
 
 
 def spread_text(rel_pct: float) -> str:
@@ -345,7 +316,7 @@ def constancy_line(constancy: Mapping[str, Constancy]) -> str:
     if not constancy:
         return ""
     first = next(iter(constancy.values()))
-    n = len(first.per_unit) + len(first.unidentified)
+    n = len(first.per_unit)
     where = (f"the {n} training flights" if first.unit == "flight" else
              f"{n} stretches of the one training flight (one flight cannot show how flights differ: "
              f"its intervals leave that out)")
@@ -356,9 +327,7 @@ def constancy_line(constancy: Mapping[str, Constancy]) -> str:
         verdict = {True: "constant", False: "NOT constant", None: "untestable"}[c.constant]
         if c.constant and rel >= 100 * MIN_TAU_REL:     # a wide spread the test does not flag
             verdict = "constant within its noise"
-        left = (f" (not identifiable on {', '.join(c.unidentified)}: left out)" if c.unidentified else "")
-        parts.append(f"{lab} {_span(c) if c.per_unit else '—'}, p = {c.p:.2g}, spread τ {spread_text(rel)}: "
-                     f"{verdict}{left}")
+        parts.append(f"{lab} {_span(c)}, p = {c.p:.2g}, spread τ {spread_text(rel)}: {verdict}")
     return (f"  constancy over {where} (each fitted alone; Cochran's Q as Welch's test, Holm at α = {ALPHA:g}, "
             f"and a spread τ of {100 * MIN_TAU_REL:g} % or more): "
             + "; ".join(parts))

@@ -25,11 +25,11 @@ import sympy as sp
 
 from droneid.core.expressions import compile_expression
 from droneid.core.numerics import rmse
-from droneid.fitting.constancy import IDENTIFIABLE_REL, MIN_UNIT_ROWS, constancies, identifiable, unit_estimate, units_of
+from droneid.fitting.constancy import MIN_UNIT_ROWS, constancies, unit_estimate, units_of
 from droneid.core.regression import block_bootstrap, blocked_cv, robust_fit
 from droneid.dataset.validation import time_blocks
 
-__all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "constancy_of", "VIF_LIMIT", "drag_slope",
+__all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "constancy_of", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
            "nested_functions", "evaluate_expr", "drop_negligible", "trim_terms", "plausible"]
 
 
@@ -139,6 +139,9 @@ class TermModel:
         return self.offset + sp.Float(self.intercept) + sp.Add(*[sp.Float(c) * t for c, t in zip(self.coefs, self.terms)])
 
 
+#: a physical coefficient whose 95 % interval is wider than ± this fraction of max(|value|, its
+#: nominal 1) is not identifiable from the flights: it is held at its nominal value
+IDENTIFIABLE_REL = 0.5
 #: a physical term whose column has a variance inflation factor above this is collinear with
 #: the others (the data cannot separate them): it is held at its nominal value
 VIF_LIMIT = 100.0
@@ -242,8 +245,9 @@ def physical_fit(model: TermModel, columns, y, blocks, *, seed: int = 0, n_physi
     for i in phys:
         lab = model.labels[i]
         a, b = iv[lab]
+        half = (b - a) / 2
         vif = _vif(A, i, free_int)
-        if not identifiable(fitted.coefs[i], a, b, False) or vif > VIF_LIMIT:
+        if half > IDENTIFIABLE_REL * max(abs(fitted.coefs[i]), 1.0) or vif > VIF_LIMIT:
             nominal = float(np.clip(1.0, lo[i], hi[i]))
             held[lab] = nominal
             why = (f"collinear with the other terms (VIF {vif:.3g} > {VIF_LIMIT:g})" if vif > VIF_LIMIT else
@@ -351,7 +355,7 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
         return {}
     unit, names, kind = units_of(t, flight, sources)
     lo, hi = model.bounds()
-    vals, ses, ivs, dfs, used, ok = [], [], [], [], [], []
+    vals, ses, ivs, dfs, used = [], [], [], [], []
     for u, name in enumerate(names):
         rows = np.flatnonzero(unit == u)
         if rows.size < MIN_UNIT_ROWS:
@@ -364,9 +368,8 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
         ivs.append(pct)
         dfs.append(dof)
         used.append(name)
-        ok.append([identifiable(fit.beta[i], pct[0, i], pct[1, i], bool(fit.at_bound[i])) for i in range(fit.beta.size)])
     return constancies(kind, used, vals, ses, ivs, {i: model.labels[i] for i in which},
-                       {i: _physical_scale(model.terms[i]) for i in which}, dfs, ok)
+                       {i: _physical_scale(model.terms[i]) for i in which}, dfs)
 
 
 def _physical_scale(term: sp.Expr) -> tuple[float, str] | None:

@@ -58,18 +58,23 @@ from droneid.core.regression import (gram_bounded_lstsq_many, group_grams, held_
                                      robust_fit_grouped, within_gram)
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DataError
-from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, Constancy, constancies, holm_flags,
-                                       identifiable, moved, new_flight_expectation, new_flight_p, unit_estimate)
+from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, Constancy, constancies, holm_flags, moved,
+                                       new_flight_expectation, new_flight_p, unit_estimate)
 from droneid.rotation.commands import CommandSpeeds
 from droneid.rotation.model import (AXIS_NAMES, RotationModel, fit_rotation, rotation_bounds, rotation_design,
                                     rotation_rows)
 from droneid.simulation.openloop import StateLog
 
-__all__ = ["TorqueGains", "torque_gains", "check_gains", "flight_conditions", "N_BOOT",
+__all__ = ["TorqueGains", "torque_gains", "check_gains", "flight_conditions", "N_BOOT", "IDENTIFIABLE_REL",
            "MAX_ALIGN_S", "BANDS_S"]
 
 #: bootstrap replicates of the pooled gain
 N_BOOT = 200
+#: a flight's gain whose 95 % interval is wider than ± this fraction of it is not identifiable there
+#: (the v̇ constants' rule, :data:`droneid.fitting.terms.IDENTIFIABLE_REL`, floors the half-width's
+#: scale at 1 because those are scales near 1; a gain has its own scale, and its bound is 0, so a
+#: gain at its bound is one that is not positive)
+IDENTIFIABLE_REL = 0.5
 #: the alignments of a flight's motor stream tried: 0 to MAX_ALIGN_S in steps of 1/ALIGN_SUBSTEPS
 #: of the grid step (the rotor speeds interpolated linearly between samples: one whole step moves a
 #: flight's gain by 10-25 % on the shared squares)
@@ -174,7 +179,6 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
     used = [f for f in range(len(names)) if np.count_nonzero(flight == f) >= MIN_UNIT_ROWS]
     pooled, boot, vals, ses, dfs, ivs = {}, {}, np.zeros((len(used), 3)), np.zeros((len(used), 3)), \
         np.zeros(len(used)), [np.zeros((2, 3)) for _ in used]
-    ok = np.zeros((len(used), 3), bool)
     for k, axis in enumerate(AXIS_NAMES):
         A, y = rows["A"][k], rows["y"][k]
         lo = rotation_bounds(k, terms, A.shape[1])
@@ -186,9 +190,7 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         for i, f in enumerate(used):
             beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, lo, seed)
             vals[i, k], ses[i, k], ivs[i][:, k] = beta[0], se[0], pct[:, 0]
-            ok[i, k] = _identifies(beta[0], pct[0, 0], pct[1, 0])
-    const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)), dfs=dfs,
-                        identified=ok)
+    const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)), dfs=dfs)
     gains = {}
     for axis in AXIS_NAMES:
         lo_, hi_ = boot[axis]
@@ -207,7 +209,7 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
     (fitted alone with its trims, the other terms free, as a training flight's) against what a new
     flight of the vehicle should give (:func:`droneid.fitting.constancy.new_flight_expectation` of
     the reported gain and its constancy), two-sided p, Holm over the axes at ALPHA, the spread rule;
-    a gain at its bound or with an interval wider than ±:data:`droneid.fitting.constancy.IDENTIFIABLE_REL` of it is not
+    a gain at its bound or with an interval wider than ±:data:`IDENTIFIABLE_REL` of it is not
     identifiable there (holds None, as when its p is not finite). Reported, never chosen on.
     ``window_s`` as :func:`torque_gains`."""
     shell = g.model
@@ -232,7 +234,7 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
                                               None if c is None else c.to_dict())
             res[axis] = (v, low, high)
             p = new_flight_p(v, float(se[0]), expected, dof)
-            if _identifies(v, low, high) and math.isfinite(p):
+            if v > 0 and (high - low) / 2 <= IDENTIFIABLE_REL * v and math.isfinite(p):
                 ps[axis] = p
                 res[axis] += (expected["value"],)
         flags = holm_flags(ps, ALPHA)
@@ -380,13 +382,6 @@ def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float,
 def _smooth(x: np.ndarray) -> np.ndarray:
     """Each column of ``x`` (N, K) filtered by :data:`_KERNEL` (centred; the ends left partial)."""
     return np.column_stack([np.convolve(x[:, c], _KERNEL, mode="same") for c in range(x.shape[1])])
-
-
-def _identifies(value: float, low: float, high: float) -> bool:
-    """Does a flight identify its gain ``value`` [``low``, ``high``]? The one rule
-    (:func:`droneid.fitting.constancy.identifiable`) on a gain's own scale (no floor: it is no scale
-    near 1) with its bound 0: a gain that is not positive sits at it."""
-    return identifiable(value, low, high, not value > 0, floor=0.0)
 
 
 def _alone(A: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray, lo: np.ndarray,

@@ -20,7 +20,7 @@ A constant DOES NOT HOLD when ``t = (θ − μ) / √(se_new² + se_μ² + τ²)
 flight) and the difference is at least :data:`~droneid.fitting.constancy.MIN_TAU_REL` of μ: the
 constancy test's rule (:func:`~droneid.fitting.constancy.moved`). A constant the flight does not
 excite (its value at a bound, or its interval wider than
-±:data:`~droneid.fitting.constancy.IDENTIFIABLE_REL`, :func:`~droneid.fitting.constancy.identifiable`) is "not identifiable on this flight", and a
+±:data:`~droneid.fitting.terms.IDENTIFIABLE_REL`) is "not identifiable on this flight", and a
 flight that was trained on is not checked (its data are in the result's value).
 
 A constant that does not hold says: this flight's vehicle, payload or battery differs from the
@@ -39,10 +39,9 @@ from scipy import special
 from droneid.core.expressions import parse_expression
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DroneIdError
-from droneid.fitting.constancy import (ALPHA, IDENTIFIABLE_REL, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags,
-                                       identifiable, moved, new_flight_expectation, new_flight_p, rule_text,
-                                       unit_estimate)
-from droneid.fitting.terms import evaluate_expr
+from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved,
+                                       new_flight_expectation, new_flight_p, rule_text, unit_estimate)
+from droneid.fitting.terms import IDENTIFIABLE_REL, evaluate_expr
 
 __all__ = ["ConstantCheck", "identified_constants", "check_constants", "constants_line"]
 
@@ -167,10 +166,10 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
         res, ps = {}, {}
         for j, lab in enumerate(labs):
             c = constants[lab]
-            v = float(fit.beta[j])
+            v, half = float(fit.beta[j]), (float(pct[1, j]) - float(pct[0, j])) / 2
             q = float(special.stdtrit(c["df"], 0.975)) if math.isfinite(c["df"]) else 1.959964
             expected = (c["value"], max(c["value"] - q * c["se"], 0.0), c["value"] + q * c["se"])  # scales >= 0
-            if not identifiable(v, pct[0, j], pct[1, j], bool(fit.at_bound[j])):
+            if bool(fit.at_bound[j]) or half > IDENTIFIABLE_REL * max(abs(v), 1.0):
                 res[lab] = ConstantCheck(str(name), lab, c["role"], v, float(pct[0, j]), float(pct[1, j]), expected,
                                          math.nan, None, "not identifiable on this flight: at its bound, or its "
                                          f"interval wider than ±{100 * IDENTIFIABLE_REL:.0f} %", c["flights"])

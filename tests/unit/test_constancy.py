@@ -141,38 +141,6 @@ def test_constancy_round_trips_through_json():
     assert back.unit == "stretch" and back.constant is None and math.isnan(back.p)
 
 
-def test_a_flight_that_does_not_identify_a_constant_is_left_out_of_its_test_and_named():
-    """One rule for every test of a vehicle constant (constancy.identifiable, predict's rule for a
-    test flight): an estimate pinned at its bound (its bootstrap standard error ~0, a weight that
-    decided Q alone) or wider than ±50 % does not testify. Four flights agree; a fifth pushes the
-    drag scale through its bound 0, a sixth barely moves."""
-    x, y, fl, t = _flights([-0.28, -0.28, -0.28, -0.28, +0.1, -0.28], seed=3, noise=0.02)
-    quiet = fl == 5
-    x[quiet] *= 0.002                        # the sixth flight's velocity hardly moves
-    y[quiet] = -0.28 * x[quiet] + 0.02 * np.random.default_rng(9).standard_normal(int(quiet.sum()))
-    names = ["a", "b", "c", "d", "pushed", "quiet"]
-    fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=names)
-    c = fit.constancy["⟨minus_kD_vx⟩"]
-    assert set(c.unidentified) == {"pushed", "quiet"} and set(c.per_unit) == {"a", "b", "c", "d"}
-    assert c.unidentified["pushed"][0] == 0.0                                   # at its bound
-    assert c.constant is True and c.p > 0.01
-    assert "not identifiable on pushed, quiet: left out" in constancy_line(fit.constancy)
-    assert "the 6 training flights" in constancy_line(fit.constancy)
-    assert Constancy.from_dict(c.to_dict()) == c
-    # every flight tested, as before: the pinned one decides
-    from droneid.fitting.constancy import constancies
-    vals = [[v[0]] for v in {**c.per_unit, **c.unidentified}.values()]
-    ses = [[0.01]] * 4 + [[0.0], [5.0]]
-    ivs = [np.array([[v[1]], [v[2]]]) for v in {**c.per_unit, **c.unidentified}.values()]
-    every = constancies("flight", names, vals, ses, ivs, {0: "k"}, dfs=[9] * 6)["k"]
-    assert every.constant is False and every.p < 1e-6
-    # one flight left that identifies it: its value, named, and no test
-    one = constancies("flight", names[3:], vals[3:], ses[3:], ivs[3:], {0: "k"}, dfs=[9] * 3,
-                      identified=[[True], [False], [False]])["k"]
-    assert one.constant is None and one.between is None
-    assert f"k {vals[3][0]:.3g} on d alone, p = nan" in constancy_line({"k": one})
-
-
 def test_a_tiny_spread_is_not_a_finding():
     """Holm-significant but τ under 1 % of the value: still constant (the minimum effect)."""
     x, y, fl, t = _flights([-0.28, -0.28 * 1.004, -0.28 * 0.996, -0.28], seed=5, noise=0.001)
