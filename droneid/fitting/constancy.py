@@ -57,7 +57,7 @@ from droneid.core.regression import RobustFit, bootstrap_draws, robust_fit
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
            "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text",
-           "unit_estimate", "constancies", "new_flight_expectation", "new_flight_p"]
+           "unit_estimate", "unit_bounds", "constancies", "new_flight_expectation", "new_flight_p"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -137,6 +137,20 @@ def _welch_p(q: float, w: np.ndarray, df) -> float:
         return float(special.chdtrc(k - 1, q))
     f = q / (k - 1) / (1.0 + 2.0 * (k - 2) / (k * k - 1) * lam)
     return float(special.fdtrc(k - 1, (k * k - 1) / (3.0 * lam), f))
+
+
+def unit_bounds(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds of a unit's own fit for the constancy test: a coefficient held (``lo == hi``)
+    stays held; the physics bounds (a drag or a gain never negative) are dropped. The test asks
+    whether the units' estimates agree, and an estimate pinned at a bound is not an estimate: its
+    bootstrap replicates pile up on the bound, its standard error falls towards 0, and its weight
+    1/se² then decides Cochran's Q alone, whichever way. Unbounded, a flight that pushes a
+    coefficient through its bound says how far, with the spread its data give it. The model's
+    coefficients keep their bounds; the reported interval is clipped to them."""
+    lo = np.asarray(lo, float)
+    hi = np.asarray(hi, float)
+    held = lo == hi
+    return np.where(held, lo, -np.inf), np.where(held, hi, np.inf)
 
 
 def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None, *,

@@ -25,7 +25,7 @@ import sympy as sp
 
 from droneid.core.expressions import compile_expression
 from droneid.core.numerics import rmse
-from droneid.fitting.constancy import MIN_UNIT_ROWS, constancies, unit_estimate, units_of
+from droneid.fitting.constancy import MIN_UNIT_ROWS, constancies, unit_bounds, unit_estimate, units_of
 from droneid.core.regression import block_bootstrap, blocked_cv, robust_fit
 from droneid.dataset.validation import time_blocks
 
@@ -346,7 +346,8 @@ def _tie_collinear(model: TermModel, columns, n: int, n_physical: int | None) ->
 def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.ndarray, t: np.ndarray,
                  sources: Sequence[str] = (), *, seed: int = 0) -> dict:
     """{label: :class:`~droneid.fitting.constancy.Constancy`} of the coefficients ``which`` (indices of
-    ``model``'s vehicle constants): ``model`` (its bounds and held values) fitted on every
+    ``model``'s vehicle constants): ``model`` (its held values; its physics bounds dropped,
+    :func:`droneid.fitting.constancy.unit_bounds`) fitted on every
     training flight alone, or on every stretch of the one flight (:func:`droneid.fitting.constancy.units_of`),
     each with its block-bootstrap standard error over its own time blocks (inflated by
     B/(B − 1) for B blocks), tested and combined by :func:`droneid.fitting.constancy.heterogeneity`, flagged
@@ -354,7 +355,7 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
     if not which:
         return {}
     unit, names, kind = units_of(t, flight, sources)
-    lo, hi = model.bounds()
+    lo, hi = unit_bounds(*model.bounds())
     vals, ses, ivs, dfs, used = [], [], [], [], []
     for u, name in enumerate(names):
         rows = np.flatnonzero(unit == u)

@@ -24,7 +24,8 @@ low-pass: a filter on one side only would inflate a gain read at high frequency)
   balance point, battery); its 95 % interval is the percentile block bootstrap over (flight, time
   block) units (:func:`droneid.dataset.validation.time_blocks`), each replicate refit with its
   trims;
-- **per flight**: each flight alone (its own trims), with its block-bootstrap standard error;
+- **per flight**: each flight alone (its own trims; the gain unbounded, as every constancy test's units:
+  :func:`droneid.fitting.constancy.unit_bounds`), with its block-bootstrap standard error;
 - **constancy**: Cochran's Q over the flights read as Welch's test (each flight's standard error on
   its blocks' degrees of freedom), Holm over the three axes at
   :data:`droneid.fitting.constancy.ALPHA`, and a spread τ of at least
@@ -59,7 +60,7 @@ from droneid.core.regression import (gram_bounded_lstsq_many, group_grams, held_
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DataError
 from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, Constancy, constancies, holm_flags, moved,
-                                       new_flight_expectation, new_flight_p, unit_estimate)
+                                       new_flight_expectation, new_flight_p, unit_bounds, unit_estimate)
 from droneid.rotation.commands import CommandSpeeds
 from droneid.rotation.model import (AXIS_NAMES, RotationModel, fit_rotation, rotation_bounds, rotation_design,
                                     rotation_rows)
@@ -187,8 +188,8 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
         draws = held_factor(_grouped_draws(A, y, group, blocks, fit.weights, lo, n_boot, seed),
                             fit.beta[:A.shape[1]], huber_factor(fit), lo)[:, 0]
         boot[axis] = tuple(float(x) for x in np.percentile(draws, [2.5, 97.5]))
-        for i, f in enumerate(used):
-            beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, lo, seed)
+        for i, f in enumerate(used):       # each flight alone, its gain unbounded (unit_bounds: a test of agreement)
+            beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, unit_bounds(lo, np.full_like(lo, np.inf))[0], seed)
             vals[i, k], ses[i, k], ivs[i][:, k] = beta[0], se[0], pct[:, 0]
     const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)), dfs=dfs)
     gains = {}

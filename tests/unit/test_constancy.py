@@ -141,6 +141,28 @@ def test_constancy_round_trips_through_json():
     assert back.unit == "stretch" and back.constant is None and math.isnan(back.p)
 
 
+def test_each_unit_is_fitted_without_the_physics_bounds_for_the_test():
+    """An estimate pinned at its bound is not an estimate (its replicates pile up on the bound, its
+    standard error falls towards 0 and its weight decides Q alone): each unit is fitted without the
+    physics bounds (constancy.unit_bounds), held coefficients staying held. A flight whose drag
+    pushes through the bound 0 says how far, and its disagreement is seen; flights that agree
+    near the bound are not split by it."""
+    from droneid.fitting.constancy import unit_bounds
+    lo, hi = unit_bounds([0.0, 1.0, -np.inf], [np.inf, 1.0, 0.0])
+    assert lo.tolist() == [-np.inf, 1.0, -np.inf] and hi.tolist() == [np.inf, 1.0, np.inf]
+    names = ["a", "b", "c", "d", "pushed"]
+    x, y, fl, t = _flights([-0.28, -0.28, -0.28, -0.28, +0.1], seed=3, noise=0.02)
+    c = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=names).constancy["⟨minus_kD_vx⟩"]
+    assert c.per_unit["pushed"][0] < -0.3 and c.per_unit["pushed"][2] < 0      # -0.1/0.28 = -0.36, through 0
+    assert c.constant is False and c.p < 1e-6
+    # five flights with no drag, noisy: some fall below 0, none is pinned there, and they agree
+    x, y, fl, t = _flights([0.0] * 5, seed=4, noise=0.3)
+    fit = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=names)
+    c = fit.constancy["⟨minus_kD_vx⟩"]
+    assert min(v[0] for v in c.per_unit.values()) < 0 and c.constant is True
+    assert fit.model.coefs[0] >= 0 and fit.intervals["⟨minus_kD_vx⟩"][0] >= 0      # the model keeps its bound
+
+
 def test_a_tiny_spread_is_not_a_finding():
     """Holm-significant but τ under 1 % of the value: still constant (the minimum effect)."""
     x, y, fl, t = _flights([-0.28, -0.28 * 1.004, -0.28 * 0.996, -0.28], seed=5, noise=0.001)
