@@ -385,10 +385,10 @@ def profile_expo(thrust, drag: np.ndarray, y: np.ndarray, units: np.ndarray, *,
     lags_b, es = _surface_min(taus, grid, Rb)
     kb = np.argmin(np.where(np.isfinite(Rb), Rb, np.inf).reshape(n_boot, -1), axis=1)
     scales = xb.reshape(n_boot, -1)[np.arange(n_boot), kb]
-    e_lo, e_hi = min(grid[0], EXPO_GRID[0]), max(grid[-1], EXPO_GRID[-1])     # widened replicates stay on their grids
-    es, lags_b, scales = (held_factor(v, c, huber_factor(fit0), a, b) for v, c, a, b in (
-        (es, e, e_lo, e_hi), (lags_b, tau_hat, taus[0], taus[-1]), (scales, np.median(scales), 0.0, None)))
-    lo, hi = bootstrap_span(es, e, e_lo, e_hi)     # the scale: percentiles (replicates at grid minima, a_hat refined)
+    es, lags_b, scales = (held_factor(v, c, huber_factor(fit0), 0.0) for v, c in ((es, e), (lags_b, tau_hat), (scales, np.median(scales))))
+    lo, hi = bootstrap_span(es, e, min(grid[0], EXPO_GRID[0]), max(grid[-1], EXPO_GRID[-1]))
+    # the replicates' scales are at their grid minimum, a_hat at the refined (τ, e): not one estimator
+    # to reflect about, so the scale keeps the percentile interval
     slo, shi = np.percentile(scales, [2.5, 97.5])
     k = int(np.argmin(np.abs(taus - tau_hat)))
     best = float(np.min(R[k])) if np.min(R[k]) > 0 else 1.0
