@@ -102,17 +102,21 @@ def heterogeneity(values, se, df=None) -> dict:
     """The constancy test (Cochran's Q read as Welch's test) and the random-effects (HKSJ)
     interval of per-unit estimates ``values`` with standard errors ``se`` on ``df`` degrees of
     freedom each (None: known standard errors, Q ~ χ²(k − 1)); see the module docstring. Returns
-    ``{"p", "q", "tau", "mean", "low", "high"}``; ``p`` is NaN with fewer than 2 units. A zero
-    standard error (a coefficient pinned to its bound in a unit) is floored at 1e-9 of the values'
-    scale."""
+    ``{"p", "q", "tau", "mean", "low", "high"}``; ``p`` is NaN with fewer than 2 units. A unit
+    whose standard error is not positive carries no information (its rows do not move the term:
+    its estimate is whatever the solver returns, with no spread; :func:`unit_bounds` keeps a unit's
+    estimate off the bounds, where the spread also collapsed) and does not count."""
     v = np.asarray(values, float)
     s = np.asarray(se, float)
+    keep = np.isfinite(v) & np.isfinite(s) & (s > 0)
+    if df is not None and np.ndim(df):
+        df = np.asarray(df, float)[keep]
+    v, s = v[keep], s[keep]
     k = v.size
     if k < 2:
         return {"p": math.nan, "q": math.nan, "tau": math.nan, "mean": float(v[0]) if k else math.nan,
                 "low": math.nan, "high": math.nan}
-    floor = 1e-9 * max(float(np.max(np.abs(v))), 1e-12)
-    var = np.maximum(s, floor) ** 2
+    var = s ** 2
     w = 1.0 / var
     fixed = float(np.sum(w * v) / np.sum(w))
     q = float(np.sum(w * (v - fixed) ** 2))
@@ -139,18 +143,22 @@ def _welch_p(q: float, w: np.ndarray, df) -> float:
     return float(special.fdtrc(k - 1, (k * k - 1) / (3.0 * lam), f))
 
 
-def unit_bounds(lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """The bounds of a unit's own fit for the constancy test: a coefficient held (``lo == hi``)
-    stays held; the physics bounds (a drag or a gain never negative) are dropped. The test asks
+def unit_bounds(lo, hi, tested=None) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds of a unit's own fit for the constancy test: the coefficients ``tested`` (indices;
+    None: all) lose their physics bounds (a drag or a gain never negative) unless held (``lo ==
+    hi``); the others (the model's other terms, trims) keep theirs. The test asks
     whether the units' estimates agree, and an estimate pinned at a bound is not an estimate: its
     bootstrap replicates pile up on the bound, its standard error falls towards 0, and its weight
     1/se² then decides Cochran's Q alone, whichever way. Unbounded, a flight that pushes a
     coefficient through its bound says how far, with the spread its data give it. The model's
     coefficients keep their bounds; the reported interval is clipped to them."""
-    lo = np.asarray(lo, float)
-    hi = np.asarray(hi, float)
-    held = lo == hi
-    return np.where(held, lo, -np.inf), np.where(held, hi, np.inf)
+    lo = np.array(lo, float)
+    hi = np.array(hi, float)
+    free = np.zeros(lo.size, bool)
+    free[slice(None) if tested is None else list(tested)] = True
+    free &= lo != hi
+    lo[free], hi[free] = -np.inf, np.inf
+    return lo, hi
 
 
 def unit_estimate(A: np.ndarray, y: np.ndarray, blocks: np.ndarray, lo=None, hi=None, *,
@@ -318,7 +326,7 @@ def _span(c: Constancy) -> str:
 
 def spread_text(rel_pct: float) -> str:
     """A spread τ relative to its mean, for people: "1.3 %", "150 %" (not "1.5e+02 %"); "—" where
-    it has no relative size (a mean of 0: a term held at its bound on every unit)."""
+    it has no relative size (a mean of 0)."""
     if not math.isfinite(rel_pct):
         return "—"
     return f"{rel_pct:.2g} %" if rel_pct < 10 else f"{rel_pct:.0f} %"

@@ -346,8 +346,8 @@ def _tie_collinear(model: TermModel, columns, n: int, n_physical: int | None) ->
 def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.ndarray, t: np.ndarray,
                  sources: Sequence[str] = (), *, seed: int = 0) -> dict:
     """{label: :class:`~droneid.fitting.constancy.Constancy`} of the coefficients ``which`` (indices of
-    ``model``'s vehicle constants): ``model`` (its held values; its physics bounds dropped,
-    :func:`droneid.fitting.constancy.unit_bounds`) fitted on every
+    ``model``'s vehicle constants): ``model`` (its held values and bounds, the constants' own
+    physics bounds dropped: :func:`droneid.fitting.constancy.unit_bounds`) fitted on every
     training flight alone, or on every stretch of the one flight (:func:`droneid.fitting.constancy.units_of`),
     each with its block-bootstrap standard error over its own time blocks (inflated by
     B/(B − 1) for B blocks), tested and combined by :func:`droneid.fitting.constancy.heterogeneity`, flagged
@@ -355,7 +355,7 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
     if not which:
         return {}
     unit, names, kind = units_of(t, flight, sources)
-    lo, hi = unit_bounds(*model.bounds())
+    lo, hi = unit_bounds(*model.bounds(), tested=which)
     vals, ses, ivs, dfs, used = [], [], [], [], []
     for u, name in enumerate(names):
         rows = np.flatnonzero(unit == u)

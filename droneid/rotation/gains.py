@@ -24,7 +24,7 @@ low-pass: a filter on one side only would inflate a gain read at high frequency)
   balance point, battery); its 95 % interval is the percentile block bootstrap over (flight, time
   block) units (:func:`droneid.dataset.validation.time_blocks`), each replicate refit with its
   trims;
-- **per flight**: each flight alone (its own trims; the gain unbounded, as every constancy test's units:
+- **per flight**: each flight alone (its own trims; the gain without its bound, as every constancy test's units:
   :func:`droneid.fitting.constancy.unit_bounds`), with its block-bootstrap standard error;
 - **constancy**: Cochran's Q over the flights read as Welch's test (each flight's standard error on
   its blocks' degrees of freedom), Holm over the three axes at
@@ -71,10 +71,10 @@ __all__ = ["TorqueGains", "torque_gains", "check_gains", "flight_conditions", "N
 
 #: bootstrap replicates of the pooled gain
 N_BOOT = 200
-#: a flight's gain whose 95 % interval is wider than ± this fraction of it is not identifiable there
-#: (the v̇ constants' rule, :data:`droneid.fitting.terms.IDENTIFIABLE_REL`, floors the half-width's
-#: scale at 1 because those are scales near 1; a gain has its own scale, and its bound is 0, so a
-#: gain at its bound is one that is not positive)
+#: a test flight's gain whose 95 % interval is wider than ± this fraction of what a new flight
+#: should give is not identifiable there (the v̇ constants' rule,
+#: :data:`droneid.fitting.terms.IDENTIFIABLE_REL`, floors that scale at 1 because those are scales
+#: near 1; a gain has its own scale)
 IDENTIFIABLE_REL = 0.5
 #: the alignments of a flight's motor stream tried: 0 to MAX_ALIGN_S in steps of 1/ALIGN_SUBSTEPS
 #: of the grid step (the rotor speeds interpolated linearly between samples: one whole step moves a
@@ -189,7 +189,7 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
                             fit.beta[:A.shape[1]], huber_factor(fit), lo)[:, 0]
         boot[axis] = tuple(float(x) for x in np.percentile(draws, [2.5, 97.5]))
         for i, f in enumerate(used):       # each flight alone, its gain unbounded (unit_bounds: a test of agreement)
-            beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, unit_bounds(lo, np.full_like(lo, np.inf))[0], seed)
+            beta, se, pct, dfs[i] = _alone(A, y, group, t, flight == f, _unbounded(lo), seed)
             vals[i, k], ses[i, k], ivs[i][:, k] = beta[0], se[0], pct[:, 0]
     const = constancies("flight", [names[f] for f in used], vals, ses, ivs, dict(enumerate(AXIS_NAMES)), dfs=dfs)
     gains = {}
@@ -210,8 +210,10 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
     (fitted alone with its trims, the other terms free, as a training flight's) against what a new
     flight of the vehicle should give (:func:`droneid.fitting.constancy.new_flight_expectation` of
     the reported gain and its constancy), two-sided p, Holm over the axes at ALPHA, the spread rule;
-    a gain at its bound or with an interval wider than ±:data:`IDENTIFIABLE_REL` of it is not
-    identifiable there (holds None, as when its p is not finite). Reported, never chosen on.
+    each flight's gain unbounded, as the training flights' (:func:`droneid.fitting.constancy.unit_bounds`);
+    a gain whose interval is wider than ±:data:`IDENTIFIABLE_REL` of what a new flight should give
+    (a width rule independent of the flight's own value) is not identifiable there (holds None, as
+    when its p is not finite). Reported, never chosen on.
     ``window_s`` as :func:`torque_gains`."""
     shell = g.model
     if shell is None or not logs:
@@ -227,7 +229,7 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
             continue
         res, ps = {}, {}
         for k, axis in enumerate(AXIS_NAMES):
-            lo = rotation_bounds(k, shell.terms, rows["A"][k].shape[1])
+            lo = _unbounded(rotation_bounds(k, shell.terms, rows["A"][k].shape[1]))
             beta, se, pct, dof = _alone(rows["A"][k], rows["y"][k], rows["group"], rows["t"], sel, lo, seed)
             v, low, high = float(beta[0]), float(pct[0, 0]), float(pct[1, 0])
             c = g.constancy.get(axis)
@@ -235,7 +237,7 @@ def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0
                                               None if c is None else c.to_dict())
             res[axis] = (v, low, high)
             p = new_flight_p(v, float(se[0]), expected, dof)
-            if v > 0 and (high - low) / 2 <= IDENTIFIABLE_REL * v and math.isfinite(p):
+            if 0 < (high - low) / 2 <= IDENTIFIABLE_REL * abs(expected["value"]) and math.isfinite(p):
                 ps[axis] = p
                 res[axis] += (expected["value"],)
         flags = holm_flags(ps, ALPHA)
@@ -383,6 +385,13 @@ def _rows(logs: Sequence[StateLog], shell: RotationModel, window_s: float,
 def _smooth(x: np.ndarray) -> np.ndarray:
     """Each column of ``x`` (N, K) filtered by :data:`_KERNEL` (centred; the ends left partial)."""
     return np.column_stack([np.convolve(x[:, c], _KERNEL, mode="same") for c in range(x.shape[1])])
+
+
+def _unbounded(lo: np.ndarray) -> np.ndarray:
+    """The lower bounds ``lo`` of a flight's own fit of the torque terms (no upper bounds) as every
+    constancy test's units take them (:func:`droneid.fitting.constancy.unit_bounds`): the gain (the
+    first column) unbounded, the other terms keep theirs."""
+    return unit_bounds(lo, np.full_like(np.asarray(lo, float), np.inf), tested=[0])[0]
 
 
 def _alone(A: np.ndarray, y: np.ndarray, group: np.ndarray, t: np.ndarray, sel: np.ndarray, lo: np.ndarray,

@@ -18,9 +18,12 @@ vehicle gives (:func:`identified_constants`):
 A constant DOES NOT HOLD when ``t = (θ − μ) / √(se_new² + se_μ² + τ²)`` has p below
 :data:`~droneid.fitting.constancy.ALPHA` (two-sided, Holm over the target's constants on the
 flight) and the difference is at least :data:`~droneid.fitting.constancy.MIN_TAU_REL` of μ: the
-constancy test's rule (:func:`~droneid.fitting.constancy.moved`). A constant the flight does not
-excite (its value at a bound, or its interval wider than
-±:data:`~droneid.fitting.terms.IDENTIFIABLE_REL`) is "not identifiable on this flight", and a
+constancy test's rule (:func:`~droneid.fitting.constancy.moved`). Each flight is fitted without
+the physics bounds, as the training flights' units are (:func:`~droneid.fitting.constancy.unit_bounds`:
+a flight that pushes a drag through 0 is tested, not set aside). A constant the flight does not
+excite (its interval wider than ±:data:`~droneid.fitting.terms.IDENTIFIABLE_REL` of what a new
+flight should give, max(|μ|, 1): a width rule that does not depend on the flight's own value, so
+a low reading is not dropped sooner than a high one) is "not identifiable on this flight", and a
 flight that was trained on is not checked (its data are in the result's value).
 
 A constant that does not hold says: this flight's vehicle, payload or battery differs from the
@@ -40,7 +43,8 @@ from droneid.core.expressions import parse_expression
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DroneIdError
 from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved,
-                                       new_flight_expectation, new_flight_p, rule_text, unit_estimate)
+                                       new_flight_expectation, new_flight_p, rule_text, unit_bounds,
+                                       unit_estimate)
 from droneid.fitting.terms import IDENTIFIABLE_REL, evaluate_expr
 
 __all__ = ["ConstantCheck", "identified_constants", "check_constants", "constants_line"]
@@ -145,7 +149,7 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
     rest = np.asarray(predicted, float) - A @ coef          # every other part of the final model, as identified
     z = np.asarray(y, float) - rest
     ok = np.isfinite(z) & np.all(np.isfinite(A), axis=1)
-    lo, hi = np.zeros(len(labs)), np.full(len(labs), np.inf)
+    lo, hi = unit_bounds(np.zeros(len(labs)), np.full(len(labs), np.inf))      # each flight unbounded, as the training ones
     nan3 = (math.nan, math.nan, math.nan)
     out = []
     for i, name in enumerate(names):
@@ -169,10 +173,11 @@ def check_constants(constants: Mapping[str, Mapping], columns: Mapping[str, np.n
             v, half = float(fit.beta[j]), (float(pct[1, j]) - float(pct[0, j])) / 2
             q = float(special.stdtrit(c["df"], 0.975)) if math.isfinite(c["df"]) else 1.959964
             expected = (c["value"], max(c["value"] - q * c["se"], 0.0), c["value"] + q * c["se"])  # scales >= 0
-            if bool(fit.at_bound[j]) or half > IDENTIFIABLE_REL * max(abs(v), 1.0):
+            if not 0 < half <= IDENTIFIABLE_REL * max(abs(c["value"]), 1.0):     # 0: its rows do not move it
                 res[lab] = ConstantCheck(str(name), lab, c["role"], v, float(pct[0, j]), float(pct[1, j]), expected,
-                                         math.nan, None, "not identifiable on this flight: at its bound, or its "
-                                         f"interval wider than ±{100 * IDENTIFIABLE_REL:.0f} %", c["flights"])
+                                         math.nan, None, "not identifiable on this flight: its rows do not move the "
+                                         f"term, or its interval is wider than ±{100 * IDENTIFIABLE_REL:.0f} % of what a "
+                                         "new flight should give", c["flights"])
                 continue
             ps[lab] = new_flight_p(v, float(se[j]), c, dof)
             res[lab] = (v, float(pct[0, j]), float(pct[1, j]), expected)

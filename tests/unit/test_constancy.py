@@ -148,8 +148,10 @@ def test_each_unit_is_fitted_without_the_physics_bounds_for_the_test():
     pushes through the bound 0 says how far, and its disagreement is seen; flights that agree
     near the bound are not split by it."""
     from droneid.fitting.constancy import unit_bounds
-    lo, hi = unit_bounds([0.0, 1.0, -np.inf], [np.inf, 1.0, 0.0])
-    assert lo.tolist() == [-np.inf, 1.0, -np.inf] and hi.tolist() == [np.inf, 1.0, np.inf]
+    lo, hi = unit_bounds([0.0, 1.0, -np.inf, 0.0], [np.inf, 1.0, 0.0, 0.0])     # (1, 1), (0, 0): held
+    assert lo.tolist() == [-np.inf, 1.0, -np.inf, 0.0] and hi.tolist() == [np.inf, 1.0, np.inf, 0.0]
+    lo, hi = unit_bounds([0.0, 1.0, 0.0], [np.inf, 1.0, 2.0], tested=[1, 2])   # the others keep theirs
+    assert lo.tolist() == [0.0, 1.0, -np.inf] and hi.tolist() == [np.inf, 1.0, np.inf]
     names = ["a", "b", "c", "d", "pushed"]
     x, y, fl, t = _flights([-0.28, -0.28, -0.28, -0.28, +0.1], seed=3, noise=0.02)
     c = physical_fit(_model(), {"vx": x}, y, time_blocks(t, fl), flight=fl, t=t, sources=names).constancy["⟨minus_kD_vx⟩"]
@@ -265,3 +267,12 @@ def test_a_spread_reads_as_a_person_writes_it():
     assert "spread τ 143 %: constant within its noise" in line and "e+" not in line
     held = {"minus_kD_vz": Constancy("stretch", {"a": (0.0, 0.0, 0.4), "b": (0.0, 0.0, 0.9)}, 1.0, True, tau=0.0)}
     assert "spread τ —: constant" in constancy_line(held) and "nan" not in constancy_line(held)
+
+
+def test_a_unit_without_spread_carries_no_information():
+    """A unit whose standard error is 0 (its rows do not move the term: the solver's value, no
+    spread) does not count; it was floored at 1e-9 and its weight decided Q alone."""
+    h = heterogeneity([1.0, 1.05, 5.0], [0.1, 0.1, 0.0], df=[9, 9, 9])
+    both = heterogeneity([1.0, 1.05], [0.1, 0.1], df=[9, 9])
+    assert h["p"] == both["p"] and h["p"] > 0.5 and h["mean"] == both["mean"]
+    assert math.isnan(heterogeneity([1.0, 5.0], [0.1, 0.0])["p"])          # one unit left: untestable

@@ -97,3 +97,16 @@ def test_what_cannot_be_checked_is_said_not_flagged():
     assert all(x.holds is None and "fewer than" in x.why for x in short)
     cols, y, pred, t, flight = _flights([1.0])
     assert check_constants(identified_constants(TR), {"vz": cols["vz"]}, y, pred, t, flight, ["f"]) == ()
+
+
+def test_a_flight_that_pushes_a_constant_through_its_bound_is_tested_not_set_aside():
+    """Each flight is fitted without the physics bounds (constancy.unit_bounds), as the training
+    flights' units are: a flight whose vertical drag pushes through 0 (here it accelerates with
+    its vertical speed) was read at the bound 0 and called "not identifiable"; it is a flight
+    that DOES NOT HOLD the drag. The width rule reads the expected value, not the flight's own."""
+    cols, y, pred, t, flight = _flights([1.0])
+    y = y + 2.0 * 0.28 * cols["vz"]                    # the drag scale 1.5 -> -0.5
+    c = {x.label: x for x in check_constants(identified_constants(TR), cols, y, pred, t, flight, ["odd"])}
+    drag = c["⟨minus_kD_vz⟩"]
+    assert drag.value < -0.3 and drag.high < 0 and drag.holds is False, drag
+    assert c["⟨thrust_z⟩"].holds is True
