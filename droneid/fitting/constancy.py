@@ -57,7 +57,7 @@ from droneid.core.regression import RobustFit, bootstrap_draws, robust_fit
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
            "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text",
-           "unit_estimate", "unit_bounds", "constancies", "new_flight_expectation", "new_flight_p"]
+           "unit_estimate", "unit_bounds", "informative", "constancies", "new_flight_expectation", "new_flight_p"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -108,7 +108,7 @@ def heterogeneity(values, se, df=None) -> dict:
     estimate off the bounds, where the spread also collapsed) and does not count."""
     v = np.asarray(values, float)
     s = np.asarray(se, float)
-    keep = np.isfinite(v) & np.isfinite(s) & (s > 0)
+    keep = informative(v, s)
     if df is not None and np.ndim(df):
         df = np.asarray(df, float)[keep]
     v, s = v[keep], s[keep]
@@ -141,6 +141,14 @@ def _welch_p(q: float, w: np.ndarray, df) -> float:
         return float(special.chdtrc(k - 1, q))
     f = q / (k - 1) / (1.0 + 2.0 * (k - 2) / (k * k - 1) * lam)
     return float(special.fdtrc(k - 1, (k * k - 1) / (3.0 * lam), f))
+
+
+def informative(values, se) -> np.ndarray:
+    """Which units' estimates ``values`` with standard errors ``se`` carry information for the
+    constancy test: finite, and a standard error above 1e-9 of max(|value|, 1) (below it the unit's
+    rows do not move the term, and its weight would decide Q alone)."""
+    v, s = np.asarray(values, float), np.asarray(se, float)
+    return np.isfinite(v) & np.isfinite(s) & (s > 1e-9 * np.maximum(np.abs(np.nan_to_num(v)), 1.0))
 
 
 def unit_bounds(lo, hi, tested=None) -> tuple[np.ndarray, np.ndarray]:
@@ -188,12 +196,14 @@ def constancies(kind: str, names: Sequence[str], vals, ses, ivs, labels: Mapping
         return {}
     vals, ses = np.asarray(vals, float), np.asarray(ses, float)
     het = {lab: heterogeneity(vals[:, i], ses[:, i], dfs) for i, lab in labels.items()}
+    used = {i: informative(vals[:, i], ses[:, i]) for i in labels}      # the units each test counted
     flags = holm_flags({lab: h["p"] for lab, h in het.items()})
     out = {}
     for i, lab in labels.items():
         h = het[lab]
         out[lab] = Constancy(
-            kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(names)},
+            kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(names)
+                   if used[i][j]},
             h["p"], (not moved(flags[lab], h["tau"], h["mean"])) if math.isfinite(h["p"]) else None,
             (h["low"], h["high"]) if kind == "flight" else None, h["tau"], (physical or {}).get(i))
     return out
@@ -502,6 +512,8 @@ def across_targets(terms: Mapping[str, Mapping[str, tuple[float, float, float]]]
         if len(per) < 2:
             continue
         h = heterogeneity([v[0] for v in per.values()], [se_of_interval(v[1], v[2]) for v in per.values()])
+        if not math.isfinite(h["p"]):       # fewer than two terms with a spread: nothing to test
+            continue
         tested[role], ps[role] = (per, h), h["p"]
     flags = holm_flags(ps)
     return {role: SharedConstant(role, per, h["p"], h["tau"], not moved(flags[role], h["tau"], h["mean"]), h["mean"])

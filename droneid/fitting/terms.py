@@ -344,10 +344,11 @@ def _tie_collinear(model: TermModel, columns, n: int, n_physical: int | None) ->
 
 
 def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.ndarray, t: np.ndarray,
-                 sources: Sequence[str] = (), *, seed: int = 0) -> dict:
+                 sources: Sequence[str] = (), *, seed: int = 0, free: Sequence[int] | None = None) -> dict:
     """{label: :class:`~droneid.fitting.constancy.Constancy`} of the coefficients ``which`` (indices of
     ``model``'s vehicle constants): ``model`` (its held values and bounds, the constants' own
-    physics bounds dropped: :func:`droneid.fitting.constancy.unit_bounds`) fitted on every
+    physics bounds dropped: :func:`droneid.fitting.constancy.unit_bounds`; ``free``, when given,
+    the constants whose bounds are dropped, a superset of ``which``) fitted on every
     training flight alone, or on every stretch of the one flight (:func:`droneid.fitting.constancy.units_of`),
     each with its block-bootstrap standard error over its own time blocks (inflated by
     B/(B − 1) for B blocks), tested and combined by :func:`droneid.fitting.constancy.heterogeneity`, flagged
@@ -355,7 +356,7 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
     if not which:
         return {}
     unit, names, kind = units_of(t, flight, sources)
-    lo, hi = unit_bounds(*model.bounds(), tested=which)
+    lo, hi = unit_bounds(*model.bounds(), tested=which if free is None else free)
     vals, ses, ivs, dfs, used = [], [], [], [], []
     for u, name in enumerate(names):
         rows = np.flatnonzero(unit == u)

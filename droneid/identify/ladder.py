@@ -244,7 +244,9 @@ def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     which = [tm.labels.index(lab) for lab in bad if lab in tm.labels]
     if not which:
         return ""
-    again = constancy_of(free, p.train.columns(), p.train.y, which, p.train.flight, p.train.t, p.train.sources)
+    consts = [tm.labels.index(lab) for lab in final.constancy if lab in tm.labels]      # freed as identify's test did
+    again = constancy_of(free, p.train.columns(), p.train.y, which, p.train.flight, p.train.t, p.train.sources,
+                         free=sorted(set(consts) | set(which)))
     parts = [f"{lab} p = {c.p:.2g}: {'constant' if c.constant else 'still NOT constant'}"
              for lab, c in again.items()]
     return ("with a constant acceleration of its own on each training flight (what a wind that differs "

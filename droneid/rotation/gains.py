@@ -207,7 +207,7 @@ def torque_gains(logs: Sequence[StateLog], layout: RotorLayout, candidate: Mappi
 def check_gains(g: TorqueGains, logs: Sequence[StateLog], *, window_s: float = 0.05, seed: int = 0) -> TorqueGains:
     """``g`` with each flight of ``logs`` (test flights' in-flight stretches, as logged: a
     command-driven vehicle's are read through ``g.model.commands``) tested: its own gain per axis
-    (fitted alone with its trims, the other terms free, as a training flight's) against what a new
+    (fitted alone with its trims, the other terms within their bounds, as a training flight's) against what a new
     flight of the vehicle should give (:func:`droneid.fitting.constancy.new_flight_expectation` of
     the reported gain and its constancy), two-sided p, Holm over the axes at ALPHA, the spread rule;
     each flight's gain unbounded, as the training flights' (:func:`droneid.fitting.constancy.unit_bounds`);

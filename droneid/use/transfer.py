@@ -21,7 +21,7 @@ flight) and the difference is at least :data:`~droneid.fitting.constancy.MIN_TAU
 constancy test's rule (:func:`~droneid.fitting.constancy.moved`). Each flight is fitted without
 the physics bounds, as the training flights' units are (:func:`~droneid.fitting.constancy.unit_bounds`:
 a flight that pushes a drag through 0 is tested, not set aside). A constant the flight does not
-excite (its interval wider than ±:data:`~droneid.fitting.terms.IDENTIFIABLE_REL` of what a new
+excite (its rows do not move it: an interval of zero width; or its interval wider than ±:data:`~droneid.fitting.terms.IDENTIFIABLE_REL` of what a new
 flight should give, max(|μ|, 1): a width rule that does not depend on the flight's own value, so
 a low reading is not dropped sooner than a high one) is "not identifiable on this flight", and a
 flight that was trained on is not checked (its data are in the result's value).

@@ -276,3 +276,12 @@ def test_a_unit_without_spread_carries_no_information():
     both = heterogeneity([1.0, 1.05], [0.1, 0.1], df=[9, 9])
     assert h["p"] == both["p"] and h["p"] > 0.5 and h["mean"] == both["mean"]
     assert math.isnan(heterogeneity([1.0, 5.0], [0.1, 0.0])["p"])          # one unit left: untestable
+    assert heterogeneity([1.0, 1.05, 5.0], [0.1, 0.1, 1e-14])["p"] == heterogeneity([1.0, 1.05], [0.1, 0.1])["p"]
+    # nor is it listed among the units, nor counted in what a new flight should give
+    from droneid.fitting.constancy import constancies, new_flight_expectation
+    ivs = [np.array([[v - 0.2], [v + 0.2]]) for v in (1.0, 1.05, 5.0)]
+    c = constancies("flight", ["a", "b", "c"], [[1.0], [1.05], [5.0]], [[0.1], [0.1], [0.0]], ivs, {0: "k"},
+                    dfs=[9, 9, 9])["k"]
+    assert set(c.per_unit) == {"a", "b"} and c.p == both["p"]
+    two = constancies("flight", ["a", "b"], [[1.0], [1.05]], [[0.1], [0.1]], ivs[:2], {0: "k"}, dfs=[9, 9])["k"]
+    assert new_flight_expectation(1.0, 0.9, 1.1, c.to_dict()) == new_flight_expectation(1.0, 0.9, 1.1, two.to_dict())
