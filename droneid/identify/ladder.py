@@ -38,6 +38,7 @@ from droneid.core.targets import velocity_of
 from droneid.fitting.terms import (TermModel, constancy_of, defined_samples, drag_slope, drop_negligible, evaluate_expr, physical_fit,
                     plausible, prior_terms, trim_terms)
 from droneid.dataset.validation import time_blocks, validation_blocks
+from priors.effect_catalogue.attitude_delay import attitude_rate
 
 if TYPE_CHECKING:
     from droneid.identify.problem import TargetProblem
@@ -225,12 +226,24 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
                 tuple(evidence.notes) if evidence else (), p_te, dict(evidence.constancy) if evidence else {})
 
 
+#: the attitude alignment's bound (s) in :func:`per_flight_condition_lead`: the thrust offset grid's reach
+ALIGN_MAX_S = 0.1
+
+
 def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
-    """One sentence testing the simplest flight condition behind vehicle constants that move
+    """One sentence testing the simplest flight conditions behind vehicle constants that move
     between flights ("" when none moves, or with one training flight): the final physical model
-    (its held coefficients kept) with a constant acceleration of its own on each flight (what a
-    wind that differs between flights does to a drag term, ``k_D·w``): each flight fitted alone
-    with its own intercept, the same constancy test (:func:`droneid.fitting.terms.constancy_of`).
+    (its held coefficients kept) refitted on each flight alone with one condition of that
+    flight's own, by the same constancy test (:func:`droneid.fitting.terms.constancy_of`):
+
+    * a constant acceleration (what a wind that differs between flights does to a drag term,
+      ``k_D·w``);
+    * the attitude read at a time alignment of its own, ``|τ|`` ≤ :data:`ALIGN_MAX_S` (a clock
+      offset of the attitude stream: the terms' change with the attitude's rate,
+      :func:`priors.effect_catalogue.attitude_delay.attitude_rate`, as a column with coefficient
+      τ). On a path that brakes at corners the tilt's rate follows the velocity, so a few ms of
+      alignment move a drag term.
+
     A constant that holds then is moved by something per flight, not by the vehicle."""
     bad = [lab for lab, c in final.constancy.items() if c.constant is False and c.unit == "flight"]
     if not bad or p.plan is None:
@@ -240,17 +253,30 @@ def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     for i, lab in enumerate(tm.labels):
         if lab in final.held:
             lo[i] = hi[i] = final.held[lab]
-    free = replace(tm, lo=tuple(lo), hi=tuple(hi), intercept_bounds=(-math.inf, math.inf))
+    held = replace(tm, lo=tuple(lo), hi=tuple(hi))
     which = [tm.labels.index(lab) for lab in bad if lab in tm.labels]
     if not which:
         return ""
-    consts = [tm.labels.index(lab) for lab in final.constancy if lab in tm.labels]      # freed as identify's test did
-    again = constancy_of(free, p.train.columns(), p.train.y, which, p.train.flight, p.train.t, p.train.sources,
-                         free=sorted(set(consts) | set(which)))
-    parts = [f"{lab} p = {c.p:.2g}: {'constant' if c.constant else 'still NOT constant'}"
-             for lab, c in again.items()]
-    return ("with a constant acceleration of its own on each training flight (what a wind that differs "
-            "between flights does to a drag term, k_D·w), " + "; ".join(parts))
+    free = sorted({tm.labels.index(lab) for lab in final.constancy if lab in tm.labels} | set(which))
+    cols, tr = p.train.columns(), p.train
+    out = []
+
+    def again(model, columns, what):
+        res = constancy_of(model, columns, tr.y, which, tr.flight, tr.t, tr.sources, free=free)
+        out.append(what + ", " + "; ".join(f"{lab} p = {c.p:.2g}: {'constant' if c.constant else 'still NOT constant'}"
+                                           for lab, c in res.items()))
+    again(replace(held, intercept_bounds=(-math.inf, math.inf)), cols,
+          "with a constant acceleration of its own on each training flight (what a wind that differs "
+          "between flights does to a drag term, k_D·w)")
+    rate = attitude_rate(tm.terms, cols, tr.t, tr.flight)
+    if rate is not None:
+        name = "attitude_alignment_s"
+        aligned = replace(held, terms=(*held.terms, symbol(name)), labels=(*held.labels, "attitude alignment"),
+                          lo=(*held.lo, -ALIGN_MAX_S), hi=(*held.hi, ALIGN_MAX_S))
+        again(aligned, {**cols, name: rate},
+              f"with the attitude read at a time alignment of its own on each training flight (|τ| ≤ "
+              f"{1000 * ALIGN_MAX_S:.0f} ms: what a clock offset of the attitude stream does)")
+    return "; ".join(out)
 
 
 def _physical_model(p: TargetProblem, features) -> TermModel:

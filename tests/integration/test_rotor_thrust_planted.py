@@ -272,15 +272,17 @@ def test_vehicle_constants_span_every_offset_the_data_admit():
 
 
 @pytest.mark.slow
-def test_a_wind_per_flight_is_told_apart_from_a_payload_per_flight():
-    """Issue 35.2's lead: vehicle constants that move between flights are refit with a constant
-    acceleration of each flight's own (what a wind that differs per flight does to the drag term,
-    k_D·w). Four flights in four winds: the constants that moved then hold. Four flights with
-    four payloads: they still move (a payload scales the thrust, no offset can absorb it)."""
+def test_a_wind_an_attitude_clock_and_a_payload_per_flight_are_told_apart():
+    """Issue 35.2's lead: vehicle constants that move between flights are refit with one condition
+    of each flight's own. Four flights in four winds: with a constant acceleration per flight (what
+    a wind does to the drag term, k_D·w) the constants that moved hold. Four flights whose attitude
+    is logged 0, 30, 60 and 90 ms late: the drag moves, an acceleration per flight does not hold
+    it, an attitude alignment per flight does. Four flights with four payloads: they still move
+    under both (a payload scales the thrust, neither condition can absorb it)."""
     from droneid import Identifier
     paths = ("eight", "square", "lissajous", "random")
 
-    def notes(kind):
+    def leads(kind):
         flights = []
         for j, path in enumerate(paths):
             effects = {"thrust_variation": {"amp_m": 0.3, "period_s": 3.0 + j % 3}}
@@ -288,15 +290,27 @@ def test_a_wind_per_flight_is_told_apart_from_a_payload_per_flight():
             if kind == "wind":
                 a = 1.3 + 1.7 * j
                 effects["wind"] = {"wx": 2.0 * np.cos(a), "wy": 2.0 * np.sin(a)}
-            else:
+            elif kind == "attitude clock" and j:
+                effects["attitude_delay"] = {"tau_s": 0.03 * j}
+            elif kind == "payload":
                 mass = 0.5 * (1.0 + 0.1 * j)
             flights.append(simulate(path=path, duration_s=30.0, rate_hz=100.0, seed=700 + j, effects=effects,
                                     mass_kg=mass, yaw0_rad=1.1 * j).flight)
         res = Identifier(prior="rotor-thrust", effects="none", targets="vx_dot,vy_dot", rotation="none", runs=1,
                          generations=50, population_size=40, jobs=1).fit(flights)
-        return [n for tr in res.targets.values() for n in tr.notes if "of its own on each training flight" in n]
+        notes = [n for tr in res.targets.values() for n in tr.notes if "of its own on each training flight" in n]
+        assert len(notes) == 2, (kind, notes)      # a constant moved on both axes
+        parts = [n[n.index("with a constant acceleration"):].split("; with the attitude read") for n in notes]
+        assert all(len(p) == 2 for p in parts), notes
+        return [p[0] for p in parts], [p[1] for p in parts]
 
-    wind = notes("wind")
-    assert wind and all("still NOT constant" not in n and ": constant" in n for n in wind), wind
-    payload = notes("payload")
-    assert payload and all("still NOT constant" in n for n in payload), payload
+    def holds(part):
+        return "still NOT constant" not in part and ": constant" in part
+
+    acc, _ = leads("wind")
+    assert all(holds(n) for n in acc), acc
+    acc, align = leads("attitude clock")
+    assert all(holds(n) for n in align), align
+    assert all("still NOT constant" in n for n in acc), acc
+    acc, align = leads("payload")
+    assert all("still NOT constant" in n for n in acc + align), (acc, align)

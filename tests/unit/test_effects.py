@@ -296,3 +296,23 @@ k = "G * vz_dot"
     c = fx["climb"]
     assert not c.foldable and "measured derivative" in c.fold_reason
     assert c.missing(ctx.available()) == ["vz_dot"]          # untestable without the option
+
+
+def test_attitude_rate_is_the_terms_change_per_second_of_attitude_alignment():
+    """The lead's column (droneid.identify.ladder.per_flight_condition_lead): the terms read at
+    the attitude τ later change by τ times it, the thrust magnitude held (its timing is the
+    thrust offset's), yaw read across its ±π wrap without a jump, None without an angle."""
+    from droneid.core.expressions import symbol
+    import sympy as sp
+    from priors.effect_catalogue.attitude_delay import attitude_rate
+    t = np.arange(0.0, 4.0, 0.01)
+    pitch, yaw = 0.3 * np.sin(2.0 * t), np.angle(np.exp(1j * (3.0 + 1.5 * t)))   # yaw wraps at +π
+    thrust = 9.0 + np.sin(5.0 * t)
+    cols = {"pitch": pitch, "yaw": yaw, "S": thrust}
+    P, Y, S = symbol("pitch"), symbol("yaw"), symbol("S")
+    flight = np.zeros(t.size, int)
+    got = attitude_rate([sp.sin(P) * sp.cos(Y) * S], cols, t, flight, half_window_s=0.02)
+    want = (np.cos(pitch) * 0.6 * np.cos(2.0 * t) * np.cos(yaw) - np.sin(pitch) * np.sin(yaw) * 1.5) * thrust
+    inner = slice(5, -5)
+    assert np.max(np.abs(got[inner] - want[inner])) < 0.01 * np.max(np.abs(want))
+    assert attitude_rate([S * 2.0], cols, t, flight) is None
