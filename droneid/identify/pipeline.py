@@ -36,7 +36,7 @@ from droneid.logs.flight import distinct_flights
 from droneid.errors import ConfigError, DataError
 from droneid.dataset.suitability import check_prior_data
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel
-from droneid.fitting.constancy import SHARED_ROLES, across_targets, constancy_sentence, leads
+from droneid.fitting.constancy import SHARED_ROLES, across_targets, constancy_sentence, leads, one_factor_per_flight
 from droneid.identify.ladder import TERM_ALPHA, final_rung, per_flight_condition_lead, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section
 from droneid.diagnosis.diagnose import plan_identification
@@ -155,11 +155,32 @@ def shared_constants(results: Mapping[str, TargetResult], problems: Mapping[str,
             terms.setdefault(f.role, {})[lab] = (float(fin.terms[lab]), iv.low, iv.high)
             owner.setdefault(t, []).append(lab)
     shared = across_targets(terms)
+    payload = _payload_leads(results, problems)
     out = {}
     for t, r in results.items():
         said = [c.sentence(owner.get(t, ())) for c in shared.values()]
-        out[t] = replace(r, verdict=sentences(r.verdict, *said)) if any(said) else r
+        r = replace(r, verdict=sentences(r.verdict, *said)) if any(said) else r
+        mine = [s for lab, s in payload.items() if lab in r.final_rung.constancy]
+        if mine:
+            lead = next((i for i, n in enumerate(r.notes) if n.startswith("leads for the constants that move")), None)
+            notes = list(r.notes) + [""] * (lead is None)
+            at = len(notes) - 1 if lead is None else lead
+            notes[at] = "; ".join(filter(None, (notes[at], *mine)))
+            r = replace(r, notes=tuple(notes))
+        out[t] = r
     return out, shared
+
+
+def _payload_leads(results: Mapping[str, TargetResult], problems: Mapping[str, TargetProblem]) -> dict[str, str]:
+    """{thrust term label: lead sentence} of :func:`droneid.fitting.constancy.one_factor_per_flight`
+    over every target's prior thrust terms tested across the training flights."""
+    thrust = {}
+    for t, r in results.items():
+        for f in problems[t].priors3[:problems[t].n_base]:
+            c = r.final_rung.constancy.get(f"⟨{f.name}⟩")
+            if f.role == "thrust" and c is not None and c.constant is not None:
+                thrust[f"⟨{f.name}⟩"] = c
+    return one_factor_per_flight({lab: c for lab, c in thrust.items() if c.constant is False}, thrust)
 
 
 def _curve_caveat(p: TargetProblem) -> str:

@@ -278,7 +278,8 @@ def test_a_wind_an_attitude_clock_and_a_payload_per_flight_are_told_apart():
     a wind does to the drag term, k_D·w) the constants that moved hold. Four flights whose attitude
     is logged 0, 30, 60 and 90 ms late: the drag moves, an acceleration per flight does not hold
     it, an attitude alignment per flight does. Four flights with four payloads: they still move
-    under both (a payload scales the thrust, neither condition can absorb it)."""
+    under both (a payload scales the thrust, neither condition can absorb it), and one thrust factor
+    per flight on every axis holds them (the thrust scales' ratio between the axes is one value)."""
     from droneid import Identifier
     paths = ("eight", "square", "lissajous", "random")
 
@@ -302,15 +303,18 @@ def test_a_wind_an_attitude_clock_and_a_payload_per_flight_are_told_apart():
         assert len(notes) == 2, (kind, notes)      # a constant moved on both axes
         parts = [n[n.index("with a constant acceleration"):].split("; with the attitude read") for n in notes]
         assert all(len(p) == 2 for p in parts), notes
-        return [p[0] for p in parts], [p[1] for p in parts]
+        payload = [p[1].split("; with a payload or a battery")[1:] for p in parts]
+        return [p[0] for p in parts], [p[1].split("; with a payload")[0] for p in parts], sum(payload, [])
 
     def holds(part):
         return "still NOT constant" not in part and ": constant" in part
 
-    acc, _ = leads("wind")
+    acc, _, _ = leads("wind")
     assert all(holds(n) for n in acc), acc
-    acc, align = leads("attitude clock")
+    acc, align, _ = leads("attitude clock")
     assert all(holds(n) for n in align), align
     assert all("still NOT constant" in n for n in acc), acc
-    acc, align = leads("payload")
+    acc, align, payload = leads("payload")
     assert all("still NOT constant" in n for n in acc + align), (acc, align)
+    # ... and one thrust factor per flight on every axis holds them: x's scale over y's is one value
+    assert len(payload) == 2 and all(holds(n) for n in payload), payload

@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 
 from droneid.fitting.constancy import (ALPHA, Constancy, constancy_line, constancy_sentence, heterogeneity,
-                               holm_flags, n_stretches, units_of)
+                               holm_flags, n_stretches, one_factor_per_flight, units_of)
 from droneid.fitting.terms import TermModel, physical_fit
 from droneid.dataset.validation import time_blocks
 
@@ -285,3 +285,31 @@ def test_a_unit_without_spread_carries_no_information():
     assert set(c.per_unit) == {"a", "b"} and c.p == both["p"]
     two = constancies("flight", ["a", "b"], [[1.0], [1.05]], [[0.1], [0.1]], ivs[:2], {0: "k"}, dfs=[9, 9])["k"]
     assert new_flight_expectation(1.0, 0.9, 1.1, c.to_dict()) == new_flight_expectation(1.0, 0.9, 1.1, two.to_dict())
+
+
+def test_a_payload_per_flight_is_one_thrust_factor_on_every_axis():
+    """A payload or a battery per flight scales every axis's thrust per unit mass by one factor:
+    x's scale moving with z's holds as a ratio; x's moving while z's stays still does not; the
+    reference is the most precise other axis, and a scale that holds is not tested."""
+    rng = np.random.default_rng(4)
+    flights = [f"f{i}" for i in range(5)]
+    factor = np.array([1.0, 0.96, 1.04, 0.93, 1.07])
+
+    def record(values, se, constant):
+        per = {f: (float(v), float(v - 1.96 * se), float(v + 1.96 * se)) for f, v in zip(flights, values)}
+        return Constancy("flight", per, 1e-6 if constant is False else 0.5, constant)
+
+    se = 0.004
+    x = record(factor * 0.99 + rng.normal(0, se, 5), se, False)
+    z_with = record(factor + rng.normal(0, se / 2, 5), se / 2, False)
+    z_still = record(1.0 + rng.normal(0, se / 2, 5), se / 2, True)
+    y_loose = record(1.0 + rng.normal(0, 0.05, 5), 0.05, True)
+
+    held = one_factor_per_flight({"⟨x⟩": x, "⟨z⟩": z_with}, {"⟨x⟩": x, "⟨y⟩": y_loose, "⟨z⟩": z_with})
+    assert set(held) == {"⟨x⟩", "⟨z⟩"}
+    assert "⟨x⟩ / ⟨z⟩" in held["⟨x⟩"] and "⟨z⟩ / ⟨x⟩" in held["⟨z⟩"]        # the precise axis, not y
+    assert all(s.endswith("constant (the axes' thrust moves together from flight to flight)") for s in held.values())
+
+    still = one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x, "⟨y⟩": y_loose, "⟨z⟩": z_still})
+    assert "still NOT constant (⟨z⟩ does not move with it)" in still["⟨x⟩"]
+    assert one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x}) == {}         # no other axis: nothing to test
