@@ -19,7 +19,7 @@ from sympy.printing.str import StrPrinter
 
 from droneid.errors import ConfigError, DataError, MissingSignalError, did_you_mean
 
-__all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "symbol", "safe_format", "to_text", "c_code", "octave_code",
+__all__ = ["parse_expression", "ALLOWED_FUNCTIONS", "compile_expression", "evaluate_expr", "symbol", "safe_format", "to_text", "c_code", "octave_code",
            "round_expr"]
 
 #: Functions a user expression may call, by name.
@@ -285,6 +285,16 @@ def _compiled(expr: sp.Expr, names: tuple[str, ...]):
 _MAX_FORMAT_WIDTH, _MAX_FORMAT_PRECISION, _MAX_TEMPLATE_LEN = 40, 17, 2000
 _FORMAT_SPEC = re.compile(r"^(?P<align>[<>^=]?)(?P<sign>[+\- ]?)0?(?P<width>\d*)"
                           r"(?:\.(?P<precision>\d+))?[eEfFgG%]?$")
+
+
+def evaluate_expr(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+    """``expr`` on data columns, broadcast to ``n`` rows (constants too); invalid values stay nan."""
+    names = sorted(s.name for s in expr.free_symbols)
+    if not names:
+        return np.full(n, float(expr))
+    with np.errstate(all="ignore"):
+        v = compile_expression(expr, names)({k: np.asarray(columns[k], float) for k in names})
+    return np.broadcast_to(np.asarray(v, float), (n,)).astype(float)
 
 
 def safe_format(template: str, values: Mapping[str, object], what: str = "format string") -> str:

@@ -57,8 +57,7 @@ from droneid.core.regression import RobustFit, bootstrap_draws, robust_fit
 __all__ = ["Constancy", "spread_text", "ALPHA", "VEHICLE_CONSTANT_ROLES", "MIN_UNIT_ROWS", "MIN_TAU_REL", "n_stretches", "units_of",
            "heterogeneity", "holm_flags", "constancy_line", "constancy_sentence", "leads", "LEADS",
            "SHARED_ROLES", "SharedConstant", "across_targets", "moved", "se_of_interval", "rule_text",
-           "unit_estimate", "unit_bounds", "informative", "constancies", "new_flight_expectation", "new_flight_p",
-           "one_factor_per_flight"]
+           "unit_estimate", "unit_bounds", "informative", "constancies", "new_flight_expectation", "new_flight_p"]
 
 #: the prior-term roles whose coefficients are constants of the vehicle (priors.base.ROLES)
 VEHICLE_CONSTANT_ROLES = ("thrust", "tilt", "drag")
@@ -200,13 +199,15 @@ def constancies(kind: str, names: Sequence[str], vals, ses, ivs, labels: Mapping
     used = {i: informative(vals[:, i], ses[:, i]) for i in labels}      # the units each test counted
     flags = holm_flags({lab: h["p"] for lab, h in het.items()})
     out = {}
+    df = np.broadcast_to(np.asarray(np.inf if dfs is None else dfs, float), (len(names),))
     for i, lab in labels.items():
         h = het[lab]
         out[lab] = Constancy(
             kind, {name: (float(vals[j, i]), float(ivs[j][0, i]), float(ivs[j][1, i])) for j, name in enumerate(names)
                    if used[i][j]},
             h["p"], (not moved(flags[lab], h["tau"], h["mean"])) if math.isfinite(h["p"]) else None,
-            (h["low"], h["high"]) if kind == "flight" else None, h["tau"], (physical or {}).get(i))
+            (h["low"], h["high"]) if kind == "flight" else None, h["tau"], (physical or {}).get(i),
+            {name: (float(ses[j, i]), float(df[j])) for j, name in enumerate(names) if used[i][j]})
     return out
 
 
@@ -294,7 +295,9 @@ class Constancy:
         stretches: one flight cannot show flight-to-flight variation); tau : the between-unit
         standard deviation (DerSimonian-Laird), in the coefficient's units; physical : (factor,
         unit) turning the coefficient (a scale on nominal) into a physical value, e.g. (0.28,
-        "1/s") for a linear drag, or None
+        "1/s") for a linear drag, or None; noise : {unit name: (se, df)}, each unit's standard
+        error as the test read it and its degrees of freedom (inf: known), in memory only (not in
+        result.json: a record read back has {})
     """
     unit: str
     per_unit: Mapping[str, tuple[float, float, float]]
@@ -303,6 +306,7 @@ class Constancy:
     between: tuple[float, float] | None = None
     tau: float = math.nan
     physical: tuple[float, str] | None = field(default=None)
+    noise: Mapping[str, tuple[float, float]] = field(default_factory=dict, compare=False, repr=False)
 
     def spread(self) -> tuple[float, float]:
         """(lowest, highest) per-unit value."""
@@ -519,48 +523,3 @@ def across_targets(terms: Mapping[str, Mapping[str, tuple[float, float, float]]]
     flags = holm_flags(ps)
     return {role: SharedConstant(role, per, h["p"], h["tau"], not moved(flags[role], h["tau"], h["mean"]), h["mean"])
             for role, (per, h) in tested.items()}
-
-
-# ------------------------------------------------------------------------------------------------
-# a payload per flight: one factor on every axis's thrust
-
-def one_factor_per_flight(moved_terms: Mapping[str, Constancy], others: Mapping[str, Constancy]) -> dict[str, str]:
-    """{label: one lead sentence} testing a payload or a battery per flight as the cause of thrust
-    scales that move between flights (``moved_terms``: {label: :class:`Constancy`} of the thrust
-    terms called NOT constant). Such a condition scales the thrust per unit mass of every axis by
-    one factor per flight, so a moved term's per-flight ratio to another axis's thrust term
-    (``others``: {label: Constancy}; the reference is the most precise of them, by the median
-    width of its per-flight intervals) is then one value: Cochran's Q of the ratios, each
-    flight's standard error from the two 95 % intervals (:func:`se_of_interval`, the axes'
-    noise independent, the delta method), read as χ²(k − 1) as :class:`SharedConstant` reads its
-    intervals, Holm over the moved terms and the spread rule (:func:`moved`). A ratio that holds
-    says such a per-flight condition explains the move; one that still moves says the
-    reference axis does not move with it. Terms with fewer than two flights in common with the
-    reference are left out."""
-    tests = {}
-    for lab, c in moved_terms.items():
-        cands = {o: r for o, r in others.items() if o != lab and r.unit == "flight"}
-        if c.unit != "flight" or not cands:
-            continue
-        ref = min(cands, key=lambda o: float(np.median([hi - lo for _, lo, hi in cands[o].per_unit.values()])))
-        common = [f for f in c.per_unit if f in cands[ref].per_unit]
-        ratios, ses = [], []
-        for f in common:
-            (a, a_lo, a_hi), (b, b_lo, b_hi) = c.per_unit[f], cands[ref].per_unit[f]
-            if a == 0 or b == 0:
-                continue
-            ratios.append(a / b)
-            ses.append(abs(a / b) * math.hypot(se_of_interval(a_lo, a_hi) / a, se_of_interval(b_lo, b_hi) / b))
-        h = heterogeneity(ratios, ses)
-        if math.isfinite(h["p"]):
-            tests[lab] = (ref, ratios, h)
-    flags = holm_flags({lab: h["p"] for lab, (_, _, h) in tests.items()})
-    out = {}
-    for lab, (ref, ratios, h) in tests.items():
-        still = moved(flags[lab], h["tau"], h["mean"])
-        out[lab] = (f"with a payload or a battery of its own on each training flight (one factor on every axis's "
-                    f"thrust per unit mass: {lab} / {ref} per flight {min(ratios):.4g}-{max(ratios):.4g}, "
-                    f"p = {h['p']:.2g}, spread τ {spread_text(100 * h['tau'] / abs(h['mean']))}): "
-                    + (f"still NOT constant ({ref} does not move with it)" if still else
-                       "constant (the axes' thrust moves together from flight to flight)"))
-    return out

@@ -23,24 +23,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import sympy as sp
 
-from droneid.core.expressions import compile_expression
+from droneid.core.expressions import evaluate_expr
 from droneid.core.numerics import rmse
-from droneid.fitting.constancy import MIN_UNIT_ROWS, constancies, unit_bounds, unit_estimate, units_of
+from droneid.fitting.constancy import MIN_UNIT_ROWS, Constancy, constancies, unit_bounds, unit_estimate, units_of
 from droneid.core.regression import block_bootstrap, blocked_cv, robust_fit
 from droneid.dataset.validation import time_blocks
 
 __all__ = ["TermModel", "split_terms", "prior_terms", "defined_rows", "defined_samples", "PhysicalFit", "physical_fit", "constancy_of", "IDENTIFIABLE_REL", "VIF_LIMIT", "drag_slope",
-           "nested_functions", "evaluate_expr", "drop_negligible", "trim_terms", "plausible"]
-
-
-def evaluate_expr(expr: sp.Expr, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-    """``expr`` on data columns, broadcast to ``n`` rows (constants too); invalid values stay nan."""
-    names = sorted(s.name for s in expr.free_symbols)
-    if not names:
-        return np.full(n, float(expr))
-    with np.errstate(all="ignore"):
-        v = compile_expression(expr, names)({k: np.asarray(columns[k], float) for k in names})
-    return np.broadcast_to(np.asarray(v, float), (n,)).astype(float)
+           "nested_functions", "drop_negligible", "trim_terms", "plausible"]
 
 
 @dataclass(frozen=True)
@@ -344,7 +334,8 @@ def _tie_collinear(model: TermModel, columns, n: int, n_physical: int | None) ->
 
 
 def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.ndarray, t: np.ndarray,
-                 sources: Sequence[str] = (), *, seed: int = 0, free: Sequence[int] | None = None) -> dict:
+                 sources: Sequence[str] = (), *, seed: int = 0, free: Sequence[int] | None = None,
+                 describe: Sequence[int] = ()) -> dict:
     """{label: :class:`~droneid.fitting.constancy.Constancy`} of the coefficients ``which`` (indices of
     ``model``'s vehicle constants): ``model`` (its held values and bounds, the constants' own
     physics bounds dropped: :func:`droneid.fitting.constancy.unit_bounds`; ``free``, when given,
@@ -352,7 +343,9 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
     training flight alone, or on every stretch of the one flight (:func:`droneid.fitting.constancy.units_of`),
     each with its block-bootstrap standard error over its own time blocks (inflated by
     B/(B − 1) for B blocks), tested and combined by :func:`droneid.fitting.constancy.heterogeneity`, flagged
-    by Holm over ``which`` (:func:`droneid.fitting.constancy.holm_flags`)."""
+    by Holm over ``which`` (:func:`droneid.fitting.constancy.holm_flags`). The coefficients
+    ``describe`` (a flight condition fitted per unit) are returned beside them, untested: their
+    per-unit values and 95 % intervals only (p NaN, ``constant`` None), every unit kept."""
     if not which:
         return {}
     unit, names, kind = units_of(t, flight, sources)
@@ -370,8 +363,12 @@ def constancy_of(model: TermModel, columns, y, which: Sequence[int], flight: np.
         ivs.append(pct)
         dfs.append(dof)
         used.append(name)
-    return constancies(kind, used, vals, ses, ivs, {i: model.labels[i] for i in which},
-                       {i: _physical_scale(model.terms[i]) for i in which}, dfs)
+    out = constancies(kind, used, vals, ses, ivs, {i: model.labels[i] for i in which},
+                      {i: _physical_scale(model.terms[i]) for i in which}, dfs)
+    for i in describe if len(used) >= 2 else ():
+        out[model.labels[i]] = Constancy(kind, {name: (float(v[i]), float(iv[0, i]), float(iv[1, i]))
+                                                for name, v, iv in zip(used, vals, ivs)}, math.nan, None)
+    return out
 
 
 def _physical_scale(term: sp.Expr) -> tuple[float, str] | None:

@@ -25,9 +25,10 @@ import sympy as sp
 from droneid.core.constraint_samples import constraint_rmse
 from droneid.dataset.data import Dataset
 from droneid.fitting.constancy import Constancy
+from droneid.fitting.flight_conditions import explained
 from droneid.fitting.decide import decide
 from droneid.errors import ConfigError, DataError
-from droneid.core.expressions import round_expr, symbol, to_text
+from droneid.core.expressions import evaluate_expr, round_expr, symbol, to_text
 from droneid.fitting.closed_form import IdentifiedModel
 from droneid.core.numerics import rmse, to_float
 from droneid.fitting.physics_guard import ACCELERATION, guard_terms
@@ -35,9 +36,10 @@ from droneid.core.text import display_term
 from droneid.identify.search import run_seeds
 from droneid.sngp.model import SymbolicModel
 from droneid.core.targets import velocity_of
-from droneid.fitting.terms import (TermModel, constancy_of, defined_samples, drag_slope, drop_negligible, evaluate_expr, physical_fit,
+from droneid.fitting.terms import (TermModel, constancy_of, defined_samples, drag_slope, drop_negligible, physical_fit,
                     plausible, prior_terms, trim_terms)
 from droneid.dataset.validation import time_blocks, validation_blocks
+from droneid.planning.plan import OFFSET_GRID_S
 from priors.effect_catalogue.attitude_delay import attitude_rate
 
 if TYPE_CHECKING:
@@ -227,22 +229,24 @@ def rung(name: str, description: str, model, train: Dataset, test: Dataset, cs, 
 
 
 #: the attitude alignment's bound (s) in :func:`per_flight_condition_lead`: the thrust offset grid's reach
-ALIGN_MAX_S = 0.1
+ALIGN_MAX_S = max(OFFSET_GRID_S)
 
 
 def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     """One sentence testing the simplest flight conditions behind vehicle constants that move
     between flights ("" when none moves, or with one training flight): the final physical model
     (its held coefficients kept) refitted on each flight alone with one condition of that
-    flight's own, by the same constancy test (:func:`droneid.fitting.terms.constancy_of`):
+    flight's own, by the same constancy test (:func:`droneid.fitting.terms.constancy_of`), and
+    read by :func:`droneid.fitting.constancy.explained` (a constant the refit holds only because
+    the condition made every flight's estimate too uncertain is "not told apart"):
 
     * a constant acceleration (what a wind that differs between flights does to a drag term,
       ``k_D·w``);
-    * the attitude read at a time alignment of its own, ``|τ|`` ≤ :data:`ALIGN_MAX_S` (a clock
-      offset of the attitude stream: the terms' change with the attitude's rate,
-      :func:`priors.effect_catalogue.attitude_delay.attitude_rate`, as a column with coefficient
-      τ). On a path that brakes at corners the tilt's rate follows the velocity, so a few ms of
-      alignment move a drag term.
+    * the attitude read at a time alignment of its own, ``|τ|`` ≤ :data:`ALIGN_MAX_S` s (a clock
+      offset of the attitude stream: the terms' change with the attitude's rate, weighted by
+      their fitted coefficients, :func:`priors.effect_catalogue.attitude_delay.attitude_rate`, as
+      a column whose coefficient is τ; each flight's τ is reported). On a path that brakes at
+      corners the tilt's rate follows the velocity, so a few ms of alignment move a drag term.
 
     A constant that holds then is moved by something per flight, not by the vehicle."""
     bad = [lab for lab, c in final.constancy.items() if c.constant is False and c.unit == "flight"]
@@ -259,24 +263,48 @@ def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
         return ""
     free = sorted({tm.labels.index(lab) for lab in final.constancy if lab in tm.labels} | set(which))
     cols, tr = p.train.columns(), p.train
-    out = []
-
-    def again(model, columns, what):
-        res = constancy_of(model, columns, tr.y, which, tr.flight, tr.t, tr.sources, free=free)
-        out.append(what + ", " + "; ".join(f"{lab} p = {c.p:.2g}: {'constant' if c.constant else 'still NOT constant'}"
-                                           for lab, c in res.items()))
-    again(replace(held, intercept_bounds=(-math.inf, math.inf)), cols,
-          "with a constant acceleration of its own on each training flight (what a wind that differs "
-          "between flights does to a drag term, k_D·w)")
-    rate = attitude_rate(tm.terms, cols, tr.t, tr.flight)
+    out = [_refit_lead(held, cols, tr, np.ones(len(tr), bool), which, free, final.constancy,
+                       "with a constant acceleration of its own on each training flight (what a wind that "
+                       "differs between flights does to a drag term, k_D·w)", intercept=True)]
+    weights = [final.terms.get(lab, final.held.get(lab, 1.0)) for lab in tm.labels]
+    rate = attitude_rate(tm.terms, cols, tr.t, tr.flight, weights=weights)
     if rate is not None:
         name = "attitude_alignment_s"
         aligned = replace(held, terms=(*held.terms, symbol(name)), labels=(*held.labels, "attitude alignment"),
                           lo=(*held.lo, -ALIGN_MAX_S), hi=(*held.hi, ALIGN_MAX_S))
-        again(aligned, {**cols, name: rate},
-              f"with the attitude read at a time alignment of its own on each training flight (|τ| ≤ "
-              f"{1000 * ALIGN_MAX_S:.0f} ms: what a clock offset of the attitude stream does)")
+        ok = np.isfinite(rate)
+        left = f"; {int(np.sum(~ok))} rows without an attitude rate left out" if not ok.all() else ""
+        out.append(_refit_lead(aligned, {**cols, name: rate}, tr, ok, which, free, final.constancy,
+                               f"with the attitude read at a time alignment of its own on each training flight "
+                               f"(|τ| ≤ {1000 * ALIGN_MAX_S:.0f} ms: what a clock offset of the attitude stream "
+                               f"does{left})", describe=len(held.terms)))
     return "; ".join(out)
+
+
+def _refit_lead(model: TermModel, cols, tr: Dataset, rows: np.ndarray, which, free, before, what: str, *,
+                intercept: bool = False, describe: int | None = None) -> str:
+    """One condition's part of :func:`per_flight_condition_lead`: ``model`` (with the intercept
+    free when ``intercept``: an acceleration per flight) refit on each training flight's
+    ``rows``, each constant ``which`` read by :func:`droneid.fitting.constancy.explained` against
+    its record ``before``, and the per-flight values of the condition's coefficient
+    ``describe`` (an alignment in s, said in ms)."""
+    if intercept:
+        model = replace(model, intercept_bounds=(-math.inf, math.inf))
+    sub = {n: np.asarray(v)[rows] for n, v in cols.items()}
+    res = constancy_of(model, sub, tr.y[rows], which, tr.flight[rows], tr.t[rows], tr.sources,
+                       free=free, describe=() if describe is None else (describe,))
+    said = explained({lab: before[lab] for lab in res if lab in before}, res)
+    parts = []
+    for lab, (word, growth) in said.items():
+        why = (f" (with it free each flight's estimate is {growth:.2g}x less certain: too uncertain to show the "
+               f"spread it had)" if word == "not told apart" else "")
+        parts.append(f"{lab} p = {res[lab].p:.2g}: {word}{why}")
+    if describe is not None and model.labels[describe] in res:
+        per = res[model.labels[describe]].per_unit.values()
+        parts.append("each flight's alignment " + ", ".join(
+            f"{1000 * v:+.0f}" + ("(at its bound)" if abs(v) >= 0.999 * ALIGN_MAX_S else "") for v, _, _ in per)
+            + " ms")
+    return what + ", " + "; ".join(parts)
 
 
 def _physical_model(p: TargetProblem, features) -> TermModel:

@@ -36,7 +36,8 @@ from droneid.logs.flight import distinct_flights
 from droneid.errors import ConfigError, DataError
 from droneid.dataset.suitability import check_prior_data
 from droneid.fitting.closed_form import SCHEMA, IdentifiedModel
-from droneid.fitting.constancy import SHARED_ROLES, across_targets, constancy_sentence, leads, one_factor_per_flight
+from droneid.fitting.constancy import SHARED_ROLES, across_targets, constancy_sentence, leads
+from droneid.fitting.flight_conditions import one_factor_per_flight
 from droneid.identify.ladder import TERM_ALPHA, final_rung, per_flight_condition_lead, trivial_errors
 from droneid.use.predict import models_from_document, open_loop_section
 from droneid.diagnosis.diagnose import plan_identification

@@ -39,13 +39,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from droneid.core.expressions import parse_expression
+from droneid.core.expressions import evaluate_expr, parse_expression
 from droneid.dataset.validation import time_blocks
 from droneid.errors import DroneIdError
 from droneid.fitting.constancy import (ALPHA, MIN_UNIT_ROWS, VEHICLE_CONSTANT_ROLES, holm_flags, moved,
                                        new_flight_expectation, new_flight_p, rule_text, unit_bounds,
                                        unit_estimate)
-from droneid.fitting.terms import IDENTIFIABLE_REL, evaluate_expr
+from droneid.fitting.terms import IDENTIFIABLE_REL
 
 __all__ = ["ConstantCheck", "identified_constants", "check_constants", "constants_line"]
 

@@ -9,8 +9,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from droneid.core.expressions import compile_expression
 from droneid.core.targets import TARGETS
+from droneid.core.expressions import evaluate_expr
 from priors.effect_signals import time_derivative
 from priors.effects import TILT, Effect, Interpretation
 
@@ -30,29 +30,34 @@ def _interpret(coef, base):
 
 
 def attitude_rate(terms: Sequence[sp.Expr], columns: Mapping[str, np.ndarray], t: np.ndarray,
-                  flight: np.ndarray, half_window_s: float = 0.1) -> np.ndarray | None:
-    """The change of the terms' sum per second of attitude alignment (units of the terms per s):
-    Σ ∂term/∂angle · d(angle)/dt over the Euler angles the ``terms`` read (yaw unwrapped), the
-    other signals (the thrust's motor speeds) held: ``Σ term(att(t + τ)) ≈ Σ term + τ ·`` this.
-    Unlike the effect's dG/dt it leaves the thrust magnitude's own rate out (its timing is the
-    thrust offset's). None when no term reads an angle the columns have."""
-    out = np.zeros(np.asarray(t).size)
+                  flight: np.ndarray, half_window_s: float = 0.1,
+                  weights: Sequence[float] | None = None) -> np.ndarray | None:
+    """The change of the weighted terms' sum per second of attitude alignment (units of the terms
+    per s): Σ w_i ∂term_i/∂angle · d(angle)/dt over the Euler angles the ``terms`` read (yaw
+    unwrapped), the other signals (the thrust's motor speeds) held, ``weights`` the terms'
+    fitted coefficients (None: 1 each): ``Σ w_i term_i(att(t + τ)) ≈ Σ w_i term_i + τ ·`` this, so
+    its coefficient is the alignment τ in s. Unlike the effect's dG/dt it leaves the thrust
+    magnitude's own rate out (its timing is the thrust offset's). Rows where it cannot be
+    evaluated are NaN (a fit leaves them out). None when no term reads an angle the columns
+    have, or a term's derivative reads a signal they lack."""
+    n = np.asarray(t).size
+    out = np.zeros(n)
     found = False
-    for term in terms:
+    for term, w in zip(terms, weights if weights is not None else [1.0] * len(terms)):
         for sym in term.free_symbols:
             if sym.name not in ANGLES or sym.name not in columns:
                 continue
             part = sp.diff(term, sym)
-            names = sorted(s.name for s in part.free_symbols)
-            if any(n not in columns for n in names):
+            if any(s.name not in columns for s in part.free_symbols):
                 return None
-            angle = np.asarray(columns[sym.name], float)
-            rate = time_derivative(np.unwrap(angle) if sym.name == "yaw" else angle, t, flight, half_window_s)
-            value = compile_expression(part, names)({n: np.asarray(columns[n], float) for n in names} or
-                                                   {"_": out})
-            out = out + np.broadcast_to(value, out.shape) * rate
+            angle = np.array(columns[sym.name], float)
+            if sym.name == "yaw":
+                ok = np.isfinite(angle)
+                angle[ok] = np.unwrap(angle[ok])
+            rate = time_derivative(angle, t, flight, half_window_s)
+            out = out + float(w) * evaluate_expr(part, columns, n) * rate
             found = True
-    return out if found and np.all(np.isfinite(out)) else None
+    return out if found else None
 
 
 #: largest attitude delay (s) taken for an estimator's or a stream's lag

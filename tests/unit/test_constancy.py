@@ -6,10 +6,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import sympy as sp
 
 from droneid.fitting.constancy import (ALPHA, Constancy, constancy_line, constancy_sentence, heterogeneity,
-                               holm_flags, n_stretches, one_factor_per_flight, units_of)
+                               holm_flags, n_stretches, units_of)
+from droneid.fitting.flight_conditions import explained, one_factor_per_flight
 from droneid.fitting.terms import TermModel, physical_fit
 from droneid.dataset.validation import time_blocks
 
@@ -313,3 +315,25 @@ def test_a_payload_per_flight_is_one_thrust_factor_on_every_axis():
     still = one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x, "⟨y⟩": y_loose, "⟨z⟩": z_still})
     assert "still NOT constant (⟨z⟩ does not move with it)" in still["⟨x⟩"]
     assert one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x}) == {}         # no other axis: nothing to test
+
+
+def test_a_condition_holds_a_constant_only_if_its_noise_would_still_show_the_spread():
+    """explained(): a refit that holds because its standard errors grew until the old spread
+    hides in them is "not told apart"; one that holds with the old precision is "constant"; one
+    that still moves is "still NOT constant"."""
+    flights = [f"f{i}" for i in range(5)]
+
+    def record(values, se, constant, df=9.0):
+        per = {f: (float(v), float(v - 1.96 * se), float(v + 1.96 * se)) for f, v in zip(flights, values)}
+        return Constancy("flight", per, math.nan, constant, noise={f: (se, df) for f in flights})
+
+    spread = np.array([0.9, 1.1, 1.0, 1.25, 0.8])
+    before = {"⟨k⟩": record(spread, 0.02, False)}
+    same = record(np.full(5, 1.0) + np.array([0.01, -0.01, 0.0, 0.005, -0.005]), 0.02, True)
+    blurred = record(spread, 0.3, True)
+    moving = record(spread, 0.02, False)
+    assert explained(before, {"⟨k⟩": same}) == {"⟨k⟩": ("constant", 1.0)}
+    word, growth = explained(before, {"⟨k⟩": blurred})["⟨k⟩"]
+    assert word == "not told apart" and growth == pytest.approx(15.0)
+    assert explained(before, {"⟨k⟩": moving})["⟨k⟩"][0] == "still NOT constant"
+    assert explained(before, {"⟨other⟩": same}) == {}          # nothing to compare with

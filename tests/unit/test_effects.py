@@ -316,3 +316,14 @@ def test_attitude_rate_is_the_terms_change_per_second_of_attitude_alignment():
     inner = slice(5, -5)
     assert np.max(np.abs(got[inner] - want[inner])) < 0.01 * np.max(np.abs(want))
     assert attitude_rate([S * 2.0], cols, t, flight) is None
+    # weighted by the terms' fitted coefficients, so that its own coefficient is τ itself
+    two = attitude_rate([sp.sin(P) * sp.cos(Y) * S, 0.5 * sp.sin(P) * S], cols, t, flight, half_window_s=0.02,
+                        weights=[0.9, 2.0])
+    want2 = 0.9 * want + 2.0 * 0.5 * np.cos(pitch) * 0.6 * np.cos(2.0 * t) * thrust
+    assert np.max(np.abs(two[inner] - want2[inner])) < 0.01 * np.max(np.abs(want2))
+    # a missing sample leaves its neighbourhood NaN, the rest of the flight (yaw's unwrap too) intact
+    gap = {**cols, "yaw": np.where(np.arange(t.size) == 200, np.nan, yaw)}
+    holed = attitude_rate([sp.sin(P) * sp.cos(Y) * S], gap, t, flight, half_window_s=0.02)
+    ok = np.isfinite(holed)
+    assert 0 < np.sum(~ok) < 10 and np.max(np.abs(holed[inner][ok[inner]] - want[inner][ok[inner]])) \
+        < 0.01 * np.max(np.abs(want))
