@@ -31,9 +31,10 @@ def one_factor_per_flight(moved_terms: Mapping[str, Constancy], others: Mapping[
     flight's standard error from the two 95 % intervals (:func:`se_of_interval`, the axes'
     noise independent, the delta method), read as χ²(k − 1) as :class:`SharedConstant` reads its
     intervals, Holm over the moved terms and the spread rule (:func:`moved`). A ratio that holds
-    says such a per-flight condition explains the move; one that still moves says the
-    reference axis does not move with it. Terms with fewer than two flights in common with the
-    reference are left out."""
+    says such a per-flight condition explains the move ("constant") when the term's own spread
+    would still show with the ratios' relative noise (:func:`explained`'s power check), else
+    "not told apart"; one that still moves says the reference axis does not move with it. Terms
+    with fewer than two flights in common with the reference are left out."""
     tests = {}
     for lab, c in moved_terms.items():
         cands = {o: r for o, r in others.items() if o != lab and r.unit == "flight"}
@@ -41,25 +42,32 @@ def one_factor_per_flight(moved_terms: Mapping[str, Constancy], others: Mapping[
             continue
         ref = min(cands, key=lambda o: float(np.median([hi - lo for _, lo, hi in cands[o].per_unit.values()])))
         common = [f for f in c.per_unit if f in cands[ref].per_unit]
-        ratios, ses = [], []
+        values, ratios, rel = [], [], []
         for f in common:
             (a, a_lo, a_hi), (b, b_lo, b_hi) = c.per_unit[f], cands[ref].per_unit[f]
             if a == 0 or b == 0:
                 continue
+            values.append(a)
             ratios.append(a / b)
-            ses.append(abs(a / b) * math.hypot(se_of_interval(a_lo, a_hi) / a, se_of_interval(b_lo, b_hi) / b))
-        h = heterogeneity(ratios, ses)
+            rel.append(math.hypot(se_of_interval(a_lo, a_hi) / a, se_of_interval(b_lo, b_hi) / b))
+        h = heterogeneity(ratios, np.abs(ratios) * np.asarray(rel))
         if math.isfinite(h["p"]):
-            tests[lab] = (ref, ratios, h)
-    flags = holm_flags({lab: h["p"] for lab, (_, _, h) in tests.items()})
+            # the power check of explained(): the spread the term had, read with the ratios' noise
+            power = heterogeneity(values, np.abs(values) * np.asarray(rel))
+            tests[lab] = (ref, ratios, h, power)
+    flags = holm_flags({lab: t[2]["p"] for lab, t in tests.items()})
+    shows = holm_flags({lab: t[3]["p"] for lab, t in tests.items()})
     out = {}
-    for lab, (ref, ratios, h) in tests.items():
-        still = moved(flags[lab], h["tau"], h["mean"])
+    for lab, (ref, ratios, h, power) in tests.items():
+        if moved(flags[lab], h["tau"], h["mean"]):
+            word = f"still NOT constant ({ref} does not move with it)"
+        elif moved(shows[lab], power["tau"], power["mean"]):
+            word = "constant (the axes' thrust moves together from flight to flight)"
+        else:
+            word = f"not told apart ({ref} too uncertain per flight to show the spread {lab} had)"
         out[lab] = (f"with a payload or a battery of its own on each training flight (one factor on every axis's "
                     f"thrust per unit mass: {lab} / {ref} per flight {min(ratios):.4g}-{max(ratios):.4g}, "
-                    f"p = {h['p']:.2g}, spread τ {spread_text(100 * h['tau'] / abs(h['mean']))}): "
-                    + (f"still NOT constant ({ref} does not move with it)" if still else
-                       "constant (the axes' thrust moves together from flight to flight)"))
+                    f"p = {h['p']:.2g}, spread τ {spread_text(100 * h['tau'] / abs(h['mean']))}): {word}")
     return out
 
 

@@ -337,3 +337,18 @@ def test_a_condition_holds_a_constant_only_if_its_noise_would_still_show_the_spr
     assert word == "not told apart" and growth == pytest.approx(15.0)
     assert explained(before, {"⟨k⟩": moving})["⟨k⟩"][0] == "still NOT constant"
     assert explained(before, {"⟨other⟩": same}) == {}          # nothing to compare with
+
+
+def test_a_payload_test_against_a_blurred_axis_tells_nothing():
+    """The payload lead's power check: a reference axis so uncertain per flight that the moved
+    term's own spread would not show through the ratios is "not told apart", not "constant"."""
+    flights = [f"f{i}" for i in range(5)]
+
+    def record(values, se):
+        return Constancy("flight", {f: (float(v), float(v - 1.96 * se), float(v + 1.96 * se))
+                                    for f, v in zip(flights, values)}, 1e-6, False)
+
+    x = record([1.0, 0.96, 1.04, 0.93, 1.07], 0.004)
+    z = record([1.0, 1.0, 1.0, 1.0, 1.0], 0.2)
+    said = one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x, "⟨z⟩": z})["⟨x⟩"]
+    assert said.endswith("not told apart (⟨z⟩ too uncertain per flight to show the spread ⟨x⟩ had)"), said
