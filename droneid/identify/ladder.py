@@ -237,7 +237,7 @@ def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     between flights ("" when none moves, or with one training flight): the final physical model
     (its held coefficients kept) refitted on each flight alone with one condition of that
     flight's own, by the same constancy test (:func:`droneid.fitting.terms.constancy_of`), and
-    read by :func:`droneid.fitting.constancy.explained` (a constant the refit holds only because
+    read by :func:`droneid.fitting.flight_conditions.explained` (a constant the refit holds only because
     the condition made every flight's estimate too uncertain is "not told apart"):
 
     * a constant acceleration (what a wind that differs between flights does to a drag term,
@@ -266,7 +266,7 @@ def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     out = [_refit_lead(held, cols, tr, np.ones(len(tr), bool), which, free, final.constancy,
                        "with a constant acceleration of its own on each training flight (what a wind that "
                        "differs between flights does to a drag term, k_D·w)", intercept=True)]
-    weights = [final.terms.get(lab, final.held.get(lab, 1.0)) for lab in tm.labels]
+    weights = [_fitted_scale(final, lab) for lab in tm.labels]
     rate = attitude_rate(tm.terms, cols, tr.t, tr.flight, weights=weights)
     if rate is not None:
         name = "attitude_alignment_s"
@@ -281,11 +281,23 @@ def per_flight_condition_lead(p: TargetProblem, final: Rung) -> str:
     return "; ".join(out)
 
 
+def _fitted_scale(final: Rung, label: str) -> float:
+    """The final rung's coefficient of the physical term ``label``: its own, held, or the scale of
+    the tied group it joined (``⟨a + b⟩``); 0 when the rung dropped it."""
+    if label in final.terms:
+        return float(final.terms[label])
+    if label in final.held:
+        return float(final.held[label])
+    inner = label.strip("⟨⟩")
+    tied = [v for lab, v in final.terms.items() if inner in lab.strip("⟨⟩").split(" + ")]
+    return float(tied[0]) if tied else 0.0
+
+
 def _refit_lead(model: TermModel, cols, tr: Dataset, rows: np.ndarray, which, free, before, what: str, *,
                 intercept: bool = False, describe: int | None = None) -> str:
     """One condition's part of :func:`per_flight_condition_lead`: ``model`` (with the intercept
     free when ``intercept``: an acceleration per flight) refit on each training flight's
-    ``rows``, each constant ``which`` read by :func:`droneid.fitting.constancy.explained` against
+    ``rows``, each constant ``which`` read by :func:`droneid.fitting.flight_conditions.explained` against
     its record ``before``, and the per-flight values of the condition's coefficient
     ``describe`` (an alignment in s, said in ms)."""
     if intercept:
@@ -294,16 +306,22 @@ def _refit_lead(model: TermModel, cols, tr: Dataset, rows: np.ndarray, which, fr
     res = constancy_of(model, sub, tr.y[rows], which, tr.flight[rows], tr.t[rows], tr.sources,
                        free=free, describe=() if describe is None else (describe,))
     said = explained({lab: before[lab] for lab in res if lab in before}, res)
+    per = res[model.labels[describe]].per_unit if describe is not None and model.labels[describe] in res else {}
+    pinned = [f for f, (v, _, _) in per.items() if abs(v) >= 0.999 * ALIGN_MAX_S]
     parts = []
     for lab, (word, growth) in said.items():
-        why = (f" (with it free each flight's estimate is {growth:.2g}x less certain: too uncertain to show the "
-               f"spread it had)" if word == "not told apart" else "")
-        parts.append(f"{lab} p = {res[lab].p:.2g}: {word}{why}")
-    if describe is not None and model.labels[describe] in res:
-        per = res[model.labels[describe]].per_unit.values()
+        if word == "constant" and pinned:      # a coefficient at its bound has no spread to lend the others
+            word, why = "not told apart", f" ({', '.join(pinned)} at the alignment's bound)"
+        elif word == "not told apart" and math.isfinite(growth):
+            why = (f" (with it free each flight's estimate is {growth:.2g}x as uncertain: too uncertain to show "
+                   f"the spread it had)")
+        else:
+            why = ""
+        p_text = f" p = {res[lab].p:.2g}" if math.isfinite(res[lab].p) else ""
+        parts.append(f"{lab}{p_text}: {word}{why}")
+    if per:
         parts.append("each flight's alignment " + ", ".join(
-            f"{1000 * v:+.0f}" + ("(at its bound)" if abs(v) >= 0.999 * ALIGN_MAX_S else "") for v, _, _ in per)
-            + " ms")
+            f"{f} {1000 * v:+.0f} ms" + (" (at its bound)" if f in pinned else "") for f, (v, _, _) in per.items()))
     return what + ", " + "; ".join(parts)
 
 

@@ -173,7 +173,7 @@ def shared_constants(results: Mapping[str, TargetResult], problems: Mapping[str,
 
 
 def _payload_leads(results: Mapping[str, TargetResult], problems: Mapping[str, TargetProblem]) -> dict[str, str]:
-    """{thrust term label: lead sentence} of :func:`droneid.fitting.constancy.one_factor_per_flight`
+    """{thrust term label: lead sentence} of :func:`droneid.fitting.flight_conditions.one_factor_per_flight`
     over every target's prior thrust terms tested across the training flights."""
     thrust = {}
     for t, r in results.items():

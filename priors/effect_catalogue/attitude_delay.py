@@ -43,7 +43,7 @@ def attitude_rate(terms: Sequence[sp.Expr], columns: Mapping[str, np.ndarray], t
     n = np.asarray(t).size
     out = np.zeros(n)
     found = False
-    for term, w in zip(terms, weights if weights is not None else [1.0] * len(terms)):
+    for term, w in zip(terms, weights if weights is not None else [1.0] * len(terms), strict=True):
         for sym in term.free_symbols:
             if sym.name not in ANGLES or sym.name not in columns:
                 continue

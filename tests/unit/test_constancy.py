@@ -309,7 +309,7 @@ def test_a_payload_per_flight_is_one_thrust_factor_on_every_axis():
 
     held = one_factor_per_flight({"⟨x⟩": x, "⟨z⟩": z_with}, {"⟨x⟩": x, "⟨y⟩": y_loose, "⟨z⟩": z_with})
     assert set(held) == {"⟨x⟩", "⟨z⟩"}
-    assert "⟨x⟩ / ⟨z⟩" in held["⟨x⟩"] and "⟨z⟩ / ⟨x⟩" in held["⟨z⟩"]        # the precise axis, not y
+    assert "⟨x⟩ / ⟨z⟩" in held["⟨x⟩"] and held["⟨z⟩"] == held["⟨x⟩"]   # the precise axis, not y; one test
     assert all(s.endswith("constant (the axes' thrust moves together from flight to flight)") for s in held.values())
 
     still = one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x, "⟨y⟩": y_loose, "⟨z⟩": z_still})
@@ -337,6 +337,10 @@ def test_a_condition_holds_a_constant_only_if_its_noise_would_still_show_the_spr
     assert word == "not told apart" and growth == pytest.approx(15.0)
     assert explained(before, {"⟨k⟩": moving})["⟨k⟩"][0] == "still NOT constant"
     assert explained(before, {"⟨other⟩": same}) == {}          # nothing to compare with
+    untested = Constancy("flight", same.per_unit, math.nan, None, noise=same.noise)
+    assert explained(before, {"⟨k⟩": untested})["⟨k⟩"][0] == "untestable"
+    stretches = Constancy("stretch", same.per_unit, 0.5, True, noise=same.noise)
+    assert explained(before, {"⟨k⟩": stretches})["⟨k⟩"][0] == "untestable"   # not the same units
 
 
 def test_a_payload_test_against_a_blurred_axis_tells_nothing():
@@ -352,3 +356,20 @@ def test_a_payload_test_against_a_blurred_axis_tells_nothing():
     z = record([1.0, 1.0, 1.0, 1.0, 1.0], 0.2)
     said = one_factor_per_flight({"⟨x⟩": x}, {"⟨x⟩": x, "⟨z⟩": z})["⟨x⟩"]
     assert said.endswith("not told apart (⟨z⟩ too uncertain per flight to show the spread ⟨x⟩ had)"), said
+
+
+def test_the_payload_test_reads_each_flight_s_noise_as_the_constancy_test_did():
+    """The ratio's standard errors and degrees of freedom are the ones the constancy test read
+    (Constancy.noise), not the narrower percentile intervals: the same spread flagged with the
+    intervals' noise is not flagged with the test's own."""
+    flights = [f"f{i}" for i in range(5)]
+    x_vals = 1.0 + np.array([0.0, 0.01, -0.01, 0.02, -0.02])
+
+    def record(values, se, noise=None):
+        per = {f: (float(v), float(v - 1.96 * se), float(v + 1.96 * se)) for f, v in zip(flights, values)}
+        return Constancy("flight", per, 1e-6, False, noise={f: noise for f in flights} if noise else {})
+
+    z = record(np.ones(5), 0.001)
+    narrow = one_factor_per_flight({"⟨x⟩": record(x_vals, 0.002)}, {"⟨z⟩": z})["⟨x⟩"]
+    own = one_factor_per_flight({"⟨x⟩": record(x_vals, 0.002, (0.02, 4.0))}, {"⟨z⟩": z})["⟨x⟩"]
+    assert "still NOT constant" in narrow and "still NOT constant" not in own, (narrow, own)
