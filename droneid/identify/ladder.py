@@ -321,7 +321,8 @@ def _refit_lead(model: TermModel, cols, tr: Dataset, rows: np.ndarray, which, fr
         parts.append(f"{lab}{p_text}: {word}{why}")
     if per:
         parts.append("each flight's alignment " + ", ".join(
-            f"{f} {1000 * v:+.0f} ms" + (" (at its bound)" if f in pinned else "") for f, (v, _, _) in per.items()))
+            f"{f} {round(1000 * v):+d} ms" + (" (at its bound)" if f in pinned else "") for f, (v, _, _) in per.items()
+            if math.isfinite(v)))
     return what + ", " + "; ".join(parts)
 
 
